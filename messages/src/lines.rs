@@ -1,0 +1,134 @@
+//! `EdgeMap`, `Lines2D`, `Points3D` and `Lines3D`: the line pipeline.
+use iceoryx2::prelude::ZeroCopySend;
+
+use crate::Stamp;
+
+/// Header of an `EdgeMap` message; the payload is `[EdgePixel]` in row-major order.
+#[derive(Debug, Default, Clone, Copy, ZeroCopySend)]
+#[repr(C)]
+#[type_name("lineflow/EdgeMap/v1")]
+pub struct EdgeMapHeader {
+    /// Common stamp.
+    pub stamp: Stamp,
+    /// Image width in pixels.
+    pub width: u32,
+    /// Image height in pixels.
+    pub height: u32,
+    /// Detector id, NUL-padded (`canny`, `sobel`, `log`).
+    pub detector: [u8; 16],
+}
+
+/// One edge pixel with its gradient.
+#[derive(Debug, Default, Clone, Copy, PartialEq, ZeroCopySend)]
+#[repr(C)]
+#[type_name("lineflow/EdgePixel/v1")]
+pub struct EdgePixel {
+    /// Pixel column.
+    pub col: u16,
+    /// Pixel row.
+    pub row: u16,
+    /// Gradient magnitude (3×3 Sobel on the 8-bit image).
+    pub magnitude: f32,
+    /// Gradient direction in radians, atan2(gy, gx) with y down.
+    pub direction_rad: f32,
+}
+
+/// Header of a `Lines2D` message. Two-part byte payload (see [`crate::parts`]): `[Segment2; n_segments]`, then
+/// `[[u16; 2]; n_chain]`, the (col, row) pixel chains the segments were fitted to.
+#[derive(Debug, Default, Clone, Copy, ZeroCopySend)]
+#[repr(C)]
+#[type_name("lineflow/Lines2D/v1")]
+pub struct Lines2DHeader {
+    /// Common stamp.
+    pub stamp: Stamp,
+    /// Number of segments.
+    pub n_segments: u32,
+    /// Number of chain pixels over all segments.
+    pub n_chain: u32,
+}
+
+/// A 2-D segment; endpoints in measured pixel coordinates, straight in corrected coordinates.
+#[derive(Debug, Default, Clone, Copy, PartialEq, ZeroCopySend)]
+#[repr(C)]
+#[type_name("lineflow/Segment2/v1")]
+pub struct Segment2 {
+    /// Segment id, unique within the frame.
+    pub id: u32,
+    /// First chain pixel of this segment.
+    pub chain_start: u32,
+    /// Number of chain pixels.
+    pub chain_len: u32,
+    /// Padding, zero.
+    pub reserved: u32,
+    /// First endpoint (col, row).
+    pub start_px: [f64; 2],
+    /// Second endpoint (col, row).
+    pub end_px: [f64; 2],
+}
+
+/// Header of a `Points3D` message. Two-part byte payload: `[PointGroup; n_groups]`, then `[Point3; n_points]`.
+#[derive(Debug, Default, Clone, Copy, ZeroCopySend)]
+#[repr(C)]
+#[type_name("lineflow/Points3D/v1")]
+pub struct Points3DHeader {
+    /// Common stamp.
+    pub stamp: Stamp,
+    /// Number of groups (one per matched 2-D line).
+    pub n_groups: u32,
+    /// Number of points over all groups.
+    pub n_points: u32,
+}
+
+/// The matched object points of one 2-D line.
+#[derive(Debug, Default, Clone, Copy, PartialEq, ZeroCopySend)]
+#[repr(C)]
+#[type_name("lineflow/PointGroup/v1")]
+pub struct PointGroup {
+    /// Id of the 2-D segment in the master frame (`stamp.frame`).
+    pub segment_id: u32,
+    /// First point of the group.
+    pub start: u32,
+    /// Number of points.
+    pub len: u32,
+    /// Padding, zero.
+    pub reserved: u32,
+}
+
+/// A matched object point.
+#[derive(Debug, Default, Clone, Copy, PartialEq, ZeroCopySend)]
+#[repr(C)]
+#[type_name("lineflow/Point3/v1")]
+pub struct Point3 {
+    /// Object coordinates in metres.
+    pub xyz: [f64; 3],
+    /// Mean normalised cross-correlation over the slaves.
+    pub sncc: f64,
+}
+
+/// Header of a `Lines3D` message; the payload is `[Line3]`.
+#[derive(Debug, Default, Clone, Copy, ZeroCopySend)]
+#[repr(C)]
+#[type_name("lineflow/Lines3D/v1")]
+pub struct Lines3DHeader {
+    /// Common stamp.
+    pub stamp: Stamp,
+}
+
+/// A 3-D segment (`lines3d.csv`).
+#[derive(Debug, Default, Clone, Copy, PartialEq, ZeroCopySend)]
+#[repr(C)]
+#[type_name("lineflow/Line3/v1")]
+pub struct Line3 {
+    /// Line id.
+    pub id: u64,
+    /// First endpoint in metres.
+    pub start_m: [f64; 3],
+    /// Second endpoint in metres.
+    pub end_m: [f64; 3],
+    /// Supporting points.
+    pub n_points: u32,
+    /// Supporting images.
+    pub n_images: u32,
+    /// RMS distance of the inliers from the line, metres.
+    pub rms_m: f64,
+}

@@ -1,0 +1,33 @@
+//! `Wireframe`: the building model.
+use iceoryx2::prelude::ZeroCopySend;
+
+use crate::Stamp;
+
+/// Header of a `Wireframe` message. Two-part byte payload: `[[f64; 3]; n_vertices]` in metres, then
+/// `[WireEdge; n_edges]`.
+#[derive(Debug, Default, Clone, Copy, ZeroCopySend)]
+#[repr(C)]
+#[type_name("lineflow/Wireframe/v1")]
+pub struct WireframeHeader {
+    /// Common stamp; `stamp.revision` counts refinements.
+    pub stamp: Stamp,
+    /// Number of vertices.
+    pub n_vertices: u32,
+    /// Number of edges.
+    pub n_edges: u32,
+}
+
+/// An edge between two vertices.
+#[derive(Debug, Default, Clone, Copy, PartialEq, Eq, ZeroCopySend)]
+#[repr(C)]
+#[type_name("lineflow/WireEdge/v1")]
+pub struct WireEdge {
+    /// First vertex index.
+    pub a: u32,
+    /// Second vertex index.
+    pub b: u32,
+    /// Face the edge bounds (index into the model's faces, u32::MAX when none).
+    pub face: u32,
+    /// 0 wall, 1 roof, 2 opening, 3 ground.
+    pub kind: u32,
+}
