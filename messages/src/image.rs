@@ -69,7 +69,14 @@ pub struct ImageHeader {
 
 impl Default for ImageHeader {
     fn default() -> Self {
-        Self { stamp: Stamp::default(), width: 0, height: 0, step: 0, encoding: 0, name: [0; 64] }
+        Self {
+            stamp: Stamp::default(),
+            width: 0,
+            height: 0,
+            step: 0,
+            encoding: 0,
+            name: [0; 64],
+        }
     }
 }
 

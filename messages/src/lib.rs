@@ -25,10 +25,10 @@ pub use camera::CameraModelHeader;
 pub use control::{ControlPoint, ControlPointsHeader, Observation, ObservationsHeader, SiteHeader, Wall};
 pub use features::{Keypoint, KeypointsHeader, TiePoint, TiePointsHeader};
 pub use image::{Encoding, ImageHeader};
-pub use lines::{EdgeMapHeader, EdgePixel, Line3, Lines2DHeader, Lines3DHeader, Points3DHeader, PointGroup, Point3, Segment2};
+pub use lines::{EdgeMapHeader, EdgePixel, Line3, Lines2DHeader, Lines3DHeader, Point3, PointGroup, Points3DHeader, Segment2};
 pub use model::{WireEdge, WireframeHeader};
 pub use poses::{Pose, PosesHeader};
-pub use registry::{Message, MessageKind};
+pub use registry::{kinds, Message, MessageKind};
 pub use stamp::{Stamp, StampFlags};
 pub use status::NodeStatus;
 

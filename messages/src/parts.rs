@@ -27,7 +27,11 @@ pub struct PartsError {
 
 impl std::fmt::Display for PartsError {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        write!(f, "payload has {} bytes but its header's counts need {} (or it is misaligned)", self.have, self.need)
+        write!(
+            f,
+            "payload has {} bytes but its header's counts need {} (or it is misaligned)",
+            self.have, self.need
+        )
     }
 }
 impl std::error::Error for PartsError {}
@@ -62,7 +66,11 @@ pub fn split<A: ZeroCopySend + Copy, B: ZeroCopySend + Copy>(
 /// When `out` has the wrong length or alignment: a programming error in the caller's loan size.
 pub fn write<A: ZeroCopySend + Copy, B: ZeroCopySend + Copy>(out: &mut [u8], a: &[A], b: &[B]) {
     let need = two_part_len::<A, B>(a.len(), b.len());
-    assert!(out.len() == need && (out.as_ptr() as usize) % 8 == 0, "two-part payload of {} bytes, need {need}", out.len());
+    assert!(
+        out.len() == need && (out.as_ptr() as usize) % 8 == 0,
+        "two-part payload of {} bytes, need {need}",
+        out.len()
+    );
     out.fill(0);
     let off_b = align8(std::mem::size_of_val(a));
     // SAFETY: sizes checked above; the regions do not overlap and A, B are plain-old-data.

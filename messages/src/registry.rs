@@ -122,7 +122,14 @@ mod tests {
 
     #[test]
     fn two_part_payload_round_trips() {
-        let segs = [Segment2 { id: 7, chain_start: 0, chain_len: 2, reserved: 0, start_px: [1.0, 2.0], end_px: [3.0, 4.0] }];
+        let segs = [Segment2 {
+            id: 7,
+            chain_start: 0,
+            chain_len: 2,
+            reserved: 0,
+            start_px: [1.0, 2.0],
+            end_px: [3.0, 4.0],
+        }];
         let chain = [[1u16, 2], [3, 4]];
         let mut buf = vec![0u64; 8];
         let bytes: &mut [u8] = unsafe { std::slice::from_raw_parts_mut(buf.as_mut_ptr().cast(), 64) };

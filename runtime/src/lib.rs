@@ -1,1 +1,30 @@
+//! The lineflow runtime: node SDK over iceoryx2, launch graphs, and the supervisor that runs them.
+#![warn(missing_docs)]
 
+pub mod describe;
+pub mod env;
+pub mod launch;
+pub mod logging;
+pub mod node;
+pub mod ports;
+pub mod report;
+pub mod runs;
+pub mod shm;
+pub mod supervisor;
+pub mod transport;
+
+pub use node::{Flow, NodeContext, RunEnd};
+pub use ports::{Input, Output, Received};
+
+/// Runs a node's body and turns an error into one line on stderr (`[node] error: ...`, causes joined by `: `) and
+/// exit status 1, instead of a debug dump with a backtrace.
+pub fn run_node(body: impl FnOnce() -> anyhow::Result<()>) -> std::process::ExitCode {
+    match body() {
+        Ok(()) => std::process::ExitCode::SUCCESS,
+        Err(e) => {
+            let node = std::env::var(env::NODE).unwrap_or_else(|_| "node".into());
+            eprintln!("[{node}] error: {e:#}");
+            std::process::ExitCode::FAILURE
+        }
+    }
+}

@@ -1,1 +1,11 @@
+//! The capture stage: sources of images. `folder` reads a project folder (`conventions.md`), once or watching it
+//! fill up as a tethered camera writes files.
+#![warn(missing_docs)]
 
+pub mod decode;
+pub mod natural;
+pub mod project;
+pub mod watch;
+
+pub use decode::{decode_file, DecodedImage};
+pub use project::{CameraFile, Project, ProjectError};

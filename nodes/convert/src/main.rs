@@ -1,1 +1,49 @@
-fn main(){}
+//! `lineflow-convert`: pixel-format conversion (`impl = "gray"`). Stateless: one output per input frame.
+use anyhow::{bail, Result};
+use lineflow_messages::{image::ImageHeader, kinds::Image, Encoding};
+use lineflow_runtime::{Flow, NodeContext};
+
+/// `gray` takes no parameters; any given is a typo worth an error.
+#[derive(serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+struct NoParams {}
+
+fn main() -> std::process::ExitCode {
+    lineflow_runtime::run_node(body)
+}
+
+fn body() -> Result<()> {
+    let ctx = NodeContext::from_env()?;
+    if ctx.implementation("gray") != "gray" {
+        bail!(
+            "node '{}': unknown convert impl '{}' (available: gray)",
+            ctx.name(),
+            ctx.implementation("gray")
+        );
+    }
+    let _: NoParams = ctx.params()?;
+    let (input, output) = (ctx.input::<Image>("images")?, ctx.output::<Image>("gray")?);
+    ctx.connect()?;
+    ctx.run(|| {
+        while let Some(msg) = input.receive()? {
+            let h = *msg.user_header();
+            let enc = Encoding::from_u32(h.encoding)
+                .ok_or_else(|| anyhow::anyhow!("frame {}: unknown encoding {}", h.stamp.frame, h.encoding))?;
+            let (w, ht) = (h.width as usize, h.height as usize);
+            let out = ImageHeader {
+                step: h.width,
+                encoding: Encoding::Mono8 as u32,
+                ..h
+            };
+            let mut result = Ok(());
+            output.publish_with(out, w * ht, |dst| {
+                result = lineflow_convert::gray_into(enc, w, ht, h.step as usize, msg.payload(), dst)
+            })?;
+            result.map_err(|e| anyhow::anyhow!("frame {}: {e}", h.stamp.frame))?;
+        }
+        Ok(if input.is_ended() { Flow::Stop } else { Flow::Continue })
+    })?;
+    output.end_of_stream()?;
+    ctx.finish();
+    Ok(())
+}

@@ -1,0 +1,215 @@
+//! `lineflow topics`, `echo` and `hz`: attaching to a running graph as one more subscriber.
+use std::process::ExitCode;
+use std::time::{Duration, Instant};
+
+use anyhow::{Context, Result};
+use iceoryx2::port::update_connections::UpdateConnections;
+use iceoryx2::prelude::*;
+use lineflow_messages::{kinds, Encoding, ImageHeader, Message, MessageKind};
+use lineflow_runtime::launch::{EdgeSpec, Graph};
+use lineflow_runtime::runs::RunRecord;
+use lineflow_runtime::transport;
+
+fn attach(run: Option<&str>) -> Result<(RunRecord, Graph, Node<ipc::Service>)> {
+    let rec = RunRecord::find(run)?;
+    let graph: Graph = serde_json::from_slice(&std::fs::read(&rec.graph).with_context(|| format!("run {}: graph file missing", rec.id))?)?;
+    let cfg = transport::config(&rec.prefix, &rec.root)?;
+    let node = transport::create_node(&cfg, &format!("cli-{}", std::process::id()))?;
+    Ok((rec, graph, node))
+}
+
+fn edge<'a>(graph: &'a Graph, topic: &str) -> Result<&'a EdgeSpec> {
+    graph.edges.iter().find(|e| e.topic == topic).with_context(|| {
+        let names: Vec<_> = graph.edges.iter().map(|e| e.topic.as_str()).collect();
+        format!("no topic '{topic}' in this run (topics: {})", names.join(", "))
+    })
+}
+
+/// Lists the run's topics with their types and live port counts.
+pub fn topics(run: Option<&str>) -> Result<ExitCode> {
+    let (rec, graph, node) = attach(run)?;
+    println!("run {} ({})", rec.id, graph.name);
+    println!(
+        "{:<20} {:<14} {:<9} {:>4} {:>4}  {} -> {}",
+        "topic", "type", "policy", "pubs", "subs", "from", "to"
+    );
+    for e in &graph.edges {
+        let (pubs, subs) = with_kind!(e.kind(), M => {
+            let s = transport::open_pubsub::<M>(&node, e, 0)?;
+            (s.dynamic_config().number_of_publishers(), s.dynamic_config().number_of_subscribers().saturating_sub(1))
+        });
+        println!(
+            "{:<20} {:<14} {:<9} {:>4} {:>4}  {} -> {}",
+            e.topic,
+            e.message,
+            format!("{:?}", e.policy).to_lowercase(),
+            pubs,
+            subs,
+            e.from,
+            e.to.join(",")
+        );
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+/// Calls `$body` with `$M` bound to the marker type of a [`MessageKind`].
+macro_rules! with_kind {
+    ($kind:expr, $M:ident => $body:expr) => {
+        match $kind {
+            MessageKind::Image => {
+                type $M = kinds::Image;
+                $body
+            }
+            MessageKind::CameraModel => {
+                type $M = kinds::CameraModel;
+                $body
+            }
+            MessageKind::ControlPoints => {
+                type $M = kinds::ControlPoints;
+                $body
+            }
+            MessageKind::Observations => {
+                type $M = kinds::Observations;
+                $body
+            }
+            MessageKind::Site => {
+                type $M = kinds::Site;
+                $body
+            }
+            MessageKind::Keypoints => {
+                type $M = kinds::Keypoints;
+                $body
+            }
+            MessageKind::TiePoints => {
+                type $M = kinds::TiePoints;
+                $body
+            }
+            MessageKind::Poses => {
+                type $M = kinds::Poses;
+                $body
+            }
+            MessageKind::EdgeMap => {
+                type $M = kinds::EdgeMap;
+                $body
+            }
+            MessageKind::Lines2D => {
+                type $M = kinds::Lines2D;
+                $body
+            }
+            MessageKind::Points3D => {
+                type $M = kinds::Points3D;
+                $body
+            }
+            MessageKind::Lines3D => {
+                type $M = kinds::Lines3D;
+                $body
+            }
+            MessageKind::Wireframe => {
+                type $M = kinds::Wireframe;
+                $body
+            }
+        }
+    };
+}
+use with_kind;
+
+/// One line per message: stamp and payload size (and the image geometry for images).
+fn describe<M: Message>(header: &M::Header, elements: usize) -> String {
+    let s = M::stamp(header);
+    let mut line = format!(
+        "frame {:>6}  seq {:>6}  t {}.{:09}  rev {}  flags {:#x}  {} elements ({} B)",
+        s.frame,
+        s.seq,
+        s.capture_time_ns / 1_000_000_000,
+        s.capture_time_ns % 1_000_000_000,
+        s.revision,
+        s.flags,
+        elements,
+        elements * size_of::<M::Element>()
+    );
+    if M::KIND == MessageKind::Image {
+        // SAFETY: M::Header is ImageHeader when the kind is Image (one registry entry each).
+        let h = unsafe { &*(header as *const M::Header as *const ImageHeader) };
+        line += &format!(
+            "  {}x{} {} {}",
+            h.width,
+            h.height,
+            Encoding::from_u32(h.encoding).map(Encoding::name).unwrap_or("?"),
+            h.name()
+        );
+    }
+    if s.is_end_of_stream() {
+        line += "  END-OF-STREAM";
+    }
+    line
+}
+
+fn subscribe_loop<M: Message>(
+    node: &Node<ipc::Service>,
+    e: &EdgeSpec,
+    mut on_msg: impl FnMut(Option<(&M::Header, usize)>) -> bool,
+) -> Result<()> {
+    let svc = transport::open_pubsub::<M>(node, e, 0)?;
+    let sub = svc.subscriber_builder().buffer_size(e.depth).create().map_err(|err| {
+        anyhow::anyhow!(
+            "cannot subscribe to '{}': {err:?} (the edge has room for one tool at a time)",
+            e.topic
+        )
+    })?;
+    let listener = transport::open_event(node, &e.topic)?
+        .listener_builder()
+        .create()
+        .map_err(|err| anyhow::anyhow!("{err:?}"))?;
+    let _ = sub.update_connections();
+    loop {
+        if node.wait(Duration::ZERO).is_err() {
+            return Ok(());
+        }
+        let _ = listener.timed_wait(|_| {}, Duration::from_millis(200));
+        let _ = sub.update_connections();
+        while let Some(sample) = sub.receive().map_err(|err| anyhow::anyhow!("{err:?}"))? {
+            if !on_msg(Some((sample.user_header(), sample.payload().len()))) {
+                return Ok(());
+            }
+        }
+        if !on_msg(None) {
+            return Ok(());
+        }
+    }
+}
+
+/// Prints each message of a topic until end-of-stream, `count`, or Ctrl-C.
+pub fn echo(topic: &str, run: Option<&str>, count: Option<u64>) -> Result<ExitCode> {
+    let (_rec, graph, node) = attach(run)?;
+    let e = edge(&graph, topic)?.clone();
+    let mut n = 0u64;
+    with_kind!(e.kind(), M => subscribe_loop::<M>(&node, &e, |m| {
+        let Some((h, len)) = m else { return true };
+        println!("{topic}: {}", describe::<M>(h, len));
+        n += 1;
+        !M::stamp(h).is_end_of_stream() && count.is_none_or(|c| n < c)
+    }))?;
+    Ok(ExitCode::SUCCESS)
+}
+
+/// Prints the message rate of a topic once a second.
+pub fn hz(topic: &str, run: Option<&str>, seconds: Option<u64>) -> Result<ExitCode> {
+    let (_rec, graph, node) = attach(run)?;
+    let e = edge(&graph, topic)?.clone();
+    let start = Instant::now();
+    let mut window = (Instant::now(), 0u64);
+    with_kind!(e.kind(), M => subscribe_loop::<M>(&node, &e, |m| {
+        let mut ended = false;
+        if let Some((h, _)) = m {
+            ended = M::stamp(h).is_end_of_stream();
+            if !ended { window.1 += 1; }
+        }
+        let dt = window.0.elapsed().as_secs_f64();
+        if dt >= 1.0 || ended {
+            println!("{topic}: {:.2} Hz ({} messages in {dt:.2} s)", window.1 as f64 / dt.max(1e-9), window.1);
+            window = (Instant::now(), 0);
+        }
+        !ended && seconds.is_none_or(|s| start.elapsed().as_secs() < s)
+    }))?;
+    Ok(ExitCode::SUCCESS)
+}

@@ -1,0 +1,88 @@
+//! `lineflow run` and `lineflow process`.
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+
+use anyhow::{bail, Context, Result};
+use lineflow_runtime::launch::{self, Resolver};
+use lineflow_runtime::supervisor::{self, RunOptions};
+
+/// Runs a launch graph; prints the per-node summary and writes it to `out/summary.txt`.
+pub fn run(graph: &Path, set: &[String], out: &Path, expected_frames: Option<u64>) -> Result<ExitCode> {
+    let g = launch::load(graph, set, &Resolver::beside_current_exe())?;
+    let opts = RunOptions {
+        out: out.to_owned(),
+        expected_frames,
+        progress: expected_frames.is_some(),
+        connect_timeout: None,
+    };
+    let outcome = supervisor::run(&g, &opts)?;
+    let table = outcome.table();
+    eprint!("{table}");
+    let _ = std::fs::write(
+        out.join("summary.txt"),
+        format!(
+            "run {}  graph {}  wall {:.2} s\n{table}",
+            outcome.run_id,
+            g.source.display(),
+            outcome.wall.as_secs_f64()
+        ),
+    );
+    match outcome.error {
+        None => {
+            eprintln!(
+                "run {} finished in {:.2} s; results in {}",
+                outcome.run_id,
+                outcome.wall.as_secs_f64(),
+                out.display()
+            );
+            Ok(ExitCode::SUCCESS)
+        }
+        Some(e) => {
+            eprintln!("error: run {} failed: {e}", outcome.run_id);
+            Ok(ExitCode::FAILURE)
+        }
+    }
+}
+
+/// The folder holding the shipped launch graphs: `$LINEFLOW_HOME/launch`, `./launch`, or beside the build tree.
+pub fn launch_dir() -> PathBuf {
+    if let Some(home) = std::env::var_os("LINEFLOW_HOME") {
+        return PathBuf::from(home).join("launch");
+    }
+    let here = PathBuf::from("launch");
+    if here.is_dir() {
+        return here;
+    }
+    // target/<profile>/lineflow -> repository root
+    std::env::current_exe()
+        .ok()
+        .and_then(|e| e.ancestors().nth(3).map(|r| r.join("launch")))
+        .filter(|p| p.is_dir())
+        .unwrap_or(here)
+}
+
+/// Runs a graph (default `launch/folder.toml`) over a project folder.
+pub fn process(folder: &Path, out: Option<PathBuf>, graph: Option<PathBuf>, set: &[String]) -> Result<ExitCode> {
+    let project = lineflow_capture::Project::open(folder, false).map_err(|e| anyhow::anyhow!("{e}"))?;
+    let graph = graph.unwrap_or_else(|| launch_dir().join("folder.toml"));
+    if !graph.is_file() {
+        bail!("{}: launch graph not found (pass --graph or set LINEFLOW_HOME)", graph.display());
+    }
+    let folder = std::fs::canonicalize(folder).with_context(|| format!("{}", folder.display()))?;
+    let out = out.unwrap_or_else(|| folder.join("out"));
+    let mut set = set.to_vec();
+    set.insert(
+        0,
+        format!(
+            "capture.folder=\"{}\"",
+            folder.display().to_string().replace('\\', "\\\\").replace('"', "\\\"")
+        ),
+    );
+    eprintln!(
+        "processing {} images of {} with {}",
+        project.images.len(),
+        folder.display(),
+        graph.display()
+    );
+    run(&graph, &set, &out, Some(project.images.len() as u64))
+}

@@ -1,0 +1,136 @@
+//! Decoding image files into message pixels: 8- and 16-bit, grey or RGB, EXIF orientation applied.
+use std::path::Path;
+
+use image::{DynamicImage, ImageDecoder, ImageReader};
+use lineflow_messages::Encoding;
+
+/// A decoded image ready to publish.
+#[derive(Debug, Clone)]
+pub struct DecodedImage {
+    /// Width in pixels after orientation.
+    pub width: u32,
+    /// Height in pixels after orientation.
+    pub height: u32,
+    /// Pixel encoding.
+    pub encoding: Encoding,
+    /// Rows of `width * bytes_per_pixel` bytes, native-endian for 16-bit.
+    pub bytes: Vec<u8>,
+}
+
+/// Decodes `path`, applying its EXIF orientation. Alpha is dropped; grey stays grey.
+///
+/// # Errors
+/// A message naming the file when it cannot be opened or is not a complete, supported image.
+pub fn decode_file(path: &Path) -> Result<DecodedImage, String> {
+    let name = path.display();
+    let reader = ImageReader::open(path).map_err(|e| format!("{name}: cannot open: {e}"))?;
+    let reader = reader.with_guessed_format().map_err(|e| format!("{name}: cannot read: {e}"))?;
+    let mut decoder = reader.into_decoder().map_err(|e| format!("{name}: not a supported image: {e}"))?;
+    let orientation = decoder.orientation().unwrap_or(image::metadata::Orientation::NoTransforms);
+    let mut img = DynamicImage::from_decoder(decoder).map_err(|e| format!("{name}: corrupt or truncated image: {e}"))?;
+    img.apply_orientation(orientation);
+    Ok(from_dynamic(img))
+}
+
+/// Converts a decoded image into message pixels.
+pub fn from_dynamic(img: DynamicImage) -> DecodedImage {
+    let (width, height) = (img.width(), img.height());
+    let (encoding, bytes) = match img {
+        DynamicImage::ImageLuma8(b) => (Encoding::Mono8, b.into_raw()),
+        DynamicImage::ImageRgb8(b) => (Encoding::Rgb8, b.into_raw()),
+        DynamicImage::ImageLuma16(b) => (Encoding::Mono16, u16_bytes(b.into_raw())),
+        DynamicImage::ImageRgb16(b) => (Encoding::Rgb16, u16_bytes(b.into_raw())),
+        DynamicImage::ImageLumaA8(_) => (Encoding::Mono8, img.to_luma8().into_raw()),
+        DynamicImage::ImageLumaA16(_) => (Encoding::Mono16, u16_bytes(img.to_luma16().into_raw())),
+        DynamicImage::ImageRgba16(_) => (Encoding::Rgb16, u16_bytes(img.to_rgb16().into_raw())),
+        other => (Encoding::Rgb8, other.to_rgb8().into_raw()),
+    };
+    DecodedImage {
+        width,
+        height,
+        encoding,
+        bytes,
+    }
+}
+
+fn u16_bytes(v: Vec<u16>) -> Vec<u8> {
+    v.into_iter().flat_map(u16::to_ne_bytes).collect()
+}
+
+/// Whether `path` has an image extension the capture reads (any case of png, jpg, jpeg, tif, tiff).
+pub fn is_image_name(path: &Path) -> bool {
+    path.extension()
+        .and_then(|e| e.to_str())
+        .is_some_and(|e| matches!(e.to_ascii_lowercase().as_str(), "png" | "jpg" | "jpeg" | "tif" | "tiff"))
+}
+
+/// Whether the bytes of a file end as a complete image of its kind does (JPEG end-of-image marker, PNG `IEND`
+/// chunk). TIFF has no trailer; for it the answer is `true` and the watcher relies on a stable size.
+pub fn looks_complete(bytes: &[u8]) -> bool {
+    if bytes.starts_with(&[0xFF, 0xD8]) {
+        let tail = &bytes[bytes.len().saturating_sub(64)..];
+        return tail.windows(2).any(|w| w == [0xFF, 0xD9]);
+    }
+    if bytes.starts_with(b"\x89PNG") {
+        return bytes.len() >= 12 && &bytes[bytes.len() - 8..bytes.len() - 4] == b"IEND";
+    }
+    !bytes.is_empty()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn exif_orientation_is_applied() {
+        // A 2x1 JPEG tagged "rotate 90° clockwise" must come out 1x2.
+        let dir = tempfile::tempdir().unwrap();
+        let img = image::RgbImage::from_fn(16, 8, |x, _| image::Rgb([if x < 8 { 0 } else { 255 }, 0, 0]));
+        let mut jpeg = Vec::new();
+        image::codecs::jpeg::JpegEncoder::new_with_quality(&mut jpeg, 95)
+            .encode_image(&img)
+            .unwrap();
+        // APP1 Exif segment with one IFD0 entry: Orientation (0x0112) = 6.
+        let tiff: Vec<u8> = [
+            b"MM\x00\x2a\x00\x00\x00\x08".as_slice(),
+            &[0, 1],
+            &[0x01, 0x12, 0, 3, 0, 0, 0, 1, 0, 6, 0, 0],
+            &[0, 0, 0, 0],
+        ]
+        .concat();
+        let payload = [b"Exif\x00\x00".as_slice(), &tiff].concat();
+        let mut app1 = vec![0xFF, 0xE1];
+        app1.extend_from_slice(&((payload.len() + 2) as u16).to_be_bytes());
+        app1.extend_from_slice(&payload);
+        let tagged = [&jpeg[..2], &app1[..], &jpeg[2..]].concat();
+        let p = dir.path().join("o.jpg");
+        std::fs::write(&p, tagged).unwrap();
+        let sut = decode_file(&p).unwrap();
+        assert_eq!((sut.width, sut.height), (8, 16));
+    }
+
+    #[test]
+    fn truncated_files_are_errors_not_panics() {
+        let dir = tempfile::tempdir().unwrap();
+        let img = image::GrayImage::from_fn(64, 64, |x, y| image::Luma([(x * y) as u8]));
+        let p = dir.path().join("t.png");
+        img.save(&p).unwrap();
+        let bytes = std::fs::read(&p).unwrap();
+        assert!(looks_complete(&bytes));
+        std::fs::write(&p, &bytes[..bytes.len() / 2]).unwrap();
+        assert!(!looks_complete(&bytes[..bytes.len() / 2]));
+        let err = decode_file(&p).unwrap_err();
+        assert!(err.contains("t.png"), "{err}");
+    }
+
+    #[test]
+    fn sixteen_bit_stays_sixteen_bit() {
+        let dir = tempfile::tempdir().unwrap();
+        let img = image::ImageBuffer::<image::Luma<u16>, _>::from_fn(4, 3, |x, _| image::Luma([x as u16 * 1000]));
+        let p = dir.path().join("s.png");
+        img.save(&p).unwrap();
+        let sut = decode_file(&p).unwrap();
+        assert_eq!(sut.encoding, Encoding::Mono16);
+        assert_eq!(sut.bytes.len(), 4 * 3 * 2);
+    }
+}

@@ -1,0 +1,23 @@
+//! The ports a node declares: printed by `--describe` (or `LINEFLOW_DESCRIBE=1`) so the supervisor can type-check
+//! the graph before starting anything.
+use serde::{Deserialize, Serialize};
+
+/// One declared port.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Port {
+    /// Port name (the topic, unless the launch file remaps it).
+    pub port: String,
+    /// Message type name.
+    pub message: String,
+    /// Whether the node refuses to run when the port is not wired.
+    pub required: bool,
+}
+
+/// Every port of a node.
+#[derive(Debug, Clone, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Ports {
+    /// Subscribed ports.
+    pub inputs: Vec<Port>,
+    /// Published ports.
+    pub outputs: Vec<Port>,
+}

@@ -1,0 +1,666 @@
+//! Launch graphs: the TOML files in `launch/`, their validation, and the resolved graph handed to every node.
+//!
+//! A launch file lists nodes and edges (`docs/launch.md`). [`load`] parses it, applies `--set` overrides,
+//! resolves executables and payload sizes and checks everything that can be checked before a process starts;
+//! every error names the file and the entry.
+
+use std::collections::{BTreeMap, BTreeSet};
+use std::path::{Path, PathBuf};
+
+use lineflow_messages::MessageKind;
+use serde::{Deserialize, Serialize};
+
+/// What may go wrong with a launch file.
+#[derive(Debug, thiserror::Error)]
+pub enum LaunchError {
+    /// The file cannot be read.
+    #[error("{path}: cannot read: {source}")]
+    Read {
+        /// The file.
+        path: PathBuf,
+        /// The cause.
+        source: std::io::Error,
+    },
+    /// The TOML does not parse or has unknown keys.
+    #[error("{path}: {message}")]
+    Parse {
+        /// The file.
+        path: PathBuf,
+        /// The parser's message, with line and column.
+        message: String,
+    },
+    /// The graph is inconsistent.
+    #[error("{path}: {entry}: {message}")]
+    Invalid {
+        /// The file.
+        path: PathBuf,
+        /// The entry at fault, e.g. `edge 'images'`.
+        entry: String,
+        /// What is wrong.
+        message: String,
+    },
+}
+
+/// How a node is restarted when it fails.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "kebab-case")]
+pub enum RestartPolicy {
+    /// A failed node fails the run.
+    #[default]
+    Never,
+    /// A node that exits non-zero or dies of a signal is started again, up to `max_restarts` times.
+    OnFailure,
+}
+
+/// What happens when a subscriber's buffer is full.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "kebab-case")]
+pub enum EdgePolicy {
+    /// The publisher waits (up to the edge's `timeout_ms`, then the sample is dropped and counted).
+    #[default]
+    Lossless,
+    /// The oldest unread sample is overwritten (live previews).
+    Latest,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct LaunchFile {
+    #[serde(default)]
+    graph: GraphMeta,
+    #[serde(default)]
+    node: Vec<NodeEntry>,
+    #[serde(default)]
+    edge: Vec<EdgeEntry>,
+}
+
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct GraphMeta {
+    name: Option<String>,
+    description: Option<String>,
+    /// camera.toml whose size sets the default payload of image topics.
+    camera: Option<String>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct NodeEntry {
+    name: String,
+    stage: Option<String>,
+    #[serde(rename = "impl")]
+    implementation: Option<String>,
+    executable: Option<String>,
+    #[serde(default)]
+    args: Vec<String>,
+    #[serde(default)]
+    params: toml::Table,
+    #[serde(default)]
+    restart: RestartPolicy,
+    #[serde(default = "default_max_restarts")]
+    max_restarts: u32,
+    #[serde(default = "default_backoff_ms")]
+    backoff_ms: u64,
+    #[serde(default)]
+    remap: BTreeMap<String, String>,
+}
+
+fn default_max_restarts() -> u32 {
+    3
+}
+fn default_backoff_ms() -> u64 {
+    200
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct EdgeEntry {
+    topic: String,
+    #[serde(rename = "type")]
+    message: String,
+    from: String,
+    to: Vec<String>,
+    #[serde(default)]
+    policy: EdgePolicy,
+    max_payload_bytes: Option<u64>,
+    depth: Option<usize>,
+    history: Option<usize>,
+    timeout_ms: Option<u64>,
+}
+
+/// A node of a resolved graph.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct NodeSpec {
+    /// Unique name.
+    pub name: String,
+    /// Position in the graph, used as its event id.
+    pub index: u32,
+    /// Stage name, when the node is a stage binary.
+    pub stage: Option<String>,
+    /// Implementation, passed as the `impl` parameter.
+    pub implementation: Option<String>,
+    /// Program and arguments.
+    pub command: Vec<String>,
+    /// Parameters (JSON object), `impl` included.
+    pub params: serde_json::Map<String, serde_json::Value>,
+    /// Restart policy.
+    pub restart: RestartPolicy,
+    /// Restarts allowed under `on-failure`.
+    pub max_restarts: u32,
+    /// Delay before a restart, doubled each time.
+    pub backoff_ms: u64,
+    /// Port name to topic name.
+    pub remap: BTreeMap<String, String>,
+}
+
+impl NodeSpec {
+    /// The topic a port of this node is wired to.
+    pub fn topic_of<'a>(&'a self, port: &'a str) -> &'a str {
+        self.remap.get(port).map(String::as_str).unwrap_or(port)
+    }
+}
+
+/// An edge (topic) of a resolved graph.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct EdgeSpec {
+    /// Topic name; also the iceoryx2 service name.
+    pub topic: String,
+    /// Message type name.
+    pub message: String,
+    /// Publishing node.
+    pub from: String,
+    /// Subscribing nodes.
+    pub to: Vec<String>,
+    /// Flow control.
+    pub policy: EdgePolicy,
+    /// Initial payload size in bytes (larger samples grow the segment).
+    pub max_payload_bytes: u64,
+    /// Subscriber buffer depth.
+    pub depth: usize,
+    /// Samples kept for late or restarted subscribers.
+    pub history: usize,
+    /// How long a lossless publisher waits for a full subscriber before dropping, milliseconds.
+    pub timeout_ms: u64,
+}
+
+impl EdgeSpec {
+    /// The message kind (validated at load).
+    pub fn kind(&self) -> MessageKind {
+        MessageKind::from_name(&self.message).expect("validated at load")
+    }
+    /// Samples the publisher pre-allocates: every subscriber's buffer and borrows, the history, the loans.
+    pub fn chunks(&self) -> u64 {
+        (self.to.len() as u64 + 1) * (self.depth as u64 + 2) + self.history as u64 + 2
+    }
+    /// Worst-case shared memory of this edge in bytes.
+    pub fn shm_bytes(&self) -> u64 {
+        self.chunks() * (self.max_payload_bytes + self.kind().header_size() as u64 + 64)
+    }
+}
+
+/// A validated launch graph.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct Graph {
+    /// Graph name.
+    pub name: String,
+    /// Description.
+    pub description: String,
+    /// The launch file it came from.
+    pub source: PathBuf,
+    /// The launch file's text, for the recording's metadata.
+    pub text: String,
+    /// Nodes in file order.
+    pub nodes: Vec<NodeSpec>,
+    /// Edges in file order.
+    pub edges: Vec<EdgeSpec>,
+}
+
+impl Graph {
+    /// A node by name.
+    pub fn node(&self, name: &str) -> Option<&NodeSpec> {
+        self.nodes.iter().find(|n| n.name == name)
+    }
+    /// The edge a node publishes on `topic`.
+    pub fn output_edge(&self, node: &str, topic: &str) -> Option<&EdgeSpec> {
+        self.edges.iter().find(|e| e.topic == topic && e.from == node)
+    }
+    /// The edge that delivers `topic` to `node`.
+    pub fn input_edge(&self, node: &str, topic: &str) -> Option<&EdgeSpec> {
+        self.edges.iter().find(|e| e.topic == topic && e.to.iter().any(|t| t == node))
+    }
+    /// Whether a node has no inputs.
+    pub fn is_source(&self, node: &str) -> bool {
+        !self.edges.iter().any(|e| e.to.iter().any(|t| t == node))
+    }
+    /// Whether a node has no outputs.
+    pub fn is_sink(&self, node: &str) -> bool {
+        !self.edges.iter().any(|e| e.from == node)
+    }
+    /// Worst-case shared memory of the whole graph in bytes.
+    pub fn shm_bytes(&self) -> u64 {
+        self.edges.iter().map(EdgeSpec::shm_bytes).sum()
+    }
+}
+
+/// Where stage binaries (`lineflow-<stage>`) are looked up.
+#[derive(Debug, Clone)]
+pub struct Resolver {
+    /// Folder holding the stage binaries, normally the folder of the running `lineflow`.
+    pub bin_dir: PathBuf,
+}
+
+impl Resolver {
+    /// Stage binaries beside the running executable.
+    pub fn beside_current_exe() -> Self {
+        let bin_dir = std::env::current_exe()
+            .ok()
+            .and_then(|p| p.parent().map(Path::to_path_buf))
+            .unwrap_or_else(|| PathBuf::from("."));
+        Self { bin_dir }
+    }
+}
+
+/// Reads, overrides and validates a launch file.
+///
+/// `overrides` are `NODE.PARAM=VALUE` strings (`--set`); a value parses as TOML (`3`, `true`, `"x"`, `[1,2]`) and
+/// falls back to a plain string.
+///
+/// # Errors
+/// A [`LaunchError`] naming the file and the entry at fault.
+pub fn load(path: &Path, overrides: &[String], resolver: &Resolver) -> Result<Graph, LaunchError> {
+    let text = std::fs::read_to_string(path).map_err(|source| LaunchError::Read {
+        path: path.to_owned(),
+        source,
+    })?;
+    parse(path, &text, overrides, resolver)
+}
+
+/// [`load`] on text already read.
+///
+/// # Errors
+/// A [`LaunchError`] naming the file and the entry at fault.
+pub fn parse(path: &Path, text: &str, overrides: &[String], resolver: &Resolver) -> Result<Graph, LaunchError> {
+    let invalid = |entry: String, message: String| LaunchError::Invalid {
+        path: path.to_owned(),
+        entry,
+        message,
+    };
+    let mut file: LaunchFile = toml::from_str(text).map_err(|e| LaunchError::Parse {
+        path: path.to_owned(),
+        message: e.to_string().trim().replace('\n', " "),
+    })?;
+    let base = path.parent().unwrap_or(Path::new(".")).to_path_buf();
+
+    for item in overrides {
+        apply_override(&mut file, item).map_err(|m| invalid(format!("--set {item}"), m))?;
+    }
+
+    let mut names = BTreeSet::new();
+    for n in &file.node {
+        if n.name.is_empty() || !n.name.chars().all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-') {
+            return Err(invalid(
+                format!("node '{}'", n.name),
+                "a node name is non-empty ASCII letters, digits, '_' or '-'".into(),
+            ));
+        }
+        if !names.insert(n.name.clone()) {
+            return Err(invalid(format!("node '{}'", n.name), "duplicate node name".into()));
+        }
+    }
+    if file.node.is_empty() {
+        return Err(invalid("graph".into(), "no [[node]] entries".into()));
+    }
+
+    let mut nodes = Vec::new();
+    for (index, n) in file.node.iter().enumerate() {
+        let entry = format!("node '{}'", n.name);
+        let command = match (&n.stage, &n.executable) {
+            (Some(stage), None) => {
+                let exe = resolver.bin_dir.join(format!("lineflow-{stage}"));
+                if !exe.is_file() {
+                    return Err(invalid(
+                        entry,
+                        format!("stage '{stage}' has no binary {} (build it with `cargo build`)", exe.display()),
+                    ));
+                }
+                std::iter::once(exe.display().to_string()).chain(n.args.iter().cloned()).collect()
+            }
+            (None, Some(exe)) => {
+                let found = find_executable(exe, &base).ok_or_else(|| {
+                    invalid(
+                        entry.clone(),
+                        format!(
+                            "executable '{exe}' does not exist (relative paths are taken from {})",
+                            base.display()
+                        ),
+                    )
+                })?;
+                std::iter::once(found).chain(n.args.iter().cloned()).collect()
+            }
+            _ => return Err(invalid(entry, "give exactly one of `stage` or `executable`".into())),
+        };
+        let mut params = serde_json::Map::new();
+        for (k, v) in &n.params {
+            params.insert(
+                k.clone(),
+                serde_json::to_value(v).map_err(|e| invalid(entry.clone(), format!("param '{k}': {e}")))?,
+            );
+        }
+        if let Some(i) = &n.implementation {
+            params.insert("impl".into(), serde_json::Value::String(i.clone()));
+        }
+        nodes.push(NodeSpec {
+            name: n.name.clone(),
+            index: index as u32,
+            stage: n.stage.clone(),
+            implementation: n.implementation.clone(),
+            command,
+            params,
+            restart: n.restart,
+            max_restarts: n.max_restarts,
+            backoff_ms: n.backoff_ms,
+            remap: n.remap.clone(),
+        });
+    }
+
+    let camera_bytes = default_image_bytes(&file, &base);
+    let mut edges: Vec<EdgeSpec> = Vec::new();
+    let mut topics = BTreeSet::new();
+    for e in &file.edge {
+        let entry = format!("edge '{}'", e.topic);
+        if e.topic.is_empty() || !e.topic.is_ascii() || e.topic.starts_with("lineflow/") || e.topic.len() > 200 {
+            return Err(invalid(
+                entry,
+                "a topic is 1-200 ASCII characters and does not start with 'lineflow/'".into(),
+            ));
+        }
+        if !topics.insert(e.topic.clone()) {
+            return Err(invalid(entry, "duplicate topic: each topic has one edge with one publisher".into()));
+        }
+        let kind = MessageKind::from_name(&e.message).ok_or_else(|| {
+            let known: Vec<_> = MessageKind::ALL.iter().map(|k| k.name()).collect();
+            invalid(
+                entry.clone(),
+                format!("unknown message type '{}' (known: {})", e.message, known.join(", ")),
+            )
+        })?;
+        if !names.contains(&e.from) {
+            return Err(invalid(entry, format!("publisher '{}' is not a node", e.from)));
+        }
+        if e.to.is_empty() {
+            return Err(invalid(entry, "no subscribers (`to` is empty)".into()));
+        }
+        for t in &e.to {
+            if !names.contains(t) {
+                return Err(invalid(entry, format!("subscriber '{t}' is not a node")));
+            }
+            if t == &e.from {
+                return Err(invalid(entry, format!("node '{t}' subscribes to its own output")));
+            }
+        }
+        if e.topic.starts_with("gt/") {
+            if let Some(t) =
+                e.to.iter()
+                    .find(|t| nodes.iter().any(|n| &n.name == *t && n.stage.as_deref() != Some("eval")))
+            {
+                return Err(invalid(
+                    entry,
+                    format!("node '{t}' subscribes to ground truth; only `eval` may read gt/* topics"),
+                ));
+            }
+        }
+        let depth = e.depth.unwrap_or(4);
+        let history = e.history.unwrap_or(if kind.latched() { 1 } else { 0 });
+        if !(1..=1024).contains(&depth) {
+            return Err(invalid(entry, format!("depth must be in 1..=1024, got {depth}")));
+        }
+        if history > 1024 {
+            return Err(invalid(entry, format!("history must be in 0..=1024, got {history}")));
+        }
+        let max_payload_bytes = match (e.max_payload_bytes, kind) {
+            (Some(b), _) => b,
+            (None, MessageKind::Image) => camera_bytes.clone().map_err(|m| invalid(entry.clone(), m))?,
+            (None, _) => 1 << 20,
+        };
+        edges.push(EdgeSpec {
+            topic: e.topic.clone(),
+            message: kind.name().into(),
+            from: e.from.clone(),
+            to: e.to.clone(),
+            policy: e.policy,
+            max_payload_bytes,
+            depth: depth.max(history),
+            history,
+            timeout_ms: e.timeout_ms.unwrap_or(10_000),
+        });
+    }
+
+    Ok(Graph {
+        name: file
+            .graph
+            .name
+            .clone()
+            .unwrap_or_else(|| path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default()),
+        description: file.graph.description.clone().unwrap_or_default(),
+        source: path.to_owned(),
+        text: text.to_owned(),
+        nodes,
+        edges,
+    })
+}
+
+/// Checks the ports each node declares (`--describe`) against the edges: every edge a node is wired to must be a
+/// port of that node with the same message type, and every required port must be wired.
+///
+/// # Errors
+/// A [`LaunchError::Invalid`] naming the edge or node.
+pub fn check_ports(graph: &Graph, node: &NodeSpec, ports: &crate::describe::Ports) -> Result<(), LaunchError> {
+    let invalid = |entry: String, message: String| LaunchError::Invalid {
+        path: graph.source.clone(),
+        entry,
+        message,
+    };
+    for e in &graph.edges {
+        let as_pub = e.from == node.name;
+        let as_sub = e.to.iter().any(|t| t == &node.name);
+        if !as_pub && !as_sub {
+            continue;
+        }
+        let list = if as_pub { &ports.outputs } else { &ports.inputs };
+        let role = if as_pub { "output" } else { "input" };
+        let port = list.iter().find(|p| node.topic_of(&p.port) == e.topic);
+        match port {
+            None => {
+                let have: Vec<_> = list.iter().map(|p| format!("{} ({})", p.port, p.message)).collect();
+                return Err(invalid(
+                    format!("edge '{}'", e.topic),
+                    format!(
+                        "node '{}' has no {role} port for this topic (its {role}s: {})",
+                        node.name,
+                        if have.is_empty() { "none".into() } else { have.join(", ") }
+                    ),
+                ));
+            }
+            Some(p) if p.message != e.message => {
+                return Err(invalid(
+                    format!("edge '{}'", e.topic),
+                    format!(
+                        "type mismatch: the edge carries {} but {role} port '{}' of node '{}' takes {}",
+                        e.message, p.port, node.name, p.message
+                    ),
+                ));
+            }
+            Some(_) => {}
+        }
+    }
+    for (p, role) in ports
+        .inputs
+        .iter()
+        .map(|p| (p, "input"))
+        .chain(ports.outputs.iter().map(|p| (p, "output")))
+    {
+        let topic = node.topic_of(&p.port);
+        let wired = if role == "input" {
+            graph.input_edge(&node.name, topic).is_some()
+        } else {
+            graph.output_edge(&node.name, topic).is_some()
+        };
+        if p.required && !wired {
+            return Err(invalid(
+                format!("node '{}'", node.name),
+                format!("required {role} port '{}' ({}) is not wired to any edge", p.port, p.message),
+            ));
+        }
+    }
+    Ok(())
+}
+
+fn find_executable(exe: &str, base: &Path) -> Option<String> {
+    let p = Path::new(exe);
+    if p.components().count() > 1 || p.is_absolute() {
+        let full = if p.is_absolute() { p.to_path_buf() } else { base.join(p) };
+        return full.is_file().then(|| full.display().to_string());
+    }
+    std::env::var_os("PATH")
+        .map(|paths| std::env::split_paths(&paths).map(|d| d.join(exe)).find(|c| c.is_file()))
+        .flatten()
+        .map(|c| c.display().to_string())
+}
+
+/// Default payload of image topics: RGB8 at the size of the graph's camera.toml, or of `<folder>/camera.toml` of
+/// the first node with a `folder` parameter.
+fn default_image_bytes(file: &LaunchFile, base: &Path) -> Result<u64, String> {
+    let camera = file
+        .graph
+        .camera
+        .as_ref()
+        .map(|c| base.join(c))
+        .or_else(|| {
+            file.node.iter().find_map(|n| {
+                n.params
+                    .get("folder")
+                    .and_then(|f| f.as_str())
+                    .map(|f| resolve_param_path(base, f).join("camera.toml"))
+            })
+        })
+        .ok_or("an Image edge needs `max_payload_bytes`, a [graph] camera, or a node with a `folder` parameter")?;
+    let text = std::fs::read_to_string(&camera).map_err(|e| format!("cannot read {} for the image size: {e}", camera.display()))?;
+    #[derive(Deserialize)]
+    struct Size {
+        width: u64,
+        height: u64,
+    }
+    let s: Size = toml::from_str(&text).map_err(|e| format!("{}: {}", camera.display(), e.to_string().trim()))?;
+    Ok(s.width * s.height * 3)
+}
+
+/// A path parameter as nodes see it: absolute, or relative to the current directory when it exists there, else to
+/// the launch file's folder.
+pub fn resolve_param_path(base: &Path, value: &str) -> PathBuf {
+    let p = Path::new(value);
+    if p.is_absolute() || p.exists() {
+        p.to_path_buf()
+    } else {
+        base.join(p)
+    }
+}
+
+fn apply_override(file: &mut LaunchFile, item: &str) -> Result<(), String> {
+    let (key, value) = item.split_once('=').ok_or("expected NODE.PARAM=VALUE")?;
+    let (node, param) = key.split_once('.').ok_or("expected NODE.PARAM=VALUE")?;
+    let n = file
+        .node
+        .iter_mut()
+        .find(|n| n.name == node)
+        .ok_or_else(|| format!("no node '{node}' in the graph"))?;
+    let parsed: toml::Value = toml::from_str::<toml::Table>(&format!("v = {value}"))
+        .ok()
+        .and_then(|mut t| t.remove("v"))
+        .unwrap_or_else(|| toml::Value::String(value.to_owned()));
+    if param == "impl" {
+        n.implementation = Some(parsed.as_str().unwrap_or(value).to_owned());
+    } else {
+        n.params.insert(param.to_owned(), parsed);
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn resolver(dir: &Path) -> Resolver {
+        for s in ["capture", "stats"] {
+            std::fs::write(dir.join(format!("lineflow-{s}")), "").unwrap();
+        }
+        Resolver { bin_dir: dir.to_owned() }
+    }
+
+    const GOOD: &str = r#"
+        [[node]]
+        name = "cap"
+        stage = "capture"
+        impl = "folder"
+        params = { fps = 2 }
+        [[node]]
+        name = "sink"
+        stage = "stats"
+        [[edge]]
+        topic = "images"
+        type = "Image"
+        from = "cap"
+        to = ["sink"]
+        max_payload_bytes = 1000
+    "#;
+
+    #[test]
+    fn a_valid_graph_resolves_stage_binaries_and_params() {
+        let dir = tempfile::tempdir().unwrap();
+        let sut = parse(&dir.path().join("g.toml"), GOOD, &["cap.fps=5".into()], &resolver(dir.path())).unwrap();
+        assert_eq!(sut.nodes.len(), 2);
+        assert!(sut.nodes[0].command[0].ends_with("lineflow-capture"));
+        assert_eq!(sut.nodes[0].params["fps"], 5);
+        assert_eq!(sut.nodes[0].params["impl"], "folder");
+        assert!(sut.is_source("cap") && sut.is_sink("sink"));
+    }
+
+    #[test]
+    fn errors_name_the_file_and_the_entry() {
+        let dir = tempfile::tempdir().unwrap();
+        let r = resolver(dir.path());
+        let p = dir.path().join("g.toml");
+        let cases = [
+            (
+                GOOD.replace("to = [\"sink\"]", "to = [\"sinc\"]"),
+                "edge 'images': subscriber 'sinc' is not a node",
+            ),
+            (GOOD.replace("type = \"Image\"", "type = \"Imgae\""), "unknown message type 'Imgae'"),
+            (GOOD.replace("name = \"sink\"", "name = \"cap\""), "node 'cap': duplicate node name"),
+            (GOOD.replace("stage = \"stats\"", "stage = \"nope\""), "stage 'nope' has no binary"),
+            (
+                GOOD.replace("topic = \"images\"", "topic = \"gt/lines3d\""),
+                "only `eval` may read gt/*",
+            ),
+            (GOOD.replace("[[edge]]", "[[edgez]]"), "unknown field `edgez`"),
+        ];
+        for (text, expected) in cases {
+            let err = parse(&p, &text, &[], &r).unwrap_err().to_string();
+            assert!(err.contains(expected), "{err}");
+            assert!(err.starts_with(&p.display().to_string()), "{err}");
+        }
+        let err = parse(&p, GOOD, &["nobody.x=1".into()], &r).unwrap_err().to_string();
+        assert!(err.contains("no node 'nobody'"), "{err}");
+    }
+
+    #[test]
+    fn image_payload_defaults_from_camera_toml() {
+        let dir = tempfile::tempdir().unwrap();
+        std::fs::create_dir(dir.path().join("proj")).unwrap();
+        std::fs::write(dir.path().join("proj/camera.toml"), "width = 10\nheight = 20\n").unwrap();
+        let text = GOOD
+            .replace("max_payload_bytes = 1000", "")
+            .replace("params = { fps = 2 }", "params = { folder = \"proj\" }");
+        let sut = parse(&dir.path().join("g.toml"), &text, &[], &resolver(dir.path())).unwrap();
+        assert_eq!(sut.edges[0].max_payload_bytes, 600);
+    }
+}

@@ -1,0 +1,39 @@
+//! Logging: `tracing` to stderr, the node name in every line, level from `LINEFLOW_LOG` (default `info`).
+use tracing_subscriber::EnvFilter;
+
+/// Installs the subscriber once; later calls do nothing. iceoryx2's own log is limited to errors (its warnings
+/// about missing config files are noise here: every run is configured programmatically).
+pub fn init(node: &str) {
+    iceoryx2::prelude::set_log_level_from_env_or(iceoryx2::prelude::LogLevel::Error);
+    let filter = EnvFilter::try_from_env("LINEFLOW_LOG").unwrap_or_else(|_| EnvFilter::new("info"));
+    let node = node.to_owned();
+    let _ = tracing_subscriber::fmt()
+        .with_env_filter(filter)
+        .with_writer(std::io::stderr)
+        .with_target(false)
+        .without_time()
+        .event_format(NodeFormat { node })
+        .try_init();
+}
+
+struct NodeFormat {
+    node: String,
+}
+
+impl<S, N> tracing_subscriber::fmt::FormatEvent<S, N> for NodeFormat
+where
+    S: tracing::Subscriber + for<'a> tracing_subscriber::registry::LookupSpan<'a>,
+    N: for<'a> tracing_subscriber::fmt::FormatFields<'a> + 'static,
+{
+    fn format_event(
+        &self,
+        ctx: &tracing_subscriber::fmt::FmtContext<'_, S, N>,
+        mut w: tracing_subscriber::fmt::format::Writer<'_>,
+        event: &tracing::Event<'_>,
+    ) -> std::fmt::Result {
+        let level = *event.metadata().level();
+        write!(w, "[{}] {:5} ", self.node, level)?;
+        ctx.field_format().format_fields(w.by_ref(), event)?;
+        writeln!(w)
+    }
+}

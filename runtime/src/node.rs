@@ -1,0 +1,390 @@
+//! The node SDK: what a stage's `main` uses to talk to the graph.
+//!
+//! ```no_run
+//! use lineflow_messages::kinds::Image;
+//! # fn main() -> anyhow::Result<()> {
+//! let ctx = lineflow_runtime::NodeContext::from_env()?;
+//! let images = ctx.input::<Image>("images")?;
+//! let out = ctx.output::<Image>("gray")?;
+//! ctx.connect()?;
+//! ctx.run(|| {
+//!     while let Some(msg) = images.receive()? {
+//!         out.publish(*msg.user_header(), msg.payload())?;
+//!     }
+//!     Ok(if images.is_ended() { lineflow_runtime::Flow::Stop } else { lineflow_runtime::Flow::Continue })
+//! })?;
+//! out.end_of_stream()?;
+//! # Ok(()) }
+//! ```
+
+use std::cell::RefCell;
+use std::rc::Rc;
+use std::time::Duration;
+
+use anyhow::{bail, Context, Result};
+use iceoryx2::prelude::*;
+use lineflow_messages::Message;
+use serde::de::DeserializeOwned;
+
+use crate::describe::{Port, Ports};
+use crate::env::{self, RunEnv};
+use crate::launch::{Graph, NodeSpec};
+use crate::ports::{Connect, Input, Output};
+use crate::report::Reporter;
+use crate::transport;
+
+/// What the loop callback wants next.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Flow {
+    /// Wait for more input.
+    Continue,
+    /// Leave the loop.
+    Stop,
+}
+
+/// How [`NodeContext::run`] ended.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum RunEnd {
+    /// The callback returned [`Flow::Stop`].
+    Finished,
+    /// SIGINT or SIGTERM arrived.
+    Interrupted,
+}
+
+type Listener = iceoryx2::port::listener::Listener<ipc::Service>;
+
+/// A running node: its place in the graph, parameters, ports and counters.
+pub struct NodeContext {
+    env: Option<RunEnv>,
+    graph: Graph,
+    spec: NodeSpec,
+    node: Option<Node<ipc::Service>>,
+    ports: RefCell<Ports>,
+    listeners: RefCell<Vec<Rc<Listener>>>,
+    connects: RefCell<Vec<Rc<dyn Connect>>>,
+    reporter: Rc<Reporter>,
+    ready: Option<iceoryx2::port::notifier::Notifier<ipc::Service>>,
+    start: Option<Listener>,
+}
+
+impl NodeContext {
+    /// Sets up logging and joins the run named by the environment (`docs/nodes.md`). In describe mode
+    /// (`--describe`), ports are only recorded and [`connect`](Self::connect) prints them and exits.
+    ///
+    /// # Errors
+    /// When the environment is incomplete, the graph file unreadable, or iceoryx2 refuses the node.
+    pub fn from_env() -> Result<Self> {
+        let describe = RunEnv::describe_requested();
+        let node_name = std::env::var(env::NODE).unwrap_or_else(|_| "node".into());
+        crate::logging::init(&node_name);
+        let graph_path = std::env::var(env::GRAPH).with_context(|| {
+            format!(
+                "{} is not set: start stage binaries with `lineflow run` (docs/nodes.md)",
+                env::GRAPH
+            )
+        })?;
+        let graph: Graph = serde_json::from_slice(&std::fs::read(&graph_path).with_context(|| format!("cannot read graph {graph_path}"))?)
+            .with_context(|| format!("malformed graph {graph_path}"))?;
+        let spec = graph
+            .node(&node_name)
+            .cloned()
+            .with_context(|| format!("node '{node_name}' is not in graph {graph_path}"))?;
+        if describe {
+            return Ok(Self {
+                env: None,
+                graph,
+                spec,
+                node: None,
+                ports: RefCell::default(),
+                listeners: RefCell::default(),
+                connects: RefCell::default(),
+                reporter: Rc::new(Reporter::new(0, None, false)),
+                ready: None,
+                start: None,
+            });
+        }
+        let env = RunEnv::from_env()?;
+        let cfg = transport::config(&env.prefix, &env.root)?;
+        let node = transport::create_node(&cfg, &spec.name)?;
+        let status = transport::open_status(&node)?
+            .publisher_builder()
+            .max_loaned_samples(1)
+            .create()
+            .map_err(|e| anyhow::anyhow!("cannot publish status: {e:?}"))?;
+        let ready = transport::open_event(&node, transport::READY_SERVICE)?
+            .notifier_builder()
+            .default_event_id(EventId::new(spec.index as usize))
+            .create()
+            .map_err(|e| anyhow::anyhow!("cannot create readiness notifier: {e:?}"))?;
+        let start = if graph.is_source(&spec.name) && env.restart == 0 {
+            Some(
+                transport::open_event(&node, transport::START_SERVICE)?
+                    .listener_builder()
+                    .create()
+                    .map_err(|e| anyhow::anyhow!("cannot listen for start: {e:?}"))?,
+            )
+        } else {
+            None
+        };
+        let reporter = Rc::new(Reporter::new(spec.index, Some(status), env.restart > 0));
+        Ok(Self {
+            env: Some(env),
+            graph,
+            spec,
+            node: Some(node),
+            ports: RefCell::default(),
+            listeners: RefCell::default(),
+            connects: RefCell::default(),
+            reporter,
+            ready: Some(ready),
+            start,
+        })
+    }
+
+    /// This node's name.
+    pub fn name(&self) -> &str {
+        &self.spec.name
+    }
+
+    /// The resolved graph.
+    pub fn graph(&self) -> &Graph {
+        &self.graph
+    }
+
+    /// The run's output folder.
+    pub fn out_dir(&self) -> std::path::PathBuf {
+        self.env.as_ref().map(|e| e.out.clone()).unwrap_or_else(|| ".".into())
+    }
+
+    /// The parameters as a typed struct. Unknown keys are errors when the struct has `#[serde(deny_unknown_fields)]`
+    /// (it should: a typo in a launch file must not pass silently). `impl` is removed first.
+    ///
+    /// # Errors
+    /// A message naming the node and the offending parameter.
+    pub fn params<P: DeserializeOwned>(&self) -> Result<P> {
+        let mut map = self.spec.params.clone();
+        map.remove("impl");
+        serde_json::from_value(serde_json::Value::Object(map)).with_context(|| format!("node '{}': invalid parameters", self.spec.name))
+    }
+
+    /// The `impl` parameter, or `default`.
+    pub fn implementation<'a>(&'a self, default: &'a str) -> &'a str {
+        self.spec.implementation.as_deref().unwrap_or(default)
+    }
+
+    fn declare(&self, port: &str, kind: &str, input: bool, required: bool) {
+        let p = Port {
+            port: port.into(),
+            message: kind.into(),
+            required,
+        };
+        let mut ports = self.ports.borrow_mut();
+        if input {
+            ports.inputs.push(p)
+        } else {
+            ports.outputs.push(p)
+        }
+    }
+
+    /// Subscribes to port `port` (the topic of the same name unless remapped). Required: the node fails at startup
+    /// when it is not wired.
+    ///
+    /// # Errors
+    /// When the port is not wired, carries another message type, or iceoryx2 refuses the subscriber.
+    pub fn input<M: Message>(&self, port: &str) -> Result<Input<M>> {
+        self.input_opt::<M>(port, true)?.with_context(|| {
+            format!(
+                "node '{}': input port '{port}' ({}) is not wired in the launch graph",
+                self.spec.name,
+                M::KIND.name()
+            )
+        })
+    }
+
+    /// Subscribes to `port` if the graph wires it.
+    ///
+    /// # Errors
+    /// As [`input`](Self::input), except that an unwired port gives `Ok(None)`.
+    pub fn optional_input<M: Message>(&self, port: &str) -> Result<Option<Input<M>>> {
+        self.input_opt::<M>(port, false)
+    }
+
+    fn input_opt<M: Message>(&self, port: &str, required: bool) -> Result<Option<Input<M>>> {
+        self.declare(port, M::KIND.name(), true, required);
+        let Some(node) = &self.node else {
+            return Ok(Some(Input::declared()));
+        };
+        let topic = self.spec.topic_of(port);
+        let Some(edge) = self.graph.input_edge(&self.spec.name, topic) else {
+            return Ok(None);
+        };
+        check_kind::<M>(edge, &self.spec.name, port)?;
+        let slot = self.listeners.borrow().len();
+        let resume = self
+            .env
+            .as_ref()
+            .and_then(|e| e.resume.iter().find(|(t, _)| t == topic).map(|(_, f)| *f));
+        if let Some(next) = resume {
+            self.reporter.resume(slot, next);
+        }
+        let input = Input::<M>::open(node, &self.spec.name, edge, slot, self.reporter.clone(), resume)?;
+        let listener = transport::open_event(node, topic)?
+            .listener_builder()
+            .create()
+            .map_err(|e| anyhow::anyhow!("topic '{topic}': cannot create listener: {e:?}"))?;
+        self.listeners.borrow_mut().push(Rc::new(listener));
+        self.connects.borrow_mut().extend(input.inner.clone().map(|i| i as Rc<dyn Connect>));
+        self.reporter.set_inputs(slot + 1);
+        Ok(Some(input))
+    }
+
+    /// Publishes on port `port`. Required: the node fails at startup when it is not wired.
+    ///
+    /// # Errors
+    /// When the port is not wired, carries another message type, or iceoryx2 refuses the publisher.
+    pub fn output<M: Message>(&self, port: &str) -> Result<Output<M>> {
+        self.output_opt::<M>(port, true)?.with_context(|| {
+            format!(
+                "node '{}': output port '{port}' ({}) is not wired in the launch graph",
+                self.spec.name,
+                M::KIND.name()
+            )
+        })
+    }
+
+    /// Publishes on `port` if the graph wires it.
+    ///
+    /// # Errors
+    /// As [`output`](Self::output), except that an unwired port gives `Ok(None)`.
+    pub fn optional_output<M: Message>(&self, port: &str) -> Result<Option<Output<M>>> {
+        self.output_opt::<M>(port, false)
+    }
+
+    fn output_opt<M: Message>(&self, port: &str, required: bool) -> Result<Option<Output<M>>> {
+        self.declare(port, M::KIND.name(), false, required);
+        let Some(node) = &self.node else {
+            return Ok(Some(Output::declared()));
+        };
+        let topic = self.spec.topic_of(port);
+        let Some(edge) = self.graph.output_edge(&self.spec.name, topic) else {
+            return Ok(None);
+        };
+        check_kind::<M>(edge, &self.spec.name, port)?;
+        let output = Output::<M>::open(node, &self.spec.name, edge, self.reporter.clone())?;
+        self.connects
+            .borrow_mut()
+            .extend(output.inner.clone().map(|i| i as Rc<dyn Connect>));
+        Ok(Some(output))
+    }
+
+    /// Connects every port (waiting for the peers the graph promises) and tells the supervisor this node is ready.
+    /// A source then waits for the supervisor's start signal. In describe mode, prints the ports and exits.
+    ///
+    /// # Errors
+    /// When peers do not appear in time, or the run is interrupted while waiting.
+    pub fn connect(&self) -> Result<()> {
+        let Some(env) = &self.env else {
+            println!("{}", serde_json::to_string(&*self.ports.borrow())?);
+            std::process::exit(0);
+        };
+        let timeout = Duration::from_secs(
+            std::env::var(env::CONNECT_TIMEOUT_S)
+                .ok()
+                .and_then(|v| v.parse().ok())
+                .unwrap_or(30),
+        );
+        for c in self.connects.borrow().iter() {
+            c.connect(timeout, env.restart > 0)?;
+        }
+        if let Some(ready) = &self.ready {
+            ready.notify().map_err(|e| anyhow::anyhow!("cannot notify readiness: {e:?}"))?;
+        }
+        if let Some(start) = &self.start {
+            let mut started = false;
+            while !started {
+                if self.should_stop() {
+                    bail!("interrupted before the start signal");
+                }
+                start
+                    .timed_wait(|_| started = true, Duration::from_millis(100))
+                    .map_err(|e| anyhow::anyhow!("waiting for the start signal: {e:?}"))?;
+            }
+        }
+        self.reporter.flush(true);
+        tracing::debug!("connected");
+        Ok(())
+    }
+
+    /// Whether SIGINT or SIGTERM arrived; sources check it between frames.
+    pub fn should_stop(&self) -> bool {
+        self.node.as_ref().is_some_and(|n| n.wait(Duration::ZERO).is_err())
+    }
+
+    /// Blocks until input arrives and calls `on_wake`, until it returns [`Flow::Stop`] or a signal arrives. Never
+    /// busy-polls: the process sleeps in a WaitSet on the inputs' event services. `on_wake` is also called once at
+    /// the start, for messages that arrived before the loop (history, latched topics).
+    ///
+    /// # Errors
+    /// The first error `on_wake` returns, or a WaitSet failure.
+    pub fn run(&self, mut on_wake: impl FnMut() -> Result<Flow>) -> Result<RunEnd> {
+        if on_wake()? == Flow::Stop {
+            return Ok(RunEnd::Finished);
+        }
+        let waitset = WaitSetBuilder::new()
+            .create::<ipc::Service>()
+            .map_err(|e| anyhow::anyhow!("cannot create WaitSet: {e:?}"))?;
+        let listeners = self.listeners.borrow().clone();
+        let mut guards = Vec::with_capacity(listeners.len());
+        for l in &listeners {
+            guards.push(
+                waitset
+                    .attach_notification(&**l)
+                    .map_err(|e| anyhow::anyhow!("cannot attach listener: {e:?}"))?,
+            );
+        }
+        let _tick = waitset
+            .attach_interval(Duration::from_millis(250))
+            .map_err(|e| anyhow::anyhow!("cannot attach interval: {e:?}"))?;
+        let mut result = Ok(Flow::Continue);
+        let outcome = waitset
+            .wait_and_process(|_id| {
+                for l in &listeners {
+                    let _ = l.try_wait(|_| {});
+                }
+                self.reporter.flush(false);
+                result = on_wake();
+                match result {
+                    Ok(Flow::Continue) => CallbackProgression::Continue,
+                    _ => CallbackProgression::Stop,
+                }
+            })
+            .map_err(|e| anyhow::anyhow!("WaitSet failed: {e:?}"))?;
+        result?;
+        Ok(match outcome {
+            iceoryx2::waitset::WaitSetRunResult::Interrupt | iceoryx2::waitset::WaitSetRunResult::TerminationRequest => RunEnd::Interrupted,
+            _ => RunEnd::Finished,
+        })
+    }
+
+    /// The counters so far.
+    pub fn status(&self) -> lineflow_messages::NodeStatus {
+        self.reporter.snapshot()
+    }
+
+    /// Reports the final counters; call after the last end-of-stream is published.
+    pub fn finish(&self) {
+        self.reporter.finished();
+    }
+}
+
+fn check_kind<M: Message>(edge: &crate::launch::EdgeSpec, node: &str, port: &str) -> Result<()> {
+    if edge.message != M::KIND.name() {
+        bail!(
+            "node '{node}': port '{port}' takes {} but edge '{}' carries {}",
+            M::KIND.name(),
+            edge.topic,
+            edge.message
+        );
+    }
+    Ok(())
+}

@@ -1,0 +1,288 @@
+//! Typed inputs and outputs of a node: iceoryx2 publish-subscribe paired with an event service.
+use std::cell::{Cell, RefCell};
+use std::rc::Rc;
+use std::time::Duration;
+
+use anyhow::{bail, Context, Result};
+use iceoryx2::port::update_connections::UpdateConnections;
+use iceoryx2::port::{BackpressureAction, BackpressureInfo};
+use iceoryx2::prelude::*;
+use lineflow_messages::{Message, Stamp, StampFlags};
+
+use crate::launch::EdgeSpec;
+use crate::report::Reporter;
+use crate::transport::{self, PubSub};
+
+/// A received message: zero-copy view into shared memory (`user_header()`, `payload()`).
+pub type Received<M> = iceoryx2::sample::Sample<ipc::Service, [<M as Message>::Element], <M as Message>::Header>;
+
+/// Something that takes part in the readiness handshake.
+pub(crate) trait Connect {
+    /// Waits for the peers the graph promises, then establishes the connections.
+    fn connect(&self, timeout: Duration, restarted: bool) -> Result<()>;
+}
+
+/// A subscribed topic.
+pub struct Input<M: Message> {
+    /// `None` in describe mode, where ports are only declared.
+    pub(crate) inner: Option<Rc<InputInner<M>>>,
+}
+
+pub(crate) struct InputInner<M: Message> {
+    topic: String,
+    node: String,
+    service: PubSub<M>,
+    subscriber: iceoryx2::port::subscriber::Subscriber<ipc::Service, [M::Element], M::Header>,
+    slot: usize,
+    reporter: Rc<Reporter>,
+    ended: Cell<bool>,
+    /// Last (frame, revision) accepted, for duplicate and gap detection.
+    last: Cell<Option<(u64, u32)>>,
+}
+
+impl<M: Message> Input<M> {
+    pub(crate) fn open(
+        node: &Node<ipc::Service>,
+        name: &str,
+        edge: &EdgeSpec,
+        slot: usize,
+        reporter: Rc<Reporter>,
+        resume: Option<u64>,
+    ) -> Result<Self> {
+        let service = transport::open_pubsub::<M>(node, edge, 0)?;
+        let subscriber = service
+            .subscriber_builder()
+            .buffer_size(edge.depth)
+            .create()
+            .map_err(|e| anyhow::anyhow!("node '{name}': cannot subscribe to '{}': {e:?}", edge.topic))?;
+        let last = resume.and_then(|next| next.checked_sub(1)).map(|f| (f, u32::MAX));
+        Ok(Self {
+            inner: Some(Rc::new(InputInner {
+                topic: edge.topic.clone(),
+                node: name.to_owned(),
+                service,
+                subscriber,
+                slot,
+                reporter,
+                ended: Cell::new(false),
+                last: Cell::new(last),
+            })),
+        })
+    }
+
+    pub(crate) fn declared() -> Self {
+        Self { inner: None }
+    }
+
+    /// The topic.
+    pub fn topic(&self) -> &str {
+        self.inner.as_ref().map(|i| i.topic.as_str()).unwrap_or("")
+    }
+
+    /// Whether end-of-stream has arrived on this input.
+    pub fn is_ended(&self) -> bool {
+        self.inner.as_ref().is_none_or(|i| i.ended.get())
+    }
+
+    /// The next message, or `None` when nothing is waiting. End-of-stream is not returned: it sets
+    /// [`is_ended`](Self::is_ended). Messages already seen (history replayed after a restart) are skipped and counted
+    /// as duplicates; gaps in frame numbers are counted as missed frames.
+    ///
+    /// # Errors
+    /// When the subscriber's connection to shared memory fails.
+    pub fn receive(&self) -> Result<Option<Received<M>>> {
+        let inner = self.inner.as_deref().ok_or_else(describe_only)?;
+        loop {
+            let Some(sample) = inner
+                .subscriber
+                .receive()
+                .map_err(|e| anyhow::anyhow!("topic '{}': receive failed: {e:?}", inner.topic))?
+            else {
+                return Ok(None);
+            };
+            let stamp = *M::stamp(sample.user_header());
+            if stamp.is_end_of_stream() {
+                inner.ended.set(true);
+                inner.reporter.input_ended();
+                continue;
+            }
+            let key = (stamp.frame, stamp.revision);
+            if let Some(last) = inner.last.get() {
+                if key <= last {
+                    inner.reporter.duplicate();
+                    continue;
+                }
+                if !M::KIND.latched() && stamp.frame > last.0 + 1 {
+                    inner.reporter.missed(last.0 + 1, stamp.frame - 1);
+                }
+            } else if !M::KIND.latched() && stamp.frame > 0 && inner.reporter.restarted() {
+                inner.reporter.missed(0, stamp.frame - 1);
+            }
+            inner.last.set(Some(key));
+            inner.reporter.received(inner.slot, stamp.frame);
+            return Ok(Some(sample));
+        }
+    }
+}
+
+impl<M: Message> Connect for InputInner<M> {
+    fn connect(&self, timeout: Duration, _restarted: bool) -> Result<()> {
+        if !transport::wait_until(timeout, || self.service.dynamic_config().number_of_publishers() > 0) {
+            bail!(
+                "node '{}': no publisher appeared on '{}' within {:?}",
+                self.node,
+                self.topic,
+                timeout
+            );
+        }
+        self.subscriber
+            .update_connections()
+            .map_err(|e| anyhow::anyhow!("topic '{}': {e:?}", self.topic))
+    }
+}
+
+/// A published topic.
+pub struct Output<M: Message> {
+    /// `None` in describe mode, where ports are only declared.
+    pub(crate) inner: Option<Rc<OutputInner<M>>>,
+}
+
+fn describe_only() -> anyhow::Error {
+    anyhow::anyhow!("port used in describe mode (NodeContext::connect exits before any message flows)")
+}
+
+pub(crate) struct OutputInner<M: Message> {
+    topic: String,
+    node: String,
+    service: PubSub<M>,
+    publisher: iceoryx2::port::publisher::Publisher<ipc::Service, [M::Element], M::Header>,
+    notifier: iceoryx2::port::notifier::Notifier<ipc::Service>,
+    expected: usize,
+    seq: Cell<u64>,
+    reporter: Rc<Reporter>,
+    last_stamp: RefCell<Stamp>,
+}
+
+impl<M: Message> Output<M> {
+    pub(crate) fn open(node: &Node<ipc::Service>, name: &str, edge: &EdgeSpec, reporter: Rc<Reporter>) -> Result<Self> {
+        let service = transport::open_pubsub::<M>(node, edge, 0)?;
+        let event = transport::open_event(node, &edge.topic)?;
+        let element = size_of::<M::Element>().max(1);
+        let timeout = Duration::from_millis(edge.timeout_ms);
+        let publisher = service
+            .publisher_builder()
+            .initial_max_slice_len((edge.max_payload_bytes as usize).div_ceil(element).max(1))
+            .allocation_strategy(AllocationStrategy::PowerOfTwo)
+            .max_loaned_samples(2)
+            .backpressure_strategy(BackpressureStrategy::RetryUntilDelivered)
+            // A crashed subscriber never empties its buffer: give up after the edge's timeout instead of hanging.
+            .set_backpressure_handler(move |i: &BackpressureInfo| {
+                if i.elapsed_time > timeout {
+                    BackpressureAction::DiscardData
+                } else {
+                    BackpressureAction::Retry
+                }
+            })
+            .create()
+            .map_err(|e| anyhow::anyhow!("node '{name}': cannot publish on '{}': {e:?}", edge.topic))?;
+        let notifier = event
+            .notifier_builder()
+            .create()
+            .map_err(|e| anyhow::anyhow!("topic '{}': cannot create notifier: {e:?}", edge.topic))?;
+        Ok(Self {
+            inner: Some(Rc::new(OutputInner {
+                topic: edge.topic.clone(),
+                node: name.to_owned(),
+                service,
+                publisher,
+                notifier,
+                expected: edge.to.len(),
+                seq: Cell::new(0),
+                reporter,
+                last_stamp: RefCell::new(Stamp::default()),
+            })),
+        })
+    }
+
+    pub(crate) fn declared() -> Self {
+        Self { inner: None }
+    }
+
+    /// The topic.
+    pub fn topic(&self) -> &str {
+        self.inner.as_ref().map(|i| i.topic.as_str()).unwrap_or("")
+    }
+
+    /// Publishes a message of `len` elements: `header` as given (its stamp's `seq` is set to this output's count),
+    /// the payload filled in place by `fill`, zero-copy.
+    ///
+    /// # Errors
+    /// When no sample can be loaned (the payload exceeds what shared memory can grow to) or sending fails.
+    pub fn publish_with(&self, mut header: M::Header, len: usize, fill: impl FnOnce(&mut [M::Element])) -> Result<()> {
+        let inner = self.inner.as_deref().ok_or_else(describe_only)?;
+        let mut sample = inner
+            .publisher
+            .loan_slice(len)
+            .map_err(|e| anyhow::anyhow!("topic '{}': cannot loan {len} elements: {e:?}", inner.topic))?;
+        M::stamp_mut(&mut header).seq = inner.seq.get();
+        *sample.user_header_mut() = header;
+        fill(sample.payload_mut());
+        let delivered = sample
+            .send()
+            .map_err(|e| anyhow::anyhow!("topic '{}': send failed: {e:?}", inner.topic))?;
+        inner
+            .notifier
+            .notify()
+            .map_err(|e| anyhow::anyhow!("topic '{}': notify failed: {e:?}", inner.topic))?;
+        inner.seq.set(inner.seq.get() + 1);
+        *inner.last_stamp.borrow_mut() = *M::stamp(&header);
+        inner.reporter.sent(inner.expected.saturating_sub(delivered) as u64);
+        Ok(())
+    }
+
+    /// Publishes a copy of `payload`.
+    ///
+    /// # Errors
+    /// As [`publish_with`](Self::publish_with).
+    pub fn publish(&self, header: M::Header, payload: &[M::Element]) -> Result<()> {
+        self.publish_with(header, payload.len(), |out| out.copy_from_slice(payload))
+    }
+
+    /// Publishes end-of-stream: an empty message whose stamp has the end-of-stream flag, after the last one sent.
+    ///
+    /// # Errors
+    /// As [`publish_with`](Self::publish_with).
+    pub fn end_of_stream(&self) -> Result<()> {
+        let last = *self.inner.as_deref().ok_or_else(describe_only)?.last_stamp.borrow();
+        let mut header = M::Header::default();
+        *M::stamp_mut(&mut header) = Stamp {
+            frame: last.frame + 1,
+            capture_time_ns: last.capture_time_ns,
+            seq: 0,
+            flags: StampFlags::END_OF_STREAM,
+            revision: 0,
+        };
+        self.publish_with(header, 0, |_| {})
+    }
+}
+
+impl<M: Message> Connect for OutputInner<M> {
+    fn connect(&self, timeout: Duration, restarted: bool) -> Result<()> {
+        // After a restart the subscribers are long connected; at the first start, wait for every one of them so
+        // that nothing a source sends is lost before they listen.
+        if !restarted && !transport::wait_until(timeout, || self.service.dynamic_config().number_of_subscribers() >= self.expected) {
+            bail!(
+                "node '{}': only {} of {} subscribers connected to '{}' within {:?}",
+                self.node,
+                self.service.dynamic_config().number_of_subscribers(),
+                self.expected,
+                self.topic,
+                timeout
+            );
+        }
+        self.publisher
+            .update_connections()
+            .with_context(|| format!("topic '{}'", self.topic))
+            .map_err(|e| anyhow::anyhow!("{e:?}"))
+    }
+}

@@ -1,0 +1,645 @@
+//! The supervisor: validates a graph, starts every node as a child process, waits until all are connected, starts
+//! the sources, reaps and restarts children by policy, and ends when every node has finished.
+
+use std::collections::{BTreeMap, BTreeSet};
+use std::io::Write;
+use std::path::PathBuf;
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+use anyhow::{bail, Context, Result};
+use iceoryx2::prelude::*;
+use lineflow_messages::NodeStatus;
+
+use crate::describe::Ports;
+use crate::env;
+use crate::launch::{self, Graph, NodeSpec, RestartPolicy};
+use crate::runs::RunRecord;
+use crate::shm;
+use crate::transport;
+
+/// Options of one run.
+#[derive(Debug, Clone, Default)]
+pub struct RunOptions {
+    /// Output folder handed to the nodes (`LINEFLOW_OUT`).
+    pub out: PathBuf,
+    /// Frames the source will produce, when known: enables progress with rate and ETA.
+    pub expected_frames: Option<u64>,
+    /// Print progress to stderr.
+    pub progress: bool,
+    /// How long nodes may take to connect.
+    pub connect_timeout: Option<Duration>,
+}
+
+/// How one node ended.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum NodeEnd {
+    /// Exited with status 0.
+    Finished,
+    /// Exited with a non-zero status.
+    Failed(i32),
+    /// Killed by a signal.
+    Signalled(i32),
+    /// Stopped by the supervisor (interrupt, or another node failed).
+    Stopped,
+    /// Never ended (should not happen).
+    Unknown,
+}
+
+/// The per-node summary of a run.
+#[derive(Debug, Clone)]
+pub struct NodeSummary {
+    /// Node name.
+    pub name: String,
+    /// How its last instance ended.
+    pub end: NodeEnd,
+    /// Messages received (all instances).
+    pub msgs_in: u64,
+    /// Messages published (all instances).
+    pub msgs_out: u64,
+    /// Deliveries that missed an expected subscriber.
+    pub drops: u64,
+    /// Messages discarded as already seen.
+    pub duplicates: u64,
+    /// Frames missed on the inputs.
+    pub missed_ranges: Vec<(u64, u64)>,
+    /// User plus system CPU time of all instances.
+    pub cpu: Duration,
+    /// Restarts.
+    pub restarts: u32,
+}
+
+impl NodeSummary {
+    /// Frames missed.
+    pub fn missed(&self) -> u64 {
+        self.missed_ranges.iter().map(|(a, b)| b - a + 1).sum()
+    }
+}
+
+/// The outcome of a run.
+#[derive(Debug, Clone)]
+pub struct Outcome {
+    /// Run id.
+    pub run_id: String,
+    /// Whether every node finished and nothing was interrupted.
+    pub ok: bool,
+    /// Why the run failed, when it did.
+    pub error: Option<String>,
+    /// Per-node summaries in graph order.
+    pub nodes: Vec<NodeSummary>,
+    /// Wall time.
+    pub wall: Duration,
+}
+
+impl Outcome {
+    /// The summary as a text table.
+    pub fn table(&self) -> String {
+        let mut s = format!(
+            "{:<14} {:>10} {:>8} {:>8} {:>6} {:>5} {:>8} {:>9} {:>8}  {}\n",
+            "node", "status", "in", "out", "drops", "dups", "missed", "cpu s", "restarts", "frames missed"
+        );
+        for n in &self.nodes {
+            let status = match n.end {
+                NodeEnd::Finished => "ok".to_string(),
+                NodeEnd::Failed(c) => format!("exit {c}"),
+                NodeEnd::Signalled(sig) => format!("signal {sig}"),
+                NodeEnd::Stopped => "stopped".into(),
+                NodeEnd::Unknown => "?".into(),
+            };
+            let ranges: Vec<String> = n
+                .missed_ranges
+                .iter()
+                .map(|(a, b)| if a == b { a.to_string() } else { format!("{a}-{b}") })
+                .collect();
+            s += &format!(
+                "{:<14} {:>10} {:>8} {:>8} {:>6} {:>5} {:>8} {:>9.2} {:>8}  {}\n",
+                n.name,
+                status,
+                n.msgs_in,
+                n.msgs_out,
+                n.drops,
+                n.duplicates,
+                n.missed(),
+                n.cpu.as_secs_f64(),
+                n.restarts,
+                if ranges.is_empty() { "-".into() } else { ranges.join(",") }
+            );
+        }
+        s
+    }
+}
+
+/// Asks every node for its ports (`LINEFLOW_DESCRIBE=1`) and type-checks the graph against them. Also catches
+/// nodes that cannot start at all or reject their parameters, before anything runs.
+///
+/// # Errors
+/// The first node that fails to describe itself, or the first port mismatch.
+pub fn describe_all(graph: &Graph, graph_file: &std::path::Path) -> Result<BTreeMap<String, Ports>> {
+    let mut out = BTreeMap::new();
+    for node in &graph.nodes {
+        let output = Command::new(&node.command[0])
+            .args(&node.command[1..])
+            .env(env::DESCRIBE, "1")
+            .env(env::GRAPH, graph_file)
+            .env(env::NODE, &node.name)
+            .env("LINEFLOW_LOG", "error")
+            .stdin(Stdio::null())
+            .output()
+            .with_context(|| format!("node '{}': cannot start {}", node.name, node.command[0]))?;
+        let stderr = String::from_utf8_lossy(&output.stderr);
+        if !output.status.success() {
+            let why = stderr
+                .lines()
+                .filter(|l| !l.trim().is_empty())
+                .last()
+                .unwrap_or("no message")
+                .trim()
+                .to_owned();
+            bail!(
+                "node '{}': {} exited with {} before starting: {why}",
+                node.name,
+                node.command[0],
+                output.status
+            );
+        }
+        let stdout = String::from_utf8_lossy(&output.stdout);
+        let line = stdout.lines().rev().find(|l| l.trim_start().starts_with('{')).unwrap_or("");
+        let ports: Ports =
+            serde_json::from_str(line).with_context(|| format!("node '{}': --describe printed no port list (docs/nodes.md)", node.name))?;
+        launch::check_ports(graph, node, &ports)?;
+        out.insert(node.name.clone(), ports);
+    }
+    Ok(out)
+}
+
+/// Checks that `/dev/shm` can hold the graph's worst case.
+///
+/// # Errors
+/// When it cannot.
+pub fn check_shm(graph: &Graph) -> Result<()> {
+    let need = graph.shm_bytes();
+    if let Some(free) = shm::free_bytes(std::path::Path::new(shm::SHM_DIR)) {
+        if need > free {
+            bail!(
+                "{}: the graph may need {} of shared memory but {} has only {} free (lower edge depths or max_payload_bytes, or run `lineflow doctor --fix`)",
+                graph.source.display(),
+                shm::human_bytes(need),
+                shm::SHM_DIR,
+                shm::human_bytes(free)
+            );
+        }
+    }
+    Ok(())
+}
+
+struct Child {
+    spec: NodeSpec,
+    pid: Option<i32>,
+    end: NodeEnd,
+    restarts: u32,
+    restart_at: Option<Instant>,
+    cpu: Duration,
+    /// Counters of finished instances plus the current one's latest.
+    done: NodeStatus,
+    current: NodeStatus,
+    missed: Vec<(u64, u64)>,
+    wired_inputs: Vec<String>,
+}
+
+impl Child {
+    fn totals(&self) -> (u64, u64, u64, u64) {
+        (
+            self.done.msgs_in + self.current.msgs_in,
+            self.done.msgs_out + self.current.msgs_out,
+            self.done.drops + self.current.drops,
+            self.done.duplicates + self.current.duplicates,
+        )
+    }
+
+    fn absorb_current(&mut self) {
+        let c = self.current;
+        self.done.msgs_in += c.msgs_in;
+        self.done.msgs_out += c.msgs_out;
+        self.done.drops += c.drops;
+        self.done.duplicates += c.duplicates;
+        for r in &c.missed_ranges[..c.n_missed_ranges as usize] {
+            self.missed.push((r[0], r[1]));
+        }
+        // Keep the resume points: the next instance continues after them.
+        self.current = NodeStatus {
+            last_frame_plus1: c.last_frame_plus1,
+            n_inputs: c.n_inputs,
+            ..Default::default()
+        };
+    }
+}
+
+/// Runs a validated graph to the end.
+///
+/// # Errors
+/// Set-up failures (ports, shared memory, spawning); node failures are reported in the [`Outcome`].
+pub fn run(graph: &Graph, opts: &RunOptions) -> Result<Outcome> {
+    let started = Instant::now();
+    check_shm(graph)?;
+    let run = RunRecord::create()?;
+    std::fs::write(&run.graph, serde_json::to_vec(graph)?).with_context(|| format!("cannot write {}", run.graph.display()))?;
+    let ports = match describe_all(graph, &run.graph) {
+        Ok(p) => p,
+        Err(e) => {
+            run.remove();
+            return Err(e);
+        }
+    };
+    std::fs::create_dir_all(&opts.out).with_context(|| format!("cannot create output folder {}", opts.out.display()))?;
+    let result = supervise(graph, &run, &ports, opts, started);
+    cleanup(&run);
+    // Nothing of a finished run remains: its shared memory, iceoryx2 files and registry entry are gone.
+    run.remove();
+    result
+}
+
+fn cleanup(run: &RunRecord) {
+    if let Ok(cfg) = transport::config(&run.prefix, &run.root) {
+        let _ = Node::<ipc::Service>::list(&cfg, |state| {
+            if let NodeState::Dead(view) = state {
+                let _ = view.try_remove_stale_resources();
+            }
+            CallbackProgression::Continue
+        });
+    }
+    shm::remove_prefixed(&run.prefix);
+    let _ = std::fs::remove_dir_all(&run.root);
+}
+
+fn supervise(graph: &Graph, run: &RunRecord, ports: &BTreeMap<String, Ports>, opts: &RunOptions, started: Instant) -> Result<Outcome> {
+    let cfg = transport::config(&run.prefix, &run.root)?;
+    let node = transport::create_node(&cfg, "supervisor")?;
+    let status_sub = transport::open_status(&node)?
+        .subscriber_builder()
+        .buffer_size(256)
+        .create()
+        .map_err(|e| anyhow::anyhow!("cannot subscribe to status: {e:?}"))?;
+    let ready = transport::open_event(&node, transport::READY_SERVICE)?
+        .listener_builder()
+        .create()
+        .map_err(|e| anyhow::anyhow!("{e:?}"))?;
+    let start = transport::open_event(&node, transport::START_SERVICE)?
+        .notifier_builder()
+        .create()
+        .map_err(|e| anyhow::anyhow!("{e:?}"))?;
+
+    let mut children: Vec<Child> = graph
+        .nodes
+        .iter()
+        .map(|spec| {
+            let wired_inputs = ports[&spec.name]
+                .inputs
+                .iter()
+                .map(|p| spec.topic_of(&p.port).to_owned())
+                .filter(|t| graph.input_edge(&spec.name, t).is_some())
+                .collect();
+            Child {
+                spec: spec.clone(),
+                pid: None,
+                end: NodeEnd::Unknown,
+                restarts: 0,
+                restart_at: None,
+                cpu: Duration::ZERO,
+                done: NodeStatus::default(),
+                current: NodeStatus::default(),
+                missed: Vec::new(),
+                wired_inputs,
+            }
+        })
+        .collect();
+
+    let mut error: Option<String> = None;
+    for c in &mut children {
+        match spawn(c, run, opts) {
+            Ok(pid) => c.pid = Some(pid),
+            Err(e) => {
+                error = Some(format!("{e:#}"));
+                break;
+            }
+        }
+    }
+
+    // Readiness: every node announces itself once its ports are connected.
+    let connect_timeout = opts.connect_timeout.unwrap_or(Duration::from_secs(60));
+    let mut ready_set = BTreeSet::new();
+    let ready_deadline = Instant::now() + connect_timeout;
+    while error.is_none() && ready_set.len() < children.len() {
+        let _ = ready.timed_wait(
+            |ev| {
+                ready_set.insert(ev.id.as_value());
+            },
+            Duration::from_millis(20),
+        );
+        if let Some(msg) = reap(&mut children, false) {
+            error = Some(format!("{msg} before the graph was connected"));
+        }
+        if node.wait(Duration::ZERO).is_err() {
+            error = Some("interrupted".into());
+        }
+        if Instant::now() > ready_deadline {
+            let missing: Vec<_> = children
+                .iter()
+                .filter(|c| !ready_set.contains(&(c.spec.index as usize)))
+                .map(|c| c.spec.name.clone())
+                .collect();
+            error = Some(format!("nodes not connected after {connect_timeout:?}: {}", missing.join(", ")));
+        }
+    }
+    if error.is_none() {
+        start.notify().map_err(|e| anyhow::anyhow!("cannot send start: {e:?}"))?;
+        tracing::debug!("all {} nodes connected; sources started", children.len());
+    }
+
+    let mut progress = Progress::new(opts.expected_frames.filter(|_| opts.progress));
+    let sinks: Vec<usize> = (0..children.len()).filter(|&i| graph.is_sink(&children[i].spec.name)).collect();
+    loop {
+        drain_status(&status_sub, &mut children);
+        if error.is_none() {
+            if let Some(msg) = reap(&mut children, true) {
+                error = Some(msg);
+            }
+            if node.wait(Duration::ZERO).is_err() {
+                error = Some("interrupted".into());
+            }
+        }
+        if error.is_some() {
+            stop_all(&mut children);
+            break;
+        }
+        // Restarts whose back-off has passed; dead nodes are cleaned first so blocked publishers continue.
+        for c in children.iter_mut().filter(|c| c.restart_at.is_some_and(|t| Instant::now() >= t)) {
+            node.try_cleanup_dead_nodes();
+            c.restart_at = None;
+            match spawn(c, run, opts) {
+                Ok(pid) => c.pid = Some(pid),
+                Err(e) => error = Some(format!("{e:#}")),
+            }
+        }
+        if children.iter().all(|c| c.pid.is_none() && c.restart_at.is_none()) {
+            break;
+        }
+        if let Some(p) = progress.as_mut() {
+            let done = sinks
+                .iter()
+                .map(|&i| children[i].current.last_frame_plus1[0].max(children[i].done.last_frame_plus1[0]))
+                .min()
+                .unwrap_or(0);
+            p.show(done);
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    drain_status(&status_sub, &mut children);
+    if let Some(p) = progress.as_mut() {
+        p.finish();
+    }
+
+    let nodes = children
+        .iter_mut()
+        .map(|c| {
+            c.absorb_current();
+            let (msgs_in, msgs_out, drops, duplicates) = c.totals();
+            NodeSummary {
+                name: c.spec.name.clone(),
+                end: c.end.clone(),
+                msgs_in,
+                msgs_out,
+                drops,
+                duplicates,
+                missed_ranges: merge_ranges(&c.missed),
+                cpu: c.cpu,
+                restarts: c.restarts,
+            }
+        })
+        .collect::<Vec<_>>();
+    let ok = error.is_none() && nodes.iter().all(|n| n.end == NodeEnd::Finished);
+    if error.is_none() && !ok {
+        error = Some("a node did not finish".into());
+    }
+    Ok(Outcome {
+        run_id: run.id.clone(),
+        ok,
+        error,
+        nodes,
+        wall: started.elapsed(),
+    })
+}
+
+fn spawn(c: &Child, run: &RunRecord, opts: &RunOptions) -> Result<i32> {
+    let resume: Vec<String> = c
+        .wired_inputs
+        .iter()
+        .enumerate()
+        .filter(|_| c.restarts > 0)
+        .filter_map(|(i, topic)| {
+            c.current
+                .last_frame_plus1
+                .get(i)
+                .filter(|&&f| f > 0)
+                .map(|f| format!("{topic}={f}"))
+        })
+        .collect();
+    let mut cmd = Command::new(&c.spec.command[0]);
+    cmd.args(&c.spec.command[1..])
+        .env(env::RUN_ID, &run.id)
+        .env(env::IOX2_PREFIX, &run.prefix)
+        .env(env::IOX2_ROOT, &run.root)
+        .env(env::GRAPH, &run.graph)
+        .env(env::NODE, &c.spec.name)
+        .env(env::OUT, &opts.out)
+        .env(env::RESTART, c.restarts.to_string())
+        .env(env::RESUME, resume.join(","))
+        .env_remove(env::DESCRIBE)
+        .stdin(Stdio::null());
+    if let Some(t) = opts.connect_timeout {
+        cmd.env(env::CONNECT_TIMEOUT_S, t.as_secs().max(1).to_string());
+    }
+    let child = cmd
+        .spawn()
+        .with_context(|| format!("node '{}': cannot start {}", c.spec.name, c.spec.command[0]))?;
+    if c.restarts > 0 {
+        tracing::warn!(
+            "node '{}' restarted ({} of {}), resuming at {}",
+            c.spec.name,
+            c.restarts,
+            c.spec.max_restarts,
+            if resume.is_empty() { "the start".into() } else { resume.join(",") }
+        );
+    }
+    Ok(child.id() as i32)
+}
+
+/// Reaps exited children; schedules restarts. Returns a message when a node failed for good (only when `restart`
+/// is allowed; before the graph is connected every failure is final).
+fn reap(children: &mut [Child], restart: bool) -> Option<String> {
+    let mut failure = None;
+    for c in children.iter_mut() {
+        let Some(pid) = c.pid else { continue };
+        let mut status = 0;
+        let mut usage: libc::rusage = unsafe { std::mem::zeroed() };
+        // SAFETY: pid is our own child; status and usage are valid out-pointers.
+        let r = unsafe { libc::wait4(pid, &mut status, libc::WNOHANG, &mut usage) };
+        if r != pid {
+            continue;
+        }
+        c.pid = None;
+        c.cpu += tv(usage.ru_utime) + tv(usage.ru_stime);
+        c.end = if libc::WIFEXITED(status) {
+            match libc::WEXITSTATUS(status) {
+                0 => NodeEnd::Finished,
+                code => NodeEnd::Failed(code),
+            }
+        } else if libc::WIFSIGNALED(status) {
+            NodeEnd::Signalled(libc::WTERMSIG(status))
+        } else {
+            NodeEnd::Unknown
+        };
+        if c.end == NodeEnd::Finished {
+            continue;
+        }
+        let can_restart = restart && c.spec.restart == RestartPolicy::OnFailure && c.restarts < c.spec.max_restarts;
+        let what = match c.end {
+            NodeEnd::Failed(code) => format!("exited with status {code}"),
+            NodeEnd::Signalled(sig) => format!("was killed by signal {sig}"),
+            _ => "ended abnormally".into(),
+        };
+        if can_restart {
+            c.absorb_current();
+            c.restarts += 1;
+            let backoff = c.spec.backoff_ms.saturating_mul(1 << (c.restarts - 1).min(10));
+            c.restart_at = Some(Instant::now() + Duration::from_millis(backoff));
+            tracing::warn!("node '{}' {what}; restarting in {backoff} ms", c.spec.name);
+        } else if failure.is_none() {
+            failure = Some(format!("node '{}' {what}", c.spec.name));
+        }
+    }
+    failure
+}
+
+fn tv(t: libc::timeval) -> Duration {
+    Duration::from_secs(t.tv_sec as u64) + Duration::from_micros(t.tv_usec as u64)
+}
+
+/// SIGTERM to every running child, SIGKILL after 5 s.
+fn stop_all(children: &mut [Child]) {
+    for c in children.iter_mut() {
+        c.restart_at = None;
+        if let Some(pid) = c.pid {
+            // SAFETY: signalling our own child.
+            unsafe { libc::kill(pid, libc::SIGTERM) };
+        }
+    }
+    let deadline = Instant::now() + Duration::from_secs(5);
+    while children.iter().any(|c| c.pid.is_some()) && Instant::now() < deadline {
+        reap(children, false);
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    for c in children.iter_mut() {
+        if let Some(pid) = c.pid {
+            // SAFETY: as above.
+            unsafe { libc::kill(pid, libc::SIGKILL) };
+        }
+    }
+    while children.iter().any(|c| c.pid.is_some()) {
+        reap(children, false);
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    for c in children.iter_mut() {
+        if matches!(c.end, NodeEnd::Signalled(libc::SIGTERM) | NodeEnd::Signalled(libc::SIGKILL)) {
+            c.end = NodeEnd::Stopped;
+        }
+    }
+}
+
+fn drain_status(sub: &iceoryx2::port::subscriber::Subscriber<ipc::Service, NodeStatus, ()>, children: &mut [Child]) {
+    while let Ok(Some(sample)) = sub.receive() {
+        let s = *sample.payload();
+        if let Some(c) = children.get_mut(s.node_index as usize) {
+            // Only the live instance's reports count; a late report from a dead instance is already absorbed.
+            if c.pid == Some(s.pid as i32) {
+                c.current = s;
+            }
+        }
+    }
+}
+
+fn merge_ranges(ranges: &[(u64, u64)]) -> Vec<(u64, u64)> {
+    let mut v = ranges.to_vec();
+    v.sort_unstable();
+    let mut out: Vec<(u64, u64)> = Vec::new();
+    for (a, b) in v {
+        match out.last_mut() {
+            Some(last) if a <= last.1 + 1 => last.1 = last.1.max(b),
+            _ => out.push((a, b)),
+        }
+    }
+    out
+}
+
+struct Progress {
+    total: u64,
+    start: Instant,
+    last: Option<Instant>,
+    tty: bool,
+}
+
+impl Progress {
+    fn new(total: Option<u64>) -> Option<Self> {
+        use std::io::IsTerminal;
+        total.map(|total| Self {
+            total,
+            start: Instant::now(),
+            last: None,
+            tty: std::io::stderr().is_terminal(),
+        })
+    }
+
+    fn show(&mut self, done: u64) {
+        let period = if self.tty {
+            Duration::from_millis(250)
+        } else {
+            Duration::from_secs(2)
+        };
+        if self.last.is_some_and(|t| t.elapsed() < period) {
+            return;
+        }
+        self.last = Some(Instant::now());
+        let secs = self.start.elapsed().as_secs_f64();
+        let rate = if secs > 0.0 { done as f64 / secs } else { 0.0 };
+        let eta = if rate > 0.0 {
+            format!("{:.0} s", (self.total.saturating_sub(done)) as f64 / rate)
+        } else {
+            "?".into()
+        };
+        let line = format!("[lineflow] {done}/{} frames  {rate:.2} frames/s  ETA {eta}", self.total);
+        let mut err = std::io::stderr().lock();
+        let _ = if self.tty {
+            write!(err, "\r{line}\x1b[K")
+        } else {
+            writeln!(err, "{line}")
+        };
+    }
+
+    fn finish(&mut self) {
+        if self.tty {
+            let _ = writeln!(std::io::stderr());
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn missed_ranges_merge_when_adjacent_or_overlapping() {
+        assert_eq!(
+            merge_ranges(&[(5, 6), (1, 2), (3, 3), (6, 9), (12, 12)]),
+            vec![(1, 3), (5, 9), (12, 12)]
+        );
+    }
+}
