@@ -19,7 +19,8 @@ pub const OUT: &str = "LINEFLOW_OUT";
 pub const DESCRIBE: &str = "LINEFLOW_DESCRIBE";
 /// How often this node was restarted (absent or 0 at the first start).
 pub const RESTART: &str = "LINEFLOW_RESTART";
-/// After a restart: `topic=n,...`, the frame after the last one the previous instance consumed on each input.
+/// After a restart: `topic=NEXT@REPLAY,...` per input: NEXT is the frame after the last one the previous instance
+/// consumed; frames from REPLAY on are processed again (their outputs may have been lost with the old process).
 pub const RESUME: &str = "LINEFLOW_RESUME";
 /// Seconds a node waits for its peers to connect (default 30).
 pub const CONNECT_TIMEOUT_S: &str = "LINEFLOW_CONNECT_TIMEOUT_S";
@@ -41,8 +42,8 @@ pub struct RunEnv {
     pub out: PathBuf,
     /// Restart count.
     pub restart: u32,
-    /// Resume points after a restart.
-    pub resume: Vec<(String, u64)>,
+    /// Resume points after a restart: (topic, next frame, replay from).
+    pub resume: Vec<(String, u64, u64)>,
 }
 
 fn var(name: &str) -> Result<String> {
@@ -61,10 +62,9 @@ impl RunEnv {
             .filter(|s| !s.is_empty())
             .map(|kv| {
                 let (k, v) = kv.rsplit_once('=').with_context(|| format!("{RESUME}: malformed entry '{kv}'"))?;
-                Ok((
-                    k.to_owned(),
-                    v.parse().with_context(|| format!("{RESUME}: '{v}' is not a frame number"))?,
-                ))
+                let (next, replay) = v.split_once('@').unwrap_or((v, v));
+                let num = |s: &str| s.parse::<u64>().with_context(|| format!("{RESUME}: '{s}' is not a frame number"));
+                Ok((k.to_owned(), num(next)?, num(replay)?))
             })
             .collect::<Result<_>>()?;
         Ok(Self {

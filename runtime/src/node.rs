@@ -51,6 +51,9 @@ pub enum RunEnd {
     Interrupted,
 }
 
+/// How often a waiting node wakes without input: to publish its status and pick up restarted publishers.
+pub const RUN_TICK: Duration = Duration::from_millis(100);
+
 type Listener = iceoryx2::port::listener::Listener<ipc::Service>;
 
 /// A running node: its place in the graph, parameters, ports and counters.
@@ -220,11 +223,13 @@ impl NodeContext {
         };
         check_kind::<M>(edge, &self.spec.name, port)?;
         let slot = self.listeners.borrow().len();
-        let resume = self
-            .env
-            .as_ref()
-            .and_then(|e| e.resume.iter().find(|(t, _)| t == topic).map(|(_, f)| *f));
-        if let Some(next) = resume {
+        let resume = self.env.as_ref().and_then(|e| {
+            e.resume
+                .iter()
+                .find(|(t, _, _)| t == topic)
+                .map(|(_, next, replay)| (*next, *replay))
+        });
+        if let Some((next, _)) = resume {
             self.reporter.resume(slot, next);
         }
         let input = Input::<M>::open(node, &self.spec.name, edge, slot, self.reporter.clone(), resume)?;
@@ -327,7 +332,9 @@ impl NodeContext {
     /// # Errors
     /// The first error `on_wake` returns, or a WaitSet failure.
     pub fn run(&self, mut on_wake: impl FnMut() -> Result<Flow>) -> Result<RunEnd> {
-        if on_wake()? == Flow::Stop {
+        let first = on_wake()?;
+        self.reporter.commit();
+        if first == Flow::Stop {
             return Ok(RunEnd::Finished);
         }
         let waitset = WaitSetBuilder::new()
@@ -343,7 +350,7 @@ impl NodeContext {
             );
         }
         let _tick = waitset
-            .attach_interval(Duration::from_millis(250))
+            .attach_interval(RUN_TICK)
             .map_err(|e| anyhow::anyhow!("cannot attach interval: {e:?}"))?;
         let mut result = Ok(Flow::Continue);
         let outcome = waitset
@@ -351,8 +358,12 @@ impl NodeContext {
                 for l in &listeners {
                     let _ = l.try_wait(|_| {});
                 }
+                for c in self.connects.borrow().iter() {
+                    c.refresh();
+                }
                 self.reporter.flush(false);
                 result = on_wake();
+                self.reporter.commit();
                 match result {
                     Ok(Flow::Continue) => CallbackProgression::Continue,
                     _ => CallbackProgression::Stop,

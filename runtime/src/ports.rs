@@ -20,6 +20,8 @@ pub type Received<M> = iceoryx2::sample::Sample<ipc::Service, [<M as Message>::E
 pub(crate) trait Connect {
     /// Waits for the peers the graph promises, then establishes the connections.
     fn connect(&self, timeout: Duration, restarted: bool) -> Result<()>;
+    /// Picks up publishers that appeared since (a restarted upstream node).
+    fn refresh(&self) {}
 }
 
 /// A subscribed topic.
@@ -36,8 +38,10 @@ pub(crate) struct InputInner<M: Message> {
     slot: usize,
     reporter: Rc<Reporter>,
     ended: Cell<bool>,
-    /// Last (frame, revision) accepted, for duplicate and gap detection.
+    /// Last (frame, revision) accepted, for duplicate detection.
     last: Cell<Option<(u64, u32)>>,
+    /// Frames up to this one were received by an earlier instance: a gap below it is not a miss.
+    received_before: Option<u64>,
 }
 
 impl<M: Message> Input<M> {
@@ -47,7 +51,7 @@ impl<M: Message> Input<M> {
         edge: &EdgeSpec,
         slot: usize,
         reporter: Rc<Reporter>,
-        resume: Option<u64>,
+        resume: Option<(u64, u64)>,
     ) -> Result<Self> {
         let service = transport::open_pubsub::<M>(node, edge, 0)?;
         let subscriber = service
@@ -55,7 +59,8 @@ impl<M: Message> Input<M> {
             .buffer_size(edge.depth)
             .create()
             .map_err(|e| anyhow::anyhow!("node '{name}': cannot subscribe to '{}': {e:?}", edge.topic))?;
-        let last = resume.and_then(|next| next.checked_sub(1)).map(|f| (f, u32::MAX));
+        let last = resume.and_then(|(_, replay)| replay.checked_sub(1)).map(|f| (f, u32::MAX));
+        let received_before = resume.and_then(|(next, _)| next.checked_sub(1));
         Ok(Self {
             inner: Some(Rc::new(InputInner {
                 topic: edge.topic.clone(),
@@ -66,6 +71,7 @@ impl<M: Message> Input<M> {
                 reporter,
                 ended: Cell::new(false),
                 last: Cell::new(last),
+                received_before,
             })),
         })
     }
@@ -112,11 +118,15 @@ impl<M: Message> Input<M> {
                     inner.reporter.duplicate();
                     continue;
                 }
-                if !M::KIND.latched() && stamp.frame > last.0 + 1 {
-                    inner.reporter.missed(last.0 + 1, stamp.frame - 1);
+                let first_unseen = (last.0 + 1).max(inner.received_before.map_or(0, |f| f + 1));
+                if !M::KIND.latched() && stamp.frame > first_unseen {
+                    inner.reporter.missed(first_unseen, stamp.frame - 1);
                 }
             } else if !M::KIND.latched() && stamp.frame > 0 && inner.reporter.restarted() {
-                inner.reporter.missed(0, stamp.frame - 1);
+                let first_unseen = inner.received_before.map_or(0, |f| f + 1);
+                if stamp.frame > first_unseen {
+                    inner.reporter.missed(first_unseen, stamp.frame - 1);
+                }
             }
             inner.last.set(Some(key));
             inner.reporter.received(inner.slot, stamp.frame);
@@ -279,6 +289,12 @@ impl<M: Message> Connect for OutputInner<M> {
                 self.topic,
                 timeout
             );
+        }
+        if restarted {
+            // Subscribers connect to a new publisher on their next wake-up (at most RUN_TICK apart); samples sent
+            // before that would be dropped (iceoryx2 pitfall P1). Give them four ticks.
+            let _ = self.publisher.update_connections();
+            std::thread::sleep(crate::node::RUN_TICK * 4);
         }
         self.publisher
             .update_connections()

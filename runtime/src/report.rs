@@ -14,6 +14,8 @@ pub struct Reporter {
     publisher: Option<iceoryx2::port::publisher::Publisher<ipc::Service, NodeStatus, ()>>,
     last_publish: Cell<Option<Instant>>,
     restarted: bool,
+    /// Frames received but not yet known to be handled, per input slot.
+    in_progress: RefCell<Vec<Option<u64>>>,
 }
 
 impl Reporter {
@@ -32,6 +34,7 @@ impl Reporter {
             publisher,
             last_publish: Cell::new(None),
             restarted,
+            in_progress: RefCell::default(),
         }
     }
 
@@ -49,15 +52,32 @@ impl Reporter {
         }
     }
 
+    /// A message arrived; the frame counts as consumed once [`commit`](Self::commit) says the node is done with it,
+    /// so a restart after a crash mid-frame processes that frame again instead of losing it.
     pub(crate) fn received(&self, slot: usize, frame: u64) {
-        {
-            let mut s = self.status.borrow_mut();
-            s.msgs_in += 1;
-            if let Some(v) = s.last_frame_plus1.get_mut(slot) {
-                *v = (*v).max(frame + 1);
+        self.commit();
+        self.status.borrow_mut().msgs_in += 1;
+        let mut p = self.in_progress.borrow_mut();
+        if p.len() <= slot {
+            p.resize(slot + 1, None);
+        }
+        p[slot] = Some(frame);
+    }
+
+    /// Marks every received frame as handled and reports it. Called before the next receive and after each wake-up.
+    pub(crate) fn commit(&self) {
+        let mut changed = false;
+        for (slot, f) in self.in_progress.borrow_mut().iter_mut().enumerate() {
+            if let Some(frame) = f.take() {
+                if let Some(v) = self.status.borrow_mut().last_frame_plus1.get_mut(slot) {
+                    *v = (*v).max(frame + 1);
+                }
+                changed = true;
             }
         }
-        self.flush(false);
+        if changed {
+            self.flush(true);
+        }
     }
 
     pub(crate) fn duplicate(&self) {
@@ -90,6 +110,7 @@ impl Reporter {
     pub(crate) fn input_ended(&self) {}
 
     pub(crate) fn finished(&self) {
+        self.commit();
         self.status.borrow_mut().flags |= NodeStatus::FINISHED;
         self.flush(true);
     }

@@ -204,6 +204,8 @@ struct Child {
     current: NodeStatus,
     missed: Vec<(u64, u64)>,
     wired_inputs: Vec<String>,
+    /// Deepest subscriber buffer among the node's outputs.
+    output_depth: usize,
 }
 
 impl Child {
@@ -309,6 +311,13 @@ fn supervise(graph: &Graph, run: &RunRecord, ports: &BTreeMap<String, Ports>, op
                 current: NodeStatus::default(),
                 missed: Vec::new(),
                 wired_inputs,
+                output_depth: graph
+                    .edges
+                    .iter()
+                    .filter(|e| e.from == spec.name)
+                    .map(|e| e.depth + 2)
+                    .max()
+                    .unwrap_or(0),
             }
         })
         .collect();
@@ -430,6 +439,9 @@ fn supervise(graph: &Graph, run: &RunRecord, ports: &BTreeMap<String, Ports>, op
 }
 
 fn spawn(c: &Child, run: &RunRecord, opts: &RunOptions) -> Result<i32> {
+    // Outputs the dead instance sent but its subscribers had not yet taken die with its shared memory: replay up to
+    // one output buffer's worth of frames (subscribers drop what they already have).
+    let replay = c.output_depth as u64;
     let resume: Vec<String> = c
         .wired_inputs
         .iter()
@@ -440,7 +452,7 @@ fn spawn(c: &Child, run: &RunRecord, opts: &RunOptions) -> Result<i32> {
                 .last_frame_plus1
                 .get(i)
                 .filter(|&&f| f > 0)
-                .map(|f| format!("{topic}={f}"))
+                .map(|f| format!("{topic}={f}@{}", f.saturating_sub(replay)))
         })
         .collect();
     let mut cmd = Command::new(&c.spec.command[0]);

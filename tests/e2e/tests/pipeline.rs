@@ -1,0 +1,402 @@
+//! End-to-end tests: real `lineflow` supervisors, real node processes, real iceoryx2 services, real image files.
+//! Every test has its own state folder, so the run ids, iceoryx2 prefixes and output folders never collide and
+//! the tests run in parallel.
+
+use std::collections::BTreeSet;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output, Stdio};
+use std::time::{Duration, Instant};
+
+use lineflow_stats::fnv1a64;
+
+fn bin_dir() -> PathBuf {
+    // target/<profile>/deps/pipeline-<hash> -> target/<profile>
+    let exe = std::env::current_exe().unwrap();
+    let dir = exe.parent().unwrap().parent().unwrap().to_path_buf();
+    assert!(
+        dir.join("lineflow").is_file(),
+        "build the binaries first: `cargo build --workspace` ({} has no lineflow)",
+        dir.display()
+    );
+    dir
+}
+
+struct Sandbox {
+    dir: tempfile::TempDir,
+}
+
+impl Sandbox {
+    fn new() -> Self {
+        Self {
+            dir: tempfile::tempdir().unwrap(),
+        }
+    }
+    fn path(&self) -> &Path {
+        self.dir.path()
+    }
+    fn lineflow(&self, args: &[&str]) -> Command {
+        let mut c = Command::new(bin_dir().join("lineflow"));
+        c.args(args)
+            .env("LINEFLOW_STATE_DIR", self.path().join("state"))
+            .env("LINEFLOW_LOG", "info")
+            .stdin(Stdio::null());
+        c
+    }
+    fn run(&self, args: &[&str]) -> Output {
+        let out = self.lineflow(args).output().unwrap();
+        eprintln!("--- lineflow {}\n{}", args.join(" "), String::from_utf8_lossy(&out.stderr));
+        out
+    }
+    /// A project folder with `n` images of `w`x`h` pixels: PNG (8-bit RGB and 16-bit grey), JPEG and TIFF, names in
+    /// an order that only natural sorting gets right.
+    fn project(&self, n: usize, w: u32, h: u32) -> PathBuf {
+        let root = self.path().join("project");
+        std::fs::create_dir_all(root.join("images")).unwrap();
+        std::fs::write(
+            root.join("camera.toml"),
+            format!("width = {w}\nheight = {h}\npixel_size_mm = 0.0055\nfocal_mm = 17.6\n"),
+        )
+        .unwrap();
+        for k in 0..n {
+            let img = image::RgbImage::from_fn(w, h, |x, y| {
+                image::Rgb([(x * 7 + k as u32 * 13) as u8, (y * 5) as u8, ((x ^ y) + k as u32) as u8])
+            });
+            let name = format!("IMG_{}", k + 1);
+            match k % 4 {
+                0 => img.save(root.join("images").join(format!("{name}.png"))).unwrap(),
+                1 => image::DynamicImage::ImageRgb8(img)
+                    .to_luma16()
+                    .save(root.join("images").join(format!("{name}.PNG")))
+                    .unwrap(),
+                2 => img.save(root.join("images").join(format!("{name}.jpg"))).unwrap(),
+                _ => img.save(root.join("images").join(format!("{name}.tif"))).unwrap(),
+            }
+        }
+        root
+    }
+    fn graph(&self, name: &str, text: &str) -> PathBuf {
+        let p = self.path().join(name);
+        std::fs::write(&p, text).unwrap();
+        p
+    }
+}
+
+fn direct_graph(folder: &Path, extra_capture: &str, edge_extra: &str) -> String {
+    format!(
+        r#"
+[[node]]
+name = "capture"
+stage = "capture"
+impl = "folder"
+params = {{ folder = "{}" {extra_capture} }}
+
+[[node]]
+name = "stats"
+stage = "stats"
+
+[[edge]]
+topic = "images"
+type = "Image"
+from = "capture"
+to = ["stats"]
+{edge_extra}
+"#,
+        folder.display()
+    )
+}
+
+fn chain_graph(folder: &Path, fps: u32, history: usize) -> String {
+    format!(
+        r#"
+[[node]]
+name = "capture"
+stage = "capture"
+impl = "folder"
+params = {{ folder = "{}", fps = {fps} }}
+
+[[node]]
+name = "gray"
+stage = "convert"
+impl = "gray"
+restart = "on-failure"
+backoff_ms = 300
+
+[[node]]
+name = "stats"
+stage = "stats"
+remap = {{ images = "gray" }}
+
+[[edge]]
+topic = "images"
+type = "Image"
+from = "capture"
+to = ["gray"]
+depth = 4
+history = {history}
+
+[[edge]]
+topic = "gray"
+type = "Image"
+from = "gray"
+to = ["stats"]
+"#,
+        folder.display()
+    )
+}
+
+/// (frame, image name, checksum) rows of `frames.csv`.
+fn frames(out: &Path) -> Vec<(u64, String, String)> {
+    let text = std::fs::read_to_string(out.join("frames.csv")).unwrap();
+    text.lines()
+        .skip(1)
+        .map(|l| {
+            let f: Vec<&str> = l.split(',').collect();
+            (f[0].parse().unwrap(), f[1].to_owned(), f[6].to_owned())
+        })
+        .collect()
+}
+
+fn run_id(out: &Path) -> String {
+    let s = std::fs::read_to_string(out.join("summary.txt")).unwrap();
+    s.split_whitespace().nth(1).unwrap().to_owned()
+}
+
+fn assert_nothing_left(sandbox: &Sandbox, out: &Path) {
+    let id = run_id(out);
+    let left: Vec<_> = std::fs::read_dir("/dev/shm")
+        .unwrap()
+        .flatten()
+        .filter(|e| e.file_name().to_string_lossy().contains(&format!("lf{id}_")))
+        .collect();
+    assert!(left.is_empty(), "run {id} left {left:?} in /dev/shm");
+    let runs = sandbox.path().join("state/runs");
+    assert!(
+        !runs.exists() || std::fs::read_dir(&runs).unwrap().next().is_none(),
+        "run folder left in {}",
+        runs.display()
+    );
+}
+
+fn summary_row(out: &Path, node: &str) -> Vec<String> {
+    let s = std::fs::read_to_string(out.join("summary.txt")).unwrap();
+    s.lines()
+        .find(|l| l.split_whitespace().next() == Some(node))
+        .unwrap()
+        .split_whitespace()
+        .map(str::to_owned)
+        .collect()
+}
+
+#[test]
+fn folder_capture_delivers_every_frame_once_in_order_and_byte_identical() {
+    let sb = Sandbox::new();
+    let folder = sb.project(12, 64, 48);
+    let graph = sb.graph("g.toml", &direct_graph(&folder, "", ""));
+    let out = sb.path().join("out");
+    let r = sb.run(&["run", graph.to_str().unwrap(), "--out", out.to_str().unwrap()]);
+    assert!(r.status.success());
+    let rows = frames(&out);
+    let names: Vec<_> = (1..=12)
+        .map(|k| ["png", "PNG", "jpg", "tif"][(k - 1) % 4])
+        .enumerate()
+        .map(|(i, ext)| format!("IMG_{}.{ext}", i + 1))
+        .collect();
+    assert_eq!(rows.iter().map(|r| r.0).collect::<Vec<_>>(), (0..12).collect::<Vec<_>>());
+    for (row, name) in rows.iter().zip(&names) {
+        assert_eq!(&row.1, name);
+        let decoded = lineflow_capture::decode_file(&folder.join("images").join(name)).unwrap();
+        assert_eq!(row.2, format!("{:016x}", fnv1a64(&decoded.bytes)), "{name} differs");
+    }
+    assert_nothing_left(&sb, &out);
+}
+
+#[test]
+fn process_streams_a_folder_with_progress_and_writes_into_its_out_folder() {
+    let sb = Sandbox::new();
+    let folder = sb.project(5, 80, 60);
+    let graph = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../launch/folder.toml");
+    let r = sb.run(&["process", folder.to_str().unwrap(), "--graph", graph.to_str().unwrap()]);
+    assert!(r.status.success());
+    let stderr = String::from_utf8_lossy(&r.stderr);
+    assert!(stderr.contains("frames/s") && stderr.contains("ETA"), "no progress shown");
+    assert_eq!(frames(&folder.join("out")).len(), 5);
+    assert_nothing_left(&sb, &folder.join("out"));
+}
+
+fn children_of(pid: u32, comm_prefix: &str) -> Vec<u32> {
+    std::fs::read_dir("/proc")
+        .unwrap()
+        .flatten()
+        .filter_map(|e| e.file_name().to_str()?.parse::<u32>().ok())
+        .filter(|p| {
+            let stat = std::fs::read_to_string(format!("/proc/{p}/stat")).unwrap_or_default();
+            let (comm, rest) = match (stat.find('('), stat.rfind(')')) {
+                (Some(a), Some(b)) => (&stat[a + 1..b], &stat[b + 2..]),
+                _ => return false,
+            };
+            let ppid: u32 = rest.split(' ').nth(1).and_then(|s| s.parse().ok()).unwrap_or(0);
+            ppid == pid && comm.starts_with(comm_prefix)
+        })
+        .collect()
+}
+
+/// Starts the chain graph, SIGKILLs `gray` once it has run a while, and waits for the run to end.
+fn kill_gray_mid_run(sb: &Sandbox, history: usize) -> (Output, PathBuf) {
+    let folder = sb.project(40, 48, 32);
+    let graph = sb.graph("g.toml", &chain_graph(&folder, 20, history));
+    let out = sb.path().join("out");
+    let child = sb
+        .lineflow(&["run", graph.to_str().unwrap(), "--out", out.to_str().unwrap()])
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let start = Instant::now();
+    while children_of(child.id(), "lineflow-conver").is_empty() {
+        assert!(start.elapsed() < Duration::from_secs(20), "gray never started");
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    // The first process seen may be the short-lived `--describe` run; the node proper is the one alive later.
+    std::thread::sleep(Duration::from_millis(700));
+    let gray = children_of(child.id(), "lineflow-conver");
+    assert_eq!(gray.len(), 1, "one gray process mid-run");
+    // SAFETY: signalling a process this test started (a child of our child).
+    unsafe { libc::kill(gray[0] as i32, libc::SIGKILL) };
+    let r = child.wait_with_output().unwrap();
+    eprintln!("{}", String::from_utf8_lossy(&r.stderr));
+    (r, out)
+}
+
+#[test]
+fn a_killed_middle_node_is_restarted_and_misses_nothing_when_the_edge_keeps_history() {
+    let sb = Sandbox::new();
+    let (r, out) = kill_gray_mid_run(&sb, 64);
+    assert!(r.status.success(), "run failed");
+    let row = summary_row(&out, "gray");
+    assert_eq!(row[8], "1", "gray restarts: {row:?}");
+    assert_eq!(row[9], "-", "gray missed frames: {row:?}");
+    assert_eq!(summary_row(&out, "stats")[9], "-", "stats missed frames");
+    let got: Vec<u64> = frames(&out).iter().map(|r| r.0).collect();
+    assert_eq!(got, (0..40).collect::<Vec<_>>(), "every frame exactly once, in order");
+    assert_nothing_left(&sb, &out);
+}
+
+#[test]
+fn a_killed_middle_node_without_history_names_exactly_the_frames_it_missed() {
+    let sb = Sandbox::new();
+    let (r, out) = kill_gray_mid_run(&sb, 0);
+    assert!(r.status.success(), "run failed");
+    let row = summary_row(&out, "gray");
+    assert_eq!(row[8], "1");
+    assert_ne!(row[9], "-", "frames were sent while gray was down; the summary must name them");
+    // Every frame that did not arrive is named by the node that missed it (gray, or stats for frames lost in flight).
+    let named = format!("{},{}", row[9], summary_row(&out, "stats")[9]);
+    let missed: BTreeSet<u64> = named
+        .split(',')
+        .filter(|r| *r != "-")
+        .flat_map(|r| match r.split_once('-') {
+            Some((a, b)) => (a.parse::<u64>().unwrap()..=b.parse().unwrap()).collect::<Vec<_>>(),
+            None => vec![r.parse().unwrap()],
+        })
+        .collect();
+    let got: Vec<u64> = frames(&out).iter().map(|r| r.0).collect();
+    assert!(got.windows(2).all(|w| w[0] < w[1]), "in order, no duplicates: {got:?}");
+    let got: BTreeSet<u64> = got.into_iter().collect();
+    assert!(got.is_disjoint(&missed), "a frame both missed and delivered");
+    assert_eq!(
+        got.union(&missed).copied().collect::<Vec<_>>(),
+        (0..40).collect::<Vec<_>>(),
+        "delivered + missed = all"
+    );
+    assert_nothing_left(&sb, &out);
+}
+
+#[test]
+fn a_type_mismatched_graph_is_refused_before_any_node_runs() {
+    let sb = Sandbox::new();
+    let folder = sb.project(2, 16, 16);
+    let text = chain_graph(&folder, 0, 0).replace("topic = \"gray\"\ntype = \"Image\"", "topic = \"gray\"\ntype = \"Lines2D\"");
+    let graph = sb.graph("bad.toml", &text);
+    let r = sb.run(&["run", graph.to_str().unwrap(), "--out", sb.path().join("out").to_str().unwrap()]);
+    assert!(!r.status.success());
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert!(
+        err.contains("bad.toml") && err.contains("edge 'gray'") && err.contains("type mismatch"),
+        "{err}"
+    );
+    assert!(!sb.path().join("out/frames.csv").exists(), "nothing may have run");
+}
+
+#[test]
+fn bad_input_gets_one_clear_line_and_a_non_zero_exit() {
+    let sb = Sandbox::new();
+    let folder = sb.project(3, 16, 16);
+    let graph = sb.graph("g.toml", &direct_graph(&folder, "", ""));
+    let out = sb.path().join("out");
+    let run = |extra: &[&str]| {
+        let mut args = vec!["run", graph.to_str().unwrap(), "--out", out.to_str().unwrap()];
+        args.extend_from_slice(extra);
+        sb.run(&args)
+    };
+    let expect = |r: Output, needle: &str| {
+        assert!(!r.status.success(), "expected failure for {needle}");
+        let err = String::from_utf8_lossy(&r.stderr);
+        assert!(err.contains(needle), "expected '{needle}' in: {err}");
+        assert!(!err.contains("panicked"), "{err}");
+    };
+    expect(run(&["--set", "capture.fsp=3"]), "unknown field `fsp`");
+    expect(run(&["--set", "nobody.x=1"]), "no node 'nobody'");
+    std::fs::write(folder.join("images/IMG_2.PNG"), b"\x89PNG\r\n\x1a\nnot really").unwrap();
+    expect(run(&[]), "IMG_2.PNG");
+    std::fs::remove_file(folder.join("images/IMG_2.PNG")).unwrap();
+    image::RgbImage::new(17, 16).save(folder.join("images/IMG_2.png")).unwrap();
+    expect(run(&[]), "image is 17x16 but camera.toml says 16x16");
+    std::fs::write(sb.path().join("broken.toml"), "[[node]]\nname = \"a\"\nstage = ").unwrap();
+    expect(sb.run(&["run", sb.path().join("broken.toml").to_str().unwrap()]), "broken.toml");
+    let exits = sb.graph(
+        "exits.toml",
+        &direct_graph(&folder, "", "").replace("stage = \"stats\"", "executable = \"/bin/false\""),
+    );
+    expect(sb.run(&["run", exits.to_str().unwrap()]), "node 'stats'");
+    std::fs::remove_file(folder.join("camera.toml")).unwrap();
+    expect(sb.run(&["process", folder.to_str().unwrap()]), "camera.toml: missing");
+}
+
+#[test]
+fn watch_mode_reads_a_jpeg_written_in_chunks_once_and_complete() {
+    let sb = Sandbox::new();
+    let folder = sb.project(1, 64, 48);
+    let graph = sb.graph(
+        "g.toml",
+        &direct_graph(&folder, ", watch = true, idle_timeout_s = 20, settle_ms = 200", ""),
+    );
+    let out = sb.path().join("out");
+    let child = sb
+        .lineflow(&["run", graph.to_str().unwrap(), "--out", out.to_str().unwrap()])
+        .spawn()
+        .unwrap();
+    let img = image::RgbImage::from_fn(64, 48, |x, y| image::Rgb([x as u8 * 3, y as u8 * 5, 77]));
+    let mut jpeg = Vec::new();
+    image::codecs::jpeg::JpegEncoder::new_with_quality(&mut jpeg, 90)
+        .encode_image(&img)
+        .unwrap();
+    std::thread::sleep(Duration::from_millis(1500));
+    let target = folder.join("images/IMG_2.jpg");
+    {
+        use std::io::Write;
+        let mut f = std::fs::File::create(&target).unwrap();
+        // Pauses longer than the settle time: only the JPEG trailer check keeps the half-written file unread.
+        for chunk in jpeg.chunks(jpeg.len() / 3 + 1) {
+            f.write_all(chunk).unwrap();
+            f.flush().unwrap();
+            std::thread::sleep(Duration::from_millis(600));
+        }
+    }
+    std::thread::sleep(Duration::from_millis(800));
+    std::fs::write(folder.join("STOP"), b"").unwrap();
+    let r = child.wait_with_output().unwrap();
+    assert!(r.status.success());
+    let rows = frames(&out);
+    assert_eq!(rows.iter().map(|r| r.1.as_str()).collect::<Vec<_>>(), ["IMG_1.png", "IMG_2.jpg"]);
+    let decoded = lineflow_capture::decode_file(&target).unwrap();
+    assert_eq!(rows[1].2, format!("{:016x}", fnv1a64(&decoded.bytes)));
+}
