@@ -30,8 +30,8 @@ pub fn topics(run: Option<&str>) -> Result<ExitCode> {
     let (rec, graph, node) = attach(run)?;
     println!("run {} ({})", rec.id, graph.name);
     println!(
-        "{:<20} {:<14} {:<9} {:>4} {:>4}  {} -> {}",
-        "topic", "type", "policy", "pubs", "subs", "from", "to"
+        "{:<20} {:<14} {:<9} {:>4} {:>4}  from -> to",
+        "topic", "type", "policy", "pubs", "subs"
     );
     for e in &graph.edges {
         let (pubs, subs) = with_kind!(e.kind(), M => {

@@ -46,7 +46,7 @@ pub fn split<A: ZeroCopySend + Copy, B: ZeroCopySend + Copy>(
     count_b: usize,
 ) -> Result<(&[A], &[B]), PartsError> {
     let need = two_part_len::<A, B>(count_a, count_b);
-    if bytes.len() < need || (bytes.as_ptr() as usize) % 8 != 0 || align_of::<A>() > 8 || align_of::<B>() > 8 {
+    if bytes.len() < need || !(bytes.as_ptr() as usize).is_multiple_of(8) || align_of::<A>() > 8 || align_of::<B>() > 8 {
         return Err(PartsError { need, have: bytes.len() });
     }
     let off_b = align8(count_a * size_of::<A>());
@@ -67,7 +67,7 @@ pub fn split<A: ZeroCopySend + Copy, B: ZeroCopySend + Copy>(
 pub fn write<A: ZeroCopySend + Copy, B: ZeroCopySend + Copy>(out: &mut [u8], a: &[A], b: &[B]) {
     let need = two_part_len::<A, B>(a.len(), b.len());
     assert!(
-        out.len() == need && (out.as_ptr() as usize) % 8 == 0,
+        out.len() == need && (out.as_ptr() as usize).is_multiple_of(8),
         "two-part payload of {} bytes, need {need}",
         out.len()
     );

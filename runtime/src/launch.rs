@@ -522,8 +522,7 @@ fn find_executable(exe: &str, base: &Path) -> Option<String> {
         return full.is_file().then(|| full.display().to_string());
     }
     std::env::var_os("PATH")
-        .map(|paths| std::env::split_paths(&paths).map(|d| d.join(exe)).find(|c| c.is_file()))
-        .flatten()
+        .and_then(|paths| std::env::split_paths(&paths).map(|d| d.join(exe)).find(|c| c.is_file()))
         .map(|c| c.display().to_string())
 }
 

@@ -150,8 +150,7 @@ pub fn describe_all(graph: &Graph, graph_file: &std::path::Path) -> Result<BTree
         if !output.status.success() {
             let why = stderr
                 .lines()
-                .filter(|l| !l.trim().is_empty())
-                .last()
+                .rfind(|l| !l.trim().is_empty())
                 .unwrap_or("no message")
                 .trim()
                 .to_owned();

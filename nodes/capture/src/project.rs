@@ -174,7 +174,7 @@ fn read_text(path: &Path) -> Result<String, ProjectError> {
 fn toml_error(path: &Path, text: &str, e: toml::de::Error) -> ProjectError {
     let line = e
         .span()
-        .map(|s| text[..s.start.min(text.len())].lines().count().max(1))
+        .map(|s| text[..s.start.min(text.len())].matches('\n').count() + 1)
         .unwrap_or(0);
     ProjectError::Invalid {
         path: path.to_owned(),
