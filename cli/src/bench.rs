@@ -92,9 +92,12 @@ fn pace(start: Instant, i: u64, hz: Option<f64>) {
     }
 }
 
-fn iox_case(prefix: &str, root: &std::path::Path, size: usize, count: u64, hz: Option<f64>) -> Result<Stats> {
+type BenchService = iceoryx2::service::port_factory::publish_subscribe::PortFactory<ipc::Service, [u8], BenchHeader>;
+
+/// The node and the lossless, one-to-one service both sides of the iceoryx2 benchmark open identically.
+fn bench_service(prefix: &str, root: &std::path::Path, size: usize, node_name: &str) -> Result<(Node<ipc::Service>, String, BenchService)> {
     let cfg = transport::config(prefix, root)?;
-    let node = transport::create_node(&cfg, "bench-pub")?;
+    let node = transport::create_node(&cfg, node_name)?;
     let name = format!("bench/{size}");
     let svc = node
         .service_builder(&name.as_str().try_into()?)
@@ -106,6 +109,11 @@ fn iox_case(prefix: &str, root: &std::path::Path, size: usize, count: u64, hz: O
         .max_subscribers(1)
         .open_or_create()
         .map_err(|e| anyhow::anyhow!("{e:?}"))?;
+    Ok((node, name, svc))
+}
+
+fn iox_case(prefix: &str, root: &std::path::Path, size: usize, count: u64, hz: Option<f64>) -> Result<Stats> {
+    let (node, name, svc) = bench_service(prefix, root, size, "bench-pub")?;
     let event = transport::open_event(&node, &name)?;
     let publisher = svc
         .publisher_builder()
@@ -153,19 +161,7 @@ fn iox_case(prefix: &str, root: &std::path::Path, size: usize, count: u64, hz: O
 }
 
 fn iox_sub(prefix: &str, root: &str, size: usize, count: u64) -> Result<()> {
-    let cfg = transport::config(prefix, std::path::Path::new(root))?;
-    let node = transport::create_node(&cfg, "bench-sub")?;
-    let name = format!("bench/{size}");
-    let svc = node
-        .service_builder(&name.as_str().try_into()?)
-        .publish_subscribe::<[u8]>()
-        .user_header::<BenchHeader>()
-        .enable_safe_overflow(false)
-        .subscriber_max_buffer_size(4)
-        .max_publishers(1)
-        .max_subscribers(1)
-        .open_or_create()
-        .map_err(|e| anyhow::anyhow!("{e:?}"))?;
+    let (node, name, svc) = bench_service(prefix, std::path::Path::new(root), size, "bench-sub")?;
     let listener = transport::open_event(&node, &name)?
         .listener_builder()
         .create()
