@@ -1,0 +1,18 @@
+//! Pure photogrammetric geometry, no I/O: the camera model of `conventions.md` (a correction model in
+//! millimetres), rotations in the ω-φ-κ convention, and collinearity.
+//!
+//! Rotations are kept as matrices; ω, φ, κ appear only at file boundaries ([`opk_from_rotation`]).
+#![warn(missing_docs)]
+
+mod camera;
+mod pose;
+mod rotation;
+
+pub use camera::Camera;
+pub use pose::Pose;
+pub use rotation::{look_at, opk_from_rotation, rotation_from_opk};
+
+/// Object-space 3-vector (metres).
+pub type Vec3 = nalgebra::Vector3<f64>;
+/// 3×3 matrix.
+pub type Mat3 = nalgebra::Matrix3<f64>;
