@@ -27,6 +27,7 @@ const INVERSE_MAX_ITER: usize = 20;
 
 impl Camera {
     /// Photo coordinates (mm, origin at the image centre, y up) of a pixel position (centres at integers).
+    #[inline]
     pub fn pixel_to_photo(&self, px: [f64; 2]) -> [f64; 2] {
         [
             (px[0] - (self.width as f64 - 1.0) / 2.0) * self.pixel_size_mm,
@@ -35,6 +36,7 @@ impl Camera {
     }
 
     /// Pixel position of photo coordinates.
+    #[inline]
     pub fn photo_to_pixel(&self, photo: [f64; 2]) -> [f64; 2] {
         [
             photo[0] / self.pixel_size_mm + (self.width as f64 - 1.0) / 2.0,
@@ -44,7 +46,17 @@ impl Camera {
 
     /// The ideal point, relative to the principal point, of a measured photo point: `(xb + Δx, yb + Δy)`.
     pub fn correct(&self, measured: [f64; 2]) -> [f64; 2] {
-        self.correct_with_jacobian(measured).0
+        // Every rendered pixel goes through here, so no Jacobian.
+        let [k1, k2, k3] = self.radial;
+        let [p1, p2] = self.decentering;
+        let xb = measured[0] - self.principal_point_mm[0];
+        let yb = measured[1] - self.principal_point_mm[1];
+        let r2 = xb * xb + yb * yb;
+        let k = r2 * (k1 + r2 * (k2 + r2 * k3));
+        [
+            xb * (1.0 + k) + p1 * (r2 + 2.0 * xb * xb) + 2.0 * p2 * xb * yb,
+            yb * (1.0 + k) + p2 * (r2 + 2.0 * yb * yb) + 2.0 * p1 * xb * yb,
+        ]
     }
 
     /// The correction and its Jacobian with respect to the measured point.
@@ -83,13 +95,16 @@ impl Camera {
             m[0] -= dx;
             m[1] -= dy;
             if dx.abs().max(dy.abs()) < INVERSE_TOL_MM {
-                return Some(m);
+                // Beyond the fold of a pincushion correction the polynomial has a second, meaningless root.
+                let (_, j) = self.correct_with_jacobian(m);
+                return (j[0][0] * j[1][1] - j[0][1] * j[1][0] > 0.0).then_some(m);
             }
         }
         None
     }
 
     /// The ideal photo point (relative to the principal point) of a measured pixel position.
+    #[inline]
     pub fn pixel_to_ideal(&self, px: [f64; 2]) -> [f64; 2] {
         self.correct(self.pixel_to_photo(px))
     }

@@ -27,11 +27,13 @@ impl Pose {
         self.project_ideal(camera, point).and_then(|i| camera.ideal_to_pixel(i))
     }
 
+    #[inline]
     /// The unit viewing ray, in object space, of an ideal photo point: `Mᵀ · (xi, yi, −f)`.
     pub fn ray_of_ideal(&self, camera: &Camera, ideal: [f64; 2]) -> Vec3 {
         (self.rotation.transpose() * Vec3::new(ideal[0], ideal[1], -camera.focal_mm)).normalize()
     }
 
+    #[inline]
     /// The unit viewing ray of a measured pixel position (closed form through the correction model).
     pub fn ray_of_pixel(&self, camera: &Camera, px: [f64; 2]) -> Vec3 {
         self.ray_of_ideal(camera, camera.pixel_to_ideal(px))

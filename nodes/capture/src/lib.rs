@@ -5,6 +5,7 @@
 pub mod decode;
 pub mod natural;
 pub mod project;
+pub mod synth;
 pub mod watch;
 
 pub use decode::{decode_file, DecodedImage};

@@ -1,0 +1,372 @@
+//! Readers and writers for the result files of `conventions.md`, shared by the stages that write them, the
+//! synthetic ground truth, and `lineflow eval`. Columns come in the documented order; a reader accepts extra
+//! columns after them; a standard deviation that was not estimated is an empty field.
+#![warn(missing_docs)]
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+use lineflow_photogrammetry::{opk_from_rotation, rotation_from_opk, Pose, Vec3};
+
+/// A result file that cannot be read or written; the message names the file and line.
+#[derive(Debug, thiserror::Error)]
+#[error("{path}:{line}: {message}")]
+pub struct FormatError {
+    /// The file.
+    pub path: PathBuf,
+    /// 1-based line (0 when not tied to a line).
+    pub line: u64,
+    /// What is wrong.
+    pub message: String,
+}
+
+fn err(path: &Path, line: u64, message: impl Into<String>) -> FormatError {
+    FormatError {
+        path: path.to_owned(),
+        line,
+        message: message.into(),
+    }
+}
+
+/// Header of `poses.csv`.
+pub const POSES_HEADER: [&str; 13] = [
+    "image", "X", "Y", "Z", "omega_deg", "phi_deg", "kappa_deg", "sX", "sY", "sZ", "s_omega_deg", "s_phi_deg", "s_kappa_deg",
+];
+/// Header of `checkpoints.csv`.
+pub const CHECKPOINTS_HEADER: [&str; 4] = ["id", "dX", "dY", "dZ"];
+/// Header of `lines2d.csv`.
+pub const LINES2D_HEADER: [&str; 7] = ["image", "id", "col1", "row1", "col2", "row2", "n_pixels"];
+/// Header of `lines3d.csv`.
+pub const LINES3D_HEADER: [&str; 10] = ["id", "X1", "Y1", "Z1", "X2", "Y2", "Z2", "n_points", "n_images", "rms_m"];
+
+/// One row of `poses.csv`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PoseRow {
+    /// Image file name.
+    pub image: String,
+    /// Exterior orientation.
+    pub pose: Pose,
+    /// σ of X, Y, Z (metres), if estimated.
+    pub sigma_center_m: Option<[f64; 3]>,
+    /// σ of ω, φ, κ (degrees), if estimated.
+    pub sigma_angles_deg: Option<[f64; 3]>,
+}
+
+/// One row of `checkpoints.csv`: estimated minus surveyed.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CheckRow {
+    /// Point id.
+    pub id: String,
+    /// dX, dY, dZ in metres.
+    pub delta_m: [f64; 3],
+}
+
+/// One row of `lines2d.csv`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Line2Row {
+    /// Image file name.
+    pub image: String,
+    /// Segment id within the image.
+    pub id: u64,
+    /// First endpoint, measured pixels.
+    pub start_px: [f64; 2],
+    /// Second endpoint, measured pixels.
+    pub end_px: [f64; 2],
+    /// Pixels in the chain, if known.
+    pub n_pixels: Option<u32>,
+}
+
+/// One row of `lines3d.csv`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Line3Row {
+    /// Line id.
+    pub id: String,
+    /// First endpoint, metres.
+    pub start: Vec3,
+    /// Second endpoint, metres.
+    pub end: Vec3,
+    /// Supporting 3-D points, if known.
+    pub n_points: Option<u32>,
+    /// Supporting images, if known.
+    pub n_images: Option<u32>,
+    /// RMS of the points about the line, metres, if known.
+    pub rms_m: Option<f64>,
+}
+
+fn opt<T: std::fmt::Display>(v: Option<T>) -> String {
+    v.map(|v| v.to_string()).unwrap_or_default()
+}
+
+fn create(path: &Path) -> Result<std::io::BufWriter<std::fs::File>, FormatError> {
+    if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir).map_err(|e| err(dir, 0, format!("cannot create folder: {e}")))?;
+    }
+    let f = std::fs::File::create(path).map_err(|e| err(path, 0, format!("cannot create: {e}")))?;
+    Ok(std::io::BufWriter::new(f))
+}
+
+fn write_rows(path: &Path, header: &[&str], rows: impl Iterator<Item = Vec<String>>) -> Result<(), FormatError> {
+    let mut out = create(path)?;
+    let io = |e: std::io::Error| err(path, 0, format!("cannot write: {e}"));
+    writeln!(out, "{}", header.join(",")).map_err(io)?;
+    for row in rows {
+        writeln!(out, "{}", row.join(",")).map_err(io)?;
+    }
+    out.flush().map_err(io)
+}
+
+/// Rows of a CSV file whose header starts with `header`, as string records with their line numbers.
+fn read_rows(path: &Path, header: &[&str]) -> Result<Vec<(u64, csv::StringRecord)>, FormatError> {
+    let mut reader = csv::ReaderBuilder::new()
+        .flexible(false)
+        .trim(csv::Trim::All)
+        .from_path(path)
+        .map_err(|e| err(path, 0, format!("cannot read: {e}")))?;
+    let found = reader.headers().map_err(|e| err(path, 1, e.to_string()))?.clone();
+    let names: Vec<&str> = found.iter().collect();
+    if names.len() < header.len() || names[..header.len()] != *header {
+        return Err(err(path, 1, format!("header must start with '{}', found '{}'", header.join(","), names.join(","))));
+    }
+    let mut rows = Vec::new();
+    for record in reader.records() {
+        let record = record.map_err(|e| err(path, e.position().map_or(0, |p| p.line()), e.to_string()))?;
+        let line = record.position().map_or(0, |p| p.line());
+        rows.push((line, record));
+    }
+    Ok(rows)
+}
+
+fn field<T: std::str::FromStr>(path: &Path, line: u64, rec: &csv::StringRecord, i: usize, name: &str) -> Result<T, FormatError> {
+    let s = rec.get(i).unwrap_or("");
+    s.parse().map_err(|_| err(path, line, format!("column '{name}': cannot read '{s}'")))
+}
+
+fn optional<T: std::str::FromStr>(path: &Path, line: u64, rec: &csv::StringRecord, i: usize, name: &str) -> Result<Option<T>, FormatError> {
+    match rec.get(i).unwrap_or("") {
+        "" => Ok(None),
+        _ => field(path, line, rec, i, name).map(Some),
+    }
+}
+
+fn triple(path: &Path, line: u64, rec: &csv::StringRecord, first: usize, names: &[&str]) -> Result<Option<[f64; 3]>, FormatError> {
+    let v = [
+        optional(path, line, rec, first, names[first])?,
+        optional(path, line, rec, first + 1, names[first + 1])?,
+        optional(path, line, rec, first + 2, names[first + 2])?,
+    ];
+    Ok(match v {
+        [Some(a), Some(b), Some(c)] => Some([a, b, c]),
+        [None, None, None] => None,
+        _ => return Err(err(path, line, format!("columns {}..{}: give all three or none", names[first], names[first + 2]))),
+    })
+}
+
+/// Writes `poses.csv`.
+pub fn write_poses(path: &Path, rows: &[PoseRow]) -> Result<(), FormatError> {
+    write_rows(
+        path,
+        &POSES_HEADER,
+        rows.iter().map(|r| {
+            let (o, p, k) = opk_from_rotation(&r.pose.rotation);
+            let c = r.pose.center;
+            let mut v = vec![r.image.clone(), format!("{:.6}", c.x), format!("{:.6}", c.y), format!("{:.6}", c.z)];
+            v.extend([o, p, k].iter().map(|a| format!("{:.8}", a.to_degrees())));
+            for s in [r.sigma_center_m, r.sigma_angles_deg] {
+                v.extend((0..3).map(|i| opt(s.map(|s| format!("{:.6}", s[i])))));
+            }
+            v
+        }),
+    )
+}
+
+/// Reads `poses.csv`.
+pub fn read_poses(path: &Path) -> Result<Vec<PoseRow>, FormatError> {
+    let h = &POSES_HEADER;
+    read_rows(path, h)?
+        .into_iter()
+        .map(|(line, rec)| {
+            let f = |i: usize| field::<f64>(path, line, &rec, i, h[i]);
+            let rotation = rotation_from_opk(f(4)?.to_radians(), f(5)?.to_radians(), f(6)?.to_radians());
+            Ok(PoseRow {
+                image: rec[0].to_string(),
+                pose: Pose {
+                    center: Vec3::new(f(1)?, f(2)?, f(3)?),
+                    rotation,
+                },
+                sigma_center_m: triple(path, line, &rec, 7, h)?,
+                sigma_angles_deg: triple(path, line, &rec, 10, h)?,
+            })
+        })
+        .collect()
+}
+
+/// Writes `checkpoints.csv`.
+pub fn write_checkpoints(path: &Path, rows: &[CheckRow]) -> Result<(), FormatError> {
+    write_rows(
+        path,
+        &CHECKPOINTS_HEADER,
+        rows.iter().map(|r| {
+            let mut v = vec![r.id.clone()];
+            v.extend(r.delta_m.iter().map(|d| format!("{d:.6}")));
+            v
+        }),
+    )
+}
+
+/// Reads `checkpoints.csv`.
+pub fn read_checkpoints(path: &Path) -> Result<Vec<CheckRow>, FormatError> {
+    let h = &CHECKPOINTS_HEADER;
+    read_rows(path, h)?
+        .into_iter()
+        .map(|(line, rec)| {
+            let f = |i: usize| field::<f64>(path, line, &rec, i, h[i]);
+            Ok(CheckRow {
+                id: rec[0].to_string(),
+                delta_m: [f(1)?, f(2)?, f(3)?],
+            })
+        })
+        .collect()
+}
+
+/// Writes `lines2d.csv`.
+pub fn write_lines2d(path: &Path, rows: &[Line2Row]) -> Result<(), FormatError> {
+    write_rows(
+        path,
+        &LINES2D_HEADER,
+        rows.iter().map(|r| {
+            vec![
+                r.image.clone(),
+                r.id.to_string(),
+                format!("{:.3}", r.start_px[0]),
+                format!("{:.3}", r.start_px[1]),
+                format!("{:.3}", r.end_px[0]),
+                format!("{:.3}", r.end_px[1]),
+                opt(r.n_pixels),
+            ]
+        }),
+    )
+}
+
+/// Reads `lines2d.csv`.
+pub fn read_lines2d(path: &Path) -> Result<Vec<Line2Row>, FormatError> {
+    let h = &LINES2D_HEADER;
+    read_rows(path, h)?
+        .into_iter()
+        .map(|(line, rec)| {
+            let f = |i: usize| field::<f64>(path, line, &rec, i, h[i]);
+            Ok(Line2Row {
+                image: rec[0].to_string(),
+                id: field(path, line, &rec, 1, "id")?,
+                start_px: [f(2)?, f(3)?],
+                end_px: [f(4)?, f(5)?],
+                n_pixels: optional(path, line, &rec, 6, "n_pixels")?,
+            })
+        })
+        .collect()
+}
+
+/// Writes `lines3d.csv`.
+pub fn write_lines3d(path: &Path, rows: &[Line3Row]) -> Result<(), FormatError> {
+    write_rows(
+        path,
+        &LINES3D_HEADER,
+        rows.iter().map(|r| {
+            let mut v = vec![r.id.clone()];
+            v.extend(r.start.iter().chain(r.end.iter()).map(|c| format!("{c:.6}")));
+            v.extend([opt(r.n_points), opt(r.n_images), opt(r.rms_m.map(|m| format!("{m:.6}")))]);
+            v
+        }),
+    )
+}
+
+/// Reads `lines3d.csv`.
+pub fn read_lines3d(path: &Path) -> Result<Vec<Line3Row>, FormatError> {
+    let h = &LINES3D_HEADER;
+    read_rows(path, h)?
+        .into_iter()
+        .map(|(line, rec)| {
+            let f = |i: usize| field::<f64>(path, line, &rec, i, h[i]);
+            Ok(Line3Row {
+                id: rec[0].to_string(),
+                start: Vec3::new(f(1)?, f(2)?, f(3)?),
+                end: Vec3::new(f(4)?, f(5)?, f(6)?),
+                n_points: optional(path, line, &rec, 7, h[7])?,
+                n_images: optional(path, line, &rec, 8, h[8])?,
+                rms_m: optional(path, line, &rec, 9, h[9])?,
+            })
+        })
+        .collect()
+}
+
+/// Writes 3-D segments as an ASCII PLY file of vertices and edges, readable by any 3-D viewer.
+pub fn write_lines_ply(path: &Path, rows: &[Line3Row]) -> Result<(), FormatError> {
+    let mut out = create(path)?;
+    let io = |e: std::io::Error| err(path, 0, format!("cannot write: {e}"));
+    write!(
+        out,
+        "ply\nformat ascii 1.0\ncomment lineflow 3-D line segments\nelement vertex {}\nproperty double x\nproperty double y\nproperty double z\nelement edge {}\nproperty int vertex1\nproperty int vertex2\nend_header\n",
+        2 * rows.len(),
+        rows.len()
+    )
+    .map_err(io)?;
+    for r in rows {
+        for p in [r.start, r.end] {
+            writeln!(out, "{:.6} {:.6} {:.6}", p.x, p.y, p.z).map_err(io)?;
+        }
+    }
+    for i in 0..rows.len() {
+        writeln!(out, "{} {}", 2 * i, 2 * i + 1).map_err(io)?;
+    }
+    out.flush().map_err(io)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn poses_round_trip_with_and_without_sigmas() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("poses.csv");
+        let rows = vec![
+            PoseRow {
+                image: "a.png".into(),
+                pose: Pose {
+                    center: Vec3::new(1.0, -19.3, 1.6),
+                    rotation: rotation_from_opk(1.8, 0.1, -0.02),
+                },
+                sigma_center_m: None,
+                sigma_angles_deg: None,
+            },
+            PoseRow {
+                image: "b.png".into(),
+                pose: Pose {
+                    center: Vec3::new(3.0, -19.0, 1.5),
+                    rotation: rotation_from_opk(1.5, std::f64::consts::FRAC_PI_2, 0.0),
+                },
+                sigma_center_m: Some([0.01, 0.02, 0.03]),
+                sigma_angles_deg: Some([0.1, 0.2, 0.3]),
+            },
+        ];
+        write_poses(&path, &rows).unwrap();
+        let back = read_poses(&path).unwrap();
+        assert_eq!(back.len(), 2);
+        for (a, b) in rows.iter().zip(&back) {
+            assert_eq!(a.image, b.image);
+            assert!((a.pose.center - b.pose.center).norm() < 1e-6);
+            assert!((a.pose.rotation - b.pose.rotation).abs().max() < 1e-9);
+            assert_eq!(a.sigma_center_m, b.sigma_center_m);
+        }
+    }
+
+    #[test]
+    fn bad_files_name_the_line_and_column() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("lines3d.csv");
+        std::fs::write(&path, "id,X1,Y1,Z1,X2,Y2,Z2,n_points,n_images,rms_m\nL1,0,0,0,1,1,x,,,\n").unwrap();
+        let e = read_lines3d(&path).unwrap_err().to_string();
+        assert!(e.contains(":2:") && e.contains("Z2"), "{e}");
+        std::fs::write(&path, "id,X,Y\n").unwrap();
+        assert!(read_lines3d(&path).unwrap_err().to_string().contains("header must start"));
+    }
+}
