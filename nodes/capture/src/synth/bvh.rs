@@ -15,15 +15,6 @@ struct Node {
     count: u32,
 }
 
-/// The closest hit of a ray.
-#[derive(Debug, Clone, Copy)]
-pub struct Hit {
-    /// Distance along the (unit) ray.
-    pub t: f64,
-    /// Index of the face.
-    pub face: u32,
-}
-
 /// Faces and their hierarchy.
 #[derive(Debug, Clone)]
 pub struct Bvh {
@@ -44,13 +35,13 @@ impl Bvh {
         Bvh { faces, nodes, order }
     }
 
-    /// The closest face hit by the ray within (t_min, t_max).
-    pub fn closest(&self, origin: &Vec3, dir: &Vec3, t_min: f64, t_max: f64) -> Option<Hit> {
+    /// Distance to the closest face hit by the ray within (t_min, t_max).
+    pub fn closest(&self, origin: &Vec3, dir: &Vec3, t_min: f64, t_max: f64) -> Option<f64> {
         if self.nodes.is_empty() {
             return None;
         }
         let inv = Vec3::new(1.0 / dir.x, 1.0 / dir.y, 1.0 / dir.z);
-        let mut best: Option<Hit> = None;
+        let mut best: Option<f64> = None;
         let mut limit = t_max;
         // Each entry carries the distance at which its box is entered, so a box behind the best hit is skipped
         // without testing it again.
@@ -72,7 +63,7 @@ impl Bvh {
                 for &f in &self.order[start..start + node.count as usize] {
                     if let Some(t) = self.faces[f as usize].intersect(origin, dir, t_min, limit) {
                         limit = t;
-                        best = Some(Hit { t, face: f });
+                        best = Some(t);
                     }
                 }
             } else {

@@ -73,7 +73,7 @@ impl Face {
     }
 
     /// Precomputes the plane, the dual basis and the bounds.
-    pub fn prepare(&self) -> Prepared {
+    pub(crate) fn prepare(&self) -> Prepared {
         let o = Vec3::from(self.origin);
         let (u, v) = (Vec3::from(self.u), Vec3::from(self.v));
         let normal = u.cross(&v).normalize();

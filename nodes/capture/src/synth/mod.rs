@@ -102,6 +102,11 @@ impl Synthetic {
         truth::observe_targets(&self.world, self.camera(), self.poses(), &self.building.targets, self.preset.obs_sigma_px, self.seed)
     }
 
+    /// Textures at their mean colour, so that only geometry makes edges (for measuring edge positions).
+    pub fn set_flat_textures(&mut self, flat: bool) {
+        self.world.flat = flat;
+    }
+
     /// The ray-casting scene (for visibility tests).
     pub fn world(&self) -> &World {
         &self.world

@@ -142,7 +142,7 @@ pub fn preset(name: &str, seed: u64) -> Option<Preset> {
             let poses = (0..10)
                 .map(|i| {
                     let x = 3.0 + 24.0 * i as f64 / 9.0;
-                    station(&mut rng, Vec3::new(x, -22.0, z), Vec3::new(x, 1.5, b.wall_height_m()))
+                    station(&mut rng, Vec3::new(x, -22.0, z), Vec3::new(x, 1.5, b.wall_height_m() - 4.0))
                 })
                 .collect();
             common("roof", "Nikon D2X, 10 elevated oblique views 22 m out and 9 m above the eaves", d2x(), b, poses)

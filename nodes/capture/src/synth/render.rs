@@ -29,6 +29,10 @@ pub struct Sensor {
     pub vignetting: f64,
     /// JPEG quality 1-100 (0 = lossless).
     pub jpeg_quality: u8,
+    /// Display gamma of the encoded values (1 = linear). A gamma other than 1 moves the grey-level midpoint of a
+    /// blurred step off the geometric edge by up to a few tenths of a pixel, as in real JPEGs; the default keeps the
+    /// yardstick unbiased.
+    pub gamma: f64,
 }
 
 impl Default for Sensor {
@@ -38,6 +42,7 @@ impl Default for Sensor {
             blur_px: 0.5,
             vignetting: 0.15,
             jpeg_quality: 0,
+            gamma: 1.0,
         }
     }
 }
@@ -51,6 +56,8 @@ pub struct World {
     target_radius: f64,
     sun: Vec3,
     seed: u64,
+    /// Textures at their mean (as if seen from infinitely far): only geometry makes edges.
+    pub flat: bool,
 }
 
 impl World {
@@ -63,6 +70,7 @@ impl World {
             target_radius: building.spec.target_radius_m,
             sun: Vec3::new(-0.35, -0.75, 0.55).normalize(),
             seed,
+            flat: false,
         }
     }
 
@@ -102,7 +110,8 @@ impl World {
         let p = origin + dir * t;
         let cos = face.normal.dot(dir);
         let fw = t * spread / cos.abs().max(0.1);
-        let mut c = albedo(face.material, p.dot(&face.tex_s), p.dot(&face.tex_t), fw, self.seed);
+        let texture_fw = if self.flat { f64::INFINITY } else { fw };
+        let mut c = albedo(face.material, p.dot(&face.tex_s), p.dot(&face.tex_t), texture_fw, self.seed);
         for &i in targets {
             let (surface, centre) = &self.targets[i as usize];
             if *surface == face.surface {
@@ -212,10 +221,10 @@ fn weighted(kernel: &[f32], sample: impl Fn(isize) -> Rgb, radius: isize) -> Rgb
     acc
 }
 
-/// Vignetting, display encoding (gamma 2.2 through a table), sensor noise in digital numbers, rounding to 8 bits.
+/// Vignetting, display encoding (gamma through a table), sensor noise in digital numbers, rounding to 8 bits.
 fn expose(rgb: &[Rgb], w: usize, h: usize, sensor: &Sensor, noise_seed: u64) -> Vec<u8> {
     const LEVELS: usize = 4096;
-    let table: Vec<f32> = (0..LEVELS).map(|i| (255.0 * (i as f64 / (LEVELS - 1) as f64).powf(1.0 / 2.2)) as f32).collect();
+    let table: Vec<f32> = (0..LEVELS).map(|i| (255.0 * (i as f64 / (LEVELS - 1) as f64).powf(1.0 / sensor.gamma.max(0.1))) as f32).collect();
     let (cx, cy) = ((w as f64 - 1.0) / 2.0, (h as f64 - 1.0) / 2.0);
     let r2max = cx * cx + cy * cy;
     let mut out = vec![0u8; w * h * 3];

@@ -29,6 +29,9 @@ fn pulse_coverage(x: f64, period: f64, width: f64, fw: f64) -> f64 {
         let n = floor(x / period);
         n * width + (x - n * period).min(width)
     };
+    if fw > 1e3 * period {
+        return width / period;
+    }
     if fw < 1e-9 {
         return if (x - floor(x / period) * period) < width { 1.0 } else { 0.0 };
     }
