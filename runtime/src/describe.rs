@@ -11,6 +11,10 @@ pub struct Port {
     pub message: String,
     /// Whether the node refuses to run when the port is not wired.
     pub required: bool,
+    /// Largest payload the node will publish on this output, in bytes, when it knows (e.g. the synthetic camera
+    /// from its preset); sizes an edge whose launch entry gives no `max_payload_bytes`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub max_payload_bytes: Option<u64>,
 }
 
 /// Every port of a node.

@@ -419,7 +419,8 @@ pub fn parse(path: &Path, text: &str, overrides: &[String], resolver: &Resolver)
         }
         let max_payload_bytes = match (e.max_payload_bytes, kind) {
             (Some(b), _) => b,
-            (None, MessageKind::Image) => camera_bytes.clone().map_err(|m| invalid(entry.clone(), m))?,
+            // 0: the producer declares the size through --describe (see `resolve_payloads`).
+            (None, MessageKind::Image) => camera_bytes.clone().map_err(|m| invalid(entry.clone(), m))?.unwrap_or(0),
             (None, _) => 1 << 20,
         };
         edges.push(EdgeSpec {
@@ -527,8 +528,8 @@ fn find_executable(exe: &str, base: &Path) -> Option<String> {
 }
 
 /// Default payload of image topics: RGB8 at the size of the graph's camera.toml, or of `<folder>/camera.toml` of
-/// the first node with a `folder` parameter.
-fn default_image_bytes(file: &LaunchFile, base: &Path) -> Result<u64, String> {
+/// the first node with a `folder` parameter; `None` when the graph names neither.
+fn default_image_bytes(file: &LaunchFile, base: &Path) -> Result<Option<u64>, String> {
     let camera = file
         .graph
         .camera
@@ -541,8 +542,8 @@ fn default_image_bytes(file: &LaunchFile, base: &Path) -> Result<u64, String> {
                     .and_then(|f| f.as_str())
                     .map(|f| resolve_param_path(base, f).join("camera.toml"))
             })
-        })
-        .ok_or("an Image edge needs `max_payload_bytes`, a [graph] camera, or a node with a `folder` parameter")?;
+        });
+    let Some(camera) = camera else { return Ok(None) };
     let text = std::fs::read_to_string(&camera).map_err(|e| format!("cannot read {} for the image size: {e}", camera.display()))?;
     #[derive(Deserialize)]
     struct Size {
@@ -550,7 +551,60 @@ fn default_image_bytes(file: &LaunchFile, base: &Path) -> Result<u64, String> {
         height: u64,
     }
     let s: Size = toml::from_str(&text).map_err(|e| format!("{}: {}", camera.display(), e.to_string().trim()))?;
-    Ok(s.width * s.height * 3)
+    Ok(Some(s.width * s.height * 3))
+}
+
+/// Sizes the edges the launch file left open (`max_payload_bytes` 0): from what their producer declared, or else,
+/// for a node that transforms images (a converter, an edge detector), from the largest image edge it receives.
+///
+/// # Errors
+/// When an edge's size can be found neither way.
+pub fn resolve_payloads(graph: &mut Graph, ports: &std::collections::BTreeMap<String, crate::describe::Ports>) -> Result<(), LaunchError> {
+    // Each pass settles at least one edge of a chain; a graph has no longer chain than it has edges.
+    for _ in 0..=graph.edges.len() {
+        let mut changed = false;
+        for i in 0..graph.edges.len() {
+            if graph.edges[i].max_payload_bytes != 0 {
+                continue;
+            }
+            let edge = &graph.edges[i];
+            let declared = graph.node(&edge.from).and_then(|spec| {
+                ports
+                    .get(&spec.name)?
+                    .outputs
+                    .iter()
+                    .find(|p| spec.topic_of(&p.port) == edge.topic)?
+                    .max_payload_bytes
+            });
+            let inherited = || {
+                graph
+                    .edges
+                    .iter()
+                    .filter(|e| e.message == edge.message && e.to.contains(&edge.from))
+                    .map(|e| e.max_payload_bytes)
+                    .max()
+                    .filter(|&b| b > 0)
+            };
+            if let Some(bytes) = declared.or_else(inherited) {
+                graph.edges[i].max_payload_bytes = bytes.max(1);
+                changed = true;
+            }
+        }
+        if !changed {
+            break;
+        }
+    }
+    match graph.edges.iter().find(|e| e.max_payload_bytes == 0) {
+        None => Ok(()),
+        Some(edge) => Err(LaunchError::Invalid {
+            path: graph.source.clone(),
+            entry: format!("edge '{}'", edge.topic),
+            message: format!(
+                "its size is unknown: give `max_payload_bytes`, a [graph] camera, or a node with a `folder` parameter (node '{}' declares none)",
+                edge.from
+            ),
+        }),
+    }
 }
 
 /// A path parameter as nodes see it: absolute, or relative to the current directory when it exists there, else to

@@ -180,6 +180,7 @@ impl NodeContext {
             port: port.into(),
             message: kind.into(),
             required,
+            max_payload_bytes: None,
         };
         let mut ports = self.ports.borrow_mut();
         if input {
@@ -241,6 +242,14 @@ impl NodeContext {
         self.connects.borrow_mut().extend(input.inner.clone().map(|i| i as Rc<dyn Connect>));
         self.reporter.set_inputs(slot + 1);
         Ok(Some(input))
+    }
+
+    /// Declares the largest payload (bytes) the node will publish on output `port`. The supervisor sizes the edge
+    /// from it when the launch file does not; call it before [`connect`](Self::connect).
+    pub fn declare_max_payload(&self, port: &str, bytes: u64) {
+        if let Some(p) = self.ports.borrow_mut().outputs.iter_mut().find(|p| p.port == port) {
+            p.max_payload_bytes = Some(bytes);
+        }
     }
 
     /// Publishes on port `port`. Required: the node fails at startup when it is not wired.

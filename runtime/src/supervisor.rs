@@ -241,16 +241,25 @@ impl Child {
 /// Set-up failures (ports, shared memory, spawning); node failures are reported in the [`Outcome`].
 pub fn run(graph: &Graph, opts: &RunOptions) -> Result<Outcome> {
     let started = Instant::now();
-    check_shm(graph)?;
     let run = RunRecord::create()?;
-    std::fs::write(&run.graph, serde_json::to_vec(graph)?).with_context(|| format!("cannot write {}", run.graph.display()))?;
-    let ports = match describe_all(graph, &run.graph) {
+    let mut graph = graph.clone();
+    let described = (|| -> Result<BTreeMap<String, Ports>> {
+        std::fs::write(&run.graph, serde_json::to_vec(&graph)?).with_context(|| format!("cannot write {}", run.graph.display()))?;
+        let ports = describe_all(&graph, &run.graph)?;
+        // Edges sized by their producers: the nodes read the graph with the sizes filled in.
+        launch::resolve_payloads(&mut graph, &ports)?;
+        std::fs::write(&run.graph, serde_json::to_vec(&graph)?).with_context(|| format!("cannot write {}", run.graph.display()))?;
+        check_shm(&graph)?;
+        Ok(ports)
+    })();
+    let ports = match described {
         Ok(p) => p,
         Err(e) => {
             run.remove();
             return Err(e);
         }
     };
+    let graph = &graph;
     std::fs::create_dir_all(&opts.out).with_context(|| format!("cannot create output folder {}", opts.out.display()))?;
     let result = supervise(graph, &run, &ports, opts, started);
     cleanup(&run);

@@ -4,12 +4,11 @@ use std::time::{Duration, Instant};
 
 use anyhow::{bail, Context, Result};
 use lineflow_capture::{decode_file, project, Project};
-use lineflow_messages::{fixed_str, kinds, ControlPointsHeader, ImageHeader, ObservationsHeader, SiteHeader, Stamp};
+use lineflow_messages::{fixed_str, kinds, ImageHeader};
 use lineflow_runtime::NodeContext;
 use serde::Deserialize;
 
-/// Fixed capture start (2020-09-13T12:26:40Z) so that runs and replays carry the same stamps.
-const FIXED_START_NS: u64 = 1_600_000_000_000_000_000;
+use crate::source::{Pacer, Survey};
 
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -59,39 +58,13 @@ pub fn run(ctx: &NodeContext) -> Result<()> {
         );
     }
     let images = ctx.output::<kinds::Image>("images")?;
-    let camera = ctx.optional_output::<kinds::CameraModel>("camera")?;
-    let control = ctx.optional_output::<kinds::ControlPoints>("control_points")?;
-    let observations = ctx.optional_output::<kinds::Observations>("observations")?;
-    let site = ctx.optional_output::<kinds::Site>("site")?;
+    let survey = Survey::open(ctx)?;
     let project = Project::open(&p.folder, p.watch).map_err(|e| anyhow::anyhow!("{e}"))?;
     ctx.connect()?;
 
-    let start_ns = if p.use_clock {
-        std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH)?.as_nanos() as u64
-    } else {
-        FIXED_START_NS
-    };
-    let once = Stamp {
-        capture_time_ns: start_ns,
-        ..Default::default()
-    };
-    if let Some(o) = &camera {
-        let mut h = project.camera.to_header();
-        h.stamp = once;
-        o.publish(h, &[])?;
-    }
-    if let Some(o) = &control {
-        o.publish(ControlPointsHeader { stamp: once }, &project.control_points)?;
-    }
-    if let Some(o) = &observations {
-        o.publish(ObservationsHeader { stamp: once }, &project.observations)?;
-    }
-    if let Some(o) = &site {
-        o.publish(SiteHeader { stamp: once }, &project.walls)?;
-    }
+    let pacer = Pacer::new(p.fps, p.use_clock)?;
+    survey.publish(pacer.once(), project.camera.to_header(), &project.control_points, &project.observations, &project.walls)?;
 
-    let period_ns = if p.fps > 0.0 { (1e9 / p.fps) as u64 } else { 1_000_000_000 };
-    let t0 = Instant::now();
     let mut frame = 0u64;
     let mut publish = |path: &std::path::Path| -> Result<()> {
         let img = decode_file(path).map_err(|e| anyhow::anyhow!(e))?;
@@ -105,18 +78,8 @@ pub fn run(ctx: &NodeContext) -> Result<()> {
                 project.camera.height
             );
         }
-        if p.fps > 0.0 {
-            let due = t0 + Duration::from_nanos(frame * period_ns);
-            if let Some(wait) = due.checked_duration_since(Instant::now()) {
-                std::thread::sleep(wait);
-            }
-        }
         let header = ImageHeader {
-            stamp: Stamp {
-                frame,
-                capture_time_ns: start_ns + frame * period_ns,
-                ..Default::default()
-            },
+            stamp: pacer.frame(frame),
             width: img.width,
             height: img.height,
             step: img.width * img.encoding.bytes_per_pixel() as u32,

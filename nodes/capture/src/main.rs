@@ -1,5 +1,7 @@
-//! `lineflow-capture`: the capture stage (`impl = "folder"`).
+//! `lineflow-capture`: the capture stage (`impl = "synthetic"` or `"folder"`).
 mod folder_node;
+mod source;
+mod synthetic_node;
 
 use anyhow::Result;
 
@@ -9,8 +11,9 @@ fn main() -> std::process::ExitCode {
 
 fn body() -> Result<()> {
     let ctx = lineflow_runtime::NodeContext::from_env()?;
-    match ctx.implementation("folder") {
+    match ctx.implementation("synthetic") {
+        "synthetic" => synthetic_node::run(&ctx),
         "folder" => folder_node::run(&ctx),
-        other => anyhow::bail!("node '{}': unknown capture impl '{other}' (available: folder)", ctx.name()),
+        other => anyhow::bail!("node '{}': unknown capture impl '{other}' (available: synthetic, folder)", ctx.name()),
     }
 }
