@@ -26,6 +26,18 @@ pub enum BenchCmd {
         #[arg(long, default_value_t = 1.0)]
         flat_scale: f64,
     },
+    /// Synthetic renderer: seconds per full-size frame against the 12 MP / 1 s target.
+    Render {
+        /// Preset.
+        #[arg(long, default_value = "d2x-strip")]
+        preset: String,
+        /// Frames to time.
+        #[arg(long, default_value_t = 5)]
+        frames: usize,
+        /// Image scale (1 = the preset's full size).
+        #[arg(long, default_value_t = 1.0)]
+        scale: f64,
+    },
     /// (internal) the subscribing side of the iceoryx2 benchmark.
     #[command(hide = true)]
     IoxSub {
@@ -242,6 +254,7 @@ pub fn bench(cmd: BenchCmd) -> Result<ExitCode> {
         BenchCmd::IoxSub { prefix, root, size, count } => iox_sub(&prefix, &root, size, count).map(|_| ExitCode::SUCCESS),
         BenchCmd::UdsSub { path, size, count } => uds_sub(&path, size, count).map(|_| ExitCode::SUCCESS),
         BenchCmd::Transport { paced, flat_scale } => transport_bench(paced, flat_scale),
+        BenchCmd::Render { preset, frames, scale } => crate::synth::bench_render(&preset, frames, scale),
     }
 }
 

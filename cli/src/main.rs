@@ -3,6 +3,7 @@ mod attach;
 mod bench;
 mod doctor;
 mod run;
+mod synth;
 
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -81,6 +82,27 @@ enum Cmd {
         #[arg(long)]
         fix: bool,
     },
+    /// Write a synthetic scene (images with exact ground truth) as a project folder plus gt/.
+    Synth {
+        /// Preset: d2x-strip, a55-two-strips, convergent, roof.
+        #[arg(long, default_value = "a55-two-strips")]
+        preset: String,
+        /// Image size relative to the preset (the field of view stays); 0.13 gives about 640 px wide.
+        #[arg(long, default_value_t = 1.0)]
+        scale: f64,
+        /// Seed of everything random.
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+        /// Output folder.
+        #[arg(long)]
+        out: PathBuf,
+        /// Write JPEG images at this quality instead of PNG.
+        #[arg(long)]
+        jpeg: Option<u8>,
+        /// Sensor noise, standard deviation in grey levels [default: 1.5].
+        #[arg(long)]
+        noise: Option<f64>,
+    },
     /// Benchmarks.
     Bench {
         #[command(subcommand)]
@@ -98,6 +120,21 @@ fn main() -> ExitCode {
         Cmd::Echo { topic, run, count } => attach::echo(&topic, run.as_deref(), count),
         Cmd::Hz { topic, run, seconds } => attach::hz(&topic, run.as_deref(), seconds),
         Cmd::Doctor { fix } => doctor::doctor(fix),
+        Cmd::Synth {
+            preset,
+            scale,
+            seed,
+            out,
+            jpeg,
+            noise,
+        } => synth::synth(synth::SynthArgs {
+            preset: &preset,
+            scale,
+            seed,
+            out: &out,
+            jpeg_quality: jpeg,
+            noise_dn: noise,
+        }),
         Cmd::Bench { what } => bench::bench(what),
     };
     match result {
