@@ -103,6 +103,17 @@ enum Cmd {
         #[arg(long)]
         noise: Option<f64>,
     },
+    /// Evaluate a run's results against the ground truth of a synthetic scene; writes report.md with plots.
+    Eval {
+        /// Folder with the run's poses.csv, checkpoints.csv, lines2d.csv, lines3d.csv (any subset).
+        results: PathBuf,
+        /// Scene folder written by `lineflow synth` (holds gt/).
+        #[arg(long)]
+        gt: PathBuf,
+        /// Report folder [default: RESULTS/eval].
+        #[arg(long)]
+        out: Option<PathBuf>,
+    },
     /// Benchmarks.
     Bench {
         #[command(subcommand)]
@@ -135,6 +146,7 @@ fn main() -> ExitCode {
             jpeg_quality: jpeg,
             noise_dn: noise,
         }),
+        Cmd::Eval { results, gt, out } => eval(&results, &gt, out),
         Cmd::Bench { what } => bench::bench(what),
     };
     match result {
@@ -144,4 +156,24 @@ fn main() -> ExitCode {
             ExitCode::FAILURE
         }
     }
+}
+
+fn eval(results: &std::path::Path, gt: &std::path::Path, out: Option<PathBuf>) -> anyhow::Result<ExitCode> {
+    let truth = lineflow_eval::Truth::load(gt)?;
+    let found = lineflow_eval::Results::load(results)?;
+    let evaluation = lineflow_eval::evaluate(&truth, &found);
+    let out = out.unwrap_or_else(|| results.join("eval"));
+    let report = lineflow_eval::report::write(&truth, results, &evaluation, &out)?;
+    if let Some(o) = &evaluation.orientation {
+        println!("orientation: {} images, centre RMS {:.1} mm, rotation RMS {:.4} deg", o.images.len(), o.rms_center_m * 1000.0, o.rms_rotation_deg);
+    }
+    if let Some(l) = &evaluation.lines2d {
+        println!("2-D lines: recall {:.1} %, precision {:.1} %", 100.0 * l.recall, 100.0 * l.precision);
+    }
+    if let Some(l) = &evaluation.lines3d {
+        let all = &l.classes[0];
+        println!("3-D lines: {} estimated, success rate {:.1} %", all.n_estimated, 100.0 * all.success_rate);
+    }
+    println!("report: {}", report.display());
+    Ok(ExitCode::SUCCESS)
 }

@@ -1,0 +1,112 @@
+//! `lineflow eval`: the results of a run against the ground truth of a synthetic scene, as numbers
+//! ([`Evaluation`]) and as a Markdown report with plots. Metrics are defined in `docs/eval.md`.
+pub mod geometry;
+pub mod lines2d;
+pub mod lines3d;
+pub mod orientation;
+mod plot;
+pub mod report;
+
+use std::path::{Path, PathBuf};
+
+use anyhow::{bail, Context, Result};
+use lineflow_capture::synth::Synthetic;
+use lineflow_formats::{read_checkpoints, read_lines2d, read_lines3d, read_poses, CheckRow, Line2Row, Line3Row, PoseRow};
+
+/// The ground truth of a scene folder written by `lineflow synth`.
+pub struct Truth {
+    /// The folder.
+    pub dir: PathBuf,
+    /// True poses, by image.
+    pub poses: Vec<PoseRow>,
+    /// Structural edges seen in at least two images.
+    pub lines: Vec<Line3Row>,
+    /// The regenerated scene (deterministic from preset, scale and seed in `gt/scene.json`).
+    pub scene: Synthetic,
+}
+
+impl Truth {
+    /// Loads `DIR/gt/` and regenerates the scene it describes.
+    pub fn load(dir: &Path) -> Result<Truth> {
+        let gt = dir.join("gt");
+        let scene_path = gt.join("scene.json");
+        let text = std::fs::read_to_string(&scene_path).with_context(|| format!("{}: cannot read (is this a `lineflow synth` folder?)", scene_path.display()))?;
+        let v: serde_json::Value = serde_json::from_str(&text).with_context(|| format!("{}: malformed", scene_path.display()))?;
+        let (Some(preset), Some(scale), Some(seed)) = (v["preset"].as_str(), v["scale"].as_f64(), v["seed"].as_u64()) else {
+            bail!("{}: needs preset, scale and seed", scene_path.display());
+        };
+        let scene = Synthetic::new(preset, scale, seed).with_context(|| format!("{}", scene_path.display()))?;
+        Ok(Truth {
+            dir: dir.to_owned(),
+            poses: read_poses(&gt.join("poses.csv"))?,
+            lines: read_lines3d(&gt.join("lines3d.csv"))?,
+            scene,
+        })
+    }
+
+    /// The ground sample distance at the typical object distance (median over the edges of the distance to the
+    /// nearest camera), metres.
+    pub fn gsd_m(&self) -> f64 {
+        let mut d: Vec<f64> = self
+            .lines
+            .iter()
+            .map(|l| {
+                let mid = (l.start + l.end) * 0.5;
+                self.poses.iter().map(|p| (p.pose.center - mid).norm()).fold(f64::INFINITY, f64::min)
+            })
+            .collect();
+        if d.is_empty() {
+            return f64::NAN;
+        }
+        d.sort_by(f64::total_cmp);
+        self.scene.camera().gsd_m(d[d.len() / 2])
+    }
+}
+
+/// What a run wrote (each file optional).
+#[derive(Default)]
+pub struct Results {
+    pub poses: Option<Vec<PoseRow>>,
+    pub checkpoints: Option<Vec<CheckRow>>,
+    pub lines2d: Option<Vec<Line2Row>>,
+    pub lines3d: Option<Vec<Line3Row>>,
+}
+
+fn optional<T>(path: PathBuf, read: impl Fn(&Path) -> Result<T, lineflow_formats::FormatError>) -> Result<Option<T>> {
+    if path.exists() {
+        Ok(Some(read(&path)?))
+    } else {
+        Ok(None)
+    }
+}
+
+impl Results {
+    /// Reads `poses.csv`, `checkpoints.csv`, `lines2d.csv` and `lines3d.csv` from `dir`, where present.
+    pub fn load(dir: &Path) -> Result<Results> {
+        if !dir.is_dir() {
+            bail!("{}: not a folder", dir.display());
+        }
+        Ok(Results {
+            poses: optional(dir.join("poses.csv"), read_poses)?,
+            checkpoints: optional(dir.join("checkpoints.csv"), read_checkpoints)?,
+            lines2d: optional(dir.join("lines2d.csv"), read_lines2d)?,
+            lines3d: optional(dir.join("lines3d.csv"), read_lines3d)?,
+        })
+    }
+}
+
+/// Every metric that the results allow.
+pub struct Evaluation {
+    pub orientation: Option<orientation::OrientationReport>,
+    pub lines2d: Option<lines2d::Lines2dReport>,
+    pub lines3d: Option<lines3d::Lines3dReport>,
+}
+
+/// Evaluates whatever `results` holds.
+pub fn evaluate(truth: &Truth, results: &Results) -> Evaluation {
+    Evaluation {
+        orientation: results.poses.as_ref().map(|p| orientation::evaluate(truth, p, results.checkpoints.as_deref())),
+        lines2d: results.lines2d.as_ref().map(|l| lines2d::evaluate(truth, l)),
+        lines3d: results.lines3d.as_ref().map(|l| lines3d::evaluate(truth, l)),
+    }
+}

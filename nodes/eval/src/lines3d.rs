@@ -1,0 +1,235 @@
+//! 3-D lines: the thesis's tables (endpoint perpendicular distances and angles to the matched reference edge),
+//! the success rate, and LIMAP-style precision and recall at several tolerances, against the true edges and
+//! against the true surfaces, for all, horizontal and vertical edges.
+use lineflow_formats::Line3Row;
+use lineflow_photogrammetry::Vec3;
+use rayon::prelude::*;
+
+use crate::geometry::{bounds, classify, polygon_distance, Class, Grid, Seg};
+use crate::Truth;
+
+/// Samples per segment for the coverage metrics.
+const SAMPLES: usize = 20;
+/// An estimate is matched to a reference edge within this angle, degrees.
+const MATCH_ANGLE_DEG: f64 = 10.0;
+
+/// Scores at one tolerance.
+#[derive(Debug, Clone)]
+pub struct AtTolerance {
+    /// "5 mm", "2 GSD", ...
+    pub label: String,
+    pub tau_m: f64,
+    /// Share of estimated segments whose mean distance to the nearest true edge is within τ.
+    pub segment_precision: f64,
+    /// Share of estimated length within τ of a true edge.
+    pub length_precision: f64,
+    /// Share of true length within τ of an estimated segment.
+    pub length_recall: f64,
+    /// Share of estimated length within τ of a true surface.
+    pub surface_precision: f64,
+}
+
+/// Scores of one class of edges.
+#[derive(Debug, Clone)]
+pub struct ClassScores {
+    pub class: &'static str,
+    pub n_true: usize,
+    pub n_estimated: usize,
+    /// Share of true edges of at least 0.5 m that are recovered (see `docs/eval.md`).
+    pub success_rate: f64,
+    pub at: Vec<AtTolerance>,
+}
+
+#[derive(Debug, Clone)]
+pub struct Lines3dReport {
+    pub gsd_m: f64,
+    pub estimated: Vec<Seg>,
+    pub truth: Vec<Seg>,
+    /// For each estimate: index of the matched true edge.
+    pub matched: Vec<Option<usize>>,
+    /// Perpendicular distances of matched endpoints to their true edge (the thesis's table), metres.
+    pub endpoint_m: Vec<f64>,
+    /// Angles of matched estimates to their true edge, degrees.
+    pub angle_deg: Vec<f64>,
+    /// The same over true edges of at least 1 m.
+    pub angle_long_deg: Vec<f64>,
+    /// Mean endpoint distance of each estimate (NaN when unmatched), for plots.
+    pub error_m: Vec<f64>,
+    pub classes: Vec<ClassScores>,
+}
+
+/// Tolerances: 5, 10, 20, 50 mm and 1, 2, 5 GSD.
+pub fn tolerances(gsd_m: f64) -> Vec<(String, f64)> {
+    let mut t: Vec<(String, f64)> = [5.0, 10.0, 20.0, 50.0].iter().map(|mm| (format!("{mm} mm"), mm / 1000.0)).collect();
+    t.extend([1.0, 2.0, 5.0].iter().map(|k| (format!("{k} GSD"), k * gsd_m)));
+    t
+}
+
+/// Segments indexed for distance queries up to `reach`.
+fn segment_grid(set: &[Seg], reach: f64, region: (Vec3, Vec3)) -> Grid {
+    let mut grid = Grid::new(reach.max(0.25), region.0, region.1);
+    for (i, s) in set.iter().enumerate() {
+        let (lo, hi) = bounds([&s.a, &s.b]);
+        grid.insert(i as u32, lo, hi, reach);
+    }
+    grid
+}
+
+/// Distance to the nearest item, exact up to the grid's reach (beyond it: infinity).
+fn nearest(p: &Vec3, grid: &Grid, distance: impl Fn(usize) -> f64) -> f64 {
+    grid.near(p).iter().map(|&i| distance(i as usize)).fold(f64::INFINITY, f64::min)
+}
+
+pub fn evaluate(truth: &Truth, rows: &[Line3Row]) -> Lines3dReport {
+    let gsd = truth.gsd_m();
+    let est: Vec<Seg> = rows.iter().map(|r| Seg::new(r.start, r.end)).collect();
+    let gt: Vec<Seg> = truth.lines.iter().map(|r| Seg::new(r.start, r.end)).collect();
+    let faces: Vec<Vec<Vec3>> = truth.scene.building.faces.iter().map(|f| f.corners()).collect();
+
+    // Match each estimate to the nearby, nearly parallel true edge its endpoints lie closest to.
+    let match_reach = (5.0 * gsd).max(0.1);
+    let (lo, hi) = bounds(gt.iter().flat_map(|s| [&s.a, &s.b]).chain(est.iter().flat_map(|s| [&s.a, &s.b])));
+    let match_grid = segment_grid(&gt, match_reach, (lo - Vec3::repeat(1.0), hi + Vec3::repeat(1.0)));
+    let matched: Vec<Option<usize>> = est
+        .par_iter()
+        .map(|e| {
+            let mid = e.at(0.5);
+            match_grid
+                .near(&mid)
+                .iter()
+                .map(|&i| (i as usize, &gt[i as usize]))
+                .filter(|(_, g)| g.angle_deg(e) <= MATCH_ANGLE_DEG && g.distance(&mid) <= match_reach)
+                .map(|(i, g)| (i, (g.line_distance(&e.a) + g.line_distance(&e.b)) / 2.0))
+                .min_by(|a, b| a.1.total_cmp(&b.1))
+                .map(|(i, _)| i)
+        })
+        .collect();
+    let mut endpoint_m = Vec::new();
+    let mut angle_deg = Vec::new();
+    let mut angle_long_deg = Vec::new();
+    let mut error_m = Vec::new();
+    for (e, m) in est.iter().zip(&matched) {
+        match m {
+            Some(i) => {
+                let g = &gt[*i];
+                let (da, db) = (g.line_distance(&e.a), g.line_distance(&e.b));
+                endpoint_m.extend([da, db]);
+                angle_deg.push(g.angle_deg(e));
+                if g.length() >= 1.0 {
+                    angle_long_deg.push(g.angle_deg(e));
+                }
+                error_m.push((da + db) / 2.0);
+            }
+            None => error_m.push(f64::NAN),
+        }
+    }
+
+    let taus = tolerances(gsd);
+    // Distances computed once, through grids that answer up to the largest tolerance: estimate samples to edges
+    // and to surfaces, true samples to estimates.
+    let reach = taus.iter().map(|t| t.1).fold(0.0, f64::max) * 1.01;
+    let (lo, hi) = bounds(gt.iter().flat_map(|s| [&s.a, &s.b]).chain(est.iter().flat_map(|s| [&s.a, &s.b])));
+    let region = (lo - Vec3::repeat(1.0), hi + Vec3::repeat(1.0));
+    let gt_grid = segment_grid(&gt, reach, region);
+    let est_grid = segment_grid(&est, reach, region);
+    let mut face_grid = Grid::new(reach.max(0.25), region.0, region.1);
+    for (i, f) in faces.iter().enumerate() {
+        let (flo, fhi) = bounds(f.iter());
+        face_grid.insert(i as u32, flo, fhi, reach);
+    }
+    let est_samples: Vec<Vec<(f64, f64, f64)>> = est
+        .par_iter()
+        .map(|e| {
+            e.samples(SAMPLES)
+                .map(|(p, w)| (nearest(&p, &gt_grid, |i| gt[i].distance(&p)), nearest(&p, &face_grid, |i| polygon_distance(&p, &faces[i])), w))
+                .collect()
+        })
+        .collect();
+    let gt_samples: Vec<Vec<(f64, f64)>> = gt
+        .par_iter()
+        .map(|g| g.samples(SAMPLES).map(|(p, w)| (nearest(&p, &est_grid, |i| est[i].distance(&p)), w)).collect())
+        .collect();
+
+    let classes = [("all", None), ("horizontal", Some(Class::Horizontal)), ("vertical", Some(Class::Vertical))]
+        .iter()
+        .map(|&(name, class)| {
+            let keep = |s: &Seg| class.is_none_or(|c| classify(s) == c);
+            let ei: Vec<usize> = (0..est.len()).filter(|&i| keep(&est[i])).collect();
+            let gi: Vec<usize> = (0..gt.len()).filter(|&i| keep(&gt[i])).collect();
+            let at = taus
+                .iter()
+                .map(|(label, tau)| {
+                    let share = |num: f64, den: f64| if den > 0.0 { num / den } else { f64::NAN };
+                    let seg_ok = ei.iter().filter(|&&i| est_samples[i].iter().map(|s| s.0).sum::<f64>() / SAMPLES as f64 <= *tau).count();
+                    let (mut within, mut on_surface, mut total) = (0.0, 0.0, 0.0);
+                    for &i in &ei {
+                        for &(d, ds, w) in &est_samples[i] {
+                            total += w;
+                            within += if d <= *tau { w } else { 0.0 };
+                            on_surface += if ds <= *tau { w } else { 0.0 };
+                        }
+                    }
+                    let (mut covered, mut gt_total) = (0.0, 0.0);
+                    for &i in &gi {
+                        for &(d, w) in &gt_samples[i] {
+                            gt_total += w;
+                            covered += if d <= *tau { w } else { 0.0 };
+                        }
+                    }
+                    AtTolerance {
+                        label: label.clone(),
+                        tau_m: *tau,
+                        segment_precision: share(seg_ok as f64, ei.len() as f64),
+                        length_precision: share(within, total),
+                        length_recall: share(covered, gt_total),
+                        surface_precision: share(on_surface, total),
+                    }
+                })
+                .collect();
+            let long: Vec<usize> = gi.iter().copied().filter(|&i| gt[i].length() >= 0.5).collect();
+            let recovered = long.iter().filter(|&&i| recovered(&gt[i], &est, gsd)).count();
+            ClassScores {
+                class: name,
+                n_true: gi.len(),
+                n_estimated: ei.len(),
+                success_rate: if long.is_empty() { f64::NAN } else { recovered as f64 / long.len() as f64 },
+                at,
+            }
+        })
+        .collect();
+
+    Lines3dReport {
+        gsd_m: gsd,
+        estimated: est,
+        truth: gt,
+        matched,
+        endpoint_m,
+        angle_deg,
+        angle_long_deg,
+        error_m,
+        classes,
+    }
+}
+
+/// A true edge is recovered when estimates within 2 GSD and 2° of it cover at least half of its length.
+fn recovered(g: &Seg, est: &[Seg], gsd: f64) -> bool {
+    let mut spans: Vec<(f64, f64)> = est
+        .iter()
+        .filter(|e| g.angle_deg(e) <= 2.0 && g.line_distance(&e.a) <= 2.0 * gsd && g.line_distance(&e.b) <= 2.0 * gsd)
+        .map(|e| {
+            let (s, t) = (g.param(&e.a), g.param(&e.b));
+            (s.min(t).max(0.0), s.max(t).min(1.0))
+        })
+        .filter(|(s, t)| t > s)
+        .collect();
+    spans.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let (mut covered, mut end) = (0.0, 0.0f64);
+    for (s, t) in spans {
+        let s = s.max(end);
+        if t > s {
+            covered += t - s;
+            end = t;
+        }
+    }
+    covered >= 0.5
+}

@@ -1,0 +1,152 @@
+//! The Markdown report: tables first, pictures beside them.
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+use anyhow::{Context, Result};
+
+use crate::geometry::stats;
+use crate::{plot, Evaluation, Truth};
+
+fn pct(x: f64) -> String {
+    if x.is_finite() {
+        format!("{:.1} %", 100.0 * x)
+    } else {
+        "–".into()
+    }
+}
+
+fn mm(x: f64) -> String {
+    if x.is_finite() {
+        format!("{:.1}", 1000.0 * x)
+    } else {
+        "–".into()
+    }
+}
+
+/// Writes `report.md` and its pictures into `out`; returns the report's path.
+pub fn write(truth: &Truth, results: &Path, eval: &Evaluation, out: &Path) -> Result<PathBuf> {
+    std::fs::create_dir_all(out).with_context(|| format!("cannot create {}", out.display()))?;
+    let mut md = String::new();
+    let cam = truth.scene.camera();
+    let _ = writeln!(md, "# lineflow evaluation\n");
+    let _ = writeln!(
+        md,
+        "Results `{}` against the ground truth `{}` (preset `{}`, scale {}, seed {}, {}×{} px, {} images, GSD {:.1} mm).\n",
+        results.display(),
+        truth.dir.display(),
+        truth.scene.preset.name,
+        truth.scene.scale,
+        truth.scene.seed,
+        cam.width,
+        cam.height,
+        truth.poses.len(),
+        truth.gsd_m() * 1000.0
+    );
+
+    let _ = writeln!(md, "## Orientation\n");
+    match &eval.orientation {
+        None => {
+            let _ = writeln!(md, "No `poses.csv` in the results.\n");
+        }
+        Some(o) => {
+            let _ = writeln!(
+                md,
+                "| images | missing | centre RMS (mm) | centre max (mm) | rotation RMS (°) | rotation max (°) |\n|---|---|---|---|---|---|\n| {} | {} | {} | {} | {:.4} | {:.4} |\n",
+                o.images.len(),
+                o.missing.len(),
+                mm(o.rms_center_m),
+                mm(o.max_center_m),
+                o.rms_rotation_deg,
+                o.max_rotation_deg
+            );
+            match o.checkpoints {
+                Some((r, n)) => {
+                    let _ = writeln!(md, "Check points ({n}): RMSE X {} mm, Y {} mm, Z {} mm.\n", mm(r[0]), mm(r[1]), mm(r[2]));
+                }
+                None => {
+                    let _ = writeln!(md, "No `checkpoints.csv` in the results.\n");
+                }
+            }
+            let _ = writeln!(md, "σ0 is not part of the result files; the orientation stage's log reports it.\n");
+        }
+    }
+
+    let _ = writeln!(md, "## 2-D lines (tolerance 1.5 px and 5°, corrected coordinates)\n");
+    match &eval.lines2d {
+        None => {
+            let _ = writeln!(md, "No `lines2d.csv` in the results.\n");
+        }
+        Some(l) => {
+            let _ = writeln!(md, "Length recall {}, length precision {} over all images.\n", pct(l.recall), pct(l.precision));
+            let _ = writeln!(md, "| image | true segments | estimated | recall | precision |\n|---|---|---|---|---|");
+            for i in &l.images {
+                let _ = writeln!(md, "| {} | {} | {} | {} | {} |", i.image, i.n_true, i.n_estimated, pct(i.recall), pct(i.precision));
+            }
+            md.push('\n');
+        }
+    }
+
+    let _ = writeln!(md, "## 3-D lines\n");
+    match &eval.lines3d {
+        None => {
+            let _ = writeln!(md, "No `lines3d.csv` in the results.\n");
+        }
+        Some(l) => {
+            let matched = l.matched.iter().filter(|m| m.is_some()).count();
+            let (em, es, ex) = stats(&l.endpoint_m);
+            let (am, as_, ax) = stats(&l.angle_deg);
+            let (lm, ls, lx) = stats(&l.angle_long_deg);
+            let _ = writeln!(md, "{} estimated segments, {} matched to a true edge (within 10° and 5 GSD); {} true edges.\n", l.estimated.len(), matched, l.truth.len());
+            let _ = writeln!(
+                md,
+                "The thesis's tables (Tables 4-6, 4-8):\n\n| | mean | std | max |\n|---|---|---|---|\n| endpoint perpendicular distance (mm) | {} | {} | {} |\n| angle (°) | {:.3} | {:.3} | {:.3} |\n| angle, edges ≥ 1 m (°) | {:.3} | {:.3} | {:.3} |\n",
+                mm(em),
+                mm(es),
+                mm(ex),
+                am,
+                as_,
+                ax,
+                lm,
+                ls,
+                lx
+            );
+            for c in &l.classes {
+                let _ = writeln!(
+                    md,
+                    "### {} edges ({} true, {} estimated); success rate {}\n\n| τ | P_τ (segments) | precision (length) | recall (length) | precision vs surfaces |\n|---|---|---|---|---|",
+                    c.class,
+                    c.n_true,
+                    c.n_estimated,
+                    pct(c.success_rate)
+                );
+                for a in &c.at {
+                    let _ = writeln!(
+                        md,
+                        "| {} ({:.1} mm) | {} | {} | {} | {} |",
+                        a.label,
+                        a.tau_m * 1000.0,
+                        pct(a.segment_precision),
+                        pct(a.length_precision),
+                        pct(a.length_recall),
+                        pct(a.surface_precision)
+                    );
+                }
+                md.push('\n');
+            }
+            let max_error = (5.0 * l.gsd_m).max(0.01);
+            plot::histogram(&l.endpoint_m, max_error, 25, &out.join("lines3d_endpoint_hist.png"))?;
+            plot::view(&l.truth, &l.estimated, &l.error_m, max_error, (0, 2), &out.join("lines3d_front.png"))?;
+            plot::view(&l.truth, &l.estimated, &l.error_m, max_error, (0, 1), &out.join("lines3d_top.png"))?;
+            let _ = writeln!(
+                md,
+                "Endpoint distances, 0 to {:.0} mm in 25 bars (the last collects the rest):\n\n![histogram](lines3d_endpoint_hist.png)\n\nFront view (X right, Z up) and top view (X right, Y up): true edges grey, estimates coloured by mean endpoint distance from green (0) to red ({:.0} mm and more), magenta where unmatched.\n\n![front](lines3d_front.png)\n\n![top](lines3d_top.png)\n",
+                max_error * 1000.0,
+                max_error * 1000.0
+            );
+        }
+    }
+    let _ = writeln!(md, "## Model\n\nNo model results: the model stage (CSR, LSMIF) does not exist yet.\n");
+    let path = out.join("report.md");
+    std::fs::write(&path, md).with_context(|| format!("cannot write {}", path.display()))?;
+    Ok(path)
+}
