@@ -400,3 +400,60 @@ fn watch_mode_reads_a_jpeg_written_in_chunks_once_and_complete() {
     let decoded = lineflow_capture::decode_file(&target).unwrap();
     assert_eq!(rows[1].2, format!("{:016x}", fnv1a64(&decoded.bytes)));
 }
+
+fn repo_file(rel: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..").join(rel)
+}
+
+#[test]
+fn the_demo_graph_runs_the_synthetic_camera_and_gives_the_same_bytes_twice() {
+    let sb = Sandbox::new();
+    let demo = repo_file("launch/demo.toml");
+    let mut outputs = Vec::new();
+    for k in 0..2 {
+        let out = sb.path().join(format!("out{k}"));
+        let r = sb.run(&["run", demo.to_str().unwrap(), "--set", "capture.scale=0.06", "--out", out.to_str().unwrap()]);
+        assert!(r.status.success(), "demo run {k} failed");
+        let rows = frames(&out);
+        assert_eq!(rows.len(), 18, "a55-two-strips has 18 frames");
+        assert_eq!(rows[0].1, "IMG_0001.png");
+        assert_nothing_left(&sb, &out);
+        outputs.push(rows);
+    }
+    assert_eq!(outputs[0], outputs[1], "two runs of the synthetic camera differ");
+}
+
+#[test]
+fn a_synth_folder_loads_through_the_folder_capture_and_evaluates() {
+    let sb = Sandbox::new();
+    let scene = sb.path().join("scene");
+    let r = sb.run(&["synth", "--preset", "convergent", "--scale", "0.06", "--seed", "4", "--out", scene.to_str().unwrap()]);
+    assert!(r.status.success());
+    for f in ["images/IMG_0012.png", "camera.toml", "control_points.csv", "observations.csv", "site.toml", "gt/poses.csv", "gt/lines3d.csv", "gt/scene.json"] {
+        assert!(scene.join(f).is_file(), "synth wrote no {f}");
+    }
+    let r = sb.run(&["process", scene.to_str().unwrap()]);
+    assert!(r.status.success());
+    assert_eq!(frames(&scene.join("out")).len(), 12);
+
+    // The truth scores perfectly against itself.
+    let results = sb.path().join("results");
+    std::fs::create_dir_all(&results).unwrap();
+    std::fs::copy(scene.join("gt/poses.csv"), results.join("poses.csv")).unwrap();
+    std::fs::copy(scene.join("gt/lines3d.csv"), results.join("lines3d.csv")).unwrap();
+    let r = sb.run(&["eval", results.to_str().unwrap(), "--gt", scene.to_str().unwrap()]);
+    assert!(r.status.success());
+    let stdout = String::from_utf8_lossy(&r.stdout);
+    assert!(stdout.contains("centre RMS 0.0 mm") && stdout.contains("success rate 100.0 %"), "{stdout}");
+    let report = std::fs::read_to_string(results.join("eval/report.md")).unwrap();
+    assert!(report.contains("## 3-D lines") && report.contains("lines3d_front.png"));
+    assert!(results.join("eval/lines3d_front.png").is_file());
+
+    // Nothing to evaluate against: one clear line.
+    let r = sb.run(&["eval", results.to_str().unwrap(), "--gt", results.to_str().unwrap()]);
+    assert!(!r.status.success());
+    assert!(String::from_utf8_lossy(&r.stderr).contains("scene.json"));
+    // An unknown preset names the available ones.
+    let r = sb.run(&["synth", "--preset", "nikon", "--out", sb.path().join("x").to_str().unwrap()]);
+    assert!(!r.status.success() && String::from_utf8_lossy(&r.stderr).contains("d2x-strip"));
+}
