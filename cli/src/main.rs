@@ -165,14 +165,27 @@ fn eval(results: &std::path::Path, gt: &std::path::Path, out: Option<PathBuf>) -
     let out = out.unwrap_or_else(|| results.join("eval"));
     let report = lineflow_eval::report::write(&truth, results, &evaluation, &out)?;
     if let Some(o) = &evaluation.orientation {
-        println!("orientation: {} images, centre RMS {:.1} mm, rotation RMS {:.4} deg", o.images.len(), o.rms_center_m * 1000.0, o.rms_rotation_deg);
+        println!(
+            "orientation: {} images, centre RMS {:.1} mm, rotation RMS {:.4} deg",
+            o.images.len(),
+            o.rms_center_m * 1000.0,
+            o.rms_rotation_deg
+        );
     }
     if let Some(l) = &evaluation.lines2d {
-        println!("2-D lines: recall {:.1} %, precision {:.1} %", 100.0 * l.recall, 100.0 * l.precision);
+        println!(
+            "2-D lines: recall {:.1} %, precision {:.1} %",
+            100.0 * l.recall,
+            100.0 * l.precision
+        );
     }
     if let Some(l) = &evaluation.lines3d {
         let all = &l.classes[0];
-        println!("3-D lines: {} estimated, success rate {:.1} %", all.n_estimated, 100.0 * all.success_rate);
+        println!(
+            "3-D lines: {} estimated, success rate {:.1} %",
+            all.n_estimated,
+            100.0 * all.success_rate
+        );
     }
     println!("report: {}", report.display());
     Ok(ExitCode::SUCCESS)

@@ -45,11 +45,18 @@ pub fn synth(a: SynthArgs) -> Result<ExitCode> {
     let started = Instant::now();
     write_project(&syn, a.out, &mut |done, total| {
         let per = started.elapsed().as_secs_f64() / done as f64;
-        eprint!("\r  image {done}/{total}  {per:.2} s/image  ETA {:.0} s   ", per * (total - done) as f64);
+        eprint!(
+            "\r  image {done}/{total}  {per:.2} s/image  ETA {:.0} s   ",
+            per * (total - done) as f64
+        );
         let _ = std::io::stderr().flush();
     })
     .with_context(|| format!("writing {}", a.out.display()))?;
-    eprintln!("\rwrote {} in {:.1} s (images, camera.toml, control_points.csv, observations.csv, site.toml, gt/)", a.out.display(), started.elapsed().as_secs_f64());
+    eprintln!(
+        "\rwrote {} in {:.1} s (images, camera.toml, control_points.csv, observations.csv, site.toml, gt/)",
+        a.out.display(),
+        started.elapsed().as_secs_f64()
+    );
     Ok(ExitCode::SUCCESS)
 }
 
@@ -60,7 +67,12 @@ pub fn bench_render(preset: &str, frames: usize, scale: f64) -> Result<ExitCode>
     let cam = *syn.camera();
     let mp = cam.width as f64 * cam.height as f64 / 1e6;
     let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
-    println!("render benchmark: {preset}, {}x{} ({mp:.1} MP), {} faces, {threads} threads", cam.width, cam.height, syn.building.faces.len());
+    println!(
+        "render benchmark: {preset}, {}x{} ({mp:.1} MP), {} faces, {threads} threads",
+        cam.width,
+        cam.height,
+        syn.building.faces.len()
+    );
     // The first frame also allocates the working buffers; a camera streams many.
     let _ = syn.render(0);
     let n = frames.min(syn.poses().len()).max(1);
@@ -78,7 +90,12 @@ pub fn bench_render(preset: &str, frames: usize, scale: f64) -> Result<ExitCode>
     image::codecs::png::PngEncoder::new(&mut png).write_image(&last, cam.width, cam.height, image::ExtendedColorType::Rgb8)?;
     let encode = t.elapsed().as_secs_f64();
     let per_12mp = median * 12.0 / mp;
-    println!("render  median {:.3} s/frame over {n} frames ({:.1} MP/s); scaled to 12 MP: {per_12mp:.3} s (target 1.0 s: {:.2}x)", median, mp / median, per_12mp);
+    println!(
+        "render  median {:.3} s/frame over {n} frames ({:.1} MP/s); scaled to 12 MP: {per_12mp:.3} s (target 1.0 s: {:.2}x)",
+        median,
+        mp / median,
+        per_12mp
+    );
     println!("PNG encoding of the same frame: {encode:.3} s ({:.2}x the render)", encode / median);
     Ok(ExitCode::SUCCESS)
 }

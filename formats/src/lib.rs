@@ -30,7 +30,19 @@ fn err(path: &Path, line: u64, message: impl Into<String>) -> FormatError {
 
 /// Header of `poses.csv`.
 pub const POSES_HEADER: [&str; 13] = [
-    "image", "X", "Y", "Z", "omega_deg", "phi_deg", "kappa_deg", "sX", "sY", "sZ", "s_omega_deg", "s_phi_deg", "s_kappa_deg",
+    "image",
+    "X",
+    "Y",
+    "Z",
+    "omega_deg",
+    "phi_deg",
+    "kappa_deg",
+    "sX",
+    "sY",
+    "sZ",
+    "s_omega_deg",
+    "s_phi_deg",
+    "s_kappa_deg",
 ];
 /// Header of `checkpoints.csv`.
 pub const CHECKPOINTS_HEADER: [&str; 4] = ["id", "dX", "dY", "dZ"];
@@ -125,7 +137,11 @@ fn read_rows(path: &Path, header: &[&str]) -> Result<Vec<(u64, csv::StringRecord
     let found = reader.headers().map_err(|e| err(path, 1, e.to_string()))?.clone();
     let names: Vec<&str> = found.iter().collect();
     if names.len() < header.len() || names[..header.len()] != *header {
-        return Err(err(path, 1, format!("header must start with '{}', found '{}'", header.join(","), names.join(","))));
+        return Err(err(
+            path,
+            1,
+            format!("header must start with '{}', found '{}'", header.join(","), names.join(",")),
+        ));
     }
     let mut rows = Vec::new();
     for record in reader.records() {
@@ -138,7 +154,8 @@ fn read_rows(path: &Path, header: &[&str]) -> Result<Vec<(u64, csv::StringRecord
 
 fn field<T: std::str::FromStr>(path: &Path, line: u64, rec: &csv::StringRecord, i: usize, name: &str) -> Result<T, FormatError> {
     let s = rec.get(i).unwrap_or("");
-    s.parse().map_err(|_| err(path, line, format!("column '{name}': cannot read '{s}'")))
+    s.parse()
+        .map_err(|_| err(path, line, format!("column '{name}': cannot read '{s}'")))
 }
 
 fn optional<T: std::str::FromStr>(path: &Path, line: u64, rec: &csv::StringRecord, i: usize, name: &str) -> Result<Option<T>, FormatError> {
@@ -157,7 +174,13 @@ fn triple(path: &Path, line: u64, rec: &csv::StringRecord, first: usize, names: 
     Ok(match v {
         [Some(a), Some(b), Some(c)] => Some([a, b, c]),
         [None, None, None] => None,
-        _ => return Err(err(path, line, format!("columns {}..{}: give all three or none", names[first], names[first + 2]))),
+        _ => {
+            return Err(err(
+                path,
+                line,
+                format!("columns {}..{}: give all three or none", names[first], names[first + 2]),
+            ))
+        }
     })
 }
 

@@ -133,7 +133,10 @@ impl Camera {
 
     /// Whether a pixel position lies inside the image (with `margin` pixels to spare).
     pub fn contains(&self, px: [f64; 2], margin: f64) -> bool {
-        px[0] >= -0.5 + margin && px[1] >= -0.5 + margin && px[0] <= self.width as f64 - 0.5 - margin && px[1] <= self.height as f64 - 0.5 - margin
+        px[0] >= -0.5 + margin
+            && px[1] >= -0.5 + margin
+            && px[0] <= self.width as f64 - 0.5 - margin
+            && px[1] <= self.height as f64 - 0.5 - margin
     }
 }
 

@@ -99,7 +99,10 @@ mod tests {
             let ray = pose.ray_of_pixel(&c, px);
             let point = pose.center + ray * 17.0;
             let back = pose.project(&c, &point).unwrap();
-            assert!((back[0] - px[0]).abs() < 1e-6 && (back[1] - px[1]).abs() < 1e-6, "{px:?} -> {back:?}");
+            assert!(
+                (back[0] - px[0]).abs() < 1e-6 && (back[1] - px[1]).abs() < 1e-6,
+                "{px:?} -> {back:?}"
+            );
         }
     }
 }

@@ -530,19 +530,14 @@ fn find_executable(exe: &str, base: &Path) -> Option<String> {
 /// Default payload of image topics: RGB8 at the size of the graph's camera.toml, or of `<folder>/camera.toml` of
 /// the first node with a `folder` parameter; `None` when the graph names neither.
 fn default_image_bytes(file: &LaunchFile, base: &Path) -> Result<Option<u64>, String> {
-    let camera = file
-        .graph
-        .camera
-        .as_ref()
-        .map(|c| base.join(c))
-        .or_else(|| {
-            file.node.iter().find_map(|n| {
-                n.params
-                    .get("folder")
-                    .and_then(|f| f.as_str())
-                    .map(|f| resolve_param_path(base, f).join("camera.toml"))
-            })
-        });
+    let camera = file.graph.camera.as_ref().map(|c| base.join(c)).or_else(|| {
+        file.node.iter().find_map(|n| {
+            n.params
+                .get("folder")
+                .and_then(|f| f.as_str())
+                .map(|f| resolve_param_path(base, f).join("camera.toml"))
+        })
+    });
     let Some(camera) = camera else { return Ok(None) };
     let text = std::fs::read_to_string(&camera).map_err(|e| format!("cannot read {} for the image size: {e}", camera.display()))?;
     #[derive(Deserialize)]

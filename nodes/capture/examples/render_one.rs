@@ -6,6 +6,13 @@ fn main() {
     let _ = syn.render(frame);
     let t = std::time::Instant::now();
     let rgb = syn.render(frame);
-    eprintln!("{} faces, {} edges, {}x{} in {:?}", syn.building.faces.len(), syn.building.edges.len(), syn.camera().width, syn.camera().height, t.elapsed());
+    eprintln!(
+        "{} faces, {} edges, {}x{} in {:?}",
+        syn.building.faces.len(),
+        syn.building.edges.len(),
+        syn.camera().width,
+        syn.camera().height,
+        t.elapsed()
+    );
     image::save_buffer(&a[4], &rgb, syn.camera().width, syn.camera().height, image::ExtendedColorType::Rgb8).unwrap();
 }

@@ -49,7 +49,8 @@ pub fn run(ctx: &NodeContext) -> Result<()> {
     let mut p: Params = ctx.params()?;
     let base = ctx.graph().source.parent().map(std::path::Path::to_path_buf).unwrap_or_default();
     p.folder = lineflow_runtime::launch::resolve_param_path(&base, &p.folder.display().to_string());
-    if !(p.fps >= 0.0 && p.fps.is_finite()) || !(p.idle_timeout_s >= 0.0) {
+    let valid = |v: f64| v.is_finite() && v >= 0.0;
+    if !valid(p.fps) || !(valid(p.idle_timeout_s) || p.idle_timeout_s == f64::INFINITY) {
         bail!(
             "node '{}': fps and idle_timeout_s must be >= 0, got {} and {}",
             ctx.name(),
@@ -63,7 +64,13 @@ pub fn run(ctx: &NodeContext) -> Result<()> {
     ctx.connect()?;
 
     let pacer = Pacer::new(p.fps, p.use_clock)?;
-    survey.publish(pacer.once(), project.camera.to_header(), &project.control_points, &project.observations, &project.walls)?;
+    survey.publish(
+        pacer.once(),
+        project.camera.to_header(),
+        &project.control_points,
+        &project.observations,
+        &project.walls,
+    )?;
 
     let mut frame = 0u64;
     let mut publish = |path: &std::path::Path| -> Result<()> {

@@ -14,6 +14,9 @@ fn body() -> Result<()> {
     match ctx.implementation("synthetic") {
         "synthetic" => synthetic_node::run(&ctx),
         "folder" => folder_node::run(&ctx),
-        other => anyhow::bail!("node '{}': unknown capture impl '{other}' (available: synthetic, folder)", ctx.name()),
+        other => anyhow::bail!(
+            "node '{}': unknown capture impl '{other}' (available: synthetic, folder)",
+            ctx.name()
+        ),
     }
 }

@@ -3,7 +3,9 @@
 use std::time::{Duration, Instant};
 
 use anyhow::Result;
-use lineflow_messages::{kinds, CameraModelHeader, ControlPoint, ControlPointsHeader, Observation, ObservationsHeader, SiteHeader, Stamp, Wall};
+use lineflow_messages::{
+    kinds, CameraModelHeader, ControlPoint, ControlPointsHeader, Observation, ObservationsHeader, SiteHeader, Stamp, Wall,
+};
 use lineflow_runtime::{NodeContext, Output};
 
 /// Fixed capture start (2020-09-13T12:26:40Z) so that runs and replays carry the same stamps.
@@ -77,7 +79,14 @@ impl Survey {
     }
 
     /// Publishes each once. Latched topics carry no end-of-stream, so that late joiners still get them.
-    pub fn publish(&self, stamp: Stamp, camera: CameraModelHeader, control: &[ControlPoint], observations: &[Observation], walls: &[Wall]) -> Result<()> {
+    pub fn publish(
+        &self,
+        stamp: Stamp,
+        camera: CameraModelHeader,
+        control: &[ControlPoint],
+        observations: &[Observation],
+        walls: &[Wall],
+    ) -> Result<()> {
         if let Some(o) = &self.camera {
             o.publish(CameraModelHeader { stamp, ..camera }, &[])?;
         }

@@ -2,7 +2,10 @@
 //! would have, and the ground truth on `gt/*` (which only `eval` may read).
 use anyhow::{bail, Context, Result};
 use lineflow_capture::synth::{self, Sensor, Synthetic};
-use lineflow_messages::{fixed_str, kinds, CameraModelHeader, ControlPoint, Encoding, ImageHeader, Line3, Lines3DHeader, Observation, Pose, PosesHeader, StampFlags, Wall};
+use lineflow_messages::{
+    fixed_str, kinds, CameraModelHeader, ControlPoint, Encoding, ImageHeader, Line3, Lines3DHeader, Observation, Pose, PosesHeader,
+    StampFlags, Wall,
+};
 use lineflow_runtime::NodeContext;
 use serde::Deserialize;
 
@@ -35,13 +38,13 @@ struct Params {
 }
 
 fn default_preset() -> String {
-    "a55-two-strips".into()
+    synth::DEFAULT_PRESET.into()
 }
 fn default_scale() -> f64 {
-    0.15
+    synth::DEFAULT_SCALE
 }
 fn default_seed() -> u64 {
-    1
+    synth::DEFAULT_SEED
 }
 
 fn camera_header(c: &lineflow_photogrammetry::Camera) -> CameraModelHeader {
@@ -117,13 +120,24 @@ pub fn run(ctx: &NodeContext) -> Result<()> {
     let mut syn = Synthetic::new(&p.preset, p.scale, p.seed).map_err(|e| anyhow::anyhow!("node '{}': {e}", ctx.name()))?;
     if let Some(sensor) = p.sensor {
         if sensor.jpeg_quality > 100 {
-            bail!("node '{}': sensor.jpeg_quality must be 0-100, got {}", ctx.name(), sensor.jpeg_quality);
+            bail!(
+                "node '{}': sensor.jpeg_quality must be 0-100, got {}",
+                ctx.name(),
+                sensor.jpeg_quality
+            );
         }
         syn.preset.sensor = sensor;
     }
     let total = p.frames.map_or(syn.poses().len() as u64, |n| n.min(syn.poses().len() as u64));
     let cam = *syn.camera();
-    tracing::info!("{} at scale {} ({}x{}), {total} frames, seed {}", p.preset, p.scale, cam.width, cam.height, p.seed);
+    tracing::info!(
+        "{} at scale {} ({}x{}), {total} frames, seed {}",
+        p.preset,
+        p.scale,
+        cam.width,
+        cam.height,
+        p.seed
+    );
     let (control, observations, walls) = survey(&syn);
     ctx.connect()?;
 
@@ -182,7 +196,10 @@ pub fn run(ctx: &NodeContext) -> Result<()> {
         let mut rgb = syn.render(frame as usize);
         if syn.preset.sensor.jpeg_quality > 0 {
             let bytes = synth::jpeg_bytes(&rgb, cam.width, cam.height, syn.preset.sensor.jpeg_quality)?;
-            rgb = image::load_from_memory(&bytes).context("decoding the simulated JPEG")?.into_rgb8().into_raw();
+            rgb = image::load_from_memory(&bytes)
+                .context("decoding the simulated JPEG")?
+                .into_rgb8()
+                .into_raw();
         }
         let header = ImageHeader {
             stamp: pacer.frame(frame),

@@ -11,7 +11,10 @@ fn sample(img: &[f32], w: usize, h: usize, x: f64, y: f64) -> Option<f64> {
     let (fx, fy) = (x - ix as f64, y - iy as f64);
     let at = |c: usize, r: usize| img[r * w + c] as f64;
     Some(
-        at(ix, iy) * (1.0 - fx) * (1.0 - fy) + at(ix + 1, iy) * fx * (1.0 - fy) + at(ix, iy + 1) * (1.0 - fx) * fy + at(ix + 1, iy + 1) * fx * fy,
+        at(ix, iy) * (1.0 - fx) * (1.0 - fy)
+            + at(ix + 1, iy) * fx * (1.0 - fy)
+            + at(ix, iy + 1) * (1.0 - fx) * fy
+            + at(ix + 1, iy + 1) * fx * fy,
     )
 }
 
@@ -26,7 +29,9 @@ fn edge_offset(img: &[f32], w: usize, h: usize, p: [f64; 2], normal: [f64; 2]) -
             sample(img, w, h, p[0] + s * normal[0], p[1] + s * normal[1])
         })
         .collect::<Option<_>>()?;
-    let grad: Vec<f64> = (1..profile.len() - 1).map(|i| ((profile[i + 1] - profile[i - 1]) / (2.0 * STEP)).abs()).collect();
+    let grad: Vec<f64> = (1..profile.len() - 1)
+        .map(|i| ((profile[i + 1] - profile[i - 1]) / (2.0 * STEP)).abs())
+        .collect();
     let (k, &peak) = grad.iter().enumerate().max_by(|a, b| a.1.total_cmp(b.1))?;
     // Only clear steps: a contrast of 12 grey levels per pixel, peak away from the window's ends.
     if peak < 12.0 || k == 0 || k == grad.len() - 1 {
@@ -45,7 +50,9 @@ fn edge_offset(img: &[f32], w: usize, h: usize, p: [f64; 2], normal: [f64; 2]) -
 }
 
 fn gray(rgb: &[u8]) -> Vec<f32> {
-    rgb.chunks(3).map(|p| 0.299 * p[0] as f32 + 0.587 * p[1] as f32 + 0.114 * p[2] as f32).collect()
+    rgb.chunks(3)
+        .map(|p| 0.299 * p[0] as f32 + 0.587 * p[1] as f32 + 0.114 * p[2] as f32)
+        .collect()
 }
 
 /// Offsets of the projected ground-truth edges from the rendered edges, over the visible parts of every edge.
@@ -62,12 +69,18 @@ fn offsets(syn: &Synthetic, seen_edges: &[SeenEdge], frame: usize, rgb: &[u8]) -
         .iter()
         .map(|e| {
             let (a, b) = (Vec3::from(e.a), Vec3::from(e.b));
-            (0..=8).filter_map(|k| pose.project(cam, &(a + (b - a) * (k as f64 / 8.0)))).collect()
+            (0..=8)
+                .filter_map(|k| pose.project(cam, &(a + (b - a) * (k as f64 / 8.0))))
+                .collect()
         })
         .collect();
     let boxes: Vec<[f64; 4]> = polylines
         .iter()
-        .map(|l| l.iter().fold([f64::MAX, f64::MAX, f64::MIN, f64::MIN], |b, p| [b[0].min(p[0]), b[1].min(p[1]), b[2].max(p[0]), b[3].max(p[1])]))
+        .map(|l| {
+            l.iter().fold([f64::MAX, f64::MAX, f64::MIN, f64::MIN], |b, p| {
+                [b[0].min(p[0]), b[1].min(p[1]), b[2].max(p[0]), b[3].max(p[1])]
+            })
+        })
         .collect();
     let near = |p: [f64; 2], line: &[[f64; 2]], b: &[f64; 4]| {
         let r = 2.5;
@@ -92,7 +105,9 @@ fn offsets(syn: &Synthetic, seen_edges: &[SeenEdge], frame: usize, rgb: &[u8]) -
             if !syn.world().visible(&pose.center, &p) {
                 continue;
             }
-            let (Some(px), Some(q)) = (pose.project(cam, &p), pose.project(cam, &(p + (b - a) * 0.002))) else { continue };
+            let (Some(px), Some(q)) = (pose.project(cam, &p), pose.project(cam, &(p + (b - a) * 0.002))) else {
+                continue;
+            };
             if !cam.contains(px, 4.0) {
                 continue;
             }
@@ -103,7 +118,10 @@ fn offsets(syn: &Synthetic, seen_edges: &[SeenEdge], frame: usize, rgb: &[u8]) -
             }
             // Skip points within 2 px of an endpoint: there the step belongs to two edges.
             let (pa, pb) = (pose.project(cam, &a), pose.project(cam, &b));
-            let near_end = [pa, pb].iter().flatten().any(|e| ((e[0] - px[0]).powi(2) + (e[1] - px[1]).powi(2)).sqrt() < 2.0);
+            let near_end = [pa, pb]
+                .iter()
+                .flatten()
+                .any(|e| ((e[0] - px[0]).powi(2) + (e[1] - px[1]).powi(2)).sqrt() < 2.0);
             if near_end {
                 continue;
             }
@@ -136,7 +154,8 @@ fn projected_truth_lies_on_the_rendered_edges_corners_included() {
     // Mortar joints and tile gaps run parallel to the edges a few pixels away; only geometry should make steps.
     syn.set_flat_textures(true);
     let cam = syn.camera();
-    let mut per_edge: std::collections::BTreeMap<(usize, usize), Vec<(f64, [f64; 2])>> = Default::default();
+    type Samples = Vec<(f64, [f64; 2])>;
+    let mut per_edge: std::collections::BTreeMap<(usize, usize), Samples> = Default::default();
     // The ends of both strips put the building's corners into the image corners.
     let seen = syn.seen_edges();
     for frame in [0, 8, 9, 17] {

@@ -85,7 +85,9 @@ pub fn polygon_distance(p: &Vec3, corners: &[Vec3]) -> f64 {
     if inside {
         return h.abs();
     }
-    (0..k).map(|i| Seg::new(corners[i], corners[(i + 1) % k]).distance(p)).fold(f64::INFINITY, f64::min)
+    (0..k)
+        .map(|i| Seg::new(corners[i], corners[(i + 1) % k]).distance(p))
+        .fold(f64::INFINITY, f64::min)
 }
 
 /// A uniform grid over boxes, for "everything within R of this point" queries.
@@ -108,7 +110,11 @@ impl Grid {
     }
 
     fn key(&self, p: &Vec3) -> [i64; 3] {
-        [(p.x / self.cell).floor() as i64, (p.y / self.cell).floor() as i64, (p.z / self.cell).floor() as i64]
+        [
+            (p.x / self.cell).floor() as i64,
+            (p.y / self.cell).floor() as i64,
+            (p.z / self.cell).floor() as i64,
+        ]
     }
 
     /// Registers item `id` with bounding box [lo, hi] grown by `reach`.
@@ -136,5 +142,9 @@ impl Grid {
 
 /// Bounding box of points.
 pub fn bounds<'a>(points: impl IntoIterator<Item = &'a Vec3>) -> (Vec3, Vec3) {
-    points.into_iter().fold((Vec3::repeat(f64::INFINITY), Vec3::repeat(f64::NEG_INFINITY)), |(lo, hi), p| (lo.inf(p), hi.sup(p)))
+    points
+        .into_iter()
+        .fold((Vec3::repeat(f64::INFINITY), Vec3::repeat(f64::NEG_INFINITY)), |(lo, hi), p| {
+            (lo.inf(p), hi.sup(p))
+        })
 }

@@ -30,7 +30,8 @@ impl Truth {
     pub fn load(dir: &Path) -> Result<Truth> {
         let gt = dir.join("gt");
         let scene_path = gt.join("scene.json");
-        let text = std::fs::read_to_string(&scene_path).with_context(|| format!("{}: cannot read (is this a `lineflow synth` folder?)", scene_path.display()))?;
+        let text = std::fs::read_to_string(&scene_path)
+            .with_context(|| format!("{}: cannot read (is this a `lineflow synth` folder?)", scene_path.display()))?;
         let v: serde_json::Value = serde_json::from_str(&text).with_context(|| format!("{}: malformed", scene_path.display()))?;
         let (Some(preset), Some(scale), Some(seed)) = (v["preset"].as_str(), v["scale"].as_f64(), v["seed"].as_u64()) else {
             bail!("{}: needs preset, scale and seed", scene_path.display());
@@ -52,7 +53,10 @@ impl Truth {
             .iter()
             .map(|l| {
                 let mid = (l.start + l.end) * 0.5;
-                self.poses.iter().map(|p| (p.pose.center - mid).norm()).fold(f64::INFINITY, f64::min)
+                self.poses
+                    .iter()
+                    .map(|p| (p.pose.center - mid).norm())
+                    .fold(f64::INFINITY, f64::min)
             })
             .collect();
         if d.is_empty() {
@@ -105,7 +109,10 @@ pub struct Evaluation {
 /// Evaluates whatever `results` holds.
 pub fn evaluate(truth: &Truth, results: &Results) -> Evaluation {
     Evaluation {
-        orientation: results.poses.as_ref().map(|p| orientation::evaluate(truth, p, results.checkpoints.as_deref())),
+        orientation: results
+            .poses
+            .as_ref()
+            .map(|p| orientation::evaluate(truth, p, results.checkpoints.as_deref())),
         lines2d: results.lines2d.as_ref().map(|l| lines2d::evaluate(truth, l)),
         lines3d: results.lines3d.as_ref().map(|l| lines3d::evaluate(truth, l)),
     }

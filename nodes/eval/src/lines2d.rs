@@ -125,8 +125,16 @@ pub fn evaluate(truth: &Truth, rows: &[Line2Row]) -> Lines2dReport {
                 })
                 .filter(|s| s.length() > 0.0)
                 .collect();
-            let (gt_len, gt_ok) = if est.is_empty() { (gt.iter().map(Seg::length).sum(), 0.0) } else { covered(&gt, &est, &grid_of(&est)) };
-            let (est_len, est_ok) = if gt.is_empty() { (est.iter().map(Seg::length).sum(), 0.0) } else { covered(&est, &gt, &grid_of(&gt)) };
+            let (gt_len, gt_ok) = if est.is_empty() {
+                (gt.iter().map(Seg::length).sum(), 0.0)
+            } else {
+                covered(&gt, &est, &grid_of(&est))
+            };
+            let (est_len, est_ok) = if gt.is_empty() {
+                (est.iter().map(Seg::length).sum(), 0.0)
+            } else {
+                covered(&est, &gt, &grid_of(&gt))
+            };
             ImageScores {
                 image: name.clone(),
                 n_true: gt.len(),

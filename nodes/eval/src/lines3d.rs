@@ -141,62 +141,83 @@ pub fn evaluate(truth: &Truth, rows: &[Line3Row]) -> Lines3dReport {
         .par_iter()
         .map(|e| {
             e.samples(SAMPLES)
-                .map(|(p, w)| (nearest(&p, &gt_grid, |i| gt[i].distance(&p)), nearest(&p, &face_grid, |i| polygon_distance(&p, &faces[i])), w))
+                .map(|(p, w)| {
+                    (
+                        nearest(&p, &gt_grid, |i| gt[i].distance(&p)),
+                        nearest(&p, &face_grid, |i| polygon_distance(&p, &faces[i])),
+                        w,
+                    )
+                })
                 .collect()
         })
         .collect();
     let gt_samples: Vec<Vec<(f64, f64)>> = gt
         .par_iter()
-        .map(|g| g.samples(SAMPLES).map(|(p, w)| (nearest(&p, &est_grid, |i| est[i].distance(&p)), w)).collect())
-        .collect();
-
-    let classes = [("all", None), ("horizontal", Some(Class::Horizontal)), ("vertical", Some(Class::Vertical))]
-        .iter()
-        .map(|&(name, class)| {
-            let keep = |s: &Seg| class.is_none_or(|c| classify(s) == c);
-            let ei: Vec<usize> = (0..est.len()).filter(|&i| keep(&est[i])).collect();
-            let gi: Vec<usize> = (0..gt.len()).filter(|&i| keep(&gt[i])).collect();
-            let at = taus
-                .iter()
-                .map(|(label, tau)| {
-                    let share = |num: f64, den: f64| if den > 0.0 { num / den } else { f64::NAN };
-                    let seg_ok = ei.iter().filter(|&&i| est_samples[i].iter().map(|s| s.0).sum::<f64>() / SAMPLES as f64 <= *tau).count();
-                    let (mut within, mut on_surface, mut total) = (0.0, 0.0, 0.0);
-                    for &i in &ei {
-                        for &(d, ds, w) in &est_samples[i] {
-                            total += w;
-                            within += if d <= *tau { w } else { 0.0 };
-                            on_surface += if ds <= *tau { w } else { 0.0 };
-                        }
-                    }
-                    let (mut covered, mut gt_total) = (0.0, 0.0);
-                    for &i in &gi {
-                        for &(d, w) in &gt_samples[i] {
-                            gt_total += w;
-                            covered += if d <= *tau { w } else { 0.0 };
-                        }
-                    }
-                    AtTolerance {
-                        label: label.clone(),
-                        tau_m: *tau,
-                        segment_precision: share(seg_ok as f64, ei.len() as f64),
-                        length_precision: share(within, total),
-                        length_recall: share(covered, gt_total),
-                        surface_precision: share(on_surface, total),
-                    }
-                })
-                .collect();
-            let long: Vec<usize> = gi.iter().copied().filter(|&i| gt[i].length() >= 0.5).collect();
-            let recovered = long.iter().filter(|&&i| recovered(&gt[i], &est, gsd)).count();
-            ClassScores {
-                class: name,
-                n_true: gi.len(),
-                n_estimated: ei.len(),
-                success_rate: if long.is_empty() { f64::NAN } else { recovered as f64 / long.len() as f64 },
-                at,
-            }
+        .map(|g| {
+            g.samples(SAMPLES)
+                .map(|(p, w)| (nearest(&p, &est_grid, |i| est[i].distance(&p)), w))
+                .collect()
         })
         .collect();
+
+    let classes = [
+        ("all", None),
+        ("horizontal", Some(Class::Horizontal)),
+        ("vertical", Some(Class::Vertical)),
+    ]
+    .iter()
+    .map(|&(name, class)| {
+        let keep = |s: &Seg| class.is_none_or(|c| classify(s) == c);
+        let ei: Vec<usize> = (0..est.len()).filter(|&i| keep(&est[i])).collect();
+        let gi: Vec<usize> = (0..gt.len()).filter(|&i| keep(&gt[i])).collect();
+        let at = taus
+            .iter()
+            .map(|(label, tau)| {
+                let share = |num: f64, den: f64| if den > 0.0 { num / den } else { f64::NAN };
+                let seg_ok = ei
+                    .iter()
+                    .filter(|&&i| est_samples[i].iter().map(|s| s.0).sum::<f64>() / SAMPLES as f64 <= *tau)
+                    .count();
+                let (mut within, mut on_surface, mut total) = (0.0, 0.0, 0.0);
+                for &i in &ei {
+                    for &(d, ds, w) in &est_samples[i] {
+                        total += w;
+                        within += if d <= *tau { w } else { 0.0 };
+                        on_surface += if ds <= *tau { w } else { 0.0 };
+                    }
+                }
+                let (mut covered, mut gt_total) = (0.0, 0.0);
+                for &i in &gi {
+                    for &(d, w) in &gt_samples[i] {
+                        gt_total += w;
+                        covered += if d <= *tau { w } else { 0.0 };
+                    }
+                }
+                AtTolerance {
+                    label: label.clone(),
+                    tau_m: *tau,
+                    segment_precision: share(seg_ok as f64, ei.len() as f64),
+                    length_precision: share(within, total),
+                    length_recall: share(covered, gt_total),
+                    surface_precision: share(on_surface, total),
+                }
+            })
+            .collect();
+        let long: Vec<usize> = gi.iter().copied().filter(|&i| gt[i].length() >= 0.5).collect();
+        let recovered = long.iter().filter(|&&i| recovered(&gt[i], &est, gsd)).count();
+        ClassScores {
+            class: name,
+            n_true: gi.len(),
+            n_estimated: ei.len(),
+            success_rate: if long.is_empty() {
+                f64::NAN
+            } else {
+                recovered as f64 / long.len() as f64
+            },
+            at,
+        }
+    })
+    .collect();
 
     Lines3dReport {
         gsd_m: gsd,

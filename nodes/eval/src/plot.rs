@@ -75,8 +75,15 @@ pub fn view(truth: &[Seg], est: &[Seg], error: &[f64], max_error: f64, axes: (us
         lo = (lo.0.min(p[axes.0]), lo.1.min(p[axes.1]));
         hi = (hi.0.max(p[axes.0]), hi.1.max(p[axes.1]));
     }
-    let span = ((hi.0 - lo.0) / (w - 2 * m) as f64).max((hi.1 - lo.1) / (h - 3 * m - bar) as f64).max(1e-9);
-    let to = |p: &lineflow_photogrammetry::Vec3| (m as f64 + (p[axes.0] - lo.0) / span, (h - 2 * m - bar) as f64 - (p[axes.1] - lo.1) / span);
+    let span = ((hi.0 - lo.0) / (w - 2 * m) as f64)
+        .max((hi.1 - lo.1) / (h - 3 * m - bar) as f64)
+        .max(1e-9);
+    let to = |p: &lineflow_photogrammetry::Vec3| {
+        (
+            m as f64 + (p[axes.0] - lo.0) / span,
+            (h - 2 * m - bar) as f64 - (p[axes.1] - lo.1) / span,
+        )
+    };
     for s in truth {
         line(&mut img, to(&s.a), to(&s.b), GREY);
     }

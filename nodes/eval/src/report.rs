@@ -61,7 +61,13 @@ pub fn write(truth: &Truth, results: &Path, eval: &Evaluation, out: &Path) -> Re
             );
             match o.checkpoints {
                 Some((r, n)) => {
-                    let _ = writeln!(md, "Check points ({n}): RMSE X {} mm, Y {} mm, Z {} mm.\n", mm(r[0]), mm(r[1]), mm(r[2]));
+                    let _ = writeln!(
+                        md,
+                        "Check points ({n}): RMSE X {} mm, Y {} mm, Z {} mm.\n",
+                        mm(r[0]),
+                        mm(r[1]),
+                        mm(r[2])
+                    );
                 }
                 None => {
                     let _ = writeln!(md, "No `checkpoints.csv` in the results.\n");
@@ -77,10 +83,26 @@ pub fn write(truth: &Truth, results: &Path, eval: &Evaluation, out: &Path) -> Re
             let _ = writeln!(md, "No `lines2d.csv` in the results.\n");
         }
         Some(l) => {
-            let _ = writeln!(md, "Length recall {}, length precision {} over all images.\n", pct(l.recall), pct(l.precision));
-            let _ = writeln!(md, "| image | true segments | estimated | recall | precision |\n|---|---|---|---|---|");
+            let _ = writeln!(
+                md,
+                "Length recall {}, length precision {} over all images.\n",
+                pct(l.recall),
+                pct(l.precision)
+            );
+            let _ = writeln!(
+                md,
+                "| image | true segments | estimated | recall | precision |\n|---|---|---|---|---|"
+            );
             for i in &l.images {
-                let _ = writeln!(md, "| {} | {} | {} | {} | {} |", i.image, i.n_true, i.n_estimated, pct(i.recall), pct(i.precision));
+                let _ = writeln!(
+                    md,
+                    "| {} | {} | {} | {} | {} |",
+                    i.image,
+                    i.n_true,
+                    i.n_estimated,
+                    pct(i.recall),
+                    pct(i.precision)
+                );
             }
             md.push('\n');
         }
@@ -96,7 +118,13 @@ pub fn write(truth: &Truth, results: &Path, eval: &Evaluation, out: &Path) -> Re
             let (em, es, ex) = stats(&l.endpoint_m);
             let (am, as_, ax) = stats(&l.angle_deg);
             let (lm, ls, lx) = stats(&l.angle_long_deg);
-            let _ = writeln!(md, "{} estimated segments, {} matched to a true edge (within 10° and 5 GSD); {} true edges.\n", l.estimated.len(), matched, l.truth.len());
+            let _ = writeln!(
+                md,
+                "{} estimated segments, {} matched to a true edge (within 10° and 5 GSD); {} true edges.\n",
+                l.estimated.len(),
+                matched,
+                l.truth.len()
+            );
             let _ = writeln!(
                 md,
                 "The thesis's tables (Tables 4-6, 4-8):\n\n| | mean | std | max |\n|---|---|---|---|\n| endpoint perpendicular distance (mm) | {} | {} | {} |\n| angle (°) | {:.3} | {:.3} | {:.3} |\n| angle, edges ≥ 1 m (°) | {:.3} | {:.3} | {:.3} |\n",
@@ -135,7 +163,14 @@ pub fn write(truth: &Truth, results: &Path, eval: &Evaluation, out: &Path) -> Re
             }
             let max_error = (5.0 * l.gsd_m).max(0.01);
             plot::histogram(&l.endpoint_m, max_error, 25, &out.join("lines3d_endpoint_hist.png"))?;
-            plot::view(&l.truth, &l.estimated, &l.error_m, max_error, (0, 2), &out.join("lines3d_front.png"))?;
+            plot::view(
+                &l.truth,
+                &l.estimated,
+                &l.error_m,
+                max_error,
+                (0, 2),
+                &out.join("lines3d_front.png"),
+            )?;
             plot::view(&l.truth, &l.estimated, &l.error_m, max_error, (0, 1), &out.join("lines3d_top.png"))?;
             let _ = writeln!(
                 md,
@@ -145,7 +180,10 @@ pub fn write(truth: &Truth, results: &Path, eval: &Evaluation, out: &Path) -> Re
             );
         }
     }
-    let _ = writeln!(md, "## Model\n\nNo model results: the model stage (CSR, LSMIF) does not exist yet.\n");
+    let _ = writeln!(
+        md,
+        "## Model\n\nNo model results: the model stage (CSR, LSMIF) does not exist yet.\n"
+    );
     let path = out.join("report.md");
     std::fs::write(&path, md).with_context(|| format!("cannot write {}", path.display()))?;
     Ok(path)

@@ -55,14 +55,24 @@ fn the_truth_scores_perfectly_and_known_shifts_score_as_expected() {
     let o = perfect.orientation.as_ref().unwrap();
     assert!(o.rms_center_m < 1e-5 && o.rms_rotation_deg < 1e-5 && o.missing.is_empty());
     let l2 = perfect.lines2d.as_ref().unwrap();
-    assert!(l2.recall > 0.99 && l2.precision > 0.99, "2-D: recall {} precision {}", l2.recall, l2.precision);
+    assert!(
+        l2.recall > 0.99 && l2.precision > 0.99,
+        "2-D: recall {} precision {}",
+        l2.recall,
+        l2.precision
+    );
     let l3 = perfect.lines3d.as_ref().unwrap();
     assert_eq!(l3.matched.iter().filter(|m| m.is_some()).count(), lines.len());
     assert!(l3.endpoint_m.iter().all(|d| *d < 1e-5));
     for c in &l3.classes {
         assert!((c.success_rate - 1.0).abs() < 1e-12, "{}: success {}", c.class, c.success_rate);
         for a in &c.at {
-            assert!(a.segment_precision == 1.0 && a.length_recall > 0.999 && a.surface_precision > 0.999, "{} {}", c.class, a.label);
+            assert!(
+                a.segment_precision == 1.0 && a.length_recall > 0.999 && a.surface_precision > 0.999,
+                "{} {}",
+                c.class,
+                a.label
+            );
         }
     }
 
@@ -98,7 +108,11 @@ fn the_truth_scores_perfectly_and_known_shifts_score_as_expected() {
     let all = &l3.classes[0];
     let at = |label: &str| all.at.iter().find(|a| a.label == label).unwrap();
     let share_along_y = expected.iter().filter(|d| **d < 1e-9).count() as f64 / expected.len() as f64;
-    assert!((at("5 mm").segment_precision - share_along_y).abs() < 1e-9, "P_5mm {} vs {share_along_y}", at("5 mm").segment_precision);
+    assert!(
+        (at("5 mm").segment_precision - share_along_y).abs() < 1e-9,
+        "P_5mm {} vs {share_along_y}",
+        at("5 mm").segment_precision
+    );
     assert_eq!(at("20 mm").segment_precision, 1.0);
     assert!(at("20 mm").length_recall > 0.999);
     // Moving off the façade by 1 cm keeps every point within 20 mm of the surfaces but not within 5 mm
@@ -107,7 +121,12 @@ fn the_truth_scores_perfectly_and_known_shifts_score_as_expected() {
     // 2-D segments moved 3 px sideways leave the 1.5 px tolerance; what still counts lies on another, parallel edge
     // (frame, reveal and opening edges run a pixel or two apart at this scale).
     let l2 = shifted.lines2d.as_ref().unwrap();
-    assert!(l2.recall < 0.5 && l2.precision < 0.5, "shifted 2-D: recall {} precision {}", l2.recall, l2.precision);
+    assert!(
+        l2.recall < 0.5 && l2.precision < 0.5,
+        "shifted 2-D: recall {} precision {}",
+        l2.recall,
+        l2.precision
+    );
     // Moved 1 px, inside the tolerance: still perfect.
     let near = evaluate(
         &truth,
@@ -117,7 +136,12 @@ fn the_truth_scores_perfectly_and_known_shifts_score_as_expected() {
         },
     );
     let l2 = near.lines2d.as_ref().unwrap();
-    assert!(l2.recall > 0.99 && l2.precision > 0.99, "1 px: recall {} precision {}", l2.recall, l2.precision);
+    assert!(
+        l2.recall > 0.99 && l2.precision > 0.99,
+        "1 px: recall {} precision {}",
+        l2.recall,
+        l2.precision
+    );
 }
 
 #[test]

@@ -412,11 +412,20 @@ fn the_demo_graph_runs_the_synthetic_camera_and_gives_the_same_bytes_twice() {
     let mut outputs = Vec::new();
     for k in 0..2 {
         let out = sb.path().join(format!("out{k}"));
-        let r = sb.run(&["run", demo.to_str().unwrap(), "--set", "capture.scale=0.06", "--out", out.to_str().unwrap()]);
+        let r = sb.run(&[
+            "run",
+            demo.to_str().unwrap(),
+            "--set",
+            "capture.scale=0.06",
+            "--out",
+            out.to_str().unwrap(),
+        ]);
         assert!(r.status.success(), "demo run {k} failed");
         let rows = frames(&out);
         assert_eq!(rows.len(), 18, "a55-two-strips has 18 frames");
         assert_eq!(rows[0].1, "IMG_0001.png");
+        let report = std::fs::read_to_string(out.join("eval/report.md")).expect("the live eval node wrote no report");
+        assert!(report.contains("a55-two-strips") && report.contains("18 images"), "{report}");
         assert_nothing_left(&sb, &out);
         outputs.push(rows);
     }
@@ -427,9 +436,28 @@ fn the_demo_graph_runs_the_synthetic_camera_and_gives_the_same_bytes_twice() {
 fn a_synth_folder_loads_through_the_folder_capture_and_evaluates() {
     let sb = Sandbox::new();
     let scene = sb.path().join("scene");
-    let r = sb.run(&["synth", "--preset", "convergent", "--scale", "0.06", "--seed", "4", "--out", scene.to_str().unwrap()]);
+    let r = sb.run(&[
+        "synth",
+        "--preset",
+        "convergent",
+        "--scale",
+        "0.06",
+        "--seed",
+        "4",
+        "--out",
+        scene.to_str().unwrap(),
+    ]);
     assert!(r.status.success());
-    for f in ["images/IMG_0012.png", "camera.toml", "control_points.csv", "observations.csv", "site.toml", "gt/poses.csv", "gt/lines3d.csv", "gt/scene.json"] {
+    for f in [
+        "images/IMG_0012.png",
+        "camera.toml",
+        "control_points.csv",
+        "observations.csv",
+        "site.toml",
+        "gt/poses.csv",
+        "gt/lines3d.csv",
+        "gt/scene.json",
+    ] {
         assert!(scene.join(f).is_file(), "synth wrote no {f}");
     }
     let r = sb.run(&["process", scene.to_str().unwrap()]);
@@ -444,7 +472,10 @@ fn a_synth_folder_loads_through_the_folder_capture_and_evaluates() {
     let r = sb.run(&["eval", results.to_str().unwrap(), "--gt", scene.to_str().unwrap()]);
     assert!(r.status.success());
     let stdout = String::from_utf8_lossy(&r.stdout);
-    assert!(stdout.contains("centre RMS 0.0 mm") && stdout.contains("success rate 100.0 %"), "{stdout}");
+    assert!(
+        stdout.contains("centre RMS 0.0 mm") && stdout.contains("success rate 100.0 %"),
+        "{stdout}"
+    );
     let report = std::fs::read_to_string(results.join("eval/report.md")).unwrap();
     assert!(report.contains("## 3-D lines") && report.contains("lines3d_front.png"));
     assert!(results.join("eval/lines3d_front.png").is_file());

@@ -25,7 +25,7 @@ pub struct Bvh {
 
 impl Bvh {
     /// Builds the hierarchy with the surface-area heuristic over binned centroids (deterministic). The faces differ
-/// in size by four orders of magnitude (the ground, a wall, a 4 cm reveal), where median splits do badly.
+    /// in size by four orders of magnitude (the ground, a wall, a 4 cm reveal), where median splits do badly.
     pub fn build(faces: Vec<Prepared>) -> Bvh {
         let mut order: Vec<u32> = (0..faces.len() as u32).collect();
         let mut nodes = Vec::with_capacity(faces.len() * 2);
@@ -46,9 +46,7 @@ impl Bvh {
         // Each entry carries the distance at which its box is entered, so a box behind the best hit is skipped
         // without testing it again.
         let mut stack = [(0u32, 0f64); 64];
-        let Some(t_root) = slab(&self.nodes[0].lo, &self.nodes[0].hi, origin, &inv, t_min, limit) else {
-            return None;
-        };
+        let t_root = slab(&self.nodes[0].lo, &self.nodes[0].hi, origin, &inv, t_min, limit)?;
         stack[0] = (0, t_root);
         let mut depth = 1;
         while depth > 0 {
@@ -69,8 +67,22 @@ impl Bvh {
             } else {
                 let left = index + 1;
                 let right = node.start_or_right;
-                let tl = slab(&self.nodes[left as usize].lo, &self.nodes[left as usize].hi, origin, &inv, t_min, limit);
-                let tr = slab(&self.nodes[right as usize].lo, &self.nodes[right as usize].hi, origin, &inv, t_min, limit);
+                let tl = slab(
+                    &self.nodes[left as usize].lo,
+                    &self.nodes[left as usize].hi,
+                    origin,
+                    &inv,
+                    t_min,
+                    limit,
+                );
+                let tr = slab(
+                    &self.nodes[right as usize].lo,
+                    &self.nodes[right as usize].hi,
+                    origin,
+                    &inv,
+                    t_min,
+                    limit,
+                );
                 // Visit the nearer child first so the farther one is usually culled.
                 match (tl, tr) {
                     (Some(a), Some(b)) => {
@@ -200,7 +212,9 @@ fn sah_split(faces: &[Prepared], order: &mut [u32], clo: &Vec3, chi: &Vec3) -> O
             }
         }
     }
-    let (lo, hi) = order.iter().fold(empty, |a, &f| (a.0.inf(&faces[f as usize].lo), a.1.sup(&faces[f as usize].hi)));
+    let (lo, hi) = order
+        .iter()
+        .fold(empty, |a, &f| (a.0.inf(&faces[f as usize].lo), a.1.sup(&faces[f as usize].hi)));
     let leaf_cost = area(&lo, &hi) * order.len() as f64;
     let (cost, axis, split) = best?;
     if cost * 1.0 + TRAVERSAL_COST * area(&lo, &hi) >= leaf_cost && order.len() <= 2 * LEAF_SIZE {

@@ -19,6 +19,13 @@ pub use truth::{SeenEdge, TargetObservation};
 pub use write::{jpeg_bytes, write_project};
 
 use rng::Rng;
+
+/// Preset of the `synthetic` capture node when the launch file names none.
+pub const DEFAULT_PRESET: &str = "a55-two-strips";
+/// Scale of the `synthetic` capture node when the launch file names none (≈ 740 px wide).
+pub const DEFAULT_SCALE: f64 = 0.15;
+/// Seed of the `synthetic` capture node when the launch file names none.
+pub const DEFAULT_SEED: u64 = 1;
 use scene::Building;
 
 /// A synthetic data set: camera, stations, building, sensor, and the prepared scene.
@@ -83,7 +90,14 @@ impl Synthetic {
     /// Renders frame `frame` as packed RGB8.
     pub fn render(&self, frame: usize) -> Vec<u8> {
         let mut scratch = self.scratch.lock().unwrap_or_else(|p| p.into_inner());
-        render::render(&self.world, self.camera(), &self.preset.poses[frame], &self.preset.sensor, frame as u64, &mut scratch)
+        render::render(
+            &self.world,
+            self.camera(),
+            &self.preset.poses[frame],
+            &self.preset.sensor,
+            frame as u64,
+            &mut scratch,
+        )
     }
 
     /// The file name of frame `frame` in a project folder.
@@ -99,7 +113,14 @@ impl Synthetic {
 
     /// Measurements of the targets in every image that sees them.
     pub fn target_observations(&self) -> Vec<TargetObservation> {
-        truth::observe_targets(&self.world, self.camera(), self.poses(), &self.building.targets, self.preset.obs_sigma_px, self.seed)
+        truth::observe_targets(
+            &self.world,
+            self.camera(),
+            self.poses(),
+            &self.building.targets,
+            self.preset.obs_sigma_px,
+            self.seed,
+        )
     }
 
     /// Textures at their mean colour, so that only geometry makes edges (for measuring edge positions).

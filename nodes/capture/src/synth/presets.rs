@@ -107,10 +107,20 @@ pub fn preset(name: &str, seed: u64) -> Option<Preset> {
             let poses = (0..33)
                 .map(|i| {
                     let x = b.width_m / 2.0 + (i as f64 - 16.0) * 2.077;
-                    station(&mut rng, Vec3::new(x, -19.3, 1.6), Vec3::new(x, 0.0, 1.6 + 19.3 * 17f64.to_radians().tan()))
+                    station(
+                        &mut rng,
+                        Vec3::new(x, -19.3, 1.6),
+                        Vec3::new(x, 0.0, 1.6 + 19.3 * 17f64.to_radians().tan()),
+                    )
                 })
                 .collect();
-            common("d2x-strip", "Nikon D2X, one strip of 33 parallel to the facade at 19.3 m", d2x(), b, poses)
+            common(
+                "d2x-strip",
+                "Nikon D2X, one strip of 33 parallel to the facade at 19.3 m",
+                d2x(),
+                b,
+                poses,
+            )
         }
         "a55-two-strips" => {
             // Two strips of 9 at different heights, 25.1 m from the façade (GSD 6.7 mm), baseline 0.692 m.
@@ -118,9 +128,21 @@ pub fn preset(name: &str, seed: u64) -> Option<Preset> {
             let poses = [1.5, 4.5]
                 .iter()
                 .flat_map(|&z| (0..9).map(move |i| (z, b.width_m / 2.0 + (i as f64 - 4.0) * 0.692)))
-                .map(|(z, x)| station(&mut rng, Vec3::new(x, -25.1, z), Vec3::new(x, 0.0, z + 25.1 * 14f64.to_radians().tan())))
+                .map(|(z, x)| {
+                    station(
+                        &mut rng,
+                        Vec3::new(x, -25.1, z),
+                        Vec3::new(x, 0.0, z + 25.1 * 14f64.to_radians().tan()),
+                    )
+                })
                 .collect();
-            common("a55-two-strips", "Sony A55, two strips of 9 at 1.5 m and 4.5 m, 25.1 m from the facade", a55(), b, poses)
+            common(
+                "a55-two-strips",
+                "Sony A55, two strips of 9 at 1.5 m and 4.5 m, 25.1 m from the facade",
+                a55(),
+                b,
+                poses,
+            )
         }
         "convergent" => {
             // An arc of 12 views around the façade centre, heading within ±25°.
@@ -133,7 +155,13 @@ pub fn preset(name: &str, seed: u64) -> Option<Preset> {
                     station(&mut rng, c, aim)
                 })
                 .collect();
-            common("convergent", "Nikon D2X, 12 views on an arc of 20 m radius, heading -25..25 deg", d2x(), b, poses)
+            common(
+                "convergent",
+                "Nikon D2X, 12 views on an arc of 20 m radius, heading -25..25 deg",
+                d2x(),
+                b,
+                poses,
+            )
         }
         "roof" => {
             // Elevated oblique views (a lift or the building opposite) that see the eaves, verges and ridge.
@@ -145,7 +173,13 @@ pub fn preset(name: &str, seed: u64) -> Option<Preset> {
                     station(&mut rng, Vec3::new(x, -22.0, z), Vec3::new(x, 1.5, b.wall_height_m() - 4.0))
                 })
                 .collect();
-            common("roof", "Nikon D2X, 10 elevated oblique views 22 m out and 9 m above the eaves", d2x(), b, poses)
+            common(
+                "roof",
+                "Nikon D2X, 10 elevated oblique views 22 m out and 9 m above the eaves",
+                d2x(),
+                b,
+                poses,
+            )
         }
         _ => return None,
     })

@@ -147,21 +147,24 @@ pub fn render(world: &World, camera: &Camera, pose: &Pose, sensor: &Sensor, fram
     scratch.ids.resize(w * h, 0);
     scratch.rgb.resize(w * h, [0.0; 3]);
     let Scratch { ids, rgb, tmp } = scratch;
-    ids.par_chunks_mut(w).zip(rgb.par_chunks_mut(w)).enumerate().for_each(|(row, (ids, rgb))| {
-        for col in 0..w {
-            let (id, c) = world.trace(&pose.center, &ray(col as f64, row as f64), spread, tiles, tiles.at(col, row));
-            ids[col] = id;
-            rgb[col] = c;
-        }
-    });
+    ids.par_chunks_mut(w)
+        .zip(rgb.par_chunks_mut(w))
+        .enumerate()
+        .for_each(|(row, (ids, rgb))| {
+            for col in 0..w {
+                let (id, c) = world.trace(&pose.center, &ray(col as f64, row as f64), spread, tiles, tiles.at(col, row));
+                ids[col] = id;
+                rgb[col] = c;
+            }
+        });
 
     // Supersample pixels whose neighbourhood sees more than one surface: their centre sample misplaces the edge.
     let ids = &*ids;
     rgb.par_chunks_mut(w).enumerate().for_each(|(row, out)| {
         for (col, px) in out.iter_mut().enumerate() {
             let id = ids[row * w + col];
-            let boundary = (row.saturating_sub(1)..(row + 2).min(h))
-                .any(|r| (col.saturating_sub(1)..(col + 2).min(w)).any(|c| ids[r * w + c] != id));
+            let boundary =
+                (row.saturating_sub(1)..(row + 2).min(h)).any(|r| (col.saturating_sub(1)..(col + 2).min(w)).any(|c| ids[r * w + c] != id));
             if !boundary {
                 continue;
             }
@@ -170,7 +173,13 @@ pub fn render(world: &World, camera: &Camera, pose: &Pose, sensor: &Sensor, fram
                 for j in 0..SUPERSAMPLE {
                     let dc = (j as f64 + 0.5) / SUPERSAMPLE as f64 - 0.5;
                     let dr = (i as f64 + 0.5) / SUPERSAMPLE as f64 - 0.5;
-                    let (_, c) = world.trace(&pose.center, &ray(col as f64 + dc, row as f64 + dr), spread / SUPERSAMPLE as f64, tiles, tiles.at(col, row));
+                    let (_, c) = world.trace(
+                        &pose.center,
+                        &ray(col as f64 + dc, row as f64 + dr),
+                        spread / SUPERSAMPLE as f64,
+                        tiles,
+                        tiles.at(col, row),
+                    );
                     for k in 0..3 {
                         sum[k] += c[k];
                     }
@@ -190,7 +199,9 @@ pub fn render(world: &World, camera: &Camera, pose: &Pose, sensor: &Sensor, fram
 /// Separable Gaussian blur, in place (`tmp` holds the horizontal pass).
 fn blur(rgb: &mut [Rgb], tmp: &mut Vec<Rgb>, w: usize, h: usize, sigma: f64) {
     let radius = (3.0 * sigma).ceil() as isize;
-    let mut kernel: Vec<f32> = (-radius..=radius).map(|i| (-(i * i) as f64 / (2.0 * sigma * sigma)).exp() as f32).collect();
+    let mut kernel: Vec<f32> = (-radius..=radius)
+        .map(|i| (-(i * i) as f64 / (2.0 * sigma * sigma)).exp() as f32)
+        .collect();
     let total: f32 = kernel.iter().sum();
     kernel.iter_mut().for_each(|k| *k /= total);
     tmp.resize(w * h, [0.0; 3]);
@@ -204,7 +215,11 @@ fn blur(rgb: &mut [Rgb], tmp: &mut Vec<Rgb>, w: usize, h: usize, sigma: f64) {
     let horizontal = &*tmp;
     rgb.par_chunks_mut(w).enumerate().for_each(|(row, out)| {
         for (col, px) in out.iter_mut().enumerate() {
-            *px = weighted(&kernel, |o| horizontal[(row as isize + o).clamp(0, h as isize - 1) as usize * w + col], radius);
+            *px = weighted(
+                &kernel,
+                |o| horizontal[(row as isize + o).clamp(0, h as isize - 1) as usize * w + col],
+                radius,
+            );
         }
     });
 }
@@ -224,7 +239,9 @@ fn weighted(kernel: &[f32], sample: impl Fn(isize) -> Rgb, radius: isize) -> Rgb
 /// Vignetting, display encoding (gamma through a table), sensor noise in digital numbers, rounding to 8 bits.
 fn expose(rgb: &[Rgb], w: usize, h: usize, sensor: &Sensor, noise_seed: u64) -> Vec<u8> {
     const LEVELS: usize = 4096;
-    let table: Vec<f32> = (0..LEVELS).map(|i| (255.0 * (i as f64 / (LEVELS - 1) as f64).powf(1.0 / sensor.gamma.max(0.1))) as f32).collect();
+    let table: Vec<f32> = (0..LEVELS)
+        .map(|i| (255.0 * (i as f64 / (LEVELS - 1) as f64).powf(1.0 / sensor.gamma.max(0.1))) as f32)
+        .collect();
     let (cx, cy) = ((w as f64 - 1.0) / 2.0, (h as f64 - 1.0) / 2.0);
     let r2max = cx * cx + cy * cy;
     let mut out = vec![0u8; w * h * 3];

@@ -384,11 +384,23 @@ pub fn build(spec: &BuildingSpec, seed: u64) -> Building {
     for s in sills {
         b.slab(&facade, s, 0.06, Material::Stone, "sill");
     }
-    b.slab(&facade, Rect::new(-0.2, w + 0.2, h - 0.75, h - 0.55), 0.25, Material::Stone, "cornice");
+    b.slab(
+        &facade,
+        Rect::new(-0.2, w + 0.2, h - 0.75, h - 0.55),
+        0.25,
+        Material::Stone,
+        "cornice",
+    );
     if let Some(r) = door_rect {
         let level = spec.floor_level(1);
         let xc = (r.x0 + r.x1) / 2.0;
-        b.slab(&facade, Rect::new(xc - 2.0, xc + 2.0, level - 0.2, level), 1.2, Material::Stone, "balcony");
+        b.slab(
+            &facade,
+            Rect::new(xc - 2.0, xc + 2.0, level - 0.2, level),
+            1.2,
+            Material::Stone,
+            "balcony",
+        );
     }
 
     // Side walls with their gables, one plastered surface each; the façade corner edges are already recorded.
@@ -397,7 +409,13 @@ pub fn build(spec: &BuildingSpec, seed: u64) -> Building {
         let side = WallFrame::new(origin, outward);
         let s = b.surface();
         b.quad(side.point(0.0, 0.0, 0.0), side.ex * d, side.ez * h, Material::Plaster, s);
-        b.triangle(side.point(0.0, h, 0.0), side.point(d, h, 0.0), side.point(d / 2.0, ridge, 0.0), Material::Plaster, s);
+        b.triangle(
+            side.point(0.0, h, 0.0),
+            side.point(d, h, 0.0),
+            side.point(d / 2.0, ridge, 0.0),
+            Material::Plaster,
+            s,
+        );
         b.edge(side.point(0.0, 0.0, 0.0), side.point(d, 0.0, 0.0), "outline");
         b.edge(side.point(back, 0.0, 0.0), side.point(back, h, 0.0), "outline");
         b.edge(side.point(0.0, h, 0.0), side.point(d / 2.0, ridge, 0.0), "roof");
@@ -425,15 +443,33 @@ pub fn build(spec: &BuildingSpec, seed: u64) -> Building {
 
     // The ground.
     let g = b.surface();
-    b.quad(Vec3::new(-80.0, -100.0, 0.0), Vec3::new(w + 160.0, 0.0, 0.0), Vec3::new(0.0, d + 160.0, 0.0), Material::Asphalt, g);
+    b.quad(
+        Vec3::new(-80.0, -100.0, 0.0),
+        Vec3::new(w + 160.0, 0.0, 0.0),
+        Vec3::new(0.0, d + 160.0, 0.0),
+        Material::Asphalt,
+        g,
+    );
 
     let targets = place_targets(spec, facade_surface, &mut rng);
     let corner = |x: f64, y: f64, z: f64| [x, y, z];
     let walls = vec![
-        ("facade".to_string(), vec![corner(0.0, 0.0, 0.0), corner(w, 0.0, 0.0), corner(w, 0.0, h), corner(0.0, 0.0, h)]),
-        ("east".to_string(), vec![corner(w, 0.0, 0.0), corner(w, d, 0.0), corner(w, d, h), corner(w, 0.0, h)]),
-        ("back".to_string(), vec![corner(w, d, 0.0), corner(0.0, d, 0.0), corner(0.0, d, h), corner(w, d, h)]),
-        ("west".to_string(), vec![corner(0.0, d, 0.0), corner(0.0, 0.0, 0.0), corner(0.0, 0.0, h), corner(0.0, d, h)]),
+        (
+            "facade".to_string(),
+            vec![corner(0.0, 0.0, 0.0), corner(w, 0.0, 0.0), corner(w, 0.0, h), corner(0.0, 0.0, h)],
+        ),
+        (
+            "east".to_string(),
+            vec![corner(w, 0.0, 0.0), corner(w, d, 0.0), corner(w, d, h), corner(w, 0.0, h)],
+        ),
+        (
+            "back".to_string(),
+            vec![corner(w, d, 0.0), corner(0.0, d, 0.0), corner(0.0, d, h), corner(w, d, h)],
+        ),
+        (
+            "west".to_string(),
+            vec![corner(0.0, d, 0.0), corner(0.0, 0.0, 0.0), corner(0.0, 0.0, h), corner(0.0, d, h)],
+        ),
     ];
     Building {
         spec: spec.clone(),
@@ -456,7 +492,9 @@ fn place_targets(spec: &BuildingSpec, surface: u32, rng: &mut Rng) -> Vec<Target
         }
     }
     let (xmin, xmax) = (spacing, (spec.window_columns - 1) as f64 * spacing);
-    let (zmin, zmax) = spots.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), s| (a.min(s[1]), b.max(s[1])));
+    let (zmin, zmax) = spots
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), s| (a.min(s[1]), b.max(s[1])));
     let corners = [[xmin, zmin], [xmax, zmin], [xmax, zmax], [xmin, zmax]];
     let mut targets: Vec<Target> = corners
         .iter()

@@ -17,7 +17,9 @@ fn floor(x: f64) -> f64 {
 /// A cheap lattice hash for value noise.
 #[inline]
 fn lattice(seed: u64, ix: i64, iy: i64) -> f64 {
-    unit(mix64(seed ^ (ix as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ (iy as u64).wrapping_mul(0xC2B2_AE3D_27D4_EB4F)))
+    unit(mix64(
+        seed ^ (ix as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ (iy as u64).wrapping_mul(0xC2B2_AE3D_27D4_EB4F),
+    ))
 }
 
 /// Linear RGB in [0, 1].
@@ -93,7 +95,8 @@ pub fn albedo(material: Material, s: f64, t: f64, fw: f64, seed: u64) -> Rgb {
         Material::Tiles => {
             let gap = 1.0 - (1.0 - pulse_coverage(t, 0.33, 0.03, fw)) * (1.0 - pulse_coverage(s, 0.25, 0.015, fw));
             let row = floor(t / 0.33);
-            let tint = (unit(hash(&[seed, 13, row as i64 as u64, floor(s / 0.25) as i64 as u64])) - 0.5) * 0.2 * (1.0 - fw / 0.25).clamp(0.0, 1.0);
+            let tint =
+                (unit(hash(&[seed, 13, row as i64 as u64, floor(s / 0.25) as i64 as u64])) - 0.5) * 0.2 * (1.0 - fw / 0.25).clamp(0.0, 1.0);
             mix(scale([0.47, 0.23, 0.15], 1.0 + tint), [0.18, 0.12, 0.10], gap)
         }
         // Near-uniform on purpose: the thesis's hard case, a region that matches at every depth.
@@ -101,7 +104,10 @@ pub fn albedo(material: Material, s: f64, t: f64, fw: f64, seed: u64) -> Rgb {
         Material::Frame => scale([0.90, 0.90, 0.88], 1.0 + 0.01 * noise(s, t, 0.3, fw, seed ^ 5)),
         Material::Stone => scale([0.70, 0.69, 0.66], 1.0 + 0.06 * noise(s, t, 0.03, fw, seed ^ 6)),
         Material::Wood => scale([0.42, 0.28, 0.17], 1.0 + 0.10 * noise(s * 8.0, t, 0.4, fw * 8.0, seed ^ 7)),
-        Material::Asphalt => scale([0.33, 0.33, 0.34], 1.0 + 0.10 * noise(s, t, 0.03, fw, seed ^ 8) + 0.05 * noise(s, t, 1.0, fw, seed ^ 9)),
+        Material::Asphalt => scale(
+            [0.33, 0.33, 0.34],
+            1.0 + 0.10 * noise(s, t, 0.03, fw, seed ^ 8) + 0.05 * noise(s, t, 1.0, fw, seed ^ 9),
+        ),
     }
 }
 

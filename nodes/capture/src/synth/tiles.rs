@@ -76,7 +76,12 @@ impl TileIndex {
         for (i, (centre, radius)) in targets.iter().enumerate() {
             let Some(p) = pose.project_ideal(camera, centre) else { continue };
             let r = radius * camera.focal_mm / -pose.to_camera(centre).z;
-            index.insert(&mut |t: &mut TileIndex, tile| t.targets[tile].push(i as u32), [p[0] - r, p[1] - r, p[0] + r, p[1] + r], &frame, camera);
+            index.insert(
+                &mut |t: &mut TileIndex, tile| t.targets[tile].push(i as u32),
+                [p[0] - r, p[1] - r, p[0] + r, p[1] + r],
+                &frame,
+                camera,
+            );
         }
         index
     }
@@ -102,7 +107,11 @@ impl TileIndex {
         let tile_of = |v: f64, n: usize| ((v / TILE as f64).floor().max(0.0) as usize).min(n - 1);
         let (c0, c1) = (tile_of(px[0] - MARGIN_PX, self.cols), tile_of(px[2] + MARGIN_PX, self.cols));
         let (r0, r1) = (tile_of(px[1] - MARGIN_PX, rows), tile_of(px[3] + MARGIN_PX, rows));
-        if px[0] - MARGIN_PX > (self.cols * TILE) as f64 || px[1] - MARGIN_PX > (rows * TILE) as f64 || px[2] + MARGIN_PX < 0.0 || px[3] + MARGIN_PX < 0.0 {
+        if px[0] - MARGIN_PX > (self.cols * TILE) as f64
+            || px[1] - MARGIN_PX > (rows * TILE) as f64
+            || px[2] + MARGIN_PX < 0.0
+            || px[3] + MARGIN_PX < 0.0
+        {
             return;
         }
         for r in r0..=r1 {

@@ -45,7 +45,10 @@ pub fn seen_edges(world: &World, camera: &Camera, poses: &[Pose], edges: &[Edge]
                 })
                 .map(|(i, _)| i)
                 .collect();
-            (frames.len() >= 2).then(|| SeenEdge { edge: edge.clone(), frames })
+            (frames.len() >= 2).then(|| SeenEdge {
+                edge: edge.clone(),
+                frames,
+            })
         })
         .collect()
 }
@@ -62,12 +65,21 @@ pub struct TargetObservation {
 }
 
 /// The true projection of every visible target, plus Gaussian noise of `sigma_px` drawn from `seed`.
-pub fn observe_targets(world: &World, camera: &Camera, poses: &[Pose], targets: &[Target], sigma_px: f64, seed: u64) -> Vec<TargetObservation> {
+pub fn observe_targets(
+    world: &World,
+    camera: &Camera,
+    poses: &[Pose],
+    targets: &[Target],
+    sigma_px: f64,
+    seed: u64,
+) -> Vec<TargetObservation> {
     let mut out = Vec::new();
     for (frame, pose) in poses.iter().enumerate() {
         for (k, t) in targets.iter().enumerate() {
             // The whole target must be in the frame for a person (or a detector) to measure its centre.
-            let Some(px) = sees(world, camera, pose, &Vec3::from(t.xyz)) else { continue };
+            let Some(px) = sees(world, camera, pose, &Vec3::from(t.xyz)) else {
+                continue;
+            };
             if !camera.contains(px, 10.0) {
                 continue;
             }

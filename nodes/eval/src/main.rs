@@ -1,0 +1,125 @@
+//! `lineflow-eval`: the live evaluation sink. Collects the ground truth (`gt/poses`, `gt/lines3d`) and whatever
+//! results the graph produces (`poses`, `lines3d`), and at end-of-stream writes `eval/report.md` into the run's
+//! output folder. The scene is regenerated from the parameters of the graph's `synthetic` capture node.
+use anyhow::{bail, Context, Result};
+use lineflow_capture::synth::{self, Synthetic};
+use lineflow_eval::{evaluate, report, Results, Truth};
+use lineflow_formats::{Line3Row, PoseRow};
+use lineflow_messages::kinds;
+use lineflow_photogrammetry::{Mat3, Pose, Vec3};
+use lineflow_runtime::{Flow, NodeContext};
+
+fn main() -> std::process::ExitCode {
+    lineflow_runtime::run_node(body)
+}
+
+/// The synthetic capture node's scene: preset, scale, seed as the launch file sets them (or their defaults).
+fn scene_of_graph(ctx: &NodeContext) -> Result<Synthetic> {
+    let graph = ctx.graph();
+    let Some(node) = graph
+        .nodes
+        .iter()
+        .find(|n| n.stage.as_deref() == Some("capture") && n.implementation.as_deref().unwrap_or("synthetic") == "synthetic")
+    else {
+        bail!(
+            "node '{}': eval needs a `synthetic` capture node in the graph (for folders, use `lineflow eval`)",
+            ctx.name()
+        );
+    };
+    let p = &node.params;
+    let preset = p.get("preset").and_then(|v| v.as_str()).unwrap_or(synth::DEFAULT_PRESET);
+    let scale = p.get("scale").and_then(|v| v.as_f64()).unwrap_or(synth::DEFAULT_SCALE);
+    let seed = p.get("seed").and_then(|v| v.as_u64()).unwrap_or(synth::DEFAULT_SEED);
+    Synthetic::new(preset, scale, seed).map_err(|e| anyhow::anyhow!("node '{}': {e}", ctx.name()))
+}
+
+fn pose_rows(syn: &Synthetic, poses: &[lineflow_messages::Pose]) -> Vec<PoseRow> {
+    poses
+        .iter()
+        .filter(|p| (p.frame as usize) < syn.poses().len())
+        .map(|p| PoseRow {
+            image: syn.image_name(p.frame as usize),
+            pose: Pose {
+                center: Vec3::from(p.center_m),
+                rotation: Mat3::from_row_slice(&p.rotation),
+            },
+            sigma_center_m: None,
+            sigma_angles_deg: None,
+        })
+        .collect()
+}
+
+fn line_rows(lines: &[lineflow_messages::Line3]) -> Vec<Line3Row> {
+    lines
+        .iter()
+        .map(|l| Line3Row {
+            id: format!("L{}", l.id),
+            start: Vec3::from(l.start_m),
+            end: Vec3::from(l.end_m),
+            n_points: Some(l.n_points),
+            n_images: Some(l.n_images),
+            rms_m: Some(l.rms_m),
+        })
+        .collect()
+}
+
+fn body() -> Result<()> {
+    let ctx = NodeContext::from_env()?;
+    let gt_poses = ctx.input::<kinds::Poses>("gt/poses")?;
+    let gt_lines = ctx.input::<kinds::Lines3D>("gt/lines3d")?;
+    let poses = ctx.optional_input::<kinds::Poses>("poses")?;
+    let lines = ctx.optional_input::<kinds::Lines3D>("lines3d")?;
+    let syn = scene_of_graph(&ctx)?;
+    ctx.connect()?;
+
+    // The newest message of each topic is the one that counts (a later revision supersedes an earlier one).
+    let (mut truth_poses, mut truth_lines, mut est_poses, mut est_lines) = (Vec::new(), Vec::new(), None, None);
+    ctx.run(|| {
+        while let Some(m) = gt_poses.receive()? {
+            truth_poses = m.payload().to_vec();
+        }
+        while let Some(m) = gt_lines.receive()? {
+            truth_lines = m.payload().to_vec();
+        }
+        if let Some(i) = &poses {
+            while let Some(m) = i.receive()? {
+                est_poses = Some(m.payload().to_vec());
+            }
+        }
+        if let Some(i) = &lines {
+            while let Some(m) = i.receive()? {
+                est_lines = Some(m.payload().to_vec());
+            }
+        }
+        let done = gt_poses.is_ended()
+            && gt_lines.is_ended()
+            && poses.as_ref().is_none_or(|i| i.is_ended())
+            && lines.as_ref().is_none_or(|i| i.is_ended());
+        Ok(if done { Flow::Stop } else { Flow::Continue })
+    })?;
+
+    let out = ctx.out_dir();
+    let truth = Truth {
+        dir: out.clone(),
+        poses: pose_rows(&syn, &truth_poses),
+        lines: line_rows(&truth_lines),
+        scene: syn,
+    };
+    let results = Results {
+        poses: est_poses.map(|p| pose_rows(&truth.scene, &p)),
+        lines3d: est_lines.map(|l| line_rows(&l)),
+        ..Default::default()
+    };
+    let evaluation = evaluate(&truth, &results);
+    let path = report::write(&truth, &out, &evaluation, &out.join("eval")).context("writing the evaluation report")?;
+    tracing::info!(
+        "{} true poses, {} true edges; results: poses {}, lines3d {} -> {}",
+        truth.poses.len(),
+        truth.lines.len(),
+        if results.poses.is_some() { "yes" } else { "none" },
+        if results.lines3d.is_some() { "yes" } else { "none" },
+        path.display()
+    );
+    ctx.finish();
+    Ok(())
+}
