@@ -15,7 +15,7 @@ use super::tiles::TileIndex;
 /// Surface id of rays that hit nothing.
 const SKY: u32 = u32::MAX;
 /// Samples per side in a supersampled pixel.
-const SUPERSAMPLE: usize = 4;
+const SUPERSAMPLE: usize = 3;
 
 /// What the optics and the sensor add to the ideal image.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
