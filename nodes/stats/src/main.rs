@@ -1,8 +1,10 @@
-//! `lineflow-stats`: a sink that writes `frames.csv` (one row per image that arrived) and logs rates.
+//! `lineflow-stats`: a sink that writes `frames.csv` (one row per image that arrived) and, when wired, `edges.csv`
+//! (one row per edge map: frame, detector, edge pixels, checksum), and logs rates.
 use std::io::Write;
 
 use anyhow::{Context, Result};
-use lineflow_messages::{kinds::Image, Encoding};
+use lineflow_messages::kinds::{EdgeMap, Image};
+use lineflow_messages::Encoding;
 use lineflow_runtime::{Flow, NodeContext};
 use lineflow_stats::{fnv1a64, FRAMES_CSV_HEADER};
 
@@ -24,7 +26,17 @@ fn body() -> Result<()> {
     let ctx = NodeContext::from_env()?;
     let p: Params = ctx.params()?;
     let input = ctx.input::<Image>("images")?;
+    let edges = ctx.optional_input::<EdgeMap>("edges")?;
     ctx.connect()?;
+    let mut edges_csv = match &edges {
+        Some(_) => {
+            let path = ctx.out_dir().join("edges.csv");
+            let mut f = std::io::BufWriter::new(std::fs::File::create(&path).with_context(|| format!("cannot create {}", path.display()))?);
+            writeln!(f, "frame,detector,n_pixels,fnv1a64")?;
+            Some((f, path))
+        }
+        None => None,
+    };
     let path = ctx.out_dir().join(&p.file);
     let mut out = std::io::BufWriter::new(std::fs::File::create(&path).with_context(|| format!("cannot create {}", path.display()))?);
     writeln!(out, "{FRAMES_CSV_HEADER}")?;
@@ -46,8 +58,37 @@ fn body() -> Result<()> {
             bytes += msg.payload().len();
             frames += 1;
         }
-        Ok(if input.is_ended() { Flow::Stop } else { Flow::Continue })
+        if let (Some(e), Some((f, _))) = (&edges, &mut edges_csv) {
+            while let Some(msg) = e.receive()? {
+                let h = msg.user_header();
+                let bytes: Vec<u8> = msg
+                    .payload()
+                    .iter()
+                    .flat_map(|p| {
+                        let mut b = Vec::with_capacity(12);
+                        b.extend(p.col.to_le_bytes());
+                        b.extend(p.row.to_le_bytes());
+                        b.extend(p.magnitude.to_le_bytes());
+                        b.extend(p.direction_rad.to_le_bytes());
+                        b
+                    })
+                    .collect();
+                writeln!(
+                    f,
+                    "{},{},{},{:016x}",
+                    h.stamp.frame,
+                    lineflow_messages::str_from_fixed(&h.detector),
+                    msg.payload().len(),
+                    fnv1a64(&bytes)
+                )?;
+            }
+        }
+        let done = input.is_ended() && edges.as_ref().is_none_or(|e| e.is_ended());
+        Ok(if done { Flow::Stop } else { Flow::Continue })
     })?;
+    if let Some((mut f, path)) = edges_csv {
+        f.flush().with_context(|| format!("cannot write {}", path.display()))?;
+    }
     out.flush().with_context(|| format!("cannot write {}", path.display()))?;
     let secs = start.elapsed().as_secs_f64().max(1e-9);
     tracing::info!(

@@ -427,9 +427,30 @@ fn the_demo_graph_runs_the_synthetic_camera_and_gives_the_same_bytes_twice() {
         let report = std::fs::read_to_string(out.join("eval/report.md")).expect("the live eval node wrote no report");
         assert!(report.contains("a55-two-strips") && report.contains("18 images"), "{report}");
         assert_nothing_left(&sb, &out);
-        outputs.push(rows);
+        let edges = std::fs::read_to_string(out.join("edges.csv")).unwrap();
+        assert_eq!(edges.lines().count(), 19, "an edge map per frame");
+        outputs.push((rows, edges));
     }
     assert_eq!(outputs[0], outputs[1], "two runs of the synthetic camera differ");
+    // Swapping the edge detector is a launch-file parameter.
+    for detector in ["sobel", "log"] {
+        let out = sb.path().join(detector);
+        let set = format!("edges.impl={detector}");
+        let r = sb.run(&[
+            "run",
+            demo.to_str().unwrap(),
+            "--set",
+            "capture.scale=0.06",
+            "--set",
+            &set,
+            "--out",
+            out.to_str().unwrap(),
+        ]);
+        assert!(r.status.success(), "{detector} run failed");
+        let edges = std::fs::read_to_string(out.join("edges.csv")).unwrap();
+        assert!(edges.lines().skip(1).all(|l| l.split(',').nth(1) == Some(detector)), "{edges}");
+        assert_ne!(edges, outputs[0].1);
+    }
 }
 
 #[test]
