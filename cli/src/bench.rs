@@ -38,6 +38,18 @@ pub enum BenchCmd {
         #[arg(long, default_value_t = 1.0)]
         scale: f64,
     },
+    /// Edge detectors on a full-size synthetic frame against OpenCV's Canny (needs opencv-python-headless).
+    Edges {
+        /// Preset.
+        #[arg(long, default_value = "d2x-strip")]
+        preset: String,
+        /// Repetitions per measurement.
+        #[arg(long, default_value_t = 5)]
+        reps: usize,
+        /// Canny high threshold (low = 0.4 × high).
+        #[arg(long, default_value_t = 100.0)]
+        high: f64,
+    },
     /// (internal) the subscribing side of the iceoryx2 benchmark.
     #[command(hide = true)]
     IoxSub {
@@ -255,6 +267,7 @@ pub fn bench(cmd: BenchCmd) -> Result<ExitCode> {
         BenchCmd::UdsSub { path, size, count } => uds_sub(&path, size, count).map(|_| ExitCode::SUCCESS),
         BenchCmd::Transport { paced, flat_scale } => transport_bench(paced, flat_scale),
         BenchCmd::Render { preset, frames, scale } => crate::synth::bench_render(&preset, frames, scale),
+        BenchCmd::Edges { preset, reps, high } => crate::bench_edges::bench_edges(&preset, reps, high),
     }
 }
 
