@@ -5,7 +5,7 @@ use std::time::Instant;
 
 use anyhow::{bail, Context, Result};
 use lineflow_capture::synth::Synthetic;
-use lineflow_edges::{canny, gradient, log, sobel};
+use lineflow_edges::{canny, log, sobel};
 use lineflow_messages::Encoding;
 
 const OPENCV: &str = r#"
@@ -50,11 +50,11 @@ pub fn bench_edges(preset: &str, reps: usize, high: f64) -> Result<ExitCode> {
     );
 
     let one = rayon::ThreadPoolBuilder::new().num_threads(1).build()?;
-    let ours = |threads: &rayon::ThreadPool| median_time(reps, || threads.install(|| drop(canny(&gradient(&gray, w, h), low, high))));
+    let ours = |threads: &rayon::ThreadPool| median_time(reps, || threads.install(|| drop(canny(&gray, w, h, low, high))));
     let t1 = ours(&one);
     let two = rayon::ThreadPoolBuilder::new().num_threads(2).build()?;
     let t2 = ours(&two);
-    let map = canny(&gradient(&gray, w, h), low, high);
+    let map = canny(&gray, w, h, low, high);
 
     let cv_out = dir.path().join("cv.png");
     let py = Command::new("python3")
@@ -108,11 +108,8 @@ pub fn bench_edges(preset: &str, reps: usize, high: f64) -> Result<ExitCode> {
         "agreement: {ours_n} edge pixels, OpenCV {cv_n}; equal on {:.3} % of the pixels either marks (target >= 99 %)",
         100.0 * both as f64 / either.max(1) as f64
     );
-    let ts = median_time(reps, || drop(sobel(&gradient(&gray, w, h), high)));
-    let tl = median_time(reps, || {
-        let g = gradient(&gray, w, h);
-        drop(log(&gray, &g, 1.5, 40.0));
-    });
+    let ts = median_time(reps, || drop(sobel(&gray, w, h, high)));
+    let tl = median_time(reps, || drop(log(&gray, w, h, 1.5, 40.0)));
     println!(
         "sobel   2 threads {:6.1} ms;  log (sigma 1.5) 2 threads {:6.1} ms",
         ts * 1e3,

@@ -7,24 +7,27 @@
 mod gradient;
 mod log;
 
-pub use gradient::{gradient, Gradient};
+pub use gradient::{gradient, gradient_at, gradient_row, Gradient};
 
 use lineflow_messages::EdgePixel;
+use rayon::prelude::*;
 
 /// Canny's low threshold as a share of the high one, as the thesis found best.
 pub const DEFAULT_LOW_RATIO: f64 = 0.4;
 
-/// An edge pixel list, row-major, with the gradient each was found with.
-pub fn pixels(g: &Gradient, keep: &[u8]) -> Vec<EdgePixel> {
+/// The marked pixels of `map` as a row-major list, with the gradient at each (recomputed: cheaper than keeping
+/// full-size gradient images for the few per cent of pixels that are edges).
+pub fn pixels(gray: &[u8], width: usize, height: usize, map: &[u8]) -> Vec<EdgePixel> {
     let mut out = Vec::new();
-    for (i, &k) in keep.iter().enumerate() {
+    for (i, &k) in map.iter().enumerate() {
         if k == EDGE {
-            let (gx, gy) = (g.gx[i] as f32, g.gy[i] as f32);
+            let (x, y) = (i % width, i / width);
+            let (gx, gy) = gradient_at(gray, width, height, x, y);
             out.push(EdgePixel {
-                col: (i % g.width) as u16,
-                row: (i / g.width) as u16,
-                magnitude: (g.mag2[i] as f32).sqrt(),
-                direction_rad: gy.atan2(gx),
+                col: x as u16,
+                row: y as u16,
+                magnitude: ((gx * gx + gy * gy) as f32).sqrt(),
+                direction_rad: (gy as f32).atan2(gx as f32),
             });
         }
     }
@@ -33,49 +36,59 @@ pub fn pixels(g: &Gradient, keep: &[u8]) -> Vec<EdgePixel> {
 
 const EDGE: u8 = 2;
 const CANDIDATE: u8 = 1;
+/// Rows per parallel band of the fused pass.
+const BAND: usize = 64;
 
-/// Non-maximum suppression along the gradient direction (OpenCV's sector rules); marks survivors above `low2`
-/// as candidates and those above `high2` as edges (squared magnitudes).
-fn suppress(g: &Gradient, low2: i32, high2: i32) -> Vec<u8> {
-    use rayon::prelude::*;
-    let (w, h) = (g.width, g.height);
-    // tan(22.5°) and tan(67.5°) in 15-bit fixed point, as OpenCV does.
+/// Gradient and non-maximum suppression in one pass over bands of rows, each band keeping only three gradient
+/// rows (as OpenCV does): survivors above `low2` become candidates, above `high2` edges (squared magnitudes).
+fn suppress(gray: &[u8], w: usize, h: usize, low2: i32, high2: i32) -> Vec<u8> {
+    // tan(22.5°) in 15-bit fixed point, as OpenCV does.
     const TG22: i64 = 13573;
     let mut map = vec![0u8; w * h];
     if w * h == 0 {
         return map;
     }
-    map.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
-        let m = |x: isize, y: isize| -> i32 {
-            if x < 0 || y < 0 || x >= w as isize || y >= h as isize {
-                0
-            } else {
-                g.mag2[y as usize * w + x as usize]
-            }
+    map.par_chunks_mut(w * BAND).enumerate().for_each(|(band, rows)| {
+        let y0 = band * BAND;
+        let (mut gx, mut gy, mut mag) = (vec![vec![0i16; w]; 3], vec![vec![0i16; w]; 3], vec![vec![0i32; w]; 3]);
+        let zeros = vec![0i32; w];
+        let fill = |y: usize, gx: &mut [Vec<i16>], gy: &mut [Vec<i16>], mag: &mut [Vec<i32>]| {
+            let s = y % 3;
+            gradient_row(gray, w, h, y, &mut gx[s], &mut gy[s], &mut mag[s]);
         };
-        for (x, out) in row.iter_mut().enumerate() {
-            let i = y * w + x;
-            let v = g.mag2[i];
-            if v <= low2 {
-                continue;
+        if y0 > 0 {
+            fill(y0 - 1, &mut gx, &mut gy, &mut mag);
+        }
+        fill(y0, &mut gx, &mut gy, &mut mag);
+        for (dy, row) in rows.chunks_mut(w).enumerate() {
+            let y = y0 + dy;
+            if y + 1 < h {
+                fill(y + 1, &mut gx, &mut gy, &mut mag);
             }
-            let (xs, ys) = (g.gx[i] as i64, g.gy[i] as i64);
-            let (ax, ay) = (xs.abs(), ys.abs() << 15);
-            let tg22x = ax * TG22;
-            let (xi, yi) = (x as isize, y as isize);
-            let max = if ay < tg22x {
-                v > m(xi - 1, yi) && v >= m(xi + 1, yi)
-            } else {
-                let tg67x = tg22x + (ax << 16);
-                if ay > tg67x {
-                    v > m(xi, yi - 1) && v >= m(xi, yi + 1)
+            let prev: &[i32] = if y > 0 { &mag[(y - 1) % 3] } else { &zeros };
+            let next: &[i32] = if y + 1 < h { &mag[(y + 1) % 3] } else { &zeros };
+            let (cur, gxr, gyr) = (&mag[y % 3], &gx[y % 3], &gy[y % 3]);
+            let at = |r: &[i32], x: isize| if x < 0 || x >= w as isize { 0 } else { r[x as usize] };
+            for (x, out) in row.iter_mut().enumerate() {
+                let v = cur[x];
+                if v <= low2 {
+                    continue;
+                }
+                let (xs, ys) = (gxr[x] as i64, gyr[x] as i64);
+                let (ax, ay) = (xs.abs(), ys.abs() << 15);
+                let tg22x = ax * TG22;
+                let xi = x as isize;
+                let max = if ay < tg22x {
+                    v > at(cur, xi - 1) && v >= at(cur, xi + 1)
+                } else if ay > tg22x + (ax << 16) {
+                    v > prev[x] && v >= next[x]
                 } else {
                     let s: isize = if (xs ^ ys) < 0 { -1 } else { 1 };
-                    v > m(xi - s, yi - 1) && v > m(xi + s, yi + 1)
+                    v > at(prev, xi - s) && v > at(next, xi + s)
+                };
+                if max {
+                    *out = if v > high2 { EDGE } else { CANDIDATE };
                 }
-            };
-            if max {
-                *out = if v > high2 { EDGE } else { CANDIDATE };
             }
         }
     });
@@ -88,19 +101,25 @@ fn squared(t: f64) -> i32 {
 }
 
 /// Canny: suppression, then hysteresis from pixels above `high` through 8-connected pixels above `low`.
-pub fn canny(g: &Gradient, low: f64, high: f64) -> Vec<u8> {
-    let mut map = suppress(g, squared(low), squared(high));
-    let (w, h) = (g.width as isize, g.height as isize);
-    let mut stack: Vec<usize> = map.iter().enumerate().filter(|(_, &k)| k == EDGE).map(|(i, _)| i).collect();
-    while let Some(i) = stack.pop() {
-        let (x, y) = ((i % g.width) as isize, (i / g.width) as isize);
-        for (dx, dy) in [(-1, -1), (0, -1), (1, -1), (-1, 0), (1, 0), (-1, 1), (0, 1), (1, 1)] {
-            let (nx, ny) = (x + dx, y + dy);
-            if nx >= 0 && ny >= 0 && nx < w && ny < h {
-                let j = (ny * w + nx) as usize;
-                if map[j] == CANDIDATE {
-                    map[j] = EDGE;
-                    stack.push(j);
+pub fn canny(gray: &[u8], width: usize, height: usize, low: f64, high: f64) -> Vec<u8> {
+    let mut map = suppress(gray, width, height, squared(low), squared(high));
+    let (w, h) = (width as isize, height as isize);
+    let mut stack: Vec<usize> = Vec::new();
+    for i in 0..map.len() {
+        if map[i] != EDGE {
+            continue;
+        }
+        stack.push(i);
+        while let Some(i) = stack.pop() {
+            let (x, y) = ((i % width) as isize, (i / width) as isize);
+            for (dx, dy) in [(-1, -1), (0, -1), (1, -1), (-1, 0), (1, 0), (-1, 1), (0, 1), (1, 1)] {
+                let (nx, ny) = (x + dx, y + dy);
+                if nx >= 0 && ny >= 0 && nx < w && ny < h {
+                    let j = (ny * w + nx) as usize;
+                    if map[j] == CANDIDATE {
+                        map[j] = EDGE;
+                        stack.push(j);
+                    }
                 }
             }
         }
@@ -109,9 +128,9 @@ pub fn canny(g: &Gradient, low: f64, high: f64) -> Vec<u8> {
 }
 
 /// Sobel: the gradient maxima above `threshold`.
-pub fn sobel(g: &Gradient, threshold: f64) -> Vec<u8> {
+pub fn sobel(gray: &[u8], width: usize, height: usize, threshold: f64) -> Vec<u8> {
     let t2 = squared(threshold);
-    suppress(g, t2, t2.saturating_sub(1))
+    suppress(gray, width, height, t2, t2.saturating_sub(1))
 }
 
 pub use log::log;

@@ -1,7 +1,7 @@
 //! Laplacian of Gaussian: zero crossings of the smoothed Laplacian where the Sobel gradient is strong enough.
 use rayon::prelude::*;
 
-use crate::Gradient;
+use crate::gradient;
 
 fn gaussian_kernel(sigma: f64) -> Vec<f32> {
     let r = (3.0 * sigma).ceil().max(1.0) as isize;
@@ -37,12 +37,12 @@ fn blur(src: &[f32], w: usize, h: usize, k: &[f32]) -> Vec<f32> {
 
 /// LoG edges: Gaussian of `sigma`, 4-neighbour Laplacian, a pixel where the sign changes to its right or lower
 /// neighbour and which is the nearer of the two to zero, kept when its Sobel magnitude exceeds `threshold`.
-pub fn log(gray: &[u8], g: &Gradient, sigma: f64, threshold: f64) -> Vec<u8> {
-    let (w, h) = (g.width, g.height);
+pub fn log(gray: &[u8], w: usize, h: usize, sigma: f64, threshold: f64) -> Vec<u8> {
     let mut map = vec![0u8; w * h];
     if w < 2 || h < 2 {
         return map;
     }
+    let g = gradient(gray, w, h);
     let smooth = blur(&gray.iter().map(|&v| v as f32).collect::<Vec<_>>(), w, h, &gaussian_kernel(sigma));
     let at = |x: usize, y: usize| smooth[y * w + x];
     let mut lap = vec![0f32; w * h];

@@ -1,6 +1,6 @@
 //! `lineflow-edges`: the edges stage (`impl = "canny"`, `"sobel"` or `"log"`); one EdgeMap per image.
 use anyhow::{bail, Result};
-use lineflow_edges::{canny, gradient, log, pixels, sobel, DEFAULT_LOW_RATIO};
+use lineflow_edges::{canny, log, pixels, sobel, DEFAULT_LOW_RATIO};
 use lineflow_messages::{fixed_str, kinds, EdgeMapHeader, Encoding};
 use lineflow_runtime::{Flow, NodeContext};
 use serde::Deserialize;
@@ -101,13 +101,12 @@ fn body() -> Result<()> {
             gray.resize(w * ht, 0);
             lineflow_convert::gray_into(enc, w, ht, h.step as usize, msg.payload(), &mut gray)
                 .map_err(|e| anyhow::anyhow!("frame {}: {e}", h.stamp.frame))?;
-            let g = gradient(&gray, w, ht);
             let map = match det {
-                Detector::Canny { low, high } => canny(&g, low, high),
-                Detector::Sobel { threshold } => sobel(&g, threshold),
-                Detector::Log { sigma, threshold } => log(&gray, &g, sigma, threshold),
+                Detector::Canny { low, high } => canny(&gray, w, ht, low, high),
+                Detector::Sobel { threshold } => sobel(&gray, w, ht, threshold),
+                Detector::Log { sigma, threshold } => log(&gray, w, ht, sigma, threshold),
             };
-            let px = pixels(&g, &map);
+            let px = pixels(&gray, w, ht, &map);
             let header = EdgeMapHeader {
                 stamp: h.stamp,
                 width: h.width,

@@ -1,5 +1,5 @@
 //! Edge detectors on images whose edges are known, and on bad input.
-use lineflow_edges::{canny, gradient, log, pixels, sobel};
+use lineflow_edges::{canny, log, pixels, sobel};
 
 fn step(w: usize, h: usize, at: usize) -> Vec<u8> {
     (0..w * h).map(|i| if i % w < at { 40 } else { 200 }).collect()
@@ -9,13 +9,12 @@ fn step(w: usize, h: usize, at: usize) -> Vec<u8> {
 fn a_vertical_step_gives_one_pixel_wide_edges_at_the_step() {
     let (w, h) = (40, 30);
     let img = step(w, h, 20);
-    let g = gradient(&img, w, h);
     for (name, map) in [
-        ("canny", canny(&g, 40.0, 100.0)),
-        ("sobel", sobel(&g, 100.0)),
-        ("log", log(&img, &g, 1.0, 40.0)),
+        ("canny", canny(&img, w, h, 40.0, 100.0)),
+        ("sobel", sobel(&img, w, h, 100.0)),
+        ("log", log(&img, w, h, 1.0, 40.0)),
     ] {
-        let px = pixels(&g, &map);
+        let px = pixels(&img, w, h, &map);
         assert_eq!(px.len(), h, "{name}: one edge pixel per row, got {}", px.len());
         assert!(
             px.iter().all(|p| p.col == 19 || p.col == 20),
@@ -37,9 +36,8 @@ fn hysteresis_keeps_weak_pixels_connected_to_strong_ones_only() {
             img[y * w + x] = if x < 30 { 180 } else { 130 };
         }
     }
-    let g = gradient(&img, w, h);
-    let strong_only = pixels(&g, &canny(&g, 150.0, 150.0)).len();
-    let linked = pixels(&g, &canny(&g, 100.0, 150.0)).len();
+    let strong_only = pixels(&img, w, h, &canny(&img, w, h, 150.0, 150.0)).len();
+    let linked = pixels(&img, w, h, &canny(&img, w, h, 100.0, 150.0)).len();
     assert!(
         linked > strong_only,
         "weak continuation of a strong edge is kept: {linked} vs {strong_only}"
@@ -50,10 +48,9 @@ fn hysteresis_keeps_weak_pixels_connected_to_strong_ones_only() {
 fn empty_tiny_constant_and_noise_images_never_panic() {
     for (w, h) in [(0, 0), (1, 1), (1, 7), (7, 1), (2, 2)] {
         let img = vec![77u8; w * h];
-        let g = gradient(&img, w, h);
-        assert!(pixels(&g, &canny(&g, 40.0, 100.0)).is_empty());
-        assert!(pixels(&g, &sobel(&g, 100.0)).is_empty());
-        assert!(pixels(&g, &log(&img, &g, 1.5, 40.0)).is_empty());
+        assert!(pixels(&img, w, h, &canny(&img, w, h, 40.0, 100.0)).is_empty());
+        assert!(pixels(&img, w, h, &sobel(&img, w, h, 100.0)).is_empty());
+        assert!(pixels(&img, w, h, &log(&img, w, h, 1.5, 40.0)).is_empty());
     }
     let (w, h) = (64, 48);
     let mut s = 12345u64;
@@ -63,7 +60,6 @@ fn empty_tiny_constant_and_noise_images_never_panic() {
             (s >> 56) as u8
         })
         .collect();
-    let g = gradient(&noise, w, h);
-    let _ = pixels(&g, &canny(&g, 40.0, 100.0));
-    let _ = pixels(&g, &log(&noise, &g, 1.5, 40.0));
+    let _ = pixels(&noise, w, h, &canny(&noise, w, h, 40.0, 100.0));
+    let _ = pixels(&noise, w, h, &log(&noise, w, h, 1.5, 40.0));
 }
