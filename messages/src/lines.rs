@@ -4,9 +4,9 @@ use iceoryx2::prelude::ZeroCopySend;
 use crate::Stamp;
 
 /// Header of an `EdgeMap` message; the payload is `[EdgePixel]` in row-major order.
-#[derive(Debug, Default, Clone, Copy, ZeroCopySend)]
+#[derive(Debug, Clone, Copy, ZeroCopySend)]
 #[repr(C)]
-#[type_name("lineflow/EdgeMap/v1")]
+#[type_name("lineflow/EdgeMap/v2")]
 pub struct EdgeMapHeader {
     /// Common stamp.
     pub stamp: Stamp,
@@ -16,6 +16,27 @@ pub struct EdgeMapHeader {
     pub height: u32,
     /// Detector id, NUL-padded (`canny`, `sobel`, `log`).
     pub detector: [u8; 16],
+    /// File name of the source image, NUL-padded UTF-8 (as in `ImageHeader`).
+    pub name: [u8; 64],
+}
+
+impl Default for EdgeMapHeader {
+    fn default() -> Self {
+        Self {
+            stamp: Stamp::default(),
+            width: 0,
+            height: 0,
+            detector: [0; 16],
+            name: [0; 64],
+        }
+    }
+}
+
+impl EdgeMapHeader {
+    /// The source image's file name.
+    pub fn name(&self) -> &str {
+        crate::str_from_fixed(&self.name)
+    }
 }
 
 /// One edge pixel with its gradient.
@@ -35,9 +56,9 @@ pub struct EdgePixel {
 
 /// Header of a `Lines2D` message. Two-part byte payload (see [`crate::parts`]): `[Segment2; n_segments]`, then
 /// `[[u16; 2]; n_chain]`, the (col, row) pixel chains the segments were fitted to.
-#[derive(Debug, Default, Clone, Copy, ZeroCopySend)]
+#[derive(Debug, Clone, Copy, ZeroCopySend)]
 #[repr(C)]
-#[type_name("lineflow/Lines2D/v1")]
+#[type_name("lineflow/Lines2D/v2")]
 pub struct Lines2DHeader {
     /// Common stamp.
     pub stamp: Stamp,
@@ -45,6 +66,26 @@ pub struct Lines2DHeader {
     pub n_segments: u32,
     /// Number of chain pixels over all segments.
     pub n_chain: u32,
+    /// File name of the source image, NUL-padded UTF-8.
+    pub name: [u8; 64],
+}
+
+impl Default for Lines2DHeader {
+    fn default() -> Self {
+        Self {
+            stamp: Stamp::default(),
+            n_segments: 0,
+            n_chain: 0,
+            name: [0; 64],
+        }
+    }
+}
+
+impl Lines2DHeader {
+    /// The source image's file name.
+    pub fn name(&self) -> &str {
+        crate::str_from_fixed(&self.name)
+    }
 }
 
 /// A 2-D segment; endpoints in measured pixel coordinates, straight in corrected coordinates.

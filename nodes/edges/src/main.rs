@@ -112,6 +112,7 @@ fn body() -> Result<()> {
                 width: h.width,
                 height: h.height,
                 detector: fixed_str(&impl_),
+                name: h.name,
             };
             output.publish(header, &px)?;
         }

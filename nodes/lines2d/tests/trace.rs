@@ -1,0 +1,52 @@
+//! Line tracing on edge maps whose lines are known.
+use lineflow_lines2d::{trace, TraceParams};
+
+fn identity(px: &[[u16; 2]]) -> Vec<[f64; 2]> {
+    px.iter().map(|p| [p[0] as f64, p[1] as f64]).collect()
+}
+
+fn raster(mut px: Vec<[u16; 2]>) -> Vec<[u16; 2]> {
+    px.sort_by_key(|p| (p[1], p[0]));
+    px.dedup();
+    px
+}
+
+#[test]
+fn a_digital_line_is_one_segment_from_end_to_end_whatever_the_seed() {
+    // A line of slope 0.3 from (5, 10) to (85, 34), rasterised.
+    let px = raster((0..=80).map(|k| [5 + k as u16, (10.0 + 0.3 * k as f64).round() as u16]).collect());
+    let lines = trace(100, 50, &px, &identity(&px), &TraceParams::default());
+    assert_eq!(lines.len(), 1, "{lines:?}");
+    let l = &lines[0];
+    assert_eq!(l.chain.len(), px.len());
+    let (a, b) = if l.start[0] < l.end[0] { (l.start, l.end) } else { (l.end, l.start) };
+    assert!((a[0] - 5.0).abs() < 0.6 && (b[0] - 85.0).abs() < 0.6, "{a:?} {b:?}");
+    // Ordered: consecutive chain pixels are 8-neighbours.
+    assert!(l.chain.windows(2).all(|w| (w[0][0] as i32 - w[1][0] as i32).abs() <= 1 && (w[0][1] as i32 - w[1][1] as i32).abs() <= 1));
+}
+
+#[test]
+fn a_corner_splits_into_two_segments_and_short_bits_are_dropped() {
+    let mut v: Vec<[u16; 2]> = (10..60).map(|c| [c, 20]).collect();
+    v.extend((21..70).map(|r| [59, r]));
+    v.extend([[2, 2], [3, 3]]);
+    let px = raster(v);
+    let lines = trace(100, 100, &px, &identity(&px), &TraceParams::default());
+    assert_eq!(lines.len(), 2, "{:?}", lines.iter().map(|l| (l.start, l.end)).collect::<Vec<_>>());
+}
+
+#[test]
+fn lines_are_straight_in_the_corrected_coordinates_given() {
+    // Pixels on a parabola in the image that is a straight line in "corrected" coordinates.
+    let px: Vec<[u16; 2]> = (0..60).map(|c| [c + 10, 30 + ((c as f64 - 30.0).powi(2) / 300.0).round() as u16]).collect();
+    let px = raster(px);
+    let corrected: Vec<[f64; 2]> = px.iter().map(|p| [p[0] as f64, 30.0]).collect();
+    let lines = trace(100, 100, &px, &corrected, &TraceParams::default());
+    assert_eq!(lines.len(), 1);
+}
+
+#[test]
+fn nothing_in_nothing_out() {
+    assert!(trace(0, 0, &[], &[], &TraceParams::default()).is_empty());
+    assert!(trace(1, 1, &[[0, 0]], &[[0.0, 0.0]], &TraceParams::default()).is_empty());
+}
