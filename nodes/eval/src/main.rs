@@ -1,11 +1,11 @@
 //! `lineflow-eval`: the live evaluation sink. Collects the ground truth (`gt/poses`, `gt/lines3d`) and whatever
-//! results the graph produces (`poses`, `lines3d`), and at end-of-stream writes `eval/report.md` into the run's
+//! results the graph produces (`poses`, `lines2d`, `lines3d`), and at end-of-stream writes `eval/report.md` into the run's
 //! output folder. The scene is regenerated from the parameters of the graph's `synthetic` capture node.
 use anyhow::{bail, Context, Result};
 use lineflow_capture::synth::{self, Synthetic};
 use lineflow_eval::{evaluate, report, Results, Truth};
-use lineflow_formats::{Line3Row, PoseRow};
-use lineflow_messages::kinds;
+use lineflow_formats::{Line2Row, Line3Row, PoseRow};
+use lineflow_messages::{kinds, parts, Segment2};
 use lineflow_photogrammetry::{Mat3, Pose, Vec3};
 use lineflow_runtime::{Flow, NodeContext};
 
@@ -69,11 +69,13 @@ fn body() -> Result<()> {
     let gt_lines = ctx.input::<kinds::Lines3D>("gt/lines3d")?;
     let poses = ctx.optional_input::<kinds::Poses>("poses")?;
     let lines = ctx.optional_input::<kinds::Lines3D>("lines3d")?;
+    let segments = ctx.optional_input::<kinds::Lines2D>("lines2d")?;
     let syn = scene_of_graph(&ctx)?;
     ctx.connect()?;
 
     // The newest message of each topic is the one that counts (a later revision supersedes an earlier one).
     let (mut truth_poses, mut truth_lines, mut est_poses, mut est_lines) = (Vec::new(), Vec::new(), None, None);
+    let mut est_segments: Option<Vec<Line2Row>> = segments.as_ref().map(|_| Vec::new());
     ctx.run(|| {
         while let Some(m) = gt_poses.receive()? {
             truth_poses = m.payload().to_vec();
@@ -91,7 +93,22 @@ fn body() -> Result<()> {
                 est_lines = Some(m.payload().to_vec());
             }
         }
-        let done = gt_poses.is_ended()
+        if let (Some(i), Some(rows)) = (&segments, &mut est_segments) {
+            while let Some(m) = i.receive()? {
+                let h = m.user_header();
+                let (segs, _) = parts::split::<Segment2, [u16; 2]>(m.payload(), h.n_segments as usize, h.n_chain as usize)
+                    .map_err(|e| anyhow::anyhow!("lines2d frame {}: {e}", h.stamp.frame))?;
+                rows.extend(segs.iter().map(|s| Line2Row {
+                    image: h.name().to_string(),
+                    id: s.id as u64,
+                    start_px: s.start_px,
+                    end_px: s.end_px,
+                    n_pixels: Some(s.chain_len),
+                }));
+            }
+        }
+        let done = segments.as_ref().is_none_or(|i| i.is_ended())
+            && gt_poses.is_ended()
             && gt_lines.is_ended()
             && poses.as_ref().is_none_or(|i| i.is_ended())
             && lines.as_ref().is_none_or(|i| i.is_ended());
@@ -108,15 +125,17 @@ fn body() -> Result<()> {
     let results = Results {
         poses: est_poses.map(|p| pose_rows(&truth.scene, &p)),
         lines3d: est_lines.map(|l| line_rows(&l)),
+        lines2d: est_segments,
         ..Default::default()
     };
     let evaluation = evaluate(&truth, &results);
     let path = report::write(&truth, &out, &evaluation, &out.join("eval")).context("writing the evaluation report")?;
     tracing::info!(
-        "{} true poses, {} true edges; results: poses {}, lines3d {} -> {}",
+        "{} true poses, {} true edges; results: poses {}, lines2d {}, lines3d {} -> {}",
         truth.poses.len(),
         truth.lines.len(),
         if results.poses.is_some() { "yes" } else { "none" },
+        if results.lines2d.is_some() { "yes" } else { "none" },
         if results.lines3d.is_some() { "yes" } else { "none" },
         path.display()
     );

@@ -1,1 +1,153 @@
-fn main() {}
+//! `lineflow-lines2d`: the lines2d stage (`impl = "trace"`). Joins the latched camera with each edge map,
+//! publishes segments and their chains, and writes `lines2d.csv` into the run's output folder.
+use anyhow::{bail, Context, Result};
+use lineflow_formats::{write_lines2d, Line2Row};
+use lineflow_lines2d::{trace, TraceParams};
+use lineflow_messages::{kinds, parts, CameraModelHeader, EdgeMapHeader, EdgePixel, Lines2DHeader, Segment2};
+use lineflow_photogrammetry::Camera;
+use lineflow_runtime::{Flow, NodeContext};
+use serde::Deserialize;
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct Params {
+    /// Largest perpendicular distance of a new pixel from the current line, pixels.
+    #[serde(default = "default_distance")]
+    max_distance_px: f64,
+    /// Shortest segment kept, pixels.
+    #[serde(default = "default_length")]
+    min_length_px: f64,
+}
+
+fn default_distance() -> f64 {
+    TraceParams::default().max_distance_px
+}
+fn default_length() -> f64 {
+    TraceParams::default().min_length_px
+}
+
+fn camera(h: &CameraModelHeader) -> Camera {
+    Camera {
+        width: h.width,
+        height: h.height,
+        pixel_size_mm: h.pixel_size_mm,
+        focal_mm: h.focal_mm,
+        principal_point_mm: h.principal_point_mm,
+        radial: h.radial,
+        decentering: h.decentering,
+    }
+}
+
+/// Segments of one edge map, with their rows for `lines2d.csv`.
+fn segments(cam: &Camera, h: &EdgeMapHeader, px: &[EdgePixel], p: &TraceParams) -> Result<(Vec<Segment2>, Vec<[u16; 2]>, Vec<Line2Row>)> {
+    if (h.width, h.height) != (cam.width, cam.height) {
+        bail!(
+            "frame {} ({}): edge map is {}x{} but the camera is {}x{}",
+            h.stamp.frame,
+            h.name(),
+            h.width,
+            h.height,
+            cam.width,
+            cam.height
+        );
+    }
+    let ps = cam.pixel_size_mm;
+    let pixels: Vec<[u16; 2]> = px.iter().map(|e| [e.col, e.row]).collect();
+    let corrected: Vec<[f64; 2]> = pixels
+        .iter()
+        .map(|q| {
+            let i = cam.pixel_to_ideal([q[0] as f64, q[1] as f64]);
+            [i[0] / ps, i[1] / ps]
+        })
+        .collect();
+    let traced = trace(h.width as usize, h.height as usize, &pixels, &corrected, p);
+    let (mut segs, mut chain, mut rows) = (Vec::new(), Vec::new(), Vec::new());
+    for (id, t) in traced.iter().enumerate() {
+        let measured = |c: [f64; 2]| cam.ideal_to_pixel([c[0] * ps, c[1] * ps]);
+        let (Some(a), Some(b)) = (measured(t.start), measured(t.end)) else {
+            continue;
+        };
+        segs.push(Segment2 {
+            id: id as u32,
+            chain_start: chain.len() as u32,
+            chain_len: t.chain.len() as u32,
+            reserved: 0,
+            start_px: a,
+            end_px: b,
+        });
+        chain.extend(&t.chain);
+        rows.push(Line2Row {
+            image: h.name().to_string(),
+            id: id as u64,
+            start_px: a,
+            end_px: b,
+            n_pixels: Some(t.chain.len() as u32),
+        });
+    }
+    Ok((segs, chain, rows))
+}
+
+fn main() -> std::process::ExitCode {
+    lineflow_runtime::run_node(body)
+}
+
+fn body() -> Result<()> {
+    let ctx = NodeContext::from_env()?;
+    if ctx.implementation("trace") != "trace" {
+        bail!(
+            "node '{}': unknown lines2d impl '{}' (available: trace)",
+            ctx.name(),
+            ctx.implementation("trace")
+        );
+    }
+    let p: Params = ctx.params()?;
+    if !(p.max_distance_px > 0.0 && p.min_length_px >= 0.0) {
+        bail!("node '{}': max_distance_px must be > 0 and min_length_px >= 0", ctx.name());
+    }
+    let params = TraceParams {
+        max_distance_px: p.max_distance_px,
+        min_length_px: p.min_length_px,
+    };
+    let edges = ctx.input::<kinds::EdgeMap>("edges")?;
+    let camera_in = ctx.input::<kinds::CameraModel>("camera")?;
+    let output = ctx.output::<kinds::Lines2D>("lines2d")?;
+    ctx.connect()?;
+    let path = ctx.out_dir().join("lines2d.csv");
+    let mut cam: Option<Camera> = None;
+    // Edge maps that arrive before the camera wait for it, in order.
+    let mut waiting: Vec<(EdgeMapHeader, Vec<EdgePixel>)> = Vec::new();
+    let mut rows = Vec::new();
+    ctx.run(|| {
+        while let Some(m) = camera_in.receive()? {
+            cam = Some(camera(m.user_header()));
+        }
+        while let Some(m) = edges.receive()? {
+            waiting.push((*m.user_header(), m.payload().to_vec()));
+        }
+        if let Some(c) = &cam {
+            for (h, px) in waiting.drain(..) {
+                let (segs, chain, r) = segments(c, &h, &px, &params)?;
+                let header = Lines2DHeader {
+                    stamp: h.stamp,
+                    n_segments: segs.len() as u32,
+                    n_chain: chain.len() as u32,
+                    name: h.name,
+                };
+                output.publish_with(header, parts::two_part_len::<Segment2, [u16; 2]>(segs.len(), chain.len()), |buf| {
+                    parts::write(buf, &segs, &chain)
+                })?;
+                rows.extend(r);
+            }
+        }
+        let done = edges.is_ended() && waiting.is_empty();
+        if edges.is_ended() && cam.is_none() {
+            bail!("node '{}': the edge maps ended but no camera model arrived", ctx.name());
+        }
+        Ok(if done { Flow::Stop } else { Flow::Continue })
+    })?;
+    output.end_of_stream()?;
+    write_lines2d(&path, &rows).with_context(|| format!("writing {}", path.display()))?;
+    tracing::info!("{} segments -> {}", rows.len(), path.display());
+    ctx.finish();
+    Ok(())
+}

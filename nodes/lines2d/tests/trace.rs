@@ -19,10 +19,17 @@ fn a_digital_line_is_one_segment_from_end_to_end_whatever_the_seed() {
     assert_eq!(lines.len(), 1, "{lines:?}");
     let l = &lines[0];
     assert_eq!(l.chain.len(), px.len());
-    let (a, b) = if l.start[0] < l.end[0] { (l.start, l.end) } else { (l.end, l.start) };
+    let (a, b) = if l.start[0] < l.end[0] {
+        (l.start, l.end)
+    } else {
+        (l.end, l.start)
+    };
     assert!((a[0] - 5.0).abs() < 0.6 && (b[0] - 85.0).abs() < 0.6, "{a:?} {b:?}");
     // Ordered: consecutive chain pixels are 8-neighbours.
-    assert!(l.chain.windows(2).all(|w| (w[0][0] as i32 - w[1][0] as i32).abs() <= 1 && (w[0][1] as i32 - w[1][1] as i32).abs() <= 1));
+    assert!(l
+        .chain
+        .windows(2)
+        .all(|w| (w[0][0] as i32 - w[1][0] as i32).abs() <= 1 && (w[0][1] as i32 - w[1][1] as i32).abs() <= 1));
 }
 
 #[test]
@@ -38,7 +45,9 @@ fn a_corner_splits_into_two_segments_and_short_bits_are_dropped() {
 #[test]
 fn lines_are_straight_in_the_corrected_coordinates_given() {
     // Pixels on a parabola in the image that is a straight line in "corrected" coordinates.
-    let px: Vec<[u16; 2]> = (0..60).map(|c| [c + 10, 30 + ((c as f64 - 30.0).powi(2) / 300.0).round() as u16]).collect();
+    let px: Vec<[u16; 2]> = (0..60)
+        .map(|c| [c + 10, 30 + ((c as f64 - 30.0).powi(2) / 300.0).round() as u16])
+        .collect();
     let px = raster(px);
     let corrected: Vec<[f64; 2]> = px.iter().map(|p| [p[0] as f64, 30.0]).collect();
     let lines = trace(100, 100, &px, &corrected, &TraceParams::default());

@@ -1,9 +1,10 @@
 //! `lineflow-stats`: a sink that writes `frames.csv` (one row per image that arrived) and, when wired, `edges.csv`
-//! (one row per edge map: frame, detector, edge pixels, checksum), and logs rates.
+//! (one row per edge map: frame, detector, edge pixels, checksum) and `segments.csv` (one row per Lines2D message:
+//! frame, segments, chain pixels, checksum), and logs rates.
 use std::io::Write;
 
 use anyhow::{Context, Result};
-use lineflow_messages::kinds::{EdgeMap, Image};
+use lineflow_messages::kinds::{EdgeMap, Image, Lines2D};
 use lineflow_messages::Encoding;
 use lineflow_runtime::{Flow, NodeContext};
 use lineflow_stats::{fnv1a64, FRAMES_CSV_HEADER};
@@ -27,7 +28,17 @@ fn body() -> Result<()> {
     let p: Params = ctx.params()?;
     let input = ctx.input::<Image>("images")?;
     let edges = ctx.optional_input::<EdgeMap>("edges")?;
+    let lines = ctx.optional_input::<Lines2D>("lines2d")?;
     ctx.connect()?;
+    let mut segments_csv = match &lines {
+        Some(_) => {
+            let path = ctx.out_dir().join("segments.csv");
+            let mut f = std::io::BufWriter::new(std::fs::File::create(&path).with_context(|| format!("cannot create {}", path.display()))?);
+            writeln!(f, "frame,image,n_segments,n_chain,fnv1a64")?;
+            Some((f, path))
+        }
+        None => None,
+    };
     let mut edges_csv = match &edges {
         Some(_) => {
             let path = ctx.out_dir().join("edges.csv");
@@ -83,10 +94,24 @@ fn body() -> Result<()> {
                 )?;
             }
         }
-        let done = input.is_ended() && edges.as_ref().is_none_or(|e| e.is_ended());
+        if let (Some(l), Some((f, _))) = (&lines, &mut segments_csv) {
+            while let Some(msg) = l.receive()? {
+                let h = msg.user_header();
+                writeln!(
+                    f,
+                    "{},{},{},{},{:016x}",
+                    h.stamp.frame,
+                    h.name(),
+                    h.n_segments,
+                    h.n_chain,
+                    fnv1a64(msg.payload())
+                )?;
+            }
+        }
+        let done = input.is_ended() && edges.as_ref().is_none_or(|e| e.is_ended()) && lines.as_ref().is_none_or(|e| e.is_ended());
         Ok(if done { Flow::Stop } else { Flow::Continue })
     })?;
-    if let Some((mut f, path)) = edges_csv {
+    for (mut f, path) in edges_csv.into_iter().chain(segments_csv) {
         f.flush().with_context(|| format!("cannot write {}", path.display()))?;
     }
     out.flush().with_context(|| format!("cannot write {}", path.display()))?;
