@@ -105,7 +105,7 @@ pub fn trace(width: usize, height: usize, pixels: &[[u16; 2]], corrected: &[[f64
         let mut arms: [Vec<u32>; 2] = [Vec::new(), Vec::new()];
         // Direction of travel of the first arm's first step; the second arm leaves the seed the opposite way.
         let mut first_step: Option<[f64; 2]> = None;
-        for arm in 0..2 {
+        for (arm, arm_pixels) in arms.iter_mut().enumerate() {
             let mut end = seed as u32;
             let mut heading: Option<[f64; 2]> = if arm == 1 { first_step.map(|h| [-h[0], -h[1]]) } else { None };
             loop {
@@ -157,7 +157,7 @@ pub fn trace(width: usize, height: usize, pixels: &[[u16; 2]], corrected: &[[f64
                 visited[j as usize] = true;
                 fit.add(corrected[j as usize]);
                 stacked.push(corrected[j as usize]);
-                arms[arm].push(j);
+                arm_pixels.push(j);
                 end = j;
             }
         }

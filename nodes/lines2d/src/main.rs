@@ -38,8 +38,11 @@ fn camera(h: &CameraModelHeader) -> Camera {
     }
 }
 
+/// One frame's segments, their concatenated pixel chains, and their `lines2d.csv` rows.
+type FrameLines = (Vec<Segment2>, Vec<[u16; 2]>, Vec<Line2Row>);
+
 /// Segments of one edge map, with their rows for `lines2d.csv`.
-fn segments(cam: &Camera, h: &EdgeMapHeader, px: &[EdgePixel], p: &TraceParams) -> Result<(Vec<Segment2>, Vec<[u16; 2]>, Vec<Line2Row>)> {
+fn segments(cam: &Camera, h: &EdgeMapHeader, px: &[EdgePixel], p: &TraceParams) -> Result<FrameLines> {
     if (h.width, h.height) != (cam.width, cam.height) {
         bail!(
             "frame {} ({}): edge map is {}x{} but the camera is {}x{}",
