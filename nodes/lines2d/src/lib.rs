@@ -1,7 +1,8 @@
 //! Line tracing (`seeds/000_spec.md` §2.7): from a seed edge pixel, follow 8-neighbours that stay within a
 //! perpendicular distance of the current line (through the first two pixels, then the total-least-squares line
 //! of all once more than three are stacked), in both directions, and keep chains of a minimum length. Lines are
-//! fitted in **corrected** coordinates, so a straight edge bent by distortion stays one segment.
+//! fitted in **corrected** coordinates, so a straight edge bent by distortion stays one segment. Beyond the thesis,
+//! collinear fragments (broken at junctions, where a pixel can belong to one chain only) are joined across small gaps.
 #![warn(missing_docs)]
 
 /// Tracing parameters.
@@ -11,6 +12,10 @@ pub struct TraceParams {
     pub max_distance_px: f64,
     /// Shortest segment kept, pixels (the thesis: 100 for the D2X, 50 for the A55, at full size).
     pub min_length_px: f64,
+    /// Collinear fragments closer than this along their line are joined (0 = the thesis's tracing alone).
+    pub max_gap_px: f64,
+    /// Largest angle between fragments that are joined, degrees.
+    pub max_merge_angle_deg: f64,
 }
 
 impl Default for TraceParams {
@@ -18,6 +23,10 @@ impl Default for TraceParams {
         TraceParams {
             max_distance_px: 1.0,
             min_length_px: 20.0,
+            // Off by default: on the full-size d2x-strip joining at 4 px raised recall from 48.9 % to 50.9 % but
+            // cost 2.6x the time (brick texture leaves hundreds of thousands of short fragments to consider).
+            max_gap_px: 0.0,
+            max_merge_angle_deg: 2.0,
         }
     }
 }
@@ -92,7 +101,7 @@ pub fn trace(width: usize, height: usize, pixels: &[[u16; 2]], corrected: &[[f64
         }
     }
     let mut visited = vec![false; pixels.len()];
-    let mut out = Vec::new();
+    let mut fragments = Vec::new();
     for seed in 0..pixels.len() {
         if visited[seed] || index[pixels[seed][1] as usize * width + pixels[seed][0] as usize] != seed as u32 {
             continue;
@@ -164,23 +173,148 @@ pub fn trace(width: usize, height: usize, pixels: &[[u16; 2]], corrected: &[[f64
         let mut chain: Vec<u32> = arms[1].iter().rev().copied().collect();
         chain.push(seed as u32);
         chain.extend(&arms[0]);
-        if chain.len() < 2 {
-            continue;
+        if chain.len() >= MIN_FRAGMENT_PIXELS {
+            fragments.push(Fragment::new(chain, corrected));
         }
-        let (c, d) = fit.line();
-        let t = |i: u32| {
-            let q = corrected[i as usize];
-            (q[0] - c[0]) * d[0] + (q[1] - c[1]) * d[1]
-        };
-        let (t0, t1) = (t(chain[0]), t(*chain.last().unwrap_or(&chain[0])));
-        if (t1 - t0).abs() < p.min_length_px {
-            continue;
-        }
-        out.push(Traced {
-            chain: chain.iter().map(|&i| pixels[i as usize]).collect(),
-            start: [c[0] + d[0] * t0, c[1] + d[1] * t0],
-            end: [c[0] + d[0] * t1, c[1] + d[1] * t1],
-        });
     }
-    out
+    let fragments = if p.max_gap_px > 0.0 {
+        merge_collinear(fragments, corrected, p)
+    } else {
+        fragments
+    };
+    fragments
+        .into_iter()
+        .filter(|f| f.t1 - f.t0 >= p.min_length_px)
+        .map(|f| f.ordered(corrected))
+        .map(|f| Traced {
+            start: f.at(f.t0),
+            end: f.at(f.t1),
+            chain: f.chain.iter().map(|&i| pixels[i as usize]).collect(),
+        })
+        .collect()
+}
+
+/// Fragments shorter than this many pixels are noise, not line pieces.
+const MIN_FRAGMENT_PIXELS: usize = 4;
+
+/// A traced chain (indices into the edge pixels) with its fitted line and extent along it.
+#[derive(Debug, Clone)]
+struct Fragment {
+    chain: Vec<u32>,
+    fit: Fit,
+    c: [f64; 2],
+    d: [f64; 2],
+    t0: f64,
+    t1: f64,
+}
+
+impl Fragment {
+    fn new(chain: Vec<u32>, corrected: &[[f64; 2]]) -> Fragment {
+        let mut fit = Fit::default();
+        for &i in &chain {
+            fit.add(corrected[i as usize]);
+        }
+        Fragment::with_fit(chain, fit, corrected)
+    }
+    fn with_fit(chain: Vec<u32>, fit: Fit, corrected: &[[f64; 2]]) -> Fragment {
+        let (c, d) = fit.line();
+        let (mut t0, mut t1) = (f64::INFINITY, f64::NEG_INFINITY);
+        for &i in &chain {
+            let q = corrected[i as usize];
+            let t = (q[0] - c[0]) * d[0] + (q[1] - c[1]) * d[1];
+            t0 = t0.min(t);
+            t1 = t1.max(t);
+        }
+        Fragment { chain, fit, c, d, t0, t1 }
+    }
+
+    /// The chain ordered along the line, from one end to the other.
+    fn ordered(mut self, corrected: &[[f64; 2]]) -> Fragment {
+        let t = |i: u32| self.param(corrected[i as usize]);
+        let mut keyed: Vec<(f64, u32)> = self.chain.iter().map(|&i| (t(i), i)).collect();
+        keyed.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+        self.chain = keyed.into_iter().map(|k| k.1).collect();
+        self
+    }
+    fn at(&self, t: f64) -> [f64; 2] {
+        [self.c[0] + self.d[0] * t, self.c[1] + self.d[1] * t]
+    }
+    fn distance(&self, q: [f64; 2]) -> f64 {
+        ((q[0] - self.c[0]) * self.d[1] - (q[1] - self.c[1]) * self.d[0]).abs()
+    }
+    fn param(&self, q: [f64; 2]) -> f64 {
+        (q[0] - self.c[0]) * self.d[0] + (q[1] - self.c[1]) * self.d[1]
+    }
+    /// Whether `other` continues this fragment: nearly parallel, on its line (both ways), and across a small gap.
+    fn continued_by(&self, other: &Fragment, p: &TraceParams) -> bool {
+        let cos = (self.d[0] * other.d[0] + self.d[1] * other.d[1]).abs();
+        if cos < p.max_merge_angle_deg.to_radians().cos() {
+            return false;
+        }
+        let (oa, ob) = (other.at(other.t0), other.at(other.t1));
+        let (sa, sb) = (self.at(self.t0), self.at(self.t1));
+        if self.distance(oa).max(self.distance(ob)) > p.max_distance_px || other.distance(sa).max(other.distance(sb)) > p.max_distance_px {
+            return false;
+        }
+        let (u0, u1) = {
+            let (x, y) = (self.param(oa), self.param(ob));
+            (x.min(y), x.max(y))
+        };
+        let gap = (u0 - self.t1).max(self.t0 - u1);
+        gap <= p.max_gap_px
+    }
+}
+
+/// Joins collinear fragments across gaps (junctions, weak stretches), longest first, until nothing changes.
+/// Deterministic: candidates are visited in a fixed order.
+fn merge_collinear(mut fragments: Vec<Fragment>, corrected: &[[f64; 2]], p: &TraceParams) -> Vec<Fragment> {
+    fragments.sort_by(|a, b| (b.t1 - b.t0).total_cmp(&(a.t1 - a.t0)).then(a.chain[0].cmp(&b.chain[0])));
+    let mut alive = vec![true; fragments.len()];
+    // Coarse grid of fragment endpoints, so each fragment only looks at its neighbours.
+    let cell = (p.max_gap_px + p.max_distance_px).max(8.0) * 2.0;
+    let key = |q: [f64; 2]| ((q[0] / cell).floor() as i64, (q[1] / cell).floor() as i64);
+    let mut grid: std::collections::HashMap<(i64, i64), Vec<usize>> = Default::default();
+    for (i, f) in fragments.iter().enumerate() {
+        for q in [f.at(f.t0), f.at(f.t1)] {
+            grid.entry(key(q)).or_default().push(i);
+        }
+    }
+    for i in 0..fragments.len() {
+        if !alive[i] {
+            continue;
+        }
+        loop {
+            let f = &fragments[i];
+            let mut near: Vec<usize> = Vec::new();
+            for q in [f.at(f.t0), f.at(f.t1)] {
+                let (kx, ky) = key(q);
+                for dx in -1..=1 {
+                    for dy in -1..=1 {
+                        if let Some(v) = grid.get(&(kx + dx, ky + dy)) {
+                            near.extend(v.iter().copied().filter(|&j| j != i && alive[j]));
+                        }
+                    }
+                }
+            }
+            near.sort_unstable();
+            near.dedup();
+            let Some(j) = near.into_iter().find(|&j| fragments[i].continued_by(&fragments[j], p)) else {
+                break;
+            };
+            alive[j] = false;
+            let other = std::mem::replace(&mut fragments[j].chain, Vec::new());
+            let mut fit = fragments[i].fit;
+            for &k in &other {
+                fit.add(corrected[k as usize]);
+            }
+            let mut chain = std::mem::take(&mut fragments[i].chain);
+            chain.extend(other);
+            fragments[i] = Fragment::with_fit(chain, fit, corrected);
+            let f = &fragments[i];
+            for q in [f.at(f.t0), f.at(f.t1)] {
+                grid.entry(key(q)).or_default().push(i);
+            }
+        }
+    }
+    fragments.into_iter().zip(alive).filter(|(_, a)| *a).map(|(f, _)| f).collect()
 }

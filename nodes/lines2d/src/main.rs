@@ -17,6 +17,12 @@ struct Params {
     /// Shortest segment kept, pixels.
     #[serde(default = "default_length")]
     min_length_px: f64,
+    /// Collinear fragments closer than this are joined (0 = the thesis's tracing alone).
+    #[serde(default = "default_gap")]
+    max_gap_px: f64,
+    /// Largest angle between joined fragments, degrees.
+    #[serde(default = "default_angle")]
+    max_merge_angle_deg: f64,
 }
 
 fn default_distance() -> f64 {
@@ -24,6 +30,12 @@ fn default_distance() -> f64 {
 }
 fn default_length() -> f64 {
     TraceParams::default().min_length_px
+}
+fn default_gap() -> f64 {
+    TraceParams::default().max_gap_px
+}
+fn default_angle() -> f64 {
+    TraceParams::default().max_merge_angle_deg
 }
 
 fn camera(h: &CameraModelHeader) -> Camera {
@@ -104,12 +116,17 @@ fn body() -> Result<()> {
         );
     }
     let p: Params = ctx.params()?;
-    if !(p.max_distance_px > 0.0 && p.min_length_px >= 0.0) {
-        bail!("node '{}': max_distance_px must be > 0 and min_length_px >= 0", ctx.name());
+    if !(p.max_distance_px > 0.0 && p.min_length_px >= 0.0 && p.max_gap_px >= 0.0 && (0.0..90.0).contains(&p.max_merge_angle_deg)) {
+        bail!(
+            "node '{}': max_distance_px must be > 0, min_length_px and max_gap_px >= 0, max_merge_angle_deg in [0, 90)",
+            ctx.name()
+        );
     }
     let params = TraceParams {
         max_distance_px: p.max_distance_px,
         min_length_px: p.min_length_px,
+        max_gap_px: p.max_gap_px,
+        max_merge_angle_deg: p.max_merge_angle_deg,
     };
     let edges = ctx.input::<kinds::EdgeMap>("edges")?;
     let camera_in = ctx.input::<kinds::CameraModel>("camera")?;

@@ -59,3 +59,38 @@ fn nothing_in_nothing_out() {
     assert!(trace(0, 0, &[], &[], &TraceParams::default()).is_empty());
     assert!(trace(1, 1, &[[0, 0]], &[[0.0, 0.0]], &TraceParams::default()).is_empty());
 }
+
+#[test]
+fn collinear_fragments_are_joined_across_a_small_gap_only() {
+    let mut v: Vec<[u16; 2]> = (10..40).map(|c| [c, 20]).collect();
+    v.extend((43..80).map(|c| [c, 20]));
+    v.extend((86..99).map(|c| [c, 20]));
+    let px = raster(v);
+    let joined = trace(
+        120,
+        40,
+        &px,
+        &identity(&px),
+        &TraceParams {
+            min_length_px: 5.0,
+            max_gap_px: 4.0,
+            ..TraceParams::default()
+        },
+    );
+    let mut lengths: Vec<f64> = joined.iter().map(|l| (l.end[0] - l.start[0]).abs()).collect();
+    lengths.sort_by(f64::total_cmp);
+    assert_eq!(lengths.len(), 2, "{lengths:?}");
+    assert!((lengths[1] - 69.0).abs() < 0.5, "3 px gap joined: {lengths:?}");
+    let thesis = trace(
+        120,
+        40,
+        &px,
+        &identity(&px),
+        &TraceParams {
+            min_length_px: 5.0,
+            max_gap_px: 0.0,
+            ..TraceParams::default()
+        },
+    );
+    assert_eq!(thesis.len(), 3);
+}
