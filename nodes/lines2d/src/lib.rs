@@ -302,7 +302,7 @@ fn merge_collinear(mut fragments: Vec<Fragment>, corrected: &[[f64; 2]], p: &Tra
                 break;
             };
             alive[j] = false;
-            let other = std::mem::replace(&mut fragments[j].chain, Vec::new());
+            let other = std::mem::take(&mut fragments[j].chain);
             let mut fit = fragments[i].fit;
             for &k in &other {
                 fit.add(corrected[k as usize]);
