@@ -25,3 +25,32 @@ pub struct CameraModelHeader {
     /// Decentering correction p1, p2 (mm⁻¹).
     pub decentering: [f64; 2],
 }
+
+impl CameraModelHeader {
+    /// The header of a camera (stamp left default).
+    pub fn from_camera(c: &lineflow_photogrammetry::Camera) -> Self {
+        CameraModelHeader {
+            stamp: Stamp::default(),
+            width: c.width,
+            height: c.height,
+            pixel_size_mm: c.pixel_size_mm,
+            focal_mm: c.focal_mm,
+            principal_point_mm: c.principal_point_mm,
+            radial: c.radial,
+            decentering: c.decentering,
+        }
+    }
+
+    /// The camera this header describes.
+    pub fn camera(&self) -> lineflow_photogrammetry::Camera {
+        lineflow_photogrammetry::Camera {
+            width: self.width,
+            height: self.height,
+            pixel_size_mm: self.pixel_size_mm,
+            focal_mm: self.focal_mm,
+            principal_point_mm: self.principal_point_mm,
+            radial: self.radial,
+            decentering: self.decentering,
+        }
+    }
+}

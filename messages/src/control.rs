@@ -91,6 +91,17 @@ pub struct Wall {
 impl Wall {
     /// Largest polygon a wall message carries.
     pub const MAX_CORNERS: usize = 16;
+    /// A wall of up to [`MAX_CORNERS`](Self::MAX_CORNERS) corners (further corners are dropped: validate first).
+    pub fn new(name: &str, corners: &[[f64; 3]]) -> Self {
+        let n = corners.len().min(Self::MAX_CORNERS);
+        let mut wall = Wall {
+            name: crate::fixed_str(name),
+            n_corners: n as u32,
+            ..Default::default()
+        };
+        wall.corners[..n].copy_from_slice(&corners[..n]);
+        wall
+    }
     /// The wall name.
     pub fn name(&self) -> &str {
         crate::str_from_fixed(&self.name)

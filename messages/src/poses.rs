@@ -36,3 +36,50 @@ pub struct Pose {
     /// Standard deviations of ω, φ, κ in radians (NaN when not estimated).
     pub sigma_angles_rad: [f64; 3],
 }
+
+impl Pose {
+    /// Bit of `flags`: the frame is oriented.
+    pub const ORIENTED: u32 = 1;
+    /// Bit of `flags`: the sliding window has moved past the frame.
+    pub const SETTLED: u32 = 2;
+    /// Bit of `flags`: the end-of-stream adjustment has run.
+    pub const FINAL: u32 = 4;
+
+    /// The message element of an exterior orientation, without standard deviations.
+    pub fn from_exterior(frame: u64, revision: u32, flags: u32, pose: &lineflow_photogrammetry::Pose) -> Self {
+        let m = &pose.rotation;
+        Pose {
+            frame,
+            revision,
+            flags,
+            center_m: pose.center.into(),
+            rotation: std::array::from_fn(|k| m[(k / 3, k % 3)]),
+            sigma_center_m: [f64::NAN; 3],
+            sigma_angles_rad: [f64::NAN; 3],
+        }
+    }
+
+    /// The exterior orientation this element holds.
+    pub fn exterior(&self) -> lineflow_photogrammetry::Pose {
+        lineflow_photogrammetry::Pose {
+            center: self.center_m.into(),
+            rotation: lineflow_photogrammetry::Mat3::from_row_slice(&self.rotation),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn exterior_orientation_round_trips_row_major() {
+        let pose = lineflow_photogrammetry::Pose {
+            center: lineflow_photogrammetry::Vec3::new(1.0, -19.3, 1.6),
+            rotation: lineflow_photogrammetry::rotation_from_opk(1.8, 0.1, -0.3),
+        };
+        let msg = Pose::from_exterior(3, 0, Pose::ORIENTED, &pose);
+        assert_eq!(msg.rotation[1], pose.rotation[(0, 1)], "row-major");
+        assert_eq!(msg.exterior(), pose);
+    }
+}

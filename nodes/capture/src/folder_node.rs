@@ -4,7 +4,7 @@ use std::time::{Duration, Instant};
 
 use anyhow::{bail, Context, Result};
 use lineflow_capture::{decode_file, project, Project};
-use lineflow_messages::{fixed_str, kinds, ImageHeader};
+use lineflow_messages::{fixed_str, kinds, CameraModelHeader, ImageHeader};
 use lineflow_runtime::NodeContext;
 use serde::Deserialize;
 
@@ -66,7 +66,7 @@ pub fn run(ctx: &NodeContext) -> Result<()> {
     let pacer = Pacer::new(p.fps, p.use_clock)?;
     survey.publish(
         pacer.once(),
-        project.camera.to_header(),
+        CameraModelHeader::from_camera(&project.camera.camera()),
         &project.control_points,
         &project.observations,
         &project.walls,

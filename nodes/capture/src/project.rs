@@ -1,8 +1,9 @@
 //! A project folder as `conventions.md` defines it: `images/`, `camera.toml`, and optional survey data.
 use std::path::{Path, PathBuf};
 
-use lineflow_messages::{fixed_str, CameraModelHeader, ControlPoint, Observation, Wall};
-use serde::Deserialize;
+use lineflow_messages::{fixed_str, ControlPoint, Observation, Wall};
+use lineflow_photogrammetry::Camera;
+use serde::{Deserialize, Serialize};
 
 /// What is wrong with a project folder; every message names the file (and line, for CSV and TOML).
 #[derive(Debug, thiserror::Error)]
@@ -34,7 +35,7 @@ pub enum ProjectError {
 }
 
 /// `camera.toml`.
-#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct CameraFile {
     /// Width in pixels.
@@ -57,10 +58,9 @@ pub struct CameraFile {
 }
 
 impl CameraFile {
-    /// The camera as a message header (stamp left default).
-    pub fn to_header(&self) -> CameraModelHeader {
-        CameraModelHeader {
-            stamp: Default::default(),
+    /// The camera this file describes.
+    pub fn camera(&self) -> Camera {
+        Camera {
             width: self.width,
             height: self.height,
             pixel_size_mm: self.pixel_size_mm,
@@ -68,6 +68,19 @@ impl CameraFile {
             principal_point_mm: self.principal_point_mm,
             radial: self.radial,
             decentering: self.decentering,
+        }
+    }
+
+    /// The file of a camera.
+    pub fn of(c: &Camera) -> CameraFile {
+        CameraFile {
+            width: c.width,
+            height: c.height,
+            pixel_size_mm: c.pixel_size_mm,
+            focal_mm: c.focal_mm,
+            principal_point_mm: c.principal_point_mm,
+            radial: c.radial,
+            decentering: c.decentering,
         }
     }
 
@@ -381,13 +394,7 @@ pub fn read_site(path: &Path) -> Result<Vec<Wall>, ProjectError> {
                     ),
                 });
             }
-            let mut wall = Wall {
-                name: fixed_str(&w.name),
-                n_corners: w.corners.len() as u32,
-                ..Default::default()
-            };
-            wall.corners[..w.corners.len()].copy_from_slice(&w.corners);
-            Ok(wall)
+            Ok(Wall::new(&w.name, &w.corners))
         })
         .collect()
 }

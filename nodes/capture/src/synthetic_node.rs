@@ -47,19 +47,6 @@ fn default_seed() -> u64 {
     synth::DEFAULT_SEED
 }
 
-fn camera_header(c: &lineflow_photogrammetry::Camera) -> CameraModelHeader {
-    CameraModelHeader {
-        stamp: Default::default(),
-        width: c.width,
-        height: c.height,
-        pixel_size_mm: c.pixel_size_mm,
-        focal_mm: c.focal_mm,
-        principal_point_mm: c.principal_point_mm,
-        radial: c.radial,
-        decentering: c.decentering,
-    }
-}
-
 fn survey(syn: &Synthetic) -> (Vec<ControlPoint>, Vec<Observation>, Vec<Wall>) {
     let s = syn.preset.survey_sigma_m;
     let control = syn
@@ -87,17 +74,7 @@ fn survey(syn: &Synthetic) -> (Vec<ControlPoint>, Vec<Observation>, Vec<Wall>) {
     let walls = syn
         .approximate_walls()
         .into_iter()
-        .map(|(name, corners)| {
-            let mut w = Wall {
-                name: fixed_str(&name),
-                n_corners: corners.len().min(Wall::MAX_CORNERS) as u32,
-                ..Default::default()
-            };
-            for (slot, c) in w.corners.iter_mut().zip(&corners) {
-                *slot = *c;
-            }
-            w
-        })
+        .map(|(name, corners)| Wall::new(&name, &corners))
         .collect();
     (control, observations, walls)
 }
@@ -143,21 +120,13 @@ pub fn run(ctx: &NodeContext) -> Result<()> {
 
     let pacer = Pacer::new(p.fps, p.use_clock)?;
     let once = pacer.once();
-    survey_out.publish(once, camera_header(&cam), &control, &observations, &walls)?;
+    survey_out.publish(once, CameraModelHeader::from_camera(&cam), &control, &observations, &walls)?;
     if let Some(o) = &gt_poses {
         let poses: Vec<Pose> = syn
             .poses()
             .iter()
             .enumerate()
-            .map(|(i, pose)| Pose {
-                frame: i as u64,
-                revision: 0,
-                flags: 1 | 4,
-                center_m: pose.center.into(),
-                rotation: pose.rotation.transpose().as_slice().try_into().unwrap_or([0.0; 9]),
-                sigma_center_m: [f64::NAN; 3],
-                sigma_angles_rad: [f64::NAN; 3],
-            })
+            .map(|(i, pose)| Pose::from_exterior(i as u64, 0, Pose::ORIENTED | Pose::FINAL, pose))
             .collect();
         let mut stamp = once;
         stamp.flags |= StampFlags::FINAL;

@@ -6,7 +6,7 @@ use lineflow_capture::synth::{self, Synthetic};
 use lineflow_eval::{evaluate, report, Results, Truth};
 use lineflow_formats::{Line2Row, Line3Row, PoseRow};
 use lineflow_messages::{kinds, parts, Segment2};
-use lineflow_photogrammetry::{Mat3, Pose, Vec3};
+use lineflow_photogrammetry::Vec3;
 use lineflow_runtime::{Flow, NodeContext};
 
 fn main() -> std::process::ExitCode {
@@ -39,10 +39,7 @@ fn pose_rows(syn: &Synthetic, poses: &[lineflow_messages::Pose]) -> Vec<PoseRow>
         .filter(|p| (p.frame as usize) < syn.poses().len())
         .map(|p| PoseRow {
             image: syn.image_name(p.frame as usize),
-            pose: Pose {
-                center: Vec3::from(p.center_m),
-                rotation: Mat3::from_row_slice(&p.rotation),
-            },
+            pose: p.exterior(),
             sigma_center_m: None,
             sigma_angles_deg: None,
         })

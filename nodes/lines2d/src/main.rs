@@ -3,7 +3,7 @@
 use anyhow::{bail, Context, Result};
 use lineflow_formats::{write_lines2d, Line2Row};
 use lineflow_lines2d::{trace, TraceParams};
-use lineflow_messages::{kinds, parts, CameraModelHeader, EdgeMapHeader, EdgePixel, Lines2DHeader, Segment2};
+use lineflow_messages::{kinds, parts, EdgeMapHeader, EdgePixel, Lines2DHeader, Segment2};
 use lineflow_photogrammetry::Camera;
 use lineflow_runtime::{Flow, NodeContext};
 use serde::Deserialize;
@@ -36,18 +36,6 @@ fn default_gap() -> f64 {
 }
 fn default_angle() -> f64 {
     TraceParams::default().max_merge_angle_deg
-}
-
-fn camera(h: &CameraModelHeader) -> Camera {
-    Camera {
-        width: h.width,
-        height: h.height,
-        pixel_size_mm: h.pixel_size_mm,
-        focal_mm: h.focal_mm,
-        principal_point_mm: h.principal_point_mm,
-        radial: h.radial,
-        decentering: h.decentering,
-    }
 }
 
 /// One frame's segments, their concatenated pixel chains, and their `lines2d.csv` rows.
@@ -139,7 +127,7 @@ fn body() -> Result<()> {
     let mut rows = Vec::new();
     ctx.run(|| {
         while let Some(m) = camera_in.receive()? {
-            cam = Some(camera(m.user_header()));
+            cam = Some(m.user_header().camera());
         }
         while let Some(m) = edges.receive()? {
             waiting.push((*m.user_header(), m.payload().to_vec()));

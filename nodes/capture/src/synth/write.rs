@@ -47,24 +47,12 @@ pub fn write_project(syn: &Synthetic, dir: &Path, progress: &mut dyn FnMut(usize
         progress(frame + 1, n);
     }
 
+    let camera_toml = toml::to_string(&crate::CameraFile::of(cam)).map_err(|e| SynthError::Io(format!("camera.toml: {e}")))?;
     write(
         &dir.join("camera.toml"),
         &format!(
-            "# {} at scale {}: {}\nwidth = {}\nheight = {}\npixel_size_mm = {}\nfocal_mm = {}\nprincipal_point_mm = [{}, {}]\nradial = [{:e}, {:e}, {:e}]\ndecentering = [{:e}, {:e}]\n",
-            syn.preset.name,
-            syn.scale,
-            syn.preset.description,
-            cam.width,
-            cam.height,
-            cam.pixel_size_mm,
-            cam.focal_mm,
-            cam.principal_point_mm[0],
-            cam.principal_point_mm[1],
-            cam.radial[0],
-            cam.radial[1],
-            cam.radial[2],
-            cam.decentering[0],
-            cam.decentering[1]
+            "# {} at scale {}: {}\n{camera_toml}",
+            syn.preset.name, syn.scale, syn.preset.description
         ),
     )?;
 
