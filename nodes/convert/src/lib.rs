@@ -2,7 +2,18 @@
 //! feature stages.
 #![warn(missing_docs)]
 
-use lineflow_messages::Encoding;
+use lineflow_messages::{Encoding, ImageHeader};
+
+/// Writes the 8-bit grey version of a received image (`header` and its payload `src`) into `dst`
+/// (`width * height` bytes).
+///
+/// # Errors
+/// An unknown encoding or a payload that does not match the header; the message names the frame and image.
+pub fn gray_of_image(header: &ImageHeader, src: &[u8], dst: &mut [u8]) -> Result<(), String> {
+    let why = |m: String| format!("frame {} ({}): {m}", header.stamp.frame, header.name());
+    let encoding = Encoding::from_u32(header.encoding).ok_or_else(|| why(format!("unknown encoding {}", header.encoding)))?;
+    gray_into(encoding, header.width as usize, header.height as usize, header.step as usize, src, dst).map_err(why)
+}
 
 /// Writes the 8-bit grey version of `src` (rows of `step` bytes in `encoding`) into `dst` (`width * height` bytes).
 ///

@@ -27,8 +27,6 @@ fn body() -> Result<()> {
     ctx.run(|| {
         while let Some(msg) = input.receive()? {
             let h = *msg.user_header();
-            let enc = Encoding::from_u32(h.encoding)
-                .ok_or_else(|| anyhow::anyhow!("frame {}: unknown encoding {}", h.stamp.frame, h.encoding))?;
             let (w, ht) = (h.width as usize, h.height as usize);
             let out = ImageHeader {
                 step: h.width,
@@ -36,10 +34,8 @@ fn body() -> Result<()> {
                 ..h
             };
             let mut result = Ok(());
-            output.publish_with(out, w * ht, |dst| {
-                result = lineflow_convert::gray_into(enc, w, ht, h.step as usize, msg.payload(), dst)
-            })?;
-            result.map_err(|e| anyhow::anyhow!("frame {}: {e}", h.stamp.frame))?;
+            output.publish_with(out, w * ht, |dst| result = lineflow_convert::gray_of_image(&h, msg.payload(), dst))?;
+            result.map_err(anyhow::Error::msg)?;
         }
         Ok(if input.is_ended() { Flow::Stop } else { Flow::Continue })
     })?;

@@ -1,7 +1,7 @@
 //! `lineflow-edges`: the edges stage (`impl = "canny"`, `"sobel"` or `"log"`); one EdgeMap per image.
 use anyhow::{bail, Result};
 use lineflow_edges::{canny, log, pixels, sobel, DEFAULT_LOW_RATIO};
-use lineflow_messages::{fixed_str, kinds, EdgeMapHeader, Encoding};
+use lineflow_messages::{fixed_str, kinds, EdgeMapHeader};
 use lineflow_runtime::{Flow, NodeContext};
 use serde::Deserialize;
 
@@ -92,15 +92,12 @@ fn body() -> Result<()> {
     ctx.run(|| {
         while let Some(msg) = input.receive()? {
             let h = *msg.user_header();
-            let enc = Encoding::from_u32(h.encoding)
-                .ok_or_else(|| anyhow::anyhow!("frame {}: unknown encoding {}", h.stamp.frame, h.encoding))?;
             let (w, ht) = (h.width as usize, h.height as usize);
             if w > u16::MAX as usize || ht > u16::MAX as usize {
                 bail!("frame {}: {w}x{ht} exceeds the 65535-pixel edge map limit", h.stamp.frame);
             }
             gray.resize(w * ht, 0);
-            lineflow_convert::gray_into(enc, w, ht, h.step as usize, msg.payload(), &mut gray)
-                .map_err(|e| anyhow::anyhow!("frame {}: {e}", h.stamp.frame))?;
+            lineflow_convert::gray_of_image(&h, msg.payload(), &mut gray).map_err(anyhow::Error::msg)?;
             let map = match det {
                 Detector::Canny { low, high } => canny(&gray, w, ht, low, high),
                 Detector::Sobel { threshold } => sobel(&gray, w, ht, threshold),
