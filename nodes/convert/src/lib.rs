@@ -12,7 +12,15 @@ use lineflow_messages::{Encoding, ImageHeader};
 pub fn gray_of_image(header: &ImageHeader, src: &[u8], dst: &mut [u8]) -> Result<(), String> {
     let why = |m: String| format!("frame {} ({}): {m}", header.stamp.frame, header.name());
     let encoding = Encoding::from_u32(header.encoding).ok_or_else(|| why(format!("unknown encoding {}", header.encoding)))?;
-    gray_into(encoding, header.width as usize, header.height as usize, header.step as usize, src, dst).map_err(why)
+    gray_into(
+        encoding,
+        header.width as usize,
+        header.height as usize,
+        header.step as usize,
+        src,
+        dst,
+    )
+    .map_err(why)
 }
 
 /// Writes the 8-bit grey version of `src` (rows of `step` bytes in `encoding`) into `dst` (`width * height` bytes).

@@ -7,7 +7,7 @@ use anyhow::{Context, Result};
 use lineflow_messages::kinds::{EdgeMap, Image, Lines2D};
 use lineflow_messages::Encoding;
 use lineflow_runtime::{Flow, NodeContext};
-use lineflow_stats::{fnv1a64, FRAMES_CSV_HEADER};
+use lineflow_stats::{fnv1a64, fnv1a64_extend, FNV1A64_START, FRAMES_CSV_HEADER};
 
 #[derive(serde::Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -17,6 +17,16 @@ struct Params {
 }
 fn default_file() -> String {
     "frames.csv".into()
+}
+
+type Sink = (std::io::BufWriter<std::fs::File>, std::path::PathBuf);
+
+/// A CSV file in the run's output folder, header written.
+fn csv_sink(ctx: &NodeContext, name: &str, header: &str) -> Result<Sink> {
+    let path = ctx.out_dir().join(name);
+    let mut f = std::io::BufWriter::new(std::fs::File::create(&path).with_context(|| format!("cannot create {}", path.display()))?);
+    writeln!(f, "{header}")?;
+    Ok((f, path))
 }
 
 fn main() -> std::process::ExitCode {
@@ -30,27 +40,15 @@ fn body() -> Result<()> {
     let edges = ctx.optional_input::<EdgeMap>("edges")?;
     let lines = ctx.optional_input::<Lines2D>("lines2d")?;
     ctx.connect()?;
-    let mut segments_csv = match &lines {
-        Some(_) => {
-            let path = ctx.out_dir().join("segments.csv");
-            let mut f = std::io::BufWriter::new(std::fs::File::create(&path).with_context(|| format!("cannot create {}", path.display()))?);
-            writeln!(f, "frame,image,n_segments,n_chain,fnv1a64")?;
-            Some((f, path))
-        }
-        None => None,
-    };
-    let mut edges_csv = match &edges {
-        Some(_) => {
-            let path = ctx.out_dir().join("edges.csv");
-            let mut f = std::io::BufWriter::new(std::fs::File::create(&path).with_context(|| format!("cannot create {}", path.display()))?);
-            writeln!(f, "frame,detector,n_pixels,fnv1a64")?;
-            Some((f, path))
-        }
-        None => None,
-    };
-    let path = ctx.out_dir().join(&p.file);
-    let mut out = std::io::BufWriter::new(std::fs::File::create(&path).with_context(|| format!("cannot create {}", path.display()))?);
-    writeln!(out, "{FRAMES_CSV_HEADER}")?;
+    let mut segments_csv = lines
+        .as_ref()
+        .map(|_| csv_sink(&ctx, "segments.csv", "frame,image,n_segments,n_chain,fnv1a64"))
+        .transpose()?;
+    let mut edges_csv = edges
+        .as_ref()
+        .map(|_| csv_sink(&ctx, "edges.csv", "frame,detector,n_pixels,fnv1a64"))
+        .transpose()?;
+    let (mut out, path) = csv_sink(&ctx, &p.file, FRAMES_CSV_HEADER)?;
     let (start, mut bytes, mut frames) = (std::time::Instant::now(), 0usize, 0u64);
     ctx.run(|| {
         while let Some(msg) = input.receive()? {
@@ -72,25 +70,20 @@ fn body() -> Result<()> {
         if let (Some(e), Some((f, _))) = (&edges, &mut edges_csv) {
             while let Some(msg) = e.receive()? {
                 let h = msg.user_header();
-                let bytes: Vec<u8> = msg
-                    .payload()
-                    .iter()
-                    .flat_map(|p| {
-                        let mut b = Vec::with_capacity(12);
-                        b.extend(p.col.to_le_bytes());
-                        b.extend(p.row.to_le_bytes());
-                        b.extend(p.magnitude.to_le_bytes());
-                        b.extend(p.direction_rad.to_le_bytes());
-                        b
-                    })
-                    .collect();
+                // Field by field in little-endian order, so the checksum does not depend on the struct's layout.
+                let sum = msg.payload().iter().fold(FNV1A64_START, |h, p| {
+                    let h = fnv1a64_extend(h, &p.col.to_le_bytes());
+                    let h = fnv1a64_extend(h, &p.row.to_le_bytes());
+                    let h = fnv1a64_extend(h, &p.magnitude.to_le_bytes());
+                    fnv1a64_extend(h, &p.direction_rad.to_le_bytes())
+                });
                 writeln!(
                     f,
                     "{},{},{},{:016x}",
                     h.stamp.frame,
                     lineflow_messages::str_from_fixed(&h.detector),
                     msg.payload().len(),
-                    fnv1a64(&bytes)
+                    sum
                 )?;
             }
         }
