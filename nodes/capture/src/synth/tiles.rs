@@ -65,7 +65,9 @@ impl TileIndex {
             for c in &visible {
                 grow(&mut b, [-camera.focal_mm * c.x / c.z, -camera.focal_mm * c.y / c.z]);
             }
-            index.insert(&mut |t: &mut TileIndex, tile| t.faces[tile].push(i as u32), b, &frame, camera);
+            for tile in index.tiles_under(b, &frame, camera) {
+                index.faces[tile].push(i as u32);
+            }
         }
         // Nearest first, so that a ray can stop as soon as the next face cannot be nearer than its best hit.
         let depth = std::mem::take(&mut index.depth);
@@ -76,21 +78,18 @@ impl TileIndex {
         for (i, (centre, radius)) in targets.iter().enumerate() {
             let Some(p) = pose.project_ideal(camera, centre) else { continue };
             let r = radius * camera.focal_mm / -pose.to_camera(centre).z;
-            index.insert(
-                &mut |t: &mut TileIndex, tile| t.targets[tile].push(i as u32),
-                [p[0] - r, p[1] - r, p[0] + r, p[1] + r],
-                &frame,
-                camera,
-            );
+            for tile in index.tiles_under([p[0] - r, p[1] - r, p[0] + r, p[1] + r], &frame, camera) {
+                index.targets[tile].push(i as u32);
+            }
         }
         index
     }
 
-    /// Adds an item to every tile its ideal box (clipped to the image) may touch.
-    fn insert(&mut self, add: &mut dyn FnMut(&mut TileIndex, usize), b: Box2, frame: &Box2, camera: &Camera) {
+    /// The tiles an ideal box (clipped to the image) may touch.
+    fn tiles_under(&self, b: Box2, frame: &Box2, camera: &Camera) -> Vec<usize> {
         let b = [b[0].max(frame[0]), b[1].max(frame[1]), b[2].min(frame[2]), b[3].min(frame[3])];
         if b[0] > b[2] || b[1] > b[3] {
-            return;
+            return Vec::new();
         }
         let mut px = EMPTY;
         for k in 0..=SIDE_SAMPLES {
@@ -112,13 +111,9 @@ impl TileIndex {
             || px[2] + MARGIN_PX < 0.0
             || px[3] + MARGIN_PX < 0.0
         {
-            return;
+            return Vec::new();
         }
-        for r in r0..=r1 {
-            for c in c0..=c1 {
-                add(self, r * self.cols + c);
-            }
-        }
+        (r0..=r1).flat_map(|r| (c0..=c1).map(move |c| r * self.cols + c)).collect()
     }
 
     /// Candidate faces (nearest first) and targets of the tile holding pixel (col, row).
