@@ -130,6 +130,7 @@ pub fn canny(gray: &[u8], width: usize, height: usize, low: f64, high: f64) -> V
 /// Sobel: the gradient maxima above `threshold`.
 pub fn sobel(gray: &[u8], width: usize, height: usize, threshold: f64) -> Vec<u8> {
     let t2 = squared(threshold);
+    // No hysteresis: with the edge level just below the candidate level every survivor is an edge.
     suppress(gray, width, height, t2, t2.saturating_sub(1))
 }
 

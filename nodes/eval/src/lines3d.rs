@@ -204,7 +204,7 @@ pub fn evaluate(truth: &Truth, rows: &[Line3Row]) -> Lines3dReport {
             })
             .collect();
         let long: Vec<usize> = gi.iter().copied().filter(|&i| gt[i].length() >= 0.5).collect();
-        let recovered = long.iter().filter(|&&i| recovered(&gt[i], &est, gsd)).count();
+        let recovered = long.iter().filter(|&&i| recovered(&gt[i], &est, &est_grid, reach, gsd)).count();
         ClassScores {
             class: name,
             n_true: gi.len(),
@@ -233,9 +233,18 @@ pub fn evaluate(truth: &Truth, rows: &[Line3Row]) -> Lines3dReport {
 }
 
 /// A true edge is recovered when estimates within 2 GSD and 2° of it cover at least half of its length.
-fn recovered(g: &Seg, est: &[Seg], gsd: f64) -> bool {
-    let mut spans: Vec<(f64, f64)> = est
+/// Candidates come from the estimates' grid (`reach` ≥ 5 GSD): sampling the edge every `reach` metres finds every
+/// estimate within 2 GSD of it.
+fn recovered(g: &Seg, est: &[Seg], grid: &Grid, reach: f64, gsd: f64) -> bool {
+    let n = (g.length() / reach).ceil() as usize + 1;
+    let mut near: Vec<u32> = (0..=n)
+        .flat_map(|k| grid.near(&g.at(k as f64 / n as f64)).iter().copied())
+        .collect();
+    near.sort_unstable();
+    near.dedup();
+    let mut spans: Vec<(f64, f64)> = near
         .iter()
+        .map(|&i| &est[i as usize])
         .filter(|e| g.angle_deg(e) <= 2.0 && g.line_distance(&e.a) <= 2.0 * gsd && g.line_distance(&e.b) <= 2.0 * gsd)
         .map(|e| {
             let (s, t) = (g.param(&e.a), g.param(&e.b));
