@@ -18,6 +18,7 @@ pub mod model;
 pub mod parts;
 pub mod poses;
 pub mod registry;
+pub mod schema;
 pub mod stamp;
 pub mod status;
 

@@ -90,6 +90,75 @@ messages! {
     Wireframe => WireframeHeader, u8, latched = false, "Wire-frame model (two-part bytes).";
 }
 
+/// Runs `$body` with the type alias `$M` bound to the [`kinds`] marker type of a runtime [`MessageKind`], for code
+/// that handles every message type alike (the recorder, the player).
+///
+/// ```
+/// use lineflow_messages::{with_kind, Message, MessageKind};
+/// let size = with_kind!(MessageKind::Poses, M => size_of::<<M as Message>::Element>());
+/// assert_eq!(size, MessageKind::Poses.element_size());
+/// ```
+#[macro_export]
+macro_rules! with_kind {
+    ($kind:expr, $M:ident => $body:expr) => {{
+        use $crate::MessageKind as K;
+        match $kind {
+            K::Image => {
+                type $M = $crate::kinds::Image;
+                $body
+            }
+            K::CameraModel => {
+                type $M = $crate::kinds::CameraModel;
+                $body
+            }
+            K::ControlPoints => {
+                type $M = $crate::kinds::ControlPoints;
+                $body
+            }
+            K::Observations => {
+                type $M = $crate::kinds::Observations;
+                $body
+            }
+            K::Site => {
+                type $M = $crate::kinds::Site;
+                $body
+            }
+            K::Keypoints => {
+                type $M = $crate::kinds::Keypoints;
+                $body
+            }
+            K::TiePoints => {
+                type $M = $crate::kinds::TiePoints;
+                $body
+            }
+            K::Poses => {
+                type $M = $crate::kinds::Poses;
+                $body
+            }
+            K::EdgeMap => {
+                type $M = $crate::kinds::EdgeMap;
+                $body
+            }
+            K::Lines2D => {
+                type $M = $crate::kinds::Lines2D;
+                $body
+            }
+            K::Points3D => {
+                type $M = $crate::kinds::Points3D;
+                $body
+            }
+            K::Lines3D => {
+                type $M = $crate::kinds::Lines3D;
+                $body
+            }
+            K::Wireframe => {
+                type $M = $crate::kinds::Wireframe;
+                $body
+            }
+        }
+    }};
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

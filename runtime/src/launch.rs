@@ -72,7 +72,15 @@ struct LaunchFile {
     node: Vec<NodeEntry>,
     #[serde(default)]
     edge: Vec<EdgeEntry>,
+    /// Settings of the recorder; `enabled = false` turns it off, the other keys are its parameters.
+    #[serde(default)]
+    record: toml::Table,
 }
+
+/// Name of the recorder node the supervisor adds to every graph (unless `[record] enabled = false`).
+pub const RECORDER: &str = "recorder";
+/// Stage of the recorder node.
+pub const RECORDER_STAGE: &str = "record";
 
 #[derive(Debug, Default, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -250,6 +258,21 @@ pub struct Resolver {
 }
 
 impl Resolver {
+    /// The binary of a stage, `lineflow-<stage>`.
+    ///
+    /// # Errors
+    /// A message naming the missing binary.
+    pub fn stage(&self, stage: &str) -> Result<String, String> {
+        let exe = self.bin_dir.join(format!("lineflow-{stage}"));
+        if !exe.is_file() {
+            return Err(format!(
+                "stage '{stage}' has no binary {} (build it with `cargo build`)",
+                exe.display()
+            ));
+        }
+        Ok(exe.display().to_string())
+    }
+
     /// Stage binaries beside the running executable.
     pub fn beside_current_exe() -> Self {
         let bin_dir = std::env::current_exe()
@@ -316,14 +339,8 @@ pub fn parse(path: &Path, text: &str, overrides: &[String], resolver: &Resolver)
         let entry = format!("node '{}'", n.name);
         let command = match (&n.stage, &n.executable) {
             (Some(stage), None) => {
-                let exe = resolver.bin_dir.join(format!("lineflow-{stage}"));
-                if !exe.is_file() {
-                    return Err(invalid(
-                        entry,
-                        format!("stage '{stage}' has no binary {} (build it with `cargo build`)", exe.display()),
-                    ));
-                }
-                std::iter::once(exe.display().to_string()).chain(n.args.iter().cloned()).collect()
+                let exe = resolver.stage(stage).map_err(|m| invalid(entry.clone(), m))?;
+                std::iter::once(exe).chain(n.args.iter().cloned()).collect()
             }
             (None, Some(exe)) => {
                 let found = find_executable(exe, &base).ok_or_else(|| {
@@ -434,6 +451,46 @@ pub fn parse(path: &Path, text: &str, overrides: &[String], resolver: &Resolver)
             history,
             timeout_ms: e.timeout_ms.unwrap_or(10_000),
         });
+    }
+
+    let mut record = file.record.clone();
+    let enabled = match record.remove("enabled") {
+        None => true,
+        Some(toml::Value::Boolean(b)) => b,
+        Some(v) => return Err(invalid("[record]".into(), format!("`enabled` must be true or false, got {v}"))),
+    };
+    if enabled {
+        if names.contains(RECORDER) {
+            return Err(invalid(
+                format!("node '{RECORDER}'"),
+                format!("the name '{RECORDER}' is reserved for the recorder; rename the node or set [record] enabled = false"),
+            ));
+        }
+        let command = vec![resolver.stage(RECORDER_STAGE).map_err(|m| invalid("[record]".into(), m))?];
+        let params = record
+            .iter()
+            .map(|(k, v)| {
+                Ok((
+                    k.clone(),
+                    serde_json::to_value(v).map_err(|e| invalid("[record]".into(), format!("{k}: {e}")))?,
+                ))
+            })
+            .collect::<Result<_, LaunchError>>()?;
+        nodes.push(NodeSpec {
+            name: RECORDER.into(),
+            index: nodes.len() as u32,
+            stage: Some(RECORDER_STAGE.into()),
+            implementation: None,
+            command,
+            params,
+            restart: RestartPolicy::Never,
+            max_restarts: 0,
+            backoff_ms: 0,
+            remap: BTreeMap::new(),
+        });
+        for e in &mut edges {
+            e.to.push(RECORDER.into());
+        }
     }
 
     Ok(Graph {
@@ -616,15 +673,19 @@ pub fn resolve_param_path(base: &Path, value: &str) -> PathBuf {
 fn apply_override(file: &mut LaunchFile, item: &str) -> Result<(), String> {
     let (key, value) = item.split_once('=').ok_or("expected NODE.PARAM=VALUE")?;
     let (node, param) = key.split_once('.').ok_or("expected NODE.PARAM=VALUE")?;
+    let parsed: toml::Value = toml::from_str::<toml::Table>(&format!("v = {value}"))
+        .ok()
+        .and_then(|mut t| t.remove("v"))
+        .unwrap_or_else(|| toml::Value::String(value.to_owned()));
+    if node == RECORDER_STAGE && !file.node.iter().any(|n| n.name == node) {
+        file.record.insert(param.to_owned(), parsed);
+        return Ok(());
+    }
     let n = file
         .node
         .iter_mut()
         .find(|n| n.name == node)
         .ok_or_else(|| format!("no node '{node}' in the graph"))?;
-    let parsed: toml::Value = toml::from_str::<toml::Table>(&format!("v = {value}"))
-        .ok()
-        .and_then(|mut t| t.remove("v"))
-        .unwrap_or_else(|| toml::Value::String(value.to_owned()));
     if param == "impl" {
         n.implementation = Some(parsed.as_str().unwrap_or(value).to_owned());
     } else {
@@ -638,7 +699,7 @@ mod tests {
     use super::*;
 
     fn resolver(dir: &Path) -> Resolver {
-        for s in ["capture", "stats"] {
+        for s in ["capture", "stats", "record"] {
             std::fs::write(dir.join(format!("lineflow-{s}")), "").unwrap();
         }
         Resolver { bin_dir: dir.to_owned() }
@@ -665,11 +726,34 @@ mod tests {
     fn a_valid_graph_resolves_stage_binaries_and_params() {
         let dir = tempfile::tempdir().unwrap();
         let sut = parse(&dir.path().join("g.toml"), GOOD, &["cap.fps=5".into()], &resolver(dir.path())).unwrap();
-        assert_eq!(sut.nodes.len(), 2);
+        assert_eq!(sut.nodes.len(), 3, "the recorder is added");
         assert!(sut.nodes[0].command[0].ends_with("lineflow-capture"));
         assert_eq!(sut.nodes[0].params["fps"], 5);
         assert_eq!(sut.nodes[0].params["impl"], "folder");
         assert!(sut.is_source("cap") && sut.is_sink("sink"));
+        assert_eq!(sut.edges[0].to, ["sink", RECORDER]);
+        assert_eq!(sut.nodes[2].index, 2);
+    }
+
+    #[test]
+    fn the_recorder_takes_record_settings_and_can_be_turned_off() {
+        let dir = tempfile::tempdir().unwrap();
+        let r = resolver(dir.path());
+        let p = dir.path().join("g.toml");
+        let sut = parse(&p, GOOD, &["record.compression=\"zstd\"".into()], &r).unwrap();
+        assert_eq!(sut.node(RECORDER).unwrap().params["compression"], "zstd");
+        let off = parse(&p, GOOD, &["record.enabled=false".into()], &r).unwrap();
+        assert!(off.node(RECORDER).is_none());
+        assert_eq!(off.edges[0].to, ["sink"]);
+        let err = parse(&p, &format!("[record]\nenabled = 3\n{GOOD}"), &[], &r)
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("[record]: `enabled` must be true or false"), "{err}");
+        let clash = GOOD
+            .replace("name = \"sink\"", "name = \"recorder\"")
+            .replace("to = [\"sink\"]", "to = [\"recorder\"]");
+        let err = parse(&p, &clash, &[], &r).unwrap_err().to_string();
+        assert!(err.contains("reserved for the recorder"), "{err}");
     }
 
     #[test]

@@ -7,13 +7,14 @@ pub mod launch;
 pub mod logging;
 pub mod node;
 pub mod ports;
+pub mod recording;
 pub mod report;
 pub mod runs;
 pub mod shm;
 pub mod supervisor;
 pub mod transport;
 
-pub use node::{Flow, NodeContext, RunEnd};
+pub use node::{Flow, NodeContext, RunEnd, StatusWatch};
 pub use ports::{Input, Output, Received};
 
 /// Runs a node's body and turns an error into one line on stderr (`[node] error: ...`, causes joined by `: `) and

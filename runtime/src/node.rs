@@ -386,6 +386,25 @@ impl NodeContext {
         })
     }
 
+    /// Subscribes to every node's counters (what the supervisor reports); `None` in describe mode.
+    ///
+    /// # Errors
+    /// When iceoryx2 refuses the subscriber.
+    pub fn watch_status(&self) -> Result<Option<StatusWatch>> {
+        let Some(node) = &self.node else {
+            return Ok(None);
+        };
+        let sub = transport::open_status(node)?
+            .subscriber_builder()
+            .buffer_size(256)
+            .create()
+            .map_err(|e| anyhow::anyhow!("cannot subscribe to the run's status: {e:?}"))?;
+        Ok(Some(StatusWatch {
+            sub,
+            latest: std::collections::BTreeMap::new(),
+        }))
+    }
+
     /// The counters so far.
     pub fn status(&self) -> lineflow_messages::NodeStatus {
         self.reporter.snapshot()
@@ -407,4 +426,22 @@ fn check_kind<M: Message>(edge: &crate::launch::EdgeSpec, node: &str, port: &str
         );
     }
     Ok(())
+}
+
+/// The latest counters of every node of the run, by node index.
+pub struct StatusWatch {
+    sub: iceoryx2::port::subscriber::Subscriber<ipc::Service, lineflow_messages::NodeStatus, ()>,
+    latest: std::collections::BTreeMap<u32, lineflow_messages::NodeStatus>,
+}
+
+impl StatusWatch {
+    /// Takes the reports that arrived and returns the latest per node. A restarted node's new instance starts its
+    /// counters from zero; the latest report is that of the live instance.
+    pub fn poll(&mut self) -> &std::collections::BTreeMap<u32, lineflow_messages::NodeStatus> {
+        while let Ok(Some(sample)) = self.sub.receive() {
+            let s = *sample.payload();
+            self.latest.insert(s.node_index, s);
+        }
+        &self.latest
+    }
 }

@@ -373,7 +373,10 @@ fn supervise(graph: &Graph, run: &RunRecord, ports: &BTreeMap<String, Ports>, op
     }
 
     let mut progress = Progress::new(opts.expected_frames.filter(|_| opts.progress));
-    let sinks: Vec<usize> = (0..children.len()).filter(|&i| graph.is_sink(&children[i].spec.name)).collect();
+    // The recorder hears every topic, latched ones included; its first input says nothing about progress.
+    let sinks: Vec<usize> = (0..children.len())
+        .filter(|&i| graph.is_sink(&children[i].spec.name) && children[i].spec.name != launch::RECORDER)
+        .collect();
     loop {
         drain_status(&status_sub, &mut children);
         if error.is_none() {

@@ -1,0 +1,297 @@
+//! `lineflow-record`: the recorder the supervisor adds to every graph. It subscribes to every topic and writes one
+//! MCAP file per run (`docs/recording.md`): messages are CDR-encoded as they arrive and handed to a writer thread,
+//! so that disk I/O never holds a sample in shared memory. On end-of-stream on every topic, or on SIGINT/SIGTERM,
+//! it writes every node's counters and finishes the file.
+use std::collections::BTreeMap;
+use std::thread::JoinHandle;
+use std::time::{Duration, Instant};
+
+use anyhow::{Context, Result};
+use crossbeam::channel::Receiver;
+use lineflow_messages::schema::{bytes_of, encode, slice_bytes};
+use lineflow_messages::{with_kind, Message, MessageKind, NodeStatus};
+use lineflow_runtime::launch::Graph;
+use lineflow_runtime::recording::views::{views_of, ViewRenderer};
+use lineflow_runtime::recording::{now_ns, Compression, McapWriter, META_END, META_RUN};
+use lineflow_runtime::{Flow, Input, NodeContext, RunEnd};
+
+#[derive(serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+struct Params {
+    /// Recording file, relative to the run's output folder.
+    #[serde(default = "default_file")]
+    file: String,
+    /// Chunk compression: none, lz4, zstd.
+    #[serde(default)]
+    compression: Compression,
+    /// Longest side of the image previews for viewers; 0 turns previews off.
+    #[serde(default = "default_preview")]
+    preview_max_px: u32,
+    /// Memory for messages waiting to be written, MiB.
+    #[serde(default = "default_queue_mib")]
+    queue_mib: u64,
+}
+fn default_file() -> String {
+    "recording.mcap".into()
+}
+fn default_preview() -> u32 {
+    1280
+}
+fn default_queue_mib() -> u64 {
+    1024
+}
+
+/// One received message on its way to the writer thread.
+struct Item {
+    topic: usize,
+    log_time: u64,
+    publish_time: u64,
+    cdr: Vec<u8>,
+}
+
+/// A subscribed topic of any message type.
+trait Tap {
+    /// Encodes every waiting message and hands it on; returns how many.
+    fn drain(&self, topic: usize, send: &mut dyn FnMut(Item) -> Result<()>) -> Result<usize>;
+    fn is_ended(&self) -> bool;
+}
+
+struct TypedTap<M: Message>(Input<M>);
+
+impl<M: Message> Tap for TypedTap<M> {
+    fn drain(&self, topic: usize, send: &mut dyn FnMut(Item) -> Result<()>) -> Result<usize> {
+        let mut n = 0;
+        while let Some(msg) = self.0.receive()? {
+            let mut cdr = Vec::new();
+            encode(M::KIND, bytes_of(msg.user_header()), slice_bytes(msg.payload()), &mut cdr);
+            let publish_time = M::stamp(msg.user_header()).capture_time_ns;
+            drop(msg);
+            send(Item {
+                topic,
+                log_time: now_ns(),
+                publish_time,
+                cdr,
+            })?;
+            n += 1;
+        }
+        Ok(n)
+    }
+    fn is_ended(&self) -> bool {
+        self.0.is_ended()
+    }
+}
+
+fn main() -> std::process::ExitCode {
+    lineflow_runtime::run_node(body)
+}
+
+struct Topic {
+    name: String,
+    kind: MessageKind,
+    tap: Box<dyn Tap>,
+    messages: u64,
+    /// Index of the publishing node.
+    from: u32,
+    ended: bool,
+}
+
+/// Latched topics (camera, control, site) carry no end-of-stream, so that a late subscriber still gets the
+/// message: they end when their publisher has finished.
+fn update_ended(topics: &mut [Topic], status: Option<&mut lineflow_runtime::StatusWatch>) {
+    let latest = status.map(|s| s.poll());
+    for t in topics {
+        let publisher_finished = latest
+            .and_then(|l| l.get(&t.from))
+            .is_some_and(|s| s.flags & NodeStatus::FINISHED != 0);
+        t.ended = t.tap.is_ended() || (t.kind.latched() && publisher_finished);
+    }
+}
+
+fn body() -> Result<()> {
+    let ctx = NodeContext::from_env()?;
+    let p: Params = ctx.params()?;
+    let graph = ctx.graph().clone();
+    let mut topics = Vec::new();
+    for e in graph.edges.iter().filter(|e| e.to.iter().any(|t| t == ctx.name())) {
+        let kind = e.kind();
+        let tap: Box<dyn Tap> = with_kind!(kind, M => Box::new(TypedTap(ctx.input::<M>(&e.topic)?)));
+        topics.push(Topic {
+            name: e.topic.clone(),
+            kind,
+            tap,
+            messages: 0,
+            from: graph.node(&e.from).map_or(u32::MAX, |n| n.index),
+            ended: false,
+        });
+    }
+    let mut status = ctx.watch_status()?;
+    ctx.connect()?;
+
+    let path = ctx.out_dir().join(&p.file);
+    let mut writer = McapWriter::create(&path, p.compression)?;
+    writer.metadata(META_RUN, run_metadata(&graph))?;
+    for t in &topics {
+        writer.add_topic(&t.name, t.kind)?;
+        for (suffix, view) in views_of(t.kind) {
+            if p.preview_max_px > 0 || *suffix != "preview" {
+                writer.add_view(&format!("{}/{suffix}", t.name), view)?;
+            }
+        }
+    }
+    // Bounded by memory: as many of the largest messages as fit in the queue budget.
+    let largest = graph.edges.iter().map(|e| e.max_payload_bytes).max().unwrap_or(1).max(1);
+    let capacity = ((p.queue_mib << 20) / largest).clamp(4, 4096) as usize;
+    let (tx, rx) = crossbeam::channel::bounded::<Item>(capacity);
+    let names: Vec<(String, MessageKind)> = topics.iter().map(|t| (t.name.clone(), t.kind)).collect();
+    let thread = spawn_writer(writer, rx, names, p.preview_max_px)?;
+    tracing::info!("recording {} topics to {}", topics.len(), path.display());
+
+    let mut send = |item: Item| -> Result<()> { tx.send(item).map_err(|_| anyhow::anyhow!("the recording's writer stopped")) };
+    let ended = ctx.run(|| {
+        // Status first: what a finished publisher sent is already waiting, and the drain below takes it.
+        update_ended(&mut topics, status.as_mut());
+        for (i, t) in topics.iter_mut().enumerate() {
+            t.messages += t.tap.drain(i, &mut send)? as u64;
+        }
+        Ok(if topics.iter().all(|t| t.ended || t.tap.is_ended()) {
+            Flow::Stop
+        } else {
+            Flow::Continue
+        })
+    });
+    update_ended(&mut topics, status.as_mut());
+    let complete = matches!(ended, Ok(RunEnd::Finished)) && topics.iter().all(|t| t.ended);
+    let reason = match &ended {
+        Ok(RunEnd::Finished) => "end-of-stream on every topic".to_owned(),
+        Ok(RunEnd::Interrupted) => "interrupted (SIGINT/SIGTERM)".to_owned(),
+        Err(e) => format!("recorder failed: {e:#}"),
+    };
+    // Counters of the other nodes: wait briefly for their final reports (sent right after their end-of-stream).
+    let counters = status
+        .as_mut()
+        .map(|s| final_counters(s, &graph, ctx.name(), complete))
+        .unwrap_or_default();
+    drop(tx);
+    let mut writer = thread.join().map_err(|_| anyhow::anyhow!("the recording's writer panicked"))??;
+    writer.metadata(META_END, end_metadata(&graph, &topics, &counters, complete, &reason))?;
+    let (messages, bytes) = (writer.messages, writer.bytes);
+    writer.finish()?;
+    tracing::info!(
+        "{} messages, {:.1} MB in {} ({})",
+        messages,
+        bytes as f64 / 1e6,
+        path.display(),
+        if complete { "complete" } else { &reason }
+    );
+    ctx.finish();
+    ended.map(|_| ())
+}
+
+/// The writer thread: writes every item and its viewer renderings; returns the writer for the last records.
+fn spawn_writer(
+    mut writer: McapWriter,
+    rx: Receiver<Item>,
+    topics: Vec<(String, MessageKind)>,
+    preview_max_px: u32,
+) -> Result<JoinHandle<Result<McapWriter>>> {
+    let views: Vec<Vec<String>> = topics
+        .iter()
+        .map(|(t, k)| views_of(*k).iter().map(|(s, _)| format!("{t}/{s}")).collect())
+        .collect();
+    std::thread::Builder::new()
+        .name("mcap-writer".into())
+        .spawn(move || {
+            let mut renderer = ViewRenderer::new(preview_max_px);
+            for item in rx {
+                let (topic, kind) = &topics[item.topic];
+                writer.write(topic, item.log_time, item.publish_time, &item.cdr)?;
+                for (suffix, bytes) in renderer.render(*kind, &item.cdr) {
+                    if let Some(view) = views[item.topic].iter().find(|v| v.ends_with(suffix)) {
+                        if writer.has_channel(view) {
+                            writer.write(view, item.log_time, item.publish_time, &bytes)?;
+                        }
+                    }
+                }
+            }
+            Ok(writer)
+        })
+        .context("cannot start the recording's writer thread")
+}
+
+fn final_counters(status: &mut lineflow_runtime::StatusWatch, graph: &Graph, me: &str, wait: bool) -> BTreeMap<u32, NodeStatus> {
+    let deadline = Instant::now() + Duration::from_secs(2);
+    loop {
+        let latest = status.poll();
+        let all_finished = graph
+            .nodes
+            .iter()
+            .filter(|n| n.name != me)
+            .all(|n| latest.get(&n.index).is_some_and(|s| s.flags & NodeStatus::FINISHED != 0));
+        if all_finished || !wait || Instant::now() > deadline {
+            return latest.clone();
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+}
+
+fn run_metadata(graph: &Graph) -> BTreeMap<String, String> {
+    let mut m = BTreeMap::from([
+        ("version".to_owned(), env!("CARGO_PKG_VERSION").to_owned()),
+        (
+            "run_id".to_owned(),
+            std::env::var(lineflow_runtime::env::RUN_ID).unwrap_or_default(),
+        ),
+        ("graph_name".to_owned(), graph.name.clone()),
+        ("launch_path".to_owned(), graph.source.display().to_string()),
+        ("launch_text".to_owned(), graph.text.clone()),
+        ("graph_json".to_owned(), serde_json::to_string(graph).unwrap_or_default()),
+        ("created_unix_ns".to_owned(), now_ns().to_string()),
+    ]);
+    for n in &graph.nodes {
+        m.insert(
+            format!("node.{}", n.name),
+            format!(
+                "stage={} impl={} version={} command={}",
+                n.stage.as_deref().unwrap_or("-"),
+                n.implementation.as_deref().unwrap_or("default"),
+                env!("CARGO_PKG_VERSION"),
+                n.command.join(" ")
+            ),
+        );
+    }
+    m
+}
+
+fn end_metadata(
+    graph: &Graph,
+    topics: &[Topic],
+    counters: &BTreeMap<u32, NodeStatus>,
+    ended: bool,
+    reason: &str,
+) -> BTreeMap<String, String> {
+    let mut m = BTreeMap::from([("ended_unix_ns".to_owned(), now_ns().to_string())]);
+    for t in topics {
+        m.insert(format!("topic.{}.messages", t.name), t.messages.to_string());
+        m.insert(format!("topic.{}.ended", t.name), t.ended.to_string());
+    }
+    let mut lost = 0;
+    for n in &graph.nodes {
+        let Some(s) = counters.get(&n.index) else {
+            continue;
+        };
+        for (k, v) in [("in", s.msgs_in), ("out", s.msgs_out), ("drops", s.drops), ("missed", s.missed)] {
+            m.insert(format!("node.{}.{k}", n.name), v.to_string());
+        }
+        lost += s.drops + s.missed;
+    }
+    m.insert("drops_total".to_owned(), lost.to_string());
+    let complete = ended && lost == 0;
+    let reason = if ended && lost > 0 {
+        format!("{lost} messages dropped or missed")
+    } else {
+        reason.to_owned()
+    };
+    m.insert("complete".to_owned(), complete.to_string());
+    m.insert("reason".to_owned(), reason);
+    m
+}

@@ -1,0 +1,301 @@
+//! Viewer channels: Foxglove renderings of recorded messages, so that a recording opens in Foxglove with images,
+//! 2-D segments drawn over them, and cameras and 3-D lines in the 3-D panel.
+//!
+//! Images become `foxglove_msgs/msg/RawImage` previews (ros2msg + CDR), box-filtered down to at most
+//! `preview_max_px` on the long side so that previews do not double the recording; 2-D segments become
+//! `foxglove.ImageAnnotations` in the preview's pixel grid; poses and 3-D lines become `foxglove.SceneUpdate`
+//! entities (JSON) in the object frame `world`.
+use lineflow_messages::schema::{decode, Decoded};
+use lineflow_messages::{Encoding, ImageHeader, Line3, Lines2DHeader, MessageKind, Pose, Segment2, Stamp};
+use serde_json::{json, Value};
+
+/// The schema of a viewer channel.
+#[derive(Debug)]
+pub struct ViewSchema {
+    /// Schema name Foxglove recognises.
+    pub name: &'static str,
+    /// Schema encoding.
+    pub schema_encoding: &'static str,
+    /// Schema text.
+    pub data: &'static str,
+    /// Message encoding.
+    pub message_encoding: &'static str,
+}
+
+/// `foxglove_msgs/msg/RawImage`.
+pub const RAW_IMAGE: ViewSchema = ViewSchema {
+    name: "foxglove_msgs/msg/RawImage",
+    schema_encoding: "ros2msg",
+    data: "builtin_interfaces/Time timestamp\nstring frame_id\nuint32 width\nuint32 height\nstring encoding\nuint32 step\n\
+           uint8[] data\n================================================================================\n\
+           MSG: builtin_interfaces/Time\nint32 sec\nuint32 nanosec\n",
+    message_encoding: "cdr",
+};
+
+/// `foxglove.ImageAnnotations` (JSON).
+pub const IMAGE_ANNOTATIONS: ViewSchema = ViewSchema {
+    name: "foxglove.ImageAnnotations",
+    schema_encoding: "jsonschema",
+    data: r#"{"title":"foxglove.ImageAnnotations","type":"object","properties":{"circles":{"type":"array"},"points":{"type":"array","items":{"type":"object","properties":{"timestamp":{"type":"object"},"type":{"type":"integer"},"points":{"type":"array"},"outline_color":{"type":"object"},"thickness":{"type":"number"}}}},"texts":{"type":"array"}}}"#,
+    message_encoding: "json",
+};
+
+/// `foxglove.SceneUpdate` (JSON).
+pub const SCENE_UPDATE: ViewSchema = ViewSchema {
+    name: "foxglove.SceneUpdate",
+    schema_encoding: "jsonschema",
+    data: r#"{"title":"foxglove.SceneUpdate","type":"object","properties":{"deletions":{"type":"array"},"entities":{"type":"array","items":{"type":"object","properties":{"timestamp":{"type":"object"},"frame_id":{"type":"string"},"id":{"type":"string"},"lines":{"type":"array"}}}}}}"#,
+    message_encoding: "json",
+};
+
+/// The viewer channels of a topic: (channel suffix, schema).
+pub fn views_of(kind: MessageKind) -> &'static [(&'static str, &'static ViewSchema)] {
+    match kind {
+        MessageKind::Image => &[("preview", &RAW_IMAGE)],
+        MessageKind::Lines2D => &[("annotations", &IMAGE_ANNOTATIONS)],
+        MessageKind::Poses | MessageKind::Lines3D => &[("scene", &SCENE_UPDATE)],
+        _ => &[],
+    }
+}
+
+/// Renders viewer messages of one topic; remembers the preview scale so annotations match the previews.
+#[derive(Debug)]
+pub struct ViewRenderer {
+    /// Longest preview side in pixels (0 = no previews).
+    pub preview_max_px: u32,
+    /// Preview pixels per image pixel of the latest image.
+    scale: f64,
+}
+
+impl ViewRenderer {
+    /// A renderer with the given preview size.
+    pub fn new(preview_max_px: u32) -> Self {
+        Self {
+            preview_max_px,
+            scale: 1.0,
+        }
+    }
+
+    /// The viewer messages of one recorded message: `(channel suffix, bytes)`.
+    pub fn render(&mut self, kind: MessageKind, cdr: &[u8]) -> Vec<(&'static str, Vec<u8>)> {
+        let Ok(d) = decode(kind, cdr) else {
+            return Vec::new();
+        };
+        let stamp = d.stamp();
+        match kind {
+            MessageKind::Image if self.preview_max_px > 0 => {
+                let h: ImageHeader = header_of(&d);
+                let factor = h.width.max(h.height).div_ceil(self.preview_max_px).max(1);
+                self.scale = 1.0 / factor as f64;
+                preview(&h, &d.payload, factor).map(|p| vec![("preview", p)]).unwrap_or_default()
+            }
+            MessageKind::Lines2D => {
+                let h: Lines2DHeader = header_of(&d);
+                let segs: Vec<Segment2> = elements(&d.payload[..(h.n_segments as usize * size_of::<Segment2>()).min(d.payload.len())]);
+                vec![("annotations", annotations(&stamp, &segs, self.scale))]
+            }
+            MessageKind::Poses => vec![("scene", scene_poses(&stamp, &elements::<Pose>(&d.payload)))],
+            MessageKind::Lines3D => vec![("scene", scene_lines(&stamp, &elements::<Line3>(&d.payload)))],
+            _ => Vec::new(),
+        }
+    }
+}
+
+fn header_of<T: Copy>(d: &Decoded) -> T {
+    assert!(d.header.len() >= size_of::<T>());
+    // SAFETY: `decode` returns exactly the header struct's bytes; headers are plain old data.
+    unsafe { std::ptr::read_unaligned(d.header.as_ptr().cast::<T>()) }
+}
+
+fn elements<T: Copy>(bytes: &[u8]) -> Vec<T> {
+    bytes
+        .chunks_exact(size_of::<T>())
+        // SAFETY: each chunk holds one element's bytes as decoded; elements are plain old data.
+        .map(|c| unsafe { std::ptr::read_unaligned(c.as_ptr().cast::<T>()) })
+        .collect()
+}
+
+fn time(ns: u64) -> Value {
+    json!({ "sec": ns / 1_000_000_000, "nsec": ns % 1_000_000_000 })
+}
+
+/// A box-filtered preview of a mono8 or rgb8 image, CDR-encoded as `foxglove_msgs/msg/RawImage`.
+fn preview(h: &ImageHeader, pixels: &[u8], factor: u32) -> Option<Vec<u8>> {
+    let enc = h.encoding()?;
+    let channels = match enc {
+        Encoding::Mono8 => 1,
+        Encoding::Rgb8 => 3,
+        _ => return None,
+    };
+    let (f, step) = (factor as usize, h.step as usize);
+    let (w, ht) = (h.width as usize / f, h.height as usize / f);
+    if w == 0 || ht == 0 || pixels.len() < step * h.height as usize {
+        return None;
+    }
+    let mut out = vec![0u8; w * ht * channels];
+    let mut sums = vec![0u32; w * channels];
+    for (y, row_out) in out.chunks_exact_mut(w * channels).enumerate() {
+        sums.fill(0);
+        for row in pixels[y * f * step..].chunks(step).take(f) {
+            for (s, block) in sums.chunks_exact_mut(channels).zip(row.chunks_exact(f * channels)) {
+                if channels == 1 {
+                    s[0] += block.iter().map(|&v| v as u32).sum::<u32>();
+                } else {
+                    for px in block.chunks_exact(channels) {
+                        for (s, &v) in s.iter_mut().zip(px) {
+                            *s += v as u32;
+                        }
+                    }
+                }
+            }
+        }
+        let n = (f * f) as u32;
+        for (o, s) in row_out.iter_mut().zip(&sums) {
+            *o = ((s + n / 2) / n) as u8;
+        }
+    }
+    let mut cdr = Cdr::new();
+    let ns = h.stamp.capture_time_ns;
+    cdr.u32((ns / 1_000_000_000) as u32);
+    cdr.u32((ns % 1_000_000_000) as u32);
+    cdr.string("camera");
+    cdr.u32(w as u32);
+    cdr.u32(ht as u32);
+    cdr.string(enc.name());
+    cdr.u32((w * channels) as u32);
+    cdr.u32(out.len() as u32);
+    cdr.0.extend_from_slice(&out);
+    Some(cdr.0)
+}
+
+struct Cdr(Vec<u8>);
+
+impl Cdr {
+    fn new() -> Self {
+        Self(vec![0, 1, 0, 0])
+    }
+    fn u32(&mut self, v: u32) {
+        while !(self.0.len() - 4).is_multiple_of(4) {
+            self.0.push(0);
+        }
+        self.0.extend_from_slice(&v.to_le_bytes());
+    }
+    fn string(&mut self, s: &str) {
+        self.u32(s.len() as u32 + 1);
+        self.0.extend_from_slice(s.as_bytes());
+        self.0.push(0);
+    }
+}
+
+fn annotations(stamp: &Stamp, segs: &[Segment2], scale: f64) -> Vec<u8> {
+    let points: Vec<Value> = segs
+        .iter()
+        .flat_map(|s| [s.start_px, s.end_px])
+        .map(|p| json!({ "x": (p[0] + 0.5) * scale - 0.5, "y": (p[1] + 0.5) * scale - 0.5 }))
+        .collect();
+    let msg = json!({
+        "circles": [],
+        "points": [{
+            "timestamp": time(stamp.capture_time_ns),
+            "type": 4, // LINE_LIST
+            "points": points,
+            "outline_color": { "r": 1.0, "g": 0.2, "b": 0.1, "a": 1.0 },
+            "outline_colors": [],
+            "fill_color": { "r": 0.0, "g": 0.0, "b": 0.0, "a": 0.0 },
+            "thickness": 2.0,
+        }],
+        "texts": [],
+    });
+    serde_json::to_vec(&msg).unwrap_or_default()
+}
+
+fn entity(stamp: &Stamp, id: String, points: Vec<Value>, color: Value, thickness: f64) -> Value {
+    json!({
+        "timestamp": time(stamp.capture_time_ns),
+        "frame_id": "world",
+        "id": id,
+        "lifetime": { "sec": 0, "nsec": 0 },
+        "frame_locked": false,
+        "metadata": [],
+        "arrows": [], "cubes": [], "spheres": [], "cylinders": [], "triangles": [], "texts": [], "models": [],
+        "lines": [{
+            "type": 2, // LINE_LIST
+            "pose": { "position": { "x": 0.0, "y": 0.0, "z": 0.0 }, "orientation": { "x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0 } },
+            "thickness": thickness,
+            "scale_invariant": true,
+            "points": points,
+            "color": color,
+            "colors": [],
+            "indices": [],
+        }],
+    })
+}
+
+fn point(p: [f64; 3]) -> Value {
+    json!({ "x": p[0], "y": p[1], "z": p[2] })
+}
+
+/// Each camera as a frustum 1 m deep: viewing rays Mᵀ(x, y, −1) through the frame corners (`conventions.md`).
+fn scene_poses(stamp: &Stamp, poses: &[Pose]) -> Vec<u8> {
+    let entities: Vec<Value> = poses
+        .iter()
+        .map(|p| {
+            let m = &p.rotation;
+            let ray = |x: f64, y: f64| -> [f64; 3] {
+                let v = [x, y, -1.0];
+                std::array::from_fn(|j| p.center_m[j] + (0..3).map(|i| m[3 * i + j] * v[i]).sum::<f64>())
+            };
+            let corners = [ray(-0.5, -0.35), ray(0.5, -0.35), ray(0.5, 0.35), ray(-0.5, 0.35)];
+            let mut pts = Vec::new();
+            for k in 0..4 {
+                pts.extend([point(p.center_m), point(corners[k]), point(corners[k]), point(corners[(k + 1) % 4])]);
+            }
+            entity(
+                stamp,
+                format!("camera/{}", p.frame),
+                pts,
+                json!({ "r": 0.1, "g": 0.6, "b": 1.0, "a": 1.0 }),
+                2.0,
+            )
+        })
+        .collect();
+    serde_json::to_vec(&json!({ "deletions": [], "entities": entities })).unwrap_or_default()
+}
+
+fn scene_lines(stamp: &Stamp, lines: &[Line3]) -> Vec<u8> {
+    let pts = lines.iter().flat_map(|l| [point(l.start_m), point(l.end_m)]).collect();
+    let e = entity(
+        stamp,
+        format!("lines3d/{}", stamp.frame),
+        pts,
+        json!({ "r": 1.0, "g": 0.8, "b": 0.0, "a": 1.0 }),
+        2.0,
+    );
+    serde_json::to_vec(&json!({ "deletions": [], "entities": [e] })).unwrap_or_default()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use lineflow_messages::schema::{bytes_of, encode};
+
+    #[test]
+    fn preview_is_box_filtered_and_valid_cdr() {
+        let header = ImageHeader {
+            width: 4,
+            height: 2,
+            step: 4,
+            ..Default::default()
+        };
+        let pixels = [0u8, 2, 10, 20, 4, 6, 30, 40];
+        let mut cdr = Vec::new();
+        encode(MessageKind::Image, bytes_of(&header), &pixels, &mut cdr);
+        let mut r = ViewRenderer::new(2);
+        let out = r.render(MessageKind::Image, &cdr);
+        assert_eq!(out.len(), 1);
+        let p = &out[0].1;
+        // ... width 2, height 1, "mono8", step 2, then 2 bytes: means of the 2x2 boxes.
+        assert_eq!(&p[p.len() - 2..], &[3, 25]);
+        assert_eq!(r.scale, 0.5);
+    }
+}
