@@ -3,6 +3,7 @@ mod attach;
 mod bench;
 mod bench_edges;
 mod doctor;
+mod recordings;
 mod run;
 mod synth;
 
@@ -77,6 +78,67 @@ enum Cmd {
         #[arg(long)]
         seconds: Option<u64>,
     },
+    /// Play a recording back: every recorded topic for viewers, or (--rerun) a graph on the recorded source topics.
+    Replay {
+        /// The recording (.mcap).
+        recording: PathBuf,
+        /// Re-run a graph (default: the one stored in the recording) with its sources replaced by the recording,
+        /// writing a new recording into --out.
+        #[arg(long)]
+        rerun: bool,
+        /// With --rerun: run this launch graph instead of the recorded one (e.g. with a stage swapped).
+        #[arg(long)]
+        graph: Option<PathBuf>,
+        /// With --rerun: override a node parameter, NODE.PARAM=VALUE. Repeatable.
+        #[arg(long = "set", value_name = "NODE.PARAM=VALUE")]
+        set: Vec<String>,
+        /// Output folder of a re-run [default: rerun/ beside the recording].
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// Speed relative to the recorded timing (2 = twice as fast).
+        #[arg(long, conflicts_with = "max")]
+        rate: Option<f64>,
+        /// As fast as the graph goes, lossless (the default with --rerun).
+        #[arg(long)]
+        max: bool,
+        /// Start again at the end (playback only).
+        #[arg(long = "loop")]
+        repeat: bool,
+        /// Play only these topics (playback only). Repeatable.
+        #[arg(long = "topic")]
+        topics: Vec<String>,
+    },
+    /// Summarise a recording: topics, counts, rates, duration, schemas, completeness.
+    Info {
+        /// The recording (.mcap).
+        recording: PathBuf,
+    },
+    /// Compare two recordings topic by topic, message by message; exit status 1 when they differ.
+    Diff {
+        /// First recording.
+        a: PathBuf,
+        /// Second recording.
+        b: PathBuf,
+    },
+    /// Export a topic: images as PNG, 2-D and 3-D lines as CSV/PLY, poses as CSV.
+    Export {
+        /// The recording (.mcap).
+        recording: PathBuf,
+        /// Topic to export.
+        #[arg(long)]
+        topic: String,
+        /// Output folder.
+        #[arg(long)]
+        out: PathBuf,
+    },
+    /// Rebuild a damaged recording (recorder killed, disk full) into a finished file with every readable message.
+    Recover {
+        /// The damaged recording.
+        recording: PathBuf,
+        /// The new file.
+        #[arg(long)]
+        out: PathBuf,
+    },
     /// Check shared memory and leftovers of crashed runs; --fix removes them.
     Doctor {
         /// Remove stale runs' shared memory and folders.
@@ -131,6 +193,31 @@ fn main() -> ExitCode {
         Cmd::Topics { run } => attach::topics(run.as_deref()),
         Cmd::Echo { topic, run, count } => attach::echo(&topic, run.as_deref(), count),
         Cmd::Hz { topic, run, seconds } => attach::hz(&topic, run.as_deref(), seconds),
+        Cmd::Replay {
+            recording,
+            rerun,
+            graph,
+            set,
+            out,
+            rate,
+            max,
+            repeat,
+            topics,
+        } => recordings::replay(recordings::ReplayArgs {
+            recording: &recording,
+            rerun,
+            graph: graph.as_deref(),
+            set: &set,
+            out,
+            // Playback for viewers keeps the recorded timing unless told otherwise; a re-run goes flat out.
+            rate: if max { 0.0 } else { rate.unwrap_or(if rerun { 0.0 } else { 1.0 }) },
+            repeat,
+            topics: &topics,
+        }),
+        Cmd::Info { recording } => recordings::info(&recording),
+        Cmd::Diff { a, b } => recordings::diff(&a, &b),
+        Cmd::Export { recording, topic, out } => recordings::export(&recording, &topic, &out),
+        Cmd::Recover { recording, out } => recordings::recover(&recording, &out),
         Cmd::Doctor { fix } => doctor::doctor(fix),
         Cmd::Synth {
             preset,

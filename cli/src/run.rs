@@ -9,13 +9,18 @@ use lineflow_runtime::supervisor::{self, RunOptions};
 /// Runs a launch graph; prints the per-node summary and writes it to `out/summary.txt`.
 pub fn run(graph: &Path, set: &[String], out: &Path, expected_frames: Option<u64>) -> Result<ExitCode> {
     let g = launch::load(graph, set, &Resolver::beside_current_exe())?;
+    run_graph(&g, out, expected_frames)
+}
+
+/// Runs a resolved graph; prints the per-node summary and writes it to `out/summary.txt`.
+pub fn run_graph(g: &launch::Graph, out: &Path, expected_frames: Option<u64>) -> Result<ExitCode> {
     let opts = RunOptions {
         out: out.to_owned(),
         expected_frames,
         progress: expected_frames.is_some(),
         connect_timeout: None,
     };
-    let outcome = supervisor::run(&g, &opts)?;
+    let outcome = supervisor::run(g, &opts)?;
     let table = outcome.table();
     eprint!("{table}");
     let _ = std::fs::write(

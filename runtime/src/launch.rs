@@ -221,6 +221,10 @@ pub struct Graph {
     pub nodes: Vec<NodeSpec>,
     /// Edges in file order.
     pub edges: Vec<EdgeSpec>,
+    /// Nodes of the launch file that a replay's player stands in for (`lineflow replay --rerun`); stages that need
+    /// a source's parameters (eval regenerating the synthetic scene) find them here.
+    #[serde(default)]
+    pub replaced: Vec<NodeSpec>,
 }
 
 impl Graph {
@@ -504,6 +508,7 @@ pub fn parse(path: &Path, text: &str, overrides: &[String], resolver: &Resolver)
         text: text.to_owned(),
         nodes,
         edges,
+        replaced: Vec::new(),
     })
 }
 

@@ -16,9 +16,11 @@ fn main() -> std::process::ExitCode {
 /// The synthetic capture node's scene: preset, scale, seed as the launch file sets them (or their defaults).
 fn scene_of_graph(ctx: &NodeContext) -> Result<Synthetic> {
     let graph = ctx.graph();
+    // In a replay the player stands in for the capture node; its parameters travel with the graph.
     let Some(node) = graph
         .nodes
         .iter()
+        .chain(&graph.replaced)
         .find(|n| n.stage.as_deref() == Some("capture") && n.implementation.as_deref().unwrap_or("synthetic") == "synthetic")
     else {
         bail!(

@@ -7,6 +7,8 @@
 //! renderings of the same messages and are marked with the channel metadata `lineflow.view = true`; they are never
 //! replayed into a graph. Metadata records: [`META_RUN`] (versions, the launch file, the resolved graph) at the start,
 //! [`META_END`] (completeness and every node's counters) at the end.
+pub mod replay;
+pub mod tools;
 pub mod views;
 pub mod writer;
 
@@ -67,6 +69,9 @@ pub struct ChannelInfo {
     /// Viewer channel.
     pub view: bool,
 }
+
+/// Per topic: schema (name, encoding, text), message encoding, viewer channel.
+pub type RawChannels = std::collections::HashMap<String, ((String, String, Vec<u8>), String, bool)>;
 
 /// An opened recording: its bytes, parsed metadata and, for a finished file, the summary.
 pub struct Recording {
@@ -199,6 +204,32 @@ impl Recording {
             })?;
         }
         Ok(())
+    }
+
+    /// Each topic's schema (name, encoding, text), message encoding and whether it is a viewer channel, as
+    /// written, for copying channels into another file.
+    pub fn raw_channels(&self) -> RawChannels {
+        let mut out = RawChannels::new();
+        let mut add = |c: &mcap::Channel<'_>| {
+            out.entry(c.topic.clone()).or_insert_with(|| {
+                let schema = c
+                    .schema
+                    .as_ref()
+                    .map(|s| (s.name.clone(), s.encoding.clone(), s.data.to_vec()))
+                    .unwrap_or_default();
+                (
+                    schema,
+                    c.message_encoding.clone(),
+                    c.metadata.get(VIEW_KEY).is_some_and(|v| v == "true"),
+                )
+            });
+        };
+        if let Some(s) = &self.summary {
+            s.channels.values().for_each(|c| add(c));
+        } else if let Ok(stream) = message_stream(&self.bytes) {
+            stream.map_while(Result::ok).for_each(|m| add(&m.channel));
+        }
+        out
     }
 
     /// The channels, from the summary or (for an unfinished file) from the records that were written.

@@ -1,0 +1,297 @@
+//! `lineflow info`, `diff` and `recover` on recordings.
+use std::collections::BTreeMap;
+use std::fmt::Write as _;
+use std::path::Path;
+
+use anyhow::Result;
+use lineflow_messages::schema::{self, decode, FieldType, Layout, Payload};
+use lineflow_messages::MessageKind;
+
+use super::{McapWriter, Recording, META_END, META_RUN, VIEW_KEY};
+
+#[derive(Default)]
+struct TopicStats {
+    schema: String,
+    encoding: String,
+    messages: u64,
+    bytes: u64,
+    first: u64,
+    last: u64,
+}
+
+/// A human-readable summary: topics, message counts, rates, duration, schemas, completeness.
+pub fn info(rec: &Recording) -> String {
+    let mut stats: BTreeMap<String, TopicStats> = BTreeMap::new();
+    for c in rec.channels() {
+        let s = stats.entry(c.topic.clone()).or_default();
+        s.schema = c.schema;
+        s.encoding = c.encoding;
+    }
+    let (mut t0, mut t1) = (u64::MAX, 0u64);
+    let read = rec.for_each_message(|m| {
+        let s = stats.entry(m.topic.clone()).or_default();
+        if s.messages == 0 {
+            s.first = m.log_time;
+        }
+        s.messages += 1;
+        s.bytes += m.data.len() as u64;
+        s.last = m.log_time;
+        t0 = t0.min(m.log_time);
+        t1 = t1.max(m.log_time);
+        Ok(())
+    });
+    let mut out = String::new();
+    let duration = if t1 > t0 { (t1 - t0) as f64 * 1e-9 } else { 0.0 };
+    let size = std::fs::metadata(&rec.path).map(|m| m.len()).unwrap_or(0);
+    let _ = writeln!(out, "file:      {} ({:.1} MB)", rec.path.display(), size as f64 / 1e6);
+    if let Some(name) = rec.run_meta("graph_name") {
+        let _ = writeln!(
+            out,
+            "run:       {} (graph '{name}', {}, lineflow {})",
+            rec.run_meta("run_id").unwrap_or("?"),
+            rec.run_meta("launch_path").unwrap_or("?"),
+            rec.run_meta("version").unwrap_or("?")
+        );
+    }
+    let total: u64 = stats.values().map(|s| s.messages).sum();
+    let _ = writeln!(out, "duration:  {duration:.3} s, {total} messages");
+    let _ = writeln!(out, "{}", completeness(rec, read.err().map(|e| format!("{e:#}"))));
+    let _ = writeln!(out, "\n{:<28} {:>8} {:>10} {:>9}  schema", "topic", "messages", "MB", "rate Hz");
+    for (topic, s) in &stats {
+        let span = (s.last.saturating_sub(s.first)) as f64 * 1e-9;
+        let rate = if s.messages > 1 && span > 0.0 {
+            format!("{:.2}", (s.messages - 1) as f64 / span)
+        } else {
+            "-".into()
+        };
+        let _ = writeln!(
+            out,
+            "{topic:<28} {:>8} {:>10.2} {rate:>9}  {} ({})",
+            s.messages,
+            s.bytes as f64 / 1e6,
+            s.schema,
+            s.encoding
+        );
+    }
+    if let Some(end) = rec.metadata.get(META_END) {
+        let nodes: Vec<_> = end
+            .iter()
+            .filter_map(|(k, v)| k.strip_prefix("node.").and_then(|k| k.strip_suffix(".drops")).map(|n| (n, v)))
+            .filter(|(_, v)| v.as_str() != "0")
+            .collect();
+        for (node, drops) in nodes {
+            let _ = writeln!(out, "node '{node}' dropped {drops} messages");
+        }
+    }
+    out
+}
+
+fn completeness(rec: &Recording, read_error: Option<String>) -> String {
+    if let Some(damage) = &rec.damage {
+        return format!(
+            "status:    INCOMPLETE: {damage}{}; `lineflow recover` rebuilds the file",
+            read_error.map(|e| format!("; readable up to: {e}")).unwrap_or_default()
+        );
+    }
+    if let Some(e) = read_error {
+        return format!("status:    CORRUPT: {e}");
+    }
+    match rec.metadata.get(META_END) {
+        Some(end) if end.get("complete").is_some_and(|v| v == "true") => {
+            "status:    complete (end-of-stream on every topic, nothing dropped)".into()
+        }
+        Some(end) => format!(
+            "status:    incomplete: {}",
+            end.get("reason").map(String::as_str).unwrap_or("unknown")
+        ),
+        None => "status:    finished, but without the recorder's end record".into(),
+    }
+}
+
+/// The first difference between two recordings, or `None` when every topic carries the same messages.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Difference {
+    /// Topic.
+    pub topic: String,
+    /// What differs.
+    pub what: String,
+}
+
+/// Outcome of [`diff`].
+#[derive(Debug, Default)]
+pub struct DiffReport {
+    /// Topics whose messages are all equal.
+    pub equal: Vec<String>,
+    /// Topics that differ, each with its first difference.
+    pub differ: Vec<Difference>,
+}
+
+/// Compares two recordings topic by topic, message by message (the message bytes; receipt times are ignored).
+/// Viewer channels are skipped: they are renderings of the compared messages.
+///
+/// # Errors
+/// When a file cannot be read to its end.
+pub fn diff(a: &Recording, b: &Recording) -> Result<DiffReport> {
+    let by_topic = |r: &Recording| -> Result<BTreeMap<String, (Option<MessageKind>, Vec<Vec<u8>>)>> {
+        let mut m: BTreeMap<String, (Option<MessageKind>, Vec<Vec<u8>>)> = BTreeMap::new();
+        r.for_each_message(|msg| {
+            if !msg.view {
+                let e = m.entry(msg.topic.clone()).or_insert((msg.kind, Vec::new()));
+                e.1.push(msg.data);
+            }
+            Ok(())
+        })?;
+        Ok(m)
+    };
+    let (ma, mb) = (by_topic(a)?, by_topic(b)?);
+    let mut report = DiffReport::default();
+    let topics: std::collections::BTreeSet<&String> = ma.keys().chain(mb.keys()).collect();
+    for topic in topics {
+        let diff = match (ma.get(topic), mb.get(topic)) {
+            (Some(_), None) => Some(format!("only in {}", a.path.display())),
+            (None, Some(_)) => Some(format!("only in {}", b.path.display())),
+            (Some((kind, xa)), Some((_, xb))) => first_difference(*kind, xa, xb),
+            (None, None) => None,
+        };
+        match diff {
+            None => report.equal.push(topic.clone()),
+            Some(what) => report.differ.push(Difference {
+                topic: topic.clone(),
+                what,
+            }),
+        }
+    }
+    Ok(report)
+}
+
+fn first_difference(kind: Option<MessageKind>, a: &[Vec<u8>], b: &[Vec<u8>]) -> Option<String> {
+    for (i, (x, y)) in a.iter().zip(b).enumerate() {
+        if x != y {
+            let detail = kind
+                .and_then(|k| field_difference(k, x, y))
+                .unwrap_or_else(|| "bytes differ".into());
+            let frame = kind
+                .and_then(|k| decode(k, x).ok())
+                .map(|d| format!(" (frame {})", d.stamp().frame))
+                .unwrap_or_default();
+            return Some(format!("message {i}{frame}: {detail}"));
+        }
+    }
+    (a.len() != b.len()).then(|| format!("{} messages vs {}", a.len(), b.len()))
+}
+
+/// Names the first field that differs between two encodings of the same kind.
+fn field_difference(kind: MessageKind, x: &[u8], y: &[u8]) -> Option<String> {
+    let (dx, dy) = (decode(kind, x).ok()?, decode(kind, y).ok()?);
+    let s = kind.schema();
+    if let Some(f) = layout_difference(s.header, &dx.header, &dy.header, "") {
+        return Some(format!("field '{f}' differs"));
+    }
+    let name = match s.payload {
+        Payload::Empty => "payload",
+        Payload::One(p) => p.name,
+        Payload::Two { a, b, .. } => {
+            return Some(format!(
+                "'{}' or '{}' differ ({} vs {} bytes)",
+                a.name,
+                b.name,
+                dx.payload.len(),
+                dy.payload.len()
+            ));
+        }
+    };
+    let size = match s.payload {
+        Payload::One(schema::Part {
+            elem: schema::Elem::Struct(l),
+            ..
+        }) => l.size,
+        _ => 1,
+    };
+    if dx.payload.len() != dy.payload.len() {
+        return Some(format!(
+            "'{name}' has {} vs {} elements",
+            dx.payload.len() / size,
+            dy.payload.len() / size
+        ));
+    }
+    let at = dx.payload.iter().zip(&dy.payload).position(|(p, q)| p != q)?;
+    Some(format!("'{name}' differs from element {}", at / size))
+}
+
+fn layout_difference(l: &Layout, x: &[u8], y: &[u8], prefix: &str) -> Option<String> {
+    for f in l.fields {
+        let len = match f.ty {
+            FieldType::Scalar(s) => s.size(),
+            FieldType::Array(s, n) => s.size() * n,
+            FieldType::Text(n) => n,
+            FieldType::Struct(inner) => {
+                let sub = &format!("{prefix}{}.", f.name);
+                if let Some(d) = layout_difference(inner, &x[f.offset..f.offset + inner.size], &y[f.offset..f.offset + inner.size], sub) {
+                    return Some(d);
+                }
+                continue;
+            }
+        };
+        if x[f.offset..f.offset + len] != y[f.offset..f.offset + len] {
+            return Some(format!("{prefix}{}", f.name));
+        }
+    }
+    None
+}
+
+/// What [`recover`] saved.
+#[derive(Debug)]
+pub struct Recovered {
+    /// Messages copied.
+    pub messages: u64,
+    /// Why the source ended early, if it did.
+    pub lost: Option<String>,
+}
+
+/// Copies every readable message, channel and metadata record of a damaged recording into a new, finished file
+/// (summary, chunk indexes), and marks it incomplete.
+///
+/// # Errors
+/// When the source is not an MCAP file or the new file cannot be written.
+pub fn recover(rec: &Recording, out: &Path) -> Result<Recovered> {
+    if out.exists() && std::fs::canonicalize(out).ok() == std::fs::canonicalize(&rec.path).ok() {
+        anyhow::bail!("{}: recover into another file", out.display());
+    }
+    let mut w = McapWriter::create(out, super::Compression::Lz4)?;
+    if let Some(run) = rec.metadata.get(META_RUN) {
+        w.metadata(META_RUN, run.clone())?;
+    }
+    let schemas = rec.raw_channels();
+    let mut messages = 0u64;
+    let result = rec.for_each_message(|m| {
+        if !w.has_channel(&m.topic) {
+            let Some((schema, encoding, view)) = schemas.get(&m.topic) else {
+                return Ok(());
+            };
+            let meta = if *view {
+                BTreeMap::from([(VIEW_KEY.to_owned(), "true".to_owned())])
+            } else {
+                BTreeMap::new()
+            };
+            w.add_raw_channel(&m.topic, (&schema.0, &schema.1, &schema.2), encoding, meta)?;
+        }
+        w.write(&m.topic, m.log_time, m.publish_time, &m.data)?;
+        messages += 1;
+        Ok(())
+    });
+    let lost = result.err().map(|e| format!("{e:#}"));
+    let mut end = rec.metadata.get(META_END).cloned().unwrap_or_default();
+    if lost.is_some() || rec.damage.is_some() {
+        end.insert("complete".into(), "false".into());
+        end.insert(
+            "reason".into(),
+            format!(
+                "recovered from a damaged file: {}",
+                lost.clone().or(rec.damage.clone()).unwrap_or_default()
+            ),
+        );
+    }
+    w.metadata(META_END, end)?;
+    w.finish()?;
+    Ok(Recovered { messages, lost })
+}
