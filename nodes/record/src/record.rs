@@ -125,8 +125,10 @@ fn body() -> Result<()> {
         });
     }
     let mut status = ctx.watch_status()?;
-    ctx.connect()?;
-
+    if lineflow_runtime::env::RunEnv::describe_requested() {
+        return ctx.connect();
+    }
+    // The file exists before the graph starts: an unwritable path fails the run before any frame is lost.
     let path = ctx.out_dir().join(&p.file);
     let mut writer = McapWriter::create(&path, p.compression)?;
     writer.metadata(META_RUN, run_metadata(&graph))?;
@@ -144,6 +146,7 @@ fn body() -> Result<()> {
     let (tx, rx) = crossbeam::channel::bounded::<Item>(capacity);
     let names: Vec<(String, MessageKind)> = topics.iter().map(|t| (t.name.clone(), t.kind)).collect();
     let thread = spawn_writer(writer, rx, names, p.preview_max_px)?;
+    ctx.connect()?;
     tracing::info!("recording {} topics to {}", topics.len(), path.display());
 
     let mut send = |item: Item| -> Result<()> { tx.send(item).map_err(|_| anyhow::anyhow!("the recording's writer stopped")) };

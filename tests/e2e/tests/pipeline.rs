@@ -4,82 +4,11 @@
 
 use std::collections::BTreeSet;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output, Stdio};
+use std::process::{Output, Stdio};
 use std::time::{Duration, Instant};
 
+use lineflow_e2e::*;
 use lineflow_stats::fnv1a64;
-
-fn bin_dir() -> PathBuf {
-    // target/<profile>/deps/pipeline-<hash> -> target/<profile>
-    let exe = std::env::current_exe().unwrap();
-    let dir = exe.parent().unwrap().parent().unwrap().to_path_buf();
-    assert!(
-        dir.join("lineflow").is_file(),
-        "build the binaries first: `cargo build --workspace` ({} has no lineflow)",
-        dir.display()
-    );
-    dir
-}
-
-struct Sandbox {
-    dir: tempfile::TempDir,
-}
-
-impl Sandbox {
-    fn new() -> Self {
-        Self {
-            dir: tempfile::tempdir().unwrap(),
-        }
-    }
-    fn path(&self) -> &Path {
-        self.dir.path()
-    }
-    fn lineflow(&self, args: &[&str]) -> Command {
-        let mut c = Command::new(bin_dir().join("lineflow"));
-        c.args(args)
-            .env("LINEFLOW_STATE_DIR", self.path().join("state"))
-            .env("LINEFLOW_LOG", "info")
-            .stdin(Stdio::null());
-        c
-    }
-    fn run(&self, args: &[&str]) -> Output {
-        let out = self.lineflow(args).output().unwrap();
-        eprintln!("--- lineflow {}\n{}", args.join(" "), String::from_utf8_lossy(&out.stderr));
-        out
-    }
-    /// A project folder with `n` images of `w`x`h` pixels: PNG (8-bit RGB and 16-bit grey), JPEG and TIFF, names in
-    /// an order that only natural sorting gets right.
-    fn project(&self, n: usize, w: u32, h: u32) -> PathBuf {
-        let root = self.path().join("project");
-        std::fs::create_dir_all(root.join("images")).unwrap();
-        std::fs::write(
-            root.join("camera.toml"),
-            format!("width = {w}\nheight = {h}\npixel_size_mm = 0.0055\nfocal_mm = 17.6\n"),
-        )
-        .unwrap();
-        for k in 0..n {
-            let img = image::RgbImage::from_fn(w, h, |x, y| {
-                image::Rgb([(x * 7 + k as u32 * 13) as u8, (y * 5) as u8, ((x ^ y) + k as u32) as u8])
-            });
-            let name = format!("IMG_{}", k + 1);
-            match k % 4 {
-                0 => img.save(root.join("images").join(format!("{name}.png"))).unwrap(),
-                1 => image::DynamicImage::ImageRgb8(img)
-                    .to_luma16()
-                    .save(root.join("images").join(format!("{name}.PNG")))
-                    .unwrap(),
-                2 => img.save(root.join("images").join(format!("{name}.jpg"))).unwrap(),
-                _ => img.save(root.join("images").join(format!("{name}.tif"))).unwrap(),
-            }
-        }
-        root
-    }
-    fn graph(&self, name: &str, text: &str) -> PathBuf {
-        let p = self.path().join(name);
-        std::fs::write(&p, text).unwrap();
-        p
-    }
-}
 
 fn direct_graph(folder: &Path, extra_capture: &str, edge_extra: &str) -> String {
     format!(
@@ -221,23 +150,6 @@ fn process_streams_a_folder_with_progress_and_writes_into_its_out_folder() {
     assert!(stderr.contains("frames/s") && stderr.contains("ETA"), "no progress shown");
     assert_eq!(frames(&folder.join("out")).len(), 5);
     assert_nothing_left(&sb, &folder.join("out"));
-}
-
-fn children_of(pid: u32, comm_prefix: &str) -> Vec<u32> {
-    std::fs::read_dir("/proc")
-        .unwrap()
-        .flatten()
-        .filter_map(|e| e.file_name().to_str()?.parse::<u32>().ok())
-        .filter(|p| {
-            let stat = std::fs::read_to_string(format!("/proc/{p}/stat")).unwrap_or_default();
-            let (comm, rest) = match (stat.find('('), stat.rfind(')')) {
-                (Some(a), Some(b)) => (&stat[a + 1..b], &stat[b + 2..]),
-                _ => return false,
-            };
-            let ppid: u32 = rest.split(' ').nth(1).and_then(|s| s.parse().ok()).unwrap_or(0);
-            ppid == pid && comm.starts_with(comm_prefix)
-        })
-        .collect()
 }
 
 /// Starts the chain graph, SIGKILLs `gray` once it has run a while, and waits for the run to end.
@@ -399,10 +311,6 @@ fn watch_mode_reads_a_jpeg_written_in_chunks_once_and_complete() {
     assert_eq!(rows.iter().map(|r| r.1.as_str()).collect::<Vec<_>>(), ["IMG_1.png", "IMG_2.jpg"]);
     let decoded = lineflow_capture::decode_file(&target).unwrap();
     assert_eq!(rows[1].2, format!("{:016x}", fnv1a64(&decoded.bytes)));
-}
-
-fn repo_file(rel: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..").join(rel)
 }
 
 #[test]

@@ -1,0 +1,149 @@
+#!/usr/bin/env python3
+"""Independent check of a lineflow recording with Python's `mcap` and `mcap-ros2-support` packages.
+
+Usage: check_recording.py RECORDING RUN_OUT_DIR [PNG_DIR]
+
+Every message of every channel is decoded from the schemas embedded in the file (ros2msg/CDR and JSON), without
+lineflow's code, and checked against the run's outputs:
+  * `lines2d` segments equal the rows of lines2d.csv;
+  * `edges` messages match edges.csv (pixel counts and FNV-1a checksums over the decoded fields);
+  * `gray` images match frames.csv (sizes, names and FNV-1a checksums of the pixels);
+  * `images` equal the PNG files in PNG_DIR (written by `lineflow synth` for the same scene), if given;
+  * image previews, annotations and scene entities parse and agree with the messages they render.
+Prints one line per channel and exits non-zero on the first mismatch.
+"""
+import csv
+import json
+import struct
+import sys
+from pathlib import Path
+
+from mcap.reader import make_reader
+from mcap_ros2.decoder import DecoderFactory
+
+
+def fnv1a64(data, h=0xCBF29CE484222325):
+    for b in data:
+        h = ((h ^ b) * 0x100000001B3) & 0xFFFFFFFFFFFFFFFF
+    return h
+
+
+def fail(msg):
+    print(f"FAIL: {msg}")
+    sys.exit(1)
+
+
+def main():
+    rec, out = Path(sys.argv[1]), Path(sys.argv[2])
+    png_dir = Path(sys.argv[3]) if len(sys.argv) > 3 else None
+    decoders = DecoderFactory()
+    by_topic = {}
+    with open(rec, "rb") as f:
+        reader = make_reader(f, decoder_factories=[decoders])
+        summary = reader.get_summary()
+        if summary is None:
+            fail("no summary section")
+        meta = {m.name: m.metadata for m in reader.iter_metadata()}
+        for schema, channel, message in reader.iter_messages(log_time_order=False):
+            if channel.message_encoding == "cdr":
+                decoded = decoders.decoder_for("cdr", schema)(message.data)
+            elif channel.message_encoding == "json":
+                if schema.encoding != "jsonschema":
+                    fail(f"{channel.topic}: json channel with schema encoding {schema.encoding}")
+                json.loads(schema.data)
+                decoded = json.loads(message.data)
+            else:
+                fail(f"{channel.topic}: undecodable message encoding {channel.message_encoding}")
+            by_topic.setdefault(channel.topic, []).append((schema.name, message, decoded))
+
+    if meta.get("lineflow.end", {}).get("complete") != "true":
+        fail(f"recording not complete: {meta.get('lineflow.end')}")
+    if "launch_text" not in meta.get("lineflow.run", {}):
+        fail("no launch graph in the metadata")
+    counts = summary.statistics.channel_message_counts
+    for cid, channel in summary.channels.items():
+        if counts.get(cid, 0) != len(by_topic.get(channel.topic, [])):
+            fail(f"{channel.topic}: summary counts {counts.get(cid)} messages, read {len(by_topic.get(channel.topic, []))}")
+
+    # Sequence numbers count per channel; publish_time is the capture time in the stamp.
+    for topic, msgs in by_topic.items():
+        seqs = [m.sequence for _, m, _ in msgs]
+        if seqs != list(range(len(seqs))):
+            fail(f"{topic}: sequence numbers {seqs[:5]}...")
+        for _, m, d in msgs:
+            if hasattr(d, "stamp") and d.stamp.capture_time_ns != m.publish_time:
+                fail(f"{topic}: publish_time {m.publish_time} != stamp {d.stamp.capture_time_ns}")
+
+    # lines2d against lines2d.csv
+    rows = list(csv.DictReader(open(out / "lines2d.csv")))
+    recorded = []
+    for _, _, d in by_topic["lines2d"]:
+        if len(d.segments) != d.n_segments or len(d.chain) != d.n_chain:
+            fail("lines2d: counts disagree with the sequences")
+        for s in d.segments:
+            chain = d.chain[s.chain_start : s.chain_start + s.chain_len]
+            if len(chain) != s.chain_len:
+                fail("lines2d: chain slice out of range")
+            recorded.append((d.name, str(s.id), s.start_px[0], s.start_px[1], s.end_px[0], s.end_px[1], s.chain_len))
+    if len(recorded) != len(rows):
+        fail(f"lines2d: {len(recorded)} segments recorded, {len(rows)} in lines2d.csv")
+    for r, row in zip(sorted(recorded), sorted(rows, key=lambda r: (r["image"], r["id"]))):
+        if r[0] != row["image"] or int(r[6]) != int(row["n_pixels"]):
+            fail(f"lines2d: {r} vs {row}")
+        for v, key in zip(r[2:6], ["col1", "row1", "col2", "row2"]):
+            if abs(v - float(row[key])) > 1e-3:
+                fail(f"lines2d: {key} {v} vs {row[key]}")
+    print(f"lines2d          {len(by_topic['lines2d'])} messages, {len(recorded)} segments = lines2d.csv")
+
+    # edges against edges.csv
+    edge_rows = list(csv.DictReader(open(out / "edges.csv")))
+    for (_, _, d), row in zip(by_topic["edges"], edge_rows):
+        h = 0xCBF29CE484222325
+        for p in d.pixels:
+            h = fnv1a64(struct.pack("<HHff", p.col, p.row, p.magnitude, p.direction_rad), h)
+        if int(row["frame"]) != d.stamp.frame or int(row["n_pixels"]) != len(d.pixels) or int(row["fnv1a64"], 16) != h:
+            fail(f"edges frame {d.stamp.frame}: {len(d.pixels)} pixels, {h:016x} vs {row}")
+    print(f"edges            {len(edge_rows)} edge maps = edges.csv (checksums over decoded fields)")
+
+    # gray against frames.csv
+    frame_rows = {int(r["frame"]): r for r in csv.DictReader(open(out / "frames.csv"))}
+    for _, _, d in by_topic["gray"]:
+        r = frame_rows[d.stamp.frame]
+        if (d.name, d.width, d.height) != (r["image"], int(r["width"]), int(r["height"])) or fnv1a64(d.data) != int(r["fnv1a64"], 16):
+            fail(f"gray frame {d.stamp.frame} differs from frames.csv")
+    print(f"gray             {len(by_topic['gray'])} images = frames.csv (checksums of the pixels)")
+
+    # images against the PNG files of the same scene
+    if png_dir is not None:
+        from PIL import Image
+
+        for _, _, d in by_topic["images"]:
+            png = Image.open(png_dir / d.name).convert("RGB")
+            if png.size != (d.width, d.height) or png.tobytes() != bytes(d.data):
+                fail(f"images: {d.name} differs from {png_dir / d.name}")
+        print(f"images           {len(by_topic['images'])} images = the PNG files")
+
+    # viewer channels
+    for topic, msgs in by_topic.items():
+        name = msgs[0][0]
+        if name == "foxglove_msgs/msg/RawImage":
+            source = by_topic[topic.rsplit("/", 1)[0]]
+            for (_, _, p), (_, _, s) in zip(msgs, source):
+                if len(p.data) != p.step * p.height or p.width > s.width or p.encoding not in ("mono8", "rgb8"):
+                    fail(f"{topic}: preview {p.width}x{p.height} step {p.step} of {s.width}x{s.height}")
+        elif name == "foxglove.ImageAnnotations":
+            source = by_topic[topic.rsplit("/", 1)[0]]
+            for (_, _, a), (_, _, s) in zip(msgs, source):
+                if len(a["points"][0]["points"]) != 2 * len(s.segments):
+                    fail(f"{topic}: annotation points disagree with the segments")
+        elif name == "foxglove.SceneUpdate":
+            for _, _, u in msgs:
+                if not u["entities"] or any(e["frame_id"] != "world" for e in u["entities"]):
+                    fail(f"{topic}: scene entities malformed")
+    for topic in sorted(by_topic):
+        print(f"decoded {topic:<24} {len(by_topic[topic]):>4} messages  {by_topic[topic][0][0]}")
+    print("OK")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,278 @@
+//! End-to-end tests of recording and replay on the full demo graph (every stage that exists, at test scale):
+//! record, replay and `diff` equal, swap a stage on replay, decode with Python's `mcap`, and the faults
+//! (Ctrl-C, a killed recorder, truncated and foreign files, a full disk).
+use std::path::{Path, PathBuf};
+use std::process::Stdio;
+use std::time::{Duration, Instant};
+
+use lineflow_e2e::*;
+
+const SCALE: &str = "capture.scale=0.06";
+
+fn demo() -> PathBuf {
+    repo_file("launch/demo.toml")
+}
+
+fn stdout(o: &std::process::Output) -> String {
+    String::from_utf8_lossy(&o.stdout).into_owned()
+}
+
+/// Runs the demo graph into `out` with extra `--set`s; returns its recording.
+fn record_demo(sb: &Sandbox, out: &Path, sets: &[&str]) -> PathBuf {
+    let graph = demo();
+    let mut args = vec!["run", graph.to_str().unwrap(), "--set", SCALE];
+    for s in sets {
+        args.extend(["--set", s]);
+    }
+    args.extend(["--out", out.to_str().unwrap()]);
+    let r = sb.run(&args);
+    assert!(r.status.success(), "demo run failed");
+    out.join("recording.mcap")
+}
+
+#[test]
+fn a_demo_recording_replays_byte_for_byte_swaps_a_stage_and_decodes_in_python() {
+    let sb = Sandbox::new();
+    let rec = record_demo(&sb, &sb.path().join("live"), &[]);
+    let info = sb.run(&["info", rec.to_str().unwrap()]);
+    assert!(info.status.success());
+    let text = stdout(&info);
+    assert!(text.contains("status:    complete"), "{text}");
+    for topic in [
+        "images",
+        "gray",
+        "edges",
+        "lines2d",
+        "camera",
+        "gt/poses",
+        "gt/lines3d",
+        "images/preview",
+    ] {
+        assert!(
+            text.lines().any(|l| l.starts_with(&format!("{topic} "))),
+            "{topic} missing:\n{text}"
+        );
+    }
+
+    // The same graph on the recorded source topics: every derived topic byte for byte the same.
+    let again = sb.path().join("again");
+    let r = sb.run(&[
+        "replay",
+        rec.to_str().unwrap(),
+        "--rerun",
+        "--max",
+        "--out",
+        again.to_str().unwrap(),
+    ]);
+    assert!(r.status.success(), "rerun failed");
+    let d = sb.run(&["diff", rec.to_str().unwrap(), again.join("recording.mcap").to_str().unwrap()]);
+    assert!(d.status.success(), "replay differs:\n{}", stdout(&d));
+    assert!(stdout(&d).contains("equal on all 7 topics"), "{}", stdout(&d));
+    assert_eq!(
+        std::fs::read(sb.path().join("live/lines2d.csv")).unwrap(),
+        std::fs::read(again.join("lines2d.csv")).unwrap()
+    );
+
+    // Sobel instead of Canny on replay: only the edge topic and what follows from it differ.
+    let swapped = sb.path().join("sobel");
+    let r = sb.run(&[
+        "replay",
+        rec.to_str().unwrap(),
+        "--rerun",
+        "--set",
+        "edges.impl=sobel",
+        "--out",
+        swapped.to_str().unwrap(),
+    ]);
+    assert!(r.status.success(), "swapped rerun failed");
+    let d = sb.run(&["diff", rec.to_str().unwrap(), swapped.join("recording.mcap").to_str().unwrap()]);
+    assert_eq!(d.status.code(), Some(1), "a swapped detector must differ");
+    let text = stdout(&d);
+    let differing: Vec<&str> = text
+        .lines()
+        .filter_map(|l| l.strip_prefix("DIFFERS  "))
+        .map(|l| l.split(':').next().unwrap())
+        .collect();
+    assert_eq!(differing, ["edges", "lines2d"], "{text}");
+    assert!(text.contains("field 'detector' differs"), "{text}");
+
+    // An independent reader: Python's mcap decodes every channel from the embedded schemas and checks the
+    // messages against the run's CSV files and the PNG files of the same scene.
+    let scene = sb.path().join("scene");
+    let r = sb.run(&[
+        "synth",
+        "--preset",
+        "a55-two-strips",
+        "--scale",
+        "0.06",
+        "--out",
+        scene.to_str().unwrap(),
+    ]);
+    assert!(r.status.success());
+    let py = std::process::Command::new("python3")
+        .arg(repo_file("tests/e2e/check_recording.py"))
+        .args([&rec, &sb.path().join("live"), &scene.join("images")])
+        .output()
+        .expect("python3");
+    eprintln!("{}{}", stdout(&py), String::from_utf8_lossy(&py.stderr));
+    assert!(
+        py.status.success(),
+        "the Python check failed (CI installs mcap, mcap-ros2-support, pillow)"
+    );
+
+    // Export gives the formats of conventions.md back.
+    let exported = sb.path().join("exported");
+    let r = sb.run(&[
+        "export",
+        rec.to_str().unwrap(),
+        "--topic",
+        "lines2d",
+        "--out",
+        exported.to_str().unwrap(),
+    ]);
+    assert!(r.status.success());
+    let mut a: Vec<String> = std::fs::read_to_string(exported.join("lines2d.csv"))
+        .unwrap()
+        .lines()
+        .map(str::to_owned)
+        .collect();
+    let mut b: Vec<String> = std::fs::read_to_string(sb.path().join("live/lines2d.csv"))
+        .unwrap()
+        .lines()
+        .map(str::to_owned)
+        .collect();
+    a.sort();
+    b.sort();
+    assert_eq!(a, b);
+    let r = sb.run(&[
+        "export",
+        rec.to_str().unwrap(),
+        "--topic",
+        "images",
+        "--out",
+        exported.to_str().unwrap(),
+    ]);
+    assert!(r.status.success());
+    let png = image::open(exported.join("IMG_0001.png")).unwrap().to_rgb8();
+    assert_eq!(png, image::open(scene.join("images/IMG_0001.png")).unwrap().to_rgb8());
+}
+
+fn wait_for_child(pid: u32, prefix: &str) -> u32 {
+    let start = Instant::now();
+    loop {
+        let found = children_of(pid, prefix);
+        if let Some(&p) = found.first() {
+            return p;
+        }
+        assert!(start.elapsed() < Duration::from_secs(30), "{prefix} never started");
+        std::thread::sleep(Duration::from_millis(10));
+    }
+}
+
+#[test]
+fn ctrl_c_finishes_a_valid_recording_and_a_killed_recorder_leaves_a_recoverable_one() {
+    let sb = Sandbox::new();
+    // Slow enough (5 frames/s) to be caught mid-run.
+    for (signal, name) in [(libc::SIGINT, "sigint"), (libc::SIGKILL, "sigkill")] {
+        let out = sb.path().join(name);
+        let child = sb
+            .lineflow(&[
+                "run",
+                demo().to_str().unwrap(),
+                "--set",
+                "capture.scale=0.15",
+                "--set",
+                "capture.fps=5",
+                "--out",
+                out.to_str().unwrap(),
+            ])
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap();
+        wait_for_child(child.id(), "lineflow-record");
+        std::thread::sleep(Duration::from_millis(2500));
+        // The first recorder process seen may have been the short `--describe` run; ask again.
+        let target = if signal == libc::SIGINT {
+            child.id()
+        } else {
+            wait_for_child(child.id(), "lineflow-record")
+        };
+        // SAFETY: signalling processes this test started.
+        unsafe { libc::kill(target as i32, signal) };
+        let r = child.wait_with_output().unwrap();
+        let err = String::from_utf8_lossy(&r.stderr);
+        eprintln!("{err}");
+        assert!(!r.status.success(), "{name}: an interrupted run is not a success");
+        let rec = out.join("recording.mcap");
+        let info = sb.run(&["info", rec.to_str().unwrap()]);
+        let text = stdout(&info);
+        if signal == libc::SIGINT {
+            assert!(info.status.success(), "after Ctrl-C the recording is finished:\n{text}");
+            assert!(text.contains("incomplete: interrupted"), "{text}");
+        } else {
+            assert!(err.contains("recorder"), "the run names the dead recorder: {err}");
+            assert_eq!(info.status.code(), Some(2), "{text}");
+            assert!(text.contains("recorder did not finish"), "{text}");
+            let fixed = out.join("fixed.mcap");
+            let r = sb.run(&["recover", rec.to_str().unwrap(), "--out", fixed.to_str().unwrap()]);
+            assert!(r.status.success());
+            let text = stdout(&sb.run(&["info", fixed.to_str().unwrap()]));
+            assert!(text.contains("incomplete: recovered"), "{text}");
+            let images: u64 = text
+                .lines()
+                .find(|l| l.starts_with("images "))
+                .and_then(|l| l.split_whitespace().nth(1))
+                .and_then(|n| n.parse().ok())
+                .unwrap_or(0);
+            assert!(images >= 2, "the complete chunks before the kill hold frames:\n{text}");
+            // The recovered file replays through the graph.
+            let again = out.join("again");
+            let r = sb.run(&["replay", fixed.to_str().unwrap(), "--rerun", "--out", again.to_str().unwrap()]);
+            assert!(r.status.success(), "a recovered recording replays");
+            let frames = std::fs::read_to_string(again.join("frames.csv")).unwrap();
+            assert_eq!(frames.lines().count() as u64, images + 1);
+        }
+    }
+}
+
+#[test]
+fn foreign_truncated_and_unwritable_recordings_get_clear_errors() {
+    let sb = Sandbox::new();
+    let junk = sb.path().join("junk.mcap");
+    std::fs::write(&junk, b"PK\x03\x04 certainly not an MCAP file").unwrap();
+    for cmd in [
+        &["info"][..],
+        &["replay", "--max"][..],
+        &["export", "--topic", "images", "--out", "x"][..],
+    ] {
+        let mut args = vec![cmd[0], junk.to_str().unwrap()];
+        args.extend(&cmd[1..]);
+        let r = sb.run(&args);
+        assert_eq!(r.status.code(), Some(1));
+        let err = String::from_utf8_lossy(&r.stderr);
+        assert!(err.contains("not an MCAP file") && !err.contains("panicked"), "{err}");
+    }
+    let rec = record_demo(&sb, &sb.path().join("live"), &[]);
+    let bytes = std::fs::read(&rec).unwrap();
+    let cut = sb.path().join("cut.mcap");
+    std::fs::write(&cut, &bytes[..bytes.len() / 2]).unwrap();
+    let r = sb.run(&["diff", rec.to_str().unwrap(), cut.to_str().unwrap()]);
+    assert_eq!(r.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&r.stderr).contains("the recording was not finished"));
+    let r = sb.run(&["export", rec.to_str().unwrap(), "--topic", "nope", "--out", "x"]);
+    assert!(String::from_utf8_lossy(&r.stderr).contains("no topic 'nope' (topics: "));
+    // A disk that is full from the start: the run stops before any frame flows, naming the file and the cause.
+    let r = sb.run(&[
+        "run",
+        demo().to_str().unwrap(),
+        "--set",
+        SCALE,
+        "--set",
+        "record.file=\"/dev/full\"",
+        "--out",
+        sb.path().join("full").to_str().unwrap(),
+    ]);
+    assert!(!r.status.success());
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert!(err.contains("/dev/full") && err.contains("No space left on device"), "{err}");
+}
