@@ -50,6 +50,21 @@ pub enum BenchCmd {
         #[arg(long, default_value_t = 100.0)]
         high: f64,
     },
+    /// The recorder node: MB/s of raw 12 MP RGB frames written with nothing dropped, against the disk.
+    Record {
+        /// Frames.
+        #[arg(long, default_value_t = 30)]
+        frames: usize,
+        /// Frame width.
+        #[arg(long, default_value_t = 4288)]
+        width: u32,
+        /// Frame height.
+        #[arg(long, default_value_t = 2848)]
+        height: u32,
+        /// The recorder's image previews for viewers (longest side; 0 = off), as in `[record] preview_max_px`.
+        #[arg(long, default_value_t = 1280)]
+        preview_max_px: u32,
+    },
     /// (internal) the subscribing side of the iceoryx2 benchmark.
     #[command(hide = true)]
     IoxSub {
@@ -268,6 +283,12 @@ pub fn bench(cmd: BenchCmd) -> Result<ExitCode> {
         BenchCmd::Transport { paced, flat_scale } => transport_bench(paced, flat_scale),
         BenchCmd::Render { preset, frames, scale } => crate::synth::bench_render(&preset, frames, scale),
         BenchCmd::Edges { preset, reps, high } => crate::bench_edges::bench_edges(&preset, reps, high),
+        BenchCmd::Record {
+            frames,
+            width,
+            height,
+            preview_max_px,
+        } => crate::bench_record::bench_record(frames, width, height, preview_max_px),
     }
 }
 

@@ -2,6 +2,7 @@
 mod attach;
 mod bench;
 mod bench_edges;
+mod bench_record;
 mod doctor;
 mod recordings;
 mod run;

@@ -494,6 +494,20 @@ impl Decoded {
 /// # Errors
 /// A [`DecodeError`] naming what is wrong (truncated data, a count that disagrees with the header, not CDR).
 pub fn decode(kind: MessageKind, cdr: &[u8]) -> Result<Decoded, DecodeError> {
+    let mut d = Decoded {
+        header: Vec::new(),
+        payload: Vec::new(),
+    };
+    decode_into(kind, cdr, &mut d)?;
+    Ok(d)
+}
+
+/// [`decode`] into buffers that keep their capacity from message to message (a player replaying large images
+/// would otherwise fault in fresh pages for every one).
+///
+/// # Errors
+/// As [`decode`].
+pub fn decode_into(kind: MessageKind, cdr: &[u8], out: &mut Decoded) -> Result<(), DecodeError> {
     let schema = kind.schema();
     if cdr.len() < 4 || cdr[..2] != [0, 1] {
         return err(format!(
@@ -503,28 +517,29 @@ pub fn decode(kind: MessageKind, cdr: &[u8]) -> Result<Decoded, DecodeError> {
         ));
     }
     let mut r = CdrReader { data: &cdr[4..], pos: 0 };
-    let mut header = vec![0u8; schema.header.size];
-    r.layout(schema.header, &mut header)?;
-    let payload = match schema.payload {
-        Payload::Empty => Vec::new(),
-        Payload::One(p) => r.sequence(p.elem)?,
+    out.header.clear();
+    out.header.resize(schema.header.size, 0);
+    r.layout(schema.header, &mut out.header)?;
+    out.payload.clear();
+    match schema.payload {
+        Payload::Empty => {}
+        Payload::One(p) => r.sequence(p.elem, &mut out.payload)?,
         Payload::Two { a, b, .. } => {
-            let count = schema.count_of(&header).unwrap_or(0);
-            let mut first = r.sequence(a.elem)?;
-            if first.len() != count * a.elem.size() {
+            let count = schema.count_of(&out.header).unwrap_or(0);
+            r.sequence(a.elem, &mut out.payload)?;
+            if out.payload.len() != count * a.elem.size() {
                 return err(format!(
                     "{}: header says {count} elements in '{}' but {} were recorded",
                     kind.name(),
                     a.name,
-                    first.len() / a.elem.size()
+                    out.payload.len() / a.elem.size()
                 ));
             }
-            first.resize(parts::align8(first.len()), 0);
-            first.extend_from_slice(&r.sequence(b.elem)?);
-            first
+            out.payload.resize(parts::align8(out.payload.len()), 0);
+            r.sequence(b.elem, &mut out.payload)?;
         }
-    };
-    Ok(Decoded { header, payload })
+    }
+    Ok(())
 }
 
 struct CdrWriter<'a> {
@@ -639,23 +654,25 @@ impl CdrReader<'_> {
         Ok(())
     }
 
-    fn sequence(&mut self, elem: Elem) -> Result<Vec<u8>, DecodeError> {
+    /// Appends the elements of a sequence to `out`.
+    fn sequence(&mut self, elem: Elem, out: &mut Vec<u8>) -> Result<(), DecodeError> {
         let n = self.u32()?;
         match elem {
-            Elem::Byte => Ok(self.take(1, n)?.to_vec()),
+            Elem::Byte => out.extend_from_slice(self.take(1, n)?),
             Elem::Struct(l) => {
                 // Each element takes at least one byte of CDR: a count beyond the data is corrupt, not a reason to
                 // allocate gigabytes.
                 if n > self.data.len() - self.pos.min(self.data.len()) {
                     return err(format!("{}[]: count {n} exceeds the message", l.name));
                 }
-                let mut out = vec![0u8; n * l.size];
-                for e in out.chunks_exact_mut(l.size) {
+                let start = out.len();
+                out.resize(start + n * l.size, 0);
+                for e in out[start..].chunks_exact_mut(l.size) {
                     self.layout(l, e)?;
                 }
-                Ok(out)
             }
         }
+        Ok(())
     }
 }
 

@@ -384,6 +384,12 @@ pub fn parse(path: &Path, text: &str, overrides: &[String], resolver: &Resolver)
         });
     }
 
+    let mut record = file.record.clone();
+    let enabled = match record.remove("enabled") {
+        None => true,
+        Some(toml::Value::Boolean(b)) => b,
+        Some(v) => return Err(invalid("[record]".into(), format!("`enabled` must be true or false, got {v}"))),
+    };
     let camera_bytes = default_image_bytes(&file, &base);
     let mut edges: Vec<EdgeSpec> = Vec::new();
     let mut topics = BTreeSet::new();
@@ -408,8 +414,9 @@ pub fn parse(path: &Path, text: &str, overrides: &[String], resolver: &Resolver)
         if !names.contains(&e.from) {
             return Err(invalid(entry, format!("publisher '{}' is not a node", e.from)));
         }
-        if e.to.is_empty() {
-            return Err(invalid(entry, "no subscribers (`to` is empty)".into()));
+        // With the recorder on, a topic may be recorded only.
+        if e.to.is_empty() && !enabled {
+            return Err(invalid(entry, "no subscribers (`to` is empty) and the recorder is off".into()));
         }
         for t in &e.to {
             if !names.contains(t) {
@@ -457,12 +464,6 @@ pub fn parse(path: &Path, text: &str, overrides: &[String], resolver: &Resolver)
         });
     }
 
-    let mut record = file.record.clone();
-    let enabled = match record.remove("enabled") {
-        None => true,
-        Some(toml::Value::Boolean(b)) => b,
-        Some(v) => return Err(invalid("[record]".into(), format!("`enabled` must be true or false, got {v}"))),
-    };
     if enabled {
         if names.contains(RECORDER) {
             return Err(invalid(

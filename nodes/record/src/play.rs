@@ -5,7 +5,7 @@ use std::collections::HashMap;
 use std::time::{Duration, Instant};
 
 use anyhow::{bail, Context, Result};
-use lineflow_messages::schema::{decode, Decoded};
+use lineflow_messages::schema::{decode_into, Decoded};
 use lineflow_messages::{with_kind, Message, MessageKind};
 use lineflow_runtime::recording::Recording;
 use lineflow_runtime::{NodeContext, Output};
@@ -98,6 +98,10 @@ fn body() -> Result<()> {
     ctx.connect()?;
     let rec = recording.context("no recording")?;
     let mut sent = 0u64;
+    let mut d = Decoded {
+        header: Vec::new(),
+        payload: Vec::new(),
+    };
     loop {
         let (start, mut first_log) = (Instant::now(), None);
         let result = rec.for_each_message(|m| {
@@ -114,7 +118,7 @@ fn body() -> Result<()> {
                     std::thread::sleep(wait);
                 }
             }
-            let d = decode(*kind, &m.data).with_context(|| format!("topic '{}' message {}", m.topic, m.sequence))?;
+            decode_into(*kind, &m.data, &mut d).with_context(|| format!("topic '{}' message {}", m.topic, m.sequence))?;
             out.emit(&d)?;
             sent += 1;
             Ok(())

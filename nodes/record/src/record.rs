@@ -51,18 +51,19 @@ struct Item {
 
 /// A subscribed topic of any message type.
 trait Tap {
-    /// Encodes every waiting message and hands it on; returns how many.
-    fn drain(&self, topic: usize, send: &mut dyn FnMut(Item) -> Result<()>) -> Result<usize>;
+    /// Encodes every waiting message into a buffer from `pool` and hands it on; returns how many.
+    fn drain(&self, topic: usize, pool: &Receiver<Vec<u8>>, send: &mut dyn FnMut(Item) -> Result<()>) -> Result<usize>;
     fn is_ended(&self) -> bool;
 }
 
 struct TypedTap<M: Message>(Input<M>);
 
 impl<M: Message> Tap for TypedTap<M> {
-    fn drain(&self, topic: usize, send: &mut dyn FnMut(Item) -> Result<()>) -> Result<usize> {
+    fn drain(&self, topic: usize, pool: &Receiver<Vec<u8>>, send: &mut dyn FnMut(Item) -> Result<()>) -> Result<usize> {
         let mut n = 0;
         while let Some(msg) = self.0.receive()? {
-            let mut cdr = Vec::new();
+            // Buffers come back from the writer thread: large images reuse memory already faulted in.
+            let mut cdr = pool.try_recv().unwrap_or_default();
             encode(M::KIND, bytes_of(msg.user_header()), slice_bytes(msg.payload()), &mut cdr);
             let publish_time = M::stamp(msg.user_header()).capture_time_ns;
             drop(msg);
@@ -144,8 +145,9 @@ fn body() -> Result<()> {
     let largest = graph.edges.iter().map(|e| e.max_payload_bytes).max().unwrap_or(1).max(1);
     let capacity = ((p.queue_mib << 20) / largest).clamp(4, 4096) as usize;
     let (tx, rx) = crossbeam::channel::bounded::<Item>(capacity);
+    let (give_back, pool) = crossbeam::channel::bounded::<Vec<u8>>(capacity);
     let names: Vec<(String, MessageKind)> = topics.iter().map(|t| (t.name.clone(), t.kind)).collect();
-    let thread = spawn_writer(writer, rx, names, p.preview_max_px)?;
+    let thread = spawn_writer(writer, rx, give_back, names, p.preview_max_px)?;
     ctx.connect()?;
     tracing::info!("recording {} topics to {}", topics.len(), path.display());
 
@@ -154,7 +156,7 @@ fn body() -> Result<()> {
         // Status first: what a finished publisher sent is already waiting, and the drain below takes it.
         update_ended(&mut topics, status.as_mut());
         for (i, t) in topics.iter_mut().enumerate() {
-            t.messages += t.tap.drain(i, &mut send)? as u64;
+            t.messages += t.tap.drain(i, &pool, &mut send)? as u64;
         }
         Ok(if topics.iter().all(|t| t.ended || t.tap.is_ended()) {
             Flow::Stop
@@ -194,6 +196,7 @@ fn body() -> Result<()> {
 fn spawn_writer(
     mut writer: McapWriter,
     rx: Receiver<Item>,
+    give_back: crossbeam::channel::Sender<Vec<u8>>,
     topics: Vec<(String, MessageKind)>,
     preview_max_px: u32,
 ) -> Result<JoinHandle<Result<McapWriter>>> {
@@ -215,6 +218,7 @@ fn spawn_writer(
                         }
                     }
                 }
+                let _ = give_back.try_send(item.cdr);
             }
             Ok(writer)
         })

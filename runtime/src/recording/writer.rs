@@ -11,14 +11,15 @@ use lineflow_messages::MessageKind;
 use super::{PROFILE, VIEW_KEY};
 
 /// Chunk compression. mcap 0.26 compresses every chunk of a file alike, so one setting covers images and small
-/// messages; `lz4` keeps up with raw images and still shrinks the small messages.
+/// messages. Raw camera frames barely compress (sensor noise) and LZ4 halves the recorder's throughput on them
+/// (`lineflow bench record`), so the default is none; `lz4` or `zstd` pay off for graphs of small messages.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Deserialize, serde::Serialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Compression {
     /// Uncompressed chunks (fastest).
+    #[default]
     None,
     /// LZ4 frames.
-    #[default]
     Lz4,
     /// Zstandard, level 1.
     Zstd,
