@@ -66,6 +66,18 @@ pub enum FieldType {
     Struct(&'static Layout),
 }
 
+impl FieldType {
+    /// Bytes the field takes in its struct.
+    pub fn size(self) -> usize {
+        match self {
+            FieldType::Scalar(s) => s.size(),
+            FieldType::Array(s, n) => s.size() * n,
+            FieldType::Text(n) => n,
+            FieldType::Struct(l) => l.size,
+        }
+    }
+}
+
 /// A named field at a byte offset of its struct.
 #[derive(Debug, Clone, Copy)]
 pub struct Field {
@@ -696,15 +708,10 @@ mod tests {
     fn check_offsets(l: &Layout) {
         let mut end = 0;
         for f in l.fields {
-            let size = match f.ty {
-                FieldType::Scalar(s) => s.size(),
-                FieldType::Array(s, n) => s.size() * n,
-                FieldType::Text(n) => n,
-                FieldType::Struct(n) => {
-                    check_offsets(n);
-                    n.size
-                }
-            };
+            if let FieldType::Struct(n) = f.ty {
+                check_offsets(n);
+            }
+            let size = f.ty.size();
             assert!(f.offset >= end, "{}.{} overlaps", l.name, f.name);
             end = f.offset + size;
         }

@@ -102,6 +102,8 @@ fn body() -> Result<()> {
         header: Vec::new(),
         payload: Vec::new(),
     };
+    // iceoryx2 reports a signal once: remember it.
+    let mut stopped = false;
     loop {
         let (start, mut first_log) = (Instant::now(), None);
         let result = rec.for_each_message(|m| {
@@ -109,6 +111,7 @@ fn body() -> Result<()> {
                 return Ok(());
             };
             if ctx.should_stop() {
+                stopped = true;
                 bail!("interrupted");
             }
             if p.rate > 0.0 {
@@ -125,7 +128,7 @@ fn body() -> Result<()> {
         });
         match result {
             Ok(()) => {}
-            Err(e) if ctx.should_stop() => {
+            Err(e) if stopped => {
                 tracing::info!("stopped after {sent} messages: {e:#}");
                 break;
             }
@@ -133,7 +136,7 @@ fn body() -> Result<()> {
             Err(e) if !rec.is_finished() => tracing::warn!("{e:#}"),
             Err(e) => return Err(e),
         }
-        if !p.repeat || ctx.should_stop() {
+        if !p.repeat || stopped || ctx.should_stop() {
             break;
         }
     }

@@ -178,8 +178,7 @@ impl Recording {
     /// The first error of `f`, or of the file (truncated or corrupt), naming the byte offset region.
     pub fn for_each_message(&self, mut f: impl FnMut(RecordedMessage) -> Result<()>) -> Result<()> {
         let stream = message_stream(&self.bytes).with_context(|| format!("{}: cannot read messages", self.path.display()))?;
-        let mut count = 0u64;
-        for m in stream {
+        for (count, m) in stream.enumerate() {
             let m = match m {
                 Ok(m) => m,
                 Err(e) => {
@@ -191,7 +190,6 @@ impl Recording {
                     bail!("{}: after {count} messages: {e} ({hint})", self.path.display());
                 }
             };
-            count += 1;
             let info = channel_info(&m.channel);
             f(RecordedMessage {
                 topic: m.channel.topic.clone(),

@@ -132,8 +132,9 @@ pub struct DiffReport {
 /// # Errors
 /// When a file cannot be read to its end.
 pub fn diff(a: &Recording, b: &Recording) -> Result<DiffReport> {
-    let by_topic = |r: &Recording| -> Result<BTreeMap<String, (Option<MessageKind>, Vec<Vec<u8>>)>> {
-        let mut m: BTreeMap<String, (Option<MessageKind>, Vec<Vec<u8>>)> = BTreeMap::new();
+    type Messages = BTreeMap<String, (Option<MessageKind>, Vec<Vec<u8>>)>;
+    let by_topic = |r: &Recording| -> Result<Messages> {
+        let mut m = Messages::new();
         r.for_each_message(|msg| {
             if !msg.view {
                 let e = m.entry(msg.topic.clone()).or_insert((msg.kind, Vec::new()));
@@ -220,19 +221,12 @@ fn field_difference(kind: MessageKind, x: &[u8], y: &[u8]) -> Option<String> {
 
 fn layout_difference(l: &Layout, x: &[u8], y: &[u8], prefix: &str) -> Option<String> {
     for f in l.fields {
-        let len = match f.ty {
-            FieldType::Scalar(s) => s.size(),
-            FieldType::Array(s, n) => s.size() * n,
-            FieldType::Text(n) => n,
-            FieldType::Struct(inner) => {
-                let sub = &format!("{prefix}{}.", f.name);
-                if let Some(d) = layout_difference(inner, &x[f.offset..f.offset + inner.size], &y[f.offset..f.offset + inner.size], sub) {
-                    return Some(d);
-                }
-                continue;
+        let (a, b) = (&x[f.offset..f.offset + f.ty.size()], &y[f.offset..f.offset + f.ty.size()]);
+        if let FieldType::Struct(inner) = f.ty {
+            if let Some(d) = layout_difference(inner, a, b, &format!("{prefix}{}.", f.name)) {
+                return Some(d);
             }
-        };
-        if x[f.offset..f.offset + len] != y[f.offset..f.offset + len] {
+        } else if a != b {
             return Some(format!("{prefix}{}", f.name));
         }
     }

@@ -2,11 +2,14 @@
 //! 2-D segments drawn over them, and cameras and 3-D lines in the 3-D panel.
 //!
 //! Images become `foxglove_msgs/msg/RawImage` previews (ros2msg + CDR), box-filtered down to at most
-//! `preview_max_px` on the long side so that previews do not double the recording; 2-D segments become
-//! `foxglove.ImageAnnotations` in the preview's pixel grid; poses and 3-D lines become `foxglove.SceneUpdate`
-//! entities (JSON) in the object frame `world`.
+//! `preview_max_px` on the long side so that previews do not double the recording; 2-D segments and keypoints
+//! become `foxglove.ImageAnnotations` in the preview's pixel grid; poses, 3-D lines and wire-frame models become
+//! `foxglove.SceneUpdate` entities (JSON) in the object frame `world`.
 use lineflow_messages::schema::{decode, Decoded};
-use lineflow_messages::{Encoding, ImageHeader, Line3, Lines2DHeader, MessageKind, Pose, Segment2, Stamp};
+use lineflow_messages::{
+    parts, Encoding, ImageHeader, Keypoint, KeypointsHeader, Line3, Lines2DHeader, MessageKind, Pose, Segment2, Stamp, WireEdge,
+    WireframeHeader,
+};
 use serde_json::{json, Value};
 
 /// The schema of a viewer channel.
@@ -52,8 +55,8 @@ pub const SCENE_UPDATE: ViewSchema = ViewSchema {
 pub fn views_of(kind: MessageKind) -> &'static [(&'static str, &'static ViewSchema)] {
     match kind {
         MessageKind::Image => &[("preview", &RAW_IMAGE)],
-        MessageKind::Lines2D => &[("annotations", &IMAGE_ANNOTATIONS)],
-        MessageKind::Poses | MessageKind::Lines3D => &[("scene", &SCENE_UPDATE)],
+        MessageKind::Lines2D | MessageKind::Keypoints => &[("annotations", &IMAGE_ANNOTATIONS)],
+        MessageKind::Poses | MessageKind::Lines3D | MessageKind::Wireframe => &[("scene", &SCENE_UPDATE)],
         _ => &[],
     }
 }
@@ -93,6 +96,29 @@ impl ViewRenderer {
                 let h: Lines2DHeader = header_of(&d);
                 let segs: Vec<Segment2> = elements(&d.payload[..(h.n_segments as usize * size_of::<Segment2>()).min(d.payload.len())]);
                 vec![("annotations", annotations(&stamp, &segs, self.scale))]
+            }
+            MessageKind::Keypoints => {
+                let h: KeypointsHeader = header_of(&d);
+                let kps: Vec<Keypoint> = elements(&d.payload[..(h.count as usize * size_of::<Keypoint>()).min(d.payload.len())]);
+                let pts = kps.iter().map(|k| [k.col as f64, k.row as f64]);
+                vec![("annotations", image_points(&stamp, pts, 1, self.scale))]
+            }
+            MessageKind::Wireframe => {
+                let h: WireframeHeader = header_of(&d);
+                let nv = h.n_vertices as usize;
+                let split = parts::align8(nv * 24).min(d.payload.len());
+                let vertices: Vec<[f64; 3]> = elements(&d.payload[..(nv * 24).min(split)]);
+                let edges: Vec<WireEdge> = elements(&d.payload[split..]);
+                let pts = edges
+                    .iter()
+                    .filter(|e| (e.a as usize) < vertices.len() && (e.b as usize) < vertices.len())
+                    .flat_map(|e| [point(vertices[e.a as usize]), point(vertices[e.b as usize])])
+                    .collect();
+                let e = entity(&stamp, "model".into(), pts, json!({ "r": 0.9, "g": 0.9, "b": 0.9, "a": 1.0 }), 3.0);
+                vec![(
+                    "scene",
+                    serde_json::to_vec(&json!({ "deletions": [], "entities": [e] })).unwrap_or_default(),
+                )]
             }
             MessageKind::Poses => vec![("scene", scene_poses(&stamp, &elements::<Pose>(&d.payload)))],
             MessageKind::Lines3D => vec![("scene", scene_lines(&stamp, &elements::<Line3>(&d.payload)))],
@@ -188,16 +214,19 @@ impl Cdr {
 }
 
 fn annotations(stamp: &Stamp, segs: &[Segment2], scale: f64) -> Vec<u8> {
-    let points: Vec<Value> = segs
-        .iter()
-        .flat_map(|s| [s.start_px, s.end_px])
+    image_points(stamp, segs.iter().flat_map(|s| [s.start_px, s.end_px]), 4, scale)
+}
+
+/// One `PointsAnnotation` of `kind` (1 points, 4 line list) in the preview's pixel grid.
+fn image_points(stamp: &Stamp, px: impl Iterator<Item = [f64; 2]>, kind: u32, scale: f64) -> Vec<u8> {
+    let points: Vec<Value> = px
         .map(|p| json!({ "x": (p[0] + 0.5) * scale - 0.5, "y": (p[1] + 0.5) * scale - 0.5 }))
         .collect();
     let msg = json!({
         "circles": [],
         "points": [{
             "timestamp": time(stamp.capture_time_ns),
-            "type": 4, // LINE_LIST
+            "type": kind,
             "points": points,
             "outline_color": { "r": 1.0, "g": 0.2, "b": 0.1, "a": 1.0 },
             "outline_colors": [],
@@ -297,5 +326,41 @@ mod tests {
         // ... width 2, height 1, "mono8", step 2, then 2 bytes: means of the 2x2 boxes.
         assert_eq!(&p[p.len() - 2..], &[3, 25]);
         assert_eq!(r.scale, 0.5);
+    }
+
+    #[test]
+    fn a_wireframe_becomes_one_scene_entity_with_a_line_per_edge() {
+        let header = WireframeHeader {
+            n_vertices: 3,
+            n_edges: 2,
+            ..Default::default()
+        };
+        let vertices = [[0.0f64, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 0.0, 2.0]];
+        let edges = [
+            WireEdge {
+                a: 0,
+                b: 1,
+                face: 0,
+                kind: 0,
+            },
+            WireEdge {
+                a: 1,
+                b: 2,
+                face: 0,
+                kind: 0,
+            },
+        ];
+        let mut payload = vec![0u8; parts::two_part_len::<[f64; 3], WireEdge>(3, 2)];
+        let mut aligned = vec![0u64; payload.len().div_ceil(8)];
+        let buf: &mut [u8] = unsafe { std::slice::from_raw_parts_mut(aligned.as_mut_ptr().cast(), payload.len()) };
+        parts::write(buf, &vertices, &edges);
+        payload.copy_from_slice(buf);
+        let mut cdr = Vec::new();
+        encode(MessageKind::Wireframe, bytes_of(&header), &payload, &mut cdr);
+        let out = ViewRenderer::new(0).render(MessageKind::Wireframe, &cdr);
+        let v: Value = serde_json::from_slice(&out[0].1).unwrap();
+        let pts = &v["entities"][0]["lines"][0]["points"];
+        assert_eq!(pts.as_array().unwrap().len(), 4);
+        assert_eq!(pts[3]["z"], 2.0);
     }
 }

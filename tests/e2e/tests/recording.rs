@@ -276,3 +276,33 @@ fn foreign_truncated_and_unwritable_recordings_get_clear_errors() {
     let err = String::from_utf8_lossy(&r.stderr);
     assert!(err.contains("/dev/full") && err.contains("No space left on device"), "{err}");
 }
+
+#[test]
+fn a_recording_plays_back_for_viewers_until_ctrl_c() {
+    let sb = Sandbox::new();
+    let rec = record_demo(&sb, &sb.path().join("live"), &[]);
+    let player = sb
+        .lineflow(&["replay", rec.to_str().unwrap(), "--loop", "--rate", "4"])
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    // `echo` attaches to the newest running run of the sandbox: the playback.
+    let start = Instant::now();
+    let lines = loop {
+        let r = sb.run(&["echo", "lines2d", "-n", "3"]);
+        if r.status.success() {
+            break stdout(&r);
+        }
+        assert!(start.elapsed() < Duration::from_secs(30), "the playback never became attachable");
+        std::thread::sleep(Duration::from_millis(200));
+    };
+    assert_eq!(lines.lines().filter(|l| l.starts_with("lines2d: frame")).count(), 3, "{lines}");
+    // SAFETY: signalling the process this test started.
+    unsafe { libc::kill(player.id() as i32, libc::SIGINT) };
+    let r = player.wait_with_output().unwrap();
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert!(
+        err.contains("player") && !err.contains("[player] error"),
+        "the player stops cleanly on Ctrl-C: {err}"
+    );
+}
