@@ -50,6 +50,18 @@ pub enum BenchCmd {
         #[arg(long, default_value_t = 100.0)]
         high: f64,
     },
+    /// SURF on a full-size synthetic frame against OpenCV's SIFT and ORB (needs opencv-python-headless).
+    Features {
+        /// Preset.
+        #[arg(long, default_value = "d2x-strip")]
+        preset: String,
+        /// Repetitions per measurement.
+        #[arg(long, default_value_t = 3)]
+        reps: usize,
+        /// Hessian threshold (the stage's default).
+        #[arg(long, default_value_t = 100.0)]
+        threshold: f32,
+    },
     /// The recorder node: MB/s of raw 12 MP RGB frames written with nothing dropped, against the disk.
     Record {
         /// Frames.
@@ -283,6 +295,7 @@ pub fn bench(cmd: BenchCmd) -> Result<ExitCode> {
         BenchCmd::Transport { paced, flat_scale } => transport_bench(paced, flat_scale),
         BenchCmd::Render { preset, frames, scale } => crate::synth::bench_render(&preset, frames, scale),
         BenchCmd::Edges { preset, reps, high } => crate::bench_edges::bench_edges(&preset, reps, high),
+        BenchCmd::Features { preset, reps, threshold } => crate::bench_features::bench_features(&preset, reps, threshold),
         BenchCmd::Record {
             frames,
             width,

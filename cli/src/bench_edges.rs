@@ -1,12 +1,11 @@
 //! `lineflow bench edges`: the edge detectors on a full-size synthetic façade frame, against OpenCV's `cv2.Canny`
 //! (`opencv-python-headless`, L2 gradient, same thresholds) measured in the same run on the same image.
-use std::process::{Command, ExitCode};
-use std::time::Instant;
+use std::process::ExitCode;
 
-use anyhow::{bail, Context, Result};
-use lineflow_capture::synth::Synthetic;
+use anyhow::Result;
 use lineflow_edges::{canny, log, sobel};
-use lineflow_messages::Encoding;
+
+use crate::bench_util::{median_time, python_reference, synthetic_gray};
 
 const OPENCV: &str = r#"
 import sys, time, cv2, numpy as np
@@ -21,29 +20,10 @@ for threads in (1, 2):
 cv2.imwrite(out, e)
 "#;
 
-fn median_time(reps: usize, mut f: impl FnMut()) -> f64 {
-    let mut t: Vec<f64> = (0..reps)
-        .map(|_| {
-            let s = Instant::now();
-            f();
-            s.elapsed().as_secs_f64()
-        })
-        .collect();
-    t.sort_by(f64::total_cmp);
-    t[t.len() / 2]
-}
-
 pub fn bench_edges(preset: &str, reps: usize, high: f64) -> Result<ExitCode> {
     let low = lineflow_edges::DEFAULT_LOW_RATIO * high;
-    let syn = Synthetic::new(preset, 1.0, 1)?;
-    let cam = *syn.camera();
-    let (w, h) = (cam.width as usize, cam.height as usize);
-    let rgb = syn.render(syn.poses().len() / 2);
-    let mut gray = vec![0u8; w * h];
-    lineflow_convert::gray_into(Encoding::Rgb8, w, h, w * 3, &rgb, &mut gray).map_err(anyhow::Error::msg)?;
     let dir = tempfile::tempdir()?;
-    let png = dir.path().join("gray.png");
-    image::save_buffer(&png, &gray, w as u32, h as u32, image::ExtendedColorType::L8)?;
+    let (gray, w, h, png) = synthetic_gray(preset, dir.path())?;
     println!(
         "edges benchmark: {preset} frame, {w}x{h} ({:.1} MP), canny L2 low {low} high {high}, median of {reps}",
         (w * h) as f64 / 1e6
@@ -57,28 +37,17 @@ pub fn bench_edges(preset: &str, reps: usize, high: f64) -> Result<ExitCode> {
     let map = canny(&gray, w, h, low, high);
 
     let cv_out = dir.path().join("cv.png");
-    let py = Command::new("python3")
-        .args([
-            "-c",
-            OPENCV,
-            png.to_str().unwrap_or(""),
-            &low.to_string(),
-            &high.to_string(),
-            &reps.to_string(),
-            cv_out.to_str().unwrap_or(""),
-        ])
-        .output()
-        .context("cannot run python3")?;
-    if !py.status.success() {
-        bail!(
-            "OpenCV reference failed (pip install opencv-python-headless numpy): {}",
-            String::from_utf8_lossy(&py.stderr).lines().last().unwrap_or("")
-        );
-    }
-    let times: Vec<f64> = String::from_utf8_lossy(&py.stdout)
-        .lines()
-        .filter_map(|l| l.split_whitespace().nth(1)?.parse().ok())
-        .collect();
+    let stdout = python_reference(
+        OPENCV,
+        &[
+            png.display().to_string(),
+            low.to_string(),
+            high.to_string(),
+            reps.to_string(),
+            cv_out.display().to_string(),
+        ],
+    )?;
+    let times: Vec<f64> = stdout.lines().filter_map(|l| l.split_whitespace().nth(1)?.parse().ok()).collect();
     let cv = image::open(&cv_out)?.into_luma8();
     let (mut both, mut either, mut ours_n, mut cv_n) = (0usize, 0usize, 0usize, 0usize);
     for (m, c) in map.iter().zip(cv.as_raw()) {

@@ -2,7 +2,9 @@
 mod attach;
 mod bench;
 mod bench_edges;
+mod bench_features;
 mod bench_record;
+mod bench_util;
 mod doctor;
 mod recordings;
 mod run;

@@ -423,3 +423,58 @@ fn a_synth_folder_loads_through_the_folder_capture_and_evaluates() {
     let r = sb.run(&["synth", "--preset", "nikon", "--out", sb.path().join("x").to_str().unwrap()]);
     assert!(!r.status.success() && String::from_utf8_lossy(&r.stderr).contains("d2x-strip"));
 }
+
+#[test]
+fn the_features_stage_publishes_surf_keypoints_that_the_recording_keeps() {
+    let sb = Sandbox::new();
+    let graph = sb.graph(
+        "features.toml",
+        r#"
+[[node]]
+name = "capture"
+stage = "capture"
+impl = "synthetic"
+params = { preset = "a55-two-strips", scale = 0.15, seed = 1, fps = 0 }
+
+[[node]]
+name = "features"
+stage = "features"
+impl = "surf"
+params = { hessian_threshold = 50.0 }
+
+[[edge]]
+topic = "images"
+type = "Image"
+from = "capture"
+to = ["features"]
+
+# Recorded only: the matcher is not built yet.
+[[edge]]
+topic = "keypoints"
+type = "Keypoints"
+from = "features"
+to = []
+"#,
+    );
+    let out = sb.path().join("out");
+    let r = sb.run(&["run", graph.to_str().unwrap(), "--out", out.to_str().unwrap()]);
+    assert!(r.status.success());
+    let info = String::from_utf8_lossy(&sb.run(&["info", out.join("recording.mcap").to_str().unwrap()]).stdout).into_owned();
+    let row = info.lines().find(|l| l.starts_with("keypoints ")).expect("keypoints recorded");
+    let f: Vec<&str> = row.split_whitespace().collect();
+    assert_eq!(f[1], "18", "{info}");
+    // 18 frames of keypoints (24 B) with 64 float descriptors (256 B): hundreds per frame.
+    let mb: f64 = f[2].parse().unwrap();
+    assert!(mb > 18.0 * 100.0 * 280.0 / 1e6, "too few keypoints: {info}");
+    assert!(info.contains("keypoints/annotations"), "{info}");
+    let bad = sb.run(&[
+        "run",
+        graph.to_str().unwrap(),
+        "--set",
+        "features.octaves=9",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(!bad.status.success());
+    assert!(String::from_utf8_lossy(&bad.stderr).contains("octaves in 1..=6"));
+}
