@@ -27,7 +27,8 @@ fn body() -> Result<()> {
         bail!("node '{}': unknown features impl '{impl_}' (available: surf)", ctx.name());
     }
     let p: SurfParams = ctx.params()?;
-    if !(p.hessian_threshold >= 0.0) || !(1..=6).contains(&p.octaves) || !(1..=4).contains(&p.init_sample) {
+    let threshold_ok = p.hessian_threshold.is_finite() && p.hessian_threshold >= 0.0;
+    if !threshold_ok || !(1..=6).contains(&p.octaves) || !(1..=4).contains(&p.init_sample) {
         bail!(
             "node '{}': hessian_threshold must be >= 0, octaves in 1..=6, init_sample in 1..=4",
             ctx.name()
