@@ -1,0 +1,163 @@
+//! Geometric verification with the interior orientation known: RANSAC over essential matrices from the normalised
+//! eight-point algorithm, scored by the Sampson distance (seed 000 §2.4: the fundamental/essential matrix, not a
+//! homography, because a façade has parallax).
+use nalgebra::{Matrix3, SMatrix, Vector3};
+
+/// A viewing direction in the camera frame, (x, y, −f) / f of the ideal image coordinates.
+pub type Ray = Vector3<f64>;
+
+/// Essential matrix from eight or more correspondences (`E` with `b_iᵀ E a_i = 0`), its singular values forced to
+/// (1, 1, 0). `None` when the system is degenerate.
+pub fn eight_point(a: &[Ray], b: &[Ray]) -> Option<Matrix3<f64>> {
+    if a.len() < 8 || a.len() != b.len() {
+        return None;
+    }
+    // Rows of the homogeneous system, accumulated as AᵀA (9×9) so any number of points costs one 9×9 SVD.
+    let mut ata = SMatrix::<f64, 9, 9>::zeros();
+    for (p, q) in a.iter().zip(b) {
+        let (p, q) = (p / p.z, q / q.z);
+        let row = SMatrix::<f64, 1, 9>::from_row_slice(&[q.x * p.x, q.x * p.y, q.x, q.y * p.x, q.y * p.y, q.y, p.x, p.y, 1.0]);
+        ata += row.transpose() * row;
+    }
+    let svd = ata.svd(false, true);
+    let v_t = svd.v_t?;
+    let (k, _) = svd.singular_values.iter().enumerate().min_by(|x, y| x.1.total_cmp(y.1))?;
+    let e = v_t.row(k);
+    let e = Matrix3::new(e[0], e[1], e[2], e[3], e[4], e[5], e[6], e[7], e[8]);
+    let svd = e.svd(true, true);
+    let (u, v_t) = (svd.u?, svd.v_t?);
+    let mut s = svd.singular_values;
+    // nalgebra orders singular values descending.
+    let mean = (s[0] + s[1]) / 2.0;
+    s = Vector3::new(mean, mean, 0.0);
+    Some(u * Matrix3::from_diagonal(&s) * v_t)
+}
+
+/// Sampson distance of a correspondence in normalised image units (divide pixel thresholds by the focal length in
+/// pixels).
+pub fn sampson(e: &Matrix3<f64>, a: &Ray, b: &Ray) -> f64 {
+    let (p, q) = (a / a.z, b / b.z);
+    let ep = e * p;
+    let etq = e.transpose() * q;
+    let num = q.dot(&ep);
+    let den = ep.x * ep.x + ep.y * ep.y + etq.x * etq.x + etq.y * etq.y;
+    if den <= 0.0 {
+        return f64::INFINITY;
+    }
+    (num * num / den).sqrt()
+}
+
+/// RANSAC settings.
+#[derive(Debug, Clone, Copy)]
+pub struct Ransac {
+    /// Inlier threshold on the Sampson distance, normalised units.
+    pub threshold: f64,
+    /// Iterations at most.
+    pub iterations: usize,
+    /// Seed of the sample generator (fixed: same inputs, same inliers).
+    pub seed: u64,
+}
+
+/// The inliers of the best essential matrix (refitted on all its inliers), or an empty set when fewer than
+/// `min_inliers` agree.
+pub fn verify(a: &[Ray], b: &[Ray], r: &Ransac, min_inliers: usize) -> Vec<usize> {
+    let n = a.len();
+    if n < 8 {
+        return Vec::new();
+    }
+    let mut state = r.seed | 1;
+    let mut next = move || {
+        state ^= state << 13;
+        state ^= state >> 7;
+        state ^= state << 17;
+        state
+    };
+    let inliers_of = |e: &Matrix3<f64>| -> Vec<usize> { (0..n).filter(|&i| sampson(e, &a[i], &b[i]) < r.threshold).collect() };
+    let mut best: Vec<usize> = Vec::new();
+    for _ in 0..r.iterations {
+        let mut pick = [0usize; 8];
+        let mut k = 0;
+        while k < 8 {
+            let c = (next() % n as u64) as usize;
+            if !pick[..k].contains(&c) {
+                pick[k] = c;
+                k += 1;
+            }
+        }
+        let (sa, sb): (Vec<Ray>, Vec<Ray>) = pick.iter().map(|&i| (a[i], b[i])).unzip();
+        let Some(e) = eight_point(&sa, &sb) else { continue };
+        let inl = inliers_of(&e);
+        if inl.len() > best.len() {
+            best = inl;
+            // Stop early once the inlier ratio makes another better sample unlikely (p = 0.999).
+            let w = best.len() as f64 / n as f64;
+            let needed = (0.001f64).ln() / (1.0 - w.powi(8)).max(1e-12).ln();
+            if needed.is_finite() && (needed as usize) < r.iterations && best.len() > n / 2 {
+                break;
+            }
+        }
+    }
+    if best.len() >= 8 {
+        let (sa, sb): (Vec<Ray>, Vec<Ray>) = best.iter().map(|&i| (a[i], b[i])).unzip();
+        if let Some(e) = eight_point(&sa, &sb) {
+            let refined = inliers_of(&e);
+            if refined.len() >= best.len() {
+                best = refined;
+            }
+        }
+    }
+    if best.len() < min_inliers {
+        best.clear();
+    }
+    best
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use nalgebra::Rotation3;
+
+    /// Points in front of two cameras (camera looks along −z), and their rays in each.
+    fn scene() -> (Vec<Ray>, Vec<Ray>) {
+        let r = Rotation3::from_euler_angles(0.02, -0.1, 0.03);
+        let t = Vector3::new(1.0, 0.1, 0.05);
+        let mut a = Vec::new();
+        let mut b = Vec::new();
+        for i in 0..60 {
+            let x = Vector3::new((i % 8) as f64 - 3.5, (i / 8) as f64 - 3.5, -10.0 - (i % 5) as f64);
+            a.push(x / -x.z);
+            let y = r * x + t;
+            b.push(y / -y.z);
+        }
+        (a, b)
+    }
+
+    #[test]
+    fn the_essential_matrix_satisfies_the_epipolar_constraint_on_every_point() {
+        let (a, b) = scene();
+        let e = eight_point(&a, &b).unwrap();
+        for (p, q) in a.iter().zip(&b) {
+            assert!(sampson(&e, p, q) < 1e-9);
+        }
+    }
+
+    #[test]
+    fn ransac_finds_the_inliers_among_gross_outliers() {
+        let (a, mut b) = scene();
+        for i in (0..60).step_by(4) {
+            b[i] = Vector3::new(b[i].y + 0.2, b[i].x - 0.1, -1.0);
+        }
+        let inl = verify(
+            &a,
+            &b,
+            &Ransac {
+                threshold: 1e-3,
+                iterations: 500,
+                seed: 7,
+            },
+            20,
+        );
+        assert_eq!(inl.len(), 45);
+        assert!(inl.iter().all(|i| i % 4 != 0));
+    }
+}

@@ -1,0 +1,99 @@
+//! Tie points on the synthetic façade, checked against its exact geometry: every track's rays, with the true
+//! poses, must meet where both images see the point.
+use lineflow_capture::synth::Synthetic;
+use lineflow_features::surf::{surf, SurfParams};
+use lineflow_matcher::descriptors::FrameFeatures;
+use lineflow_matcher::{Matcher, MatcherParams, Observation};
+use lineflow_messages::Encoding;
+use lineflow_photogrammetry::Vec3;
+
+fn features(syn: &Synthetic, frame: usize) -> FrameFeatures {
+    let cam = syn.camera();
+    let (w, h) = (cam.width as usize, cam.height as usize);
+    let mut gray = vec![0u8; w * h];
+    lineflow_convert::gray_into(Encoding::Rgb8, w, h, w * 3, &syn.render(frame), &mut gray).unwrap();
+    let f = surf(
+        &gray,
+        w,
+        h,
+        &SurfParams {
+            hessian_threshold: 50.0,
+            ..Default::default()
+        },
+    );
+    FrameFeatures {
+        px: f.iter().map(|f| [f.at.col as f64, f.at.row as f64]).collect(),
+        signs: f.iter().map(|f| f.at.laplacian_sign).collect(),
+        descriptors: f.iter().flat_map(|f| f.descriptor).collect(),
+        len: 64,
+    }
+}
+
+/// Reprojection error (pixels) of the midpoint of two observations' rays, in the worse of the two images.
+fn ray_error(syn: &Synthetic, a: &Observation, b: &Observation) -> f64 {
+    let cam = syn.camera();
+    let (pa, pb) = (&syn.poses()[a.frame as usize], &syn.poses()[b.frame as usize]);
+    let (da, db) = (pa.ray_of_pixel(cam, a.px).normalize(), pb.ray_of_pixel(cam, b.px).normalize());
+    let w0: Vec3 = pa.center - pb.center;
+    let (aa, bb, ab) = (da.dot(&da), db.dot(&db), da.dot(&db));
+    let (d, e) = (da.dot(&w0), db.dot(&w0));
+    let den = aa * bb - ab * ab;
+    let (s, t) = ((ab * e - bb * d) / den, (aa * e - ab * d) / den);
+    let x = ((pa.center + da * s) + (pb.center + db * t)) / 2.0;
+    let err = |pose: &lineflow_photogrammetry::Pose, o: &Observation| {
+        pose.project(cam, &x)
+            .map(|p| (p[0] - o.px[0]).hypot(p[1] - o.px[1]))
+            .unwrap_or(f64::INFINITY)
+    };
+    err(pa, a).max(err(pb, b))
+}
+
+#[test]
+fn verified_tie_points_agree_with_the_true_geometry_and_tie_every_frame() {
+    let syn = Synthetic::new("a55-two-strips", 0.3, 1).unwrap();
+    let n = syn.poses().len();
+    let mut m = Matcher::new(MatcherParams::default(), *syn.camera());
+    let mut all: Vec<Observation> = Vec::new();
+    let mut partners = Vec::new();
+    for k in 0..n {
+        let r = m.add_frame(k as u64, features(&syn, k));
+        eprintln!("frame {k}: partners {:?}, {} observations", r.partners, r.observations.len());
+        partners.push(r.partners);
+        all.extend(r.observations);
+    }
+    let mut by_track: std::collections::BTreeMap<u64, Vec<Observation>> = Default::default();
+    for o in &all {
+        by_track.entry(o.track).or_default().push(*o);
+    }
+    let mut errors: Vec<f64> = by_track
+        .values()
+        .filter(|v| v.len() >= 2)
+        .map(|v| ray_error(&syn, &v[0], &v[1]))
+        .collect();
+    errors.sort_by(f64::total_cmp);
+    let median = errors[errors.len() / 2];
+    let good = errors.iter().filter(|&&e| e < 3.0).count() as f64 / errors.len() as f64;
+    eprintln!(
+        "{} tracks, median ray error {median:.2} px, {:.1} % under 3 px",
+        errors.len(),
+        100.0 * good
+    );
+    assert!(errors.len() > 20 * n, "{} tracks for {n} frames", errors.len());
+    assert!(median < 1.0, "median ray error {median} px");
+    // The rest are matches shifted along the epipolar line by a brick period that also move like their
+    // neighbours; the bundle adjustment's robust loss and outlier removal are the next filter.
+    assert!(good > 0.93, "{:.1} % of tracks within 3 px", 100.0 * good);
+    // The frames form one block: every frame is tied to another, and the strips to each other.
+    let mut linked = vec![false; n];
+    for (k, p) in partners.iter().enumerate() {
+        for &(f, _, inl) in p {
+            if inl > 0 {
+                linked[k] = true;
+                linked[f as usize] = true;
+            }
+        }
+    }
+    assert!(linked.iter().all(|&l| l), "frames without tie points: {linked:?}");
+    // Known gap: the two strips (3 m apart vertically) are not tied yet: across strips the brick courses repeat
+    // along the (vertical) epipolar lines and only about a quarter of the mutual descriptor matches are right.
+}
