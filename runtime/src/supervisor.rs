@@ -404,18 +404,13 @@ fn supervise(graph: &Graph, run: &RunRecord, ports: &BTreeMap<String, Ports>, op
             break;
         }
         if let Some(p) = progress.as_mut() {
-            let done = sinks
-                .iter()
-                .map(|&i| children[i].current.last_frame_plus1[0].max(children[i].done.last_frame_plus1[0]))
-                .min()
-                .unwrap_or(0);
-            p.show(done);
+            p.show(frames_done(&children, &sinks));
         }
         std::thread::sleep(Duration::from_millis(20));
     }
     drain_status(&status_sub, &mut children);
     if let Some(p) = progress.as_mut() {
-        p.finish();
+        p.finish(frames_done(&children, &sinks));
     }
 
     let nodes = children
@@ -610,6 +605,15 @@ struct Progress {
     tty: bool,
 }
 
+/// Frames every sink has consumed (the progress of the run).
+fn frames_done(children: &[Child], sinks: &[usize]) -> u64 {
+    sinks
+        .iter()
+        .map(|&i| children[i].current.last_frame_plus1[0].max(children[i].done.last_frame_plus1[0]))
+        .min()
+        .unwrap_or(0)
+}
+
 impl Progress {
     fn new(total: Option<u64>) -> Option<Self> {
         use std::io::IsTerminal;
@@ -647,7 +651,10 @@ impl Progress {
         };
     }
 
-    fn finish(&mut self) {
+    /// The last line, always: a short run may end before the first periodic one.
+    fn finish(&mut self, done: u64) {
+        self.last = None;
+        self.show(done);
         if self.tty {
             let _ = writeln!(std::io::stderr());
         }

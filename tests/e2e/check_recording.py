@@ -123,6 +123,20 @@ def main():
                 fail(f"images: {d.name} differs from {png_dir / d.name}")
         print(f"images           {len(by_topic['images'])} images = the PNG files")
 
+    # keypoints: descriptors are count x descriptor_len float32 (descriptor_kind 0)
+    for _, _, d in by_topic.get("keypoints", []):
+        if len(d.keypoints) != d.count or len(bytes(d.descriptors)) != 4 * d.count * d.descriptor_len:
+            fail(f"keypoints frame {d.stamp.frame}: counts disagree")
+    # tie points: every track is observed in at least two frames, never twice in one
+    tracks = {}
+    for _, _, d in by_topic.get("tiepoints", []):
+        for t in d.tie_points:
+            tracks.setdefault(t.track, []).append(t.frame)
+    if any(len(f) < 2 or len(set(f)) != len(f) for f in tracks.values()):
+        fail("tiepoints: a track with one observation or two in one frame")
+    if by_topic.get("tiepoints"):
+        print(f"tiepoints        {len(tracks)} tracks, {sum(map(len, tracks.values()))} observations")
+
     # viewer channels
     for topic, msgs in by_topic.items():
         name = msgs[0][0]
@@ -134,8 +148,9 @@ def main():
         elif name == "foxglove.ImageAnnotations":
             source = by_topic[topic.rsplit("/", 1)[0]]
             for (_, _, a), (_, _, s) in zip(msgs, source):
-                if len(a["points"][0]["points"]) != 2 * len(s.segments):
-                    fail(f"{topic}: annotation points disagree with the segments")
+                expected = 2 * len(s.segments) if hasattr(s, "segments") else len(s.keypoints)
+                if len(a["points"][0]["points"]) != expected:
+                    fail(f"{topic}: annotation points disagree with the message they render")
         elif name == "foxglove.SceneUpdate":
             for _, _, u in msgs:
                 if not u["entities"] or any(e["frame_id"] != "world" for e in u["entities"]):

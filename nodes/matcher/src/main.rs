@@ -1,1 +1,99 @@
-fn main() {}
+//! `lineflow-matcher`: the matcher stage. Joins the latched camera with each frame's keypoints and publishes, per
+//! frame, the new tie-point observations (of this frame, and of earlier frames' keypoints that start a track).
+use anyhow::{bail, Result};
+use lineflow_matcher::descriptors::FrameFeatures;
+use lineflow_matcher::{Matcher, MatcherParams};
+use lineflow_messages::{kinds, parts, Keypoint, KeypointsHeader, TiePoint, TiePointsHeader};
+use lineflow_runtime::{Flow, NodeContext};
+
+fn main() -> std::process::ExitCode {
+    lineflow_runtime::run_node(body)
+}
+
+/// The features of a Keypoints message.
+fn features(h: &KeypointsHeader, payload: &[u8]) -> Result<FrameFeatures> {
+    if h.descriptor_kind != KeypointsHeader::FLOAT {
+        bail!(
+            "frame {}: binary descriptors ({}) are not supported by the matcher yet",
+            h.stamp.frame,
+            lineflow_messages::str_from_fixed(&h.detector)
+        );
+    }
+    let (n, len) = (h.count as usize, h.descriptor_len as usize);
+    let (kps, desc) = parts::split::<Keypoint, f32>(payload, n, n * len).map_err(|e| anyhow::anyhow!("frame {}: {e}", h.stamp.frame))?;
+    Ok(FrameFeatures {
+        px: kps.iter().map(|k| [k.col as f64, k.row as f64]).collect(),
+        signs: kps.iter().map(|k| k.laplacian_sign).collect(),
+        descriptors: desc.to_vec(),
+        len,
+    })
+}
+
+fn body() -> Result<()> {
+    let ctx = NodeContext::from_env()?;
+    if ctx.implementation("ratio") != "ratio" {
+        bail!(
+            "node '{}': unknown matcher impl '{}' (available: ratio)",
+            ctx.name(),
+            ctx.implementation("ratio")
+        );
+    }
+    let p: MatcherParams = ctx.params()?;
+    if !(p.ratio > 0.0 && p.ratio <= 1.0 && p.threshold_px > 0.0 && p.iterations > 0 && p.min_inliers >= 8) {
+        bail!(
+            "node '{}': ratio must be in (0, 1], threshold_px > 0, iterations > 0, min_inliers >= 8",
+            ctx.name()
+        );
+    }
+    let keypoints = ctx.input::<kinds::Keypoints>("keypoints")?;
+    let camera_in = ctx.input::<kinds::CameraModel>("camera")?;
+    let output = ctx.output::<kinds::TiePoints>("tiepoints")?;
+    ctx.connect()?;
+    let mut matcher: Option<Matcher> = None;
+    // Keypoints that arrive before the camera wait for it, in order.
+    let mut waiting: Vec<(KeypointsHeader, Vec<u8>)> = Vec::new();
+    ctx.run(|| {
+        while let Some(m) = camera_in.receive()? {
+            matcher.get_or_insert_with(|| Matcher::new(p.clone(), m.user_header().camera()));
+        }
+        while let Some(m) = keypoints.receive()? {
+            waiting.push((*m.user_header(), m.payload().to_vec()));
+        }
+        if let Some(matcher) = matcher.as_mut() {
+            for (h, payload) in waiting.drain(..) {
+                // Copied out of shared memory unaligned; `parts::split` wants 8-byte alignment.
+                let mut aligned = vec![0u64; payload.len().div_ceil(8)];
+                // SAFETY: `aligned` holds at least payload.len() bytes.
+                let bytes = unsafe { std::slice::from_raw_parts_mut(aligned.as_mut_ptr().cast::<u8>(), payload.len()) };
+                bytes.copy_from_slice(&payload);
+                let result = matcher.add_frame(h.stamp.frame, features(&h, bytes)?);
+                let ties: Vec<TiePoint> = result
+                    .observations
+                    .iter()
+                    .map(|o| TiePoint {
+                        track: o.track,
+                        frame: o.frame,
+                        col: o.px[0],
+                        row: o.px[1],
+                    })
+                    .collect();
+                tracing::debug!(frame = h.stamp.frame, partners = ?result.partners, observations = ties.len(), "matched");
+                if result.partners.iter().all(|&(_, _, inliers)| inliers == 0) && h.stamp.frame > 0 {
+                    tracing::warn!("frame {}: no verified tie points with any earlier frame", h.stamp.frame);
+                }
+                output.publish(TiePointsHeader { stamp: h.stamp }, &ties)?;
+            }
+        }
+        if keypoints.is_ended() && matcher.is_none() {
+            bail!("node '{}': the keypoints ended but no camera model arrived", ctx.name());
+        }
+        Ok(if keypoints.is_ended() && waiting.is_empty() {
+            Flow::Stop
+        } else {
+            Flow::Continue
+        })
+    })?;
+    output.end_of_stream()?;
+    ctx.finish();
+    Ok(())
+}
