@@ -4,6 +4,7 @@
 //! Rotations are kept as matrices; ω, φ, κ appear only at file boundaries ([`opk_from_rotation`]).
 #![warn(missing_docs)]
 
+pub mod bundle;
 mod camera;
 mod pose;
 mod rotation;
