@@ -62,6 +62,15 @@ pub enum BenchCmd {
         #[arg(long, default_value_t = 100.0)]
         threshold: f32,
     },
+    /// Full bundle adjustment of a thesis-size block (33 images, ~2,500 points, ~11,000 observations).
+    Bundle {
+        /// Images.
+        #[arg(long, default_value_t = 33)]
+        cameras: usize,
+        /// Tie points.
+        #[arg(long, default_value_t = 2500)]
+        points: usize,
+    },
     /// The recorder node: MB/s of raw 12 MP RGB frames written with nothing dropped, against the disk.
     Record {
         /// Frames.
@@ -296,6 +305,7 @@ pub fn bench(cmd: BenchCmd) -> Result<ExitCode> {
         BenchCmd::Render { preset, frames, scale } => crate::synth::bench_render(&preset, frames, scale),
         BenchCmd::Edges { preset, reps, high } => crate::bench_edges::bench_edges(&preset, reps, high),
         BenchCmd::Features { preset, reps, threshold } => crate::bench_features::bench_features(&preset, reps, threshold),
+        BenchCmd::Bundle { cameras, points } => crate::bench_bundle::bench_bundle(cameras, points),
         BenchCmd::Record {
             frames,
             width,

@@ -1,6 +1,7 @@
 //! `lineflow`: run launch graphs, process project folders, inspect running graphs, benchmark the transport.
 mod attach;
 mod bench;
+mod bench_bundle;
 mod bench_edges;
 mod bench_features;
 mod bench_record;
