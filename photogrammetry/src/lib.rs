@@ -6,6 +6,7 @@
 
 pub mod bundle;
 mod camera;
+pub mod intersect;
 mod pose;
 mod rotation;
 
