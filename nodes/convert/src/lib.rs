@@ -69,6 +69,26 @@ fn luma(r: u32, g: u32, b: u32) -> u8 {
     ((77 * r + 150 * g + 29 * b + 128) >> 8) as u8
 }
 
+/// Takes every image waiting on `input`, converts it to 8-bit grey in `buffer` (reused from frame to frame) and
+/// calls `f` with its header and the grey pixels: the receive loop of the stages that work on grey images.
+///
+/// # Errors
+/// A receive or conversion failure, or the first error of `f`.
+pub fn for_each_gray(
+    input: &lineflow_runtime::Input<lineflow_messages::kinds::Image>,
+    buffer: &mut Vec<u8>,
+    mut f: impl FnMut(&ImageHeader, &[u8]) -> anyhow::Result<()>,
+) -> anyhow::Result<()> {
+    while let Some(msg) = input.receive()? {
+        let h = *msg.user_header();
+        buffer.resize(h.width as usize * h.height as usize, 0);
+        gray_of_image(&h, msg.payload(), buffer).map_err(anyhow::Error::msg)?;
+        drop(msg);
+        f(&h, buffer)?;
+    }
+    Ok(())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

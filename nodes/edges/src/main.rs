@@ -90,20 +90,17 @@ fn body() -> Result<()> {
     ctx.connect()?;
     let mut gray = Vec::new();
     ctx.run(|| {
-        while let Some(msg) = input.receive()? {
-            let h = *msg.user_header();
+        lineflow_convert::for_each_gray(&input, &mut gray, |h, gray| {
             let (w, ht) = (h.width as usize, h.height as usize);
             if w > u16::MAX as usize || ht > u16::MAX as usize {
                 bail!("frame {}: {w}x{ht} exceeds the 65535-pixel edge map limit", h.stamp.frame);
             }
-            gray.resize(w * ht, 0);
-            lineflow_convert::gray_of_image(&h, msg.payload(), &mut gray).map_err(anyhow::Error::msg)?;
             let map = match det {
-                Detector::Canny { low, high } => canny(&gray, w, ht, low, high),
-                Detector::Sobel { threshold } => sobel(&gray, w, ht, threshold),
-                Detector::Log { sigma, threshold } => log(&gray, w, ht, sigma, threshold),
+                Detector::Canny { low, high } => canny(gray, w, ht, low, high),
+                Detector::Sobel { threshold } => sobel(gray, w, ht, threshold),
+                Detector::Log { sigma, threshold } => log(gray, w, ht, sigma, threshold),
             };
-            let px = pixels(&gray, w, ht, &map);
+            let px = pixels(gray, w, ht, &map);
             let header = EdgeMapHeader {
                 stamp: h.stamp,
                 width: h.width,
@@ -111,8 +108,8 @@ fn body() -> Result<()> {
                 detector: fixed_str(&impl_),
                 name: h.name,
             };
-            output.publish(header, &px)?;
-        }
+            output.publish(header, &px)
+        })?;
         Ok(if input.is_ended() { Flow::Stop } else { Flow::Continue })
     })?;
     output.end_of_stream()?;

@@ -39,12 +39,8 @@ fn body() -> Result<()> {
     ctx.connect()?;
     let mut gray = Vec::new();
     ctx.run(|| {
-        while let Some(msg) = input.receive()? {
-            let h = *msg.user_header();
-            let (w, ht) = (h.width as usize, h.height as usize);
-            gray.resize(w * ht, 0);
-            lineflow_convert::gray_of_image(&h, msg.payload(), &mut gray).map_err(anyhow::Error::msg)?;
-            let features = surf(&gray, w, ht, &p);
+        lineflow_convert::for_each_gray(&input, &mut gray, |h, gray| {
+            let features = surf(gray, h.width as usize, h.height as usize, &p);
             let kps: Vec<Keypoint> = features.iter().map(keypoint).collect();
             let descriptors: Vec<f32> = features.iter().flat_map(|f| f.descriptor).collect();
             let header = KeypointsHeader {
@@ -57,7 +53,8 @@ fn body() -> Result<()> {
             let len = parts::two_part_len::<Keypoint, f32>(kps.len(), descriptors.len());
             output.publish_with(header, len, |buf| parts::write(buf, &kps, &descriptors))?;
             tracing::debug!(frame = h.stamp.frame, keypoints = kps.len(), "described");
-        }
+            Ok(())
+        })?;
         Ok(if input.is_ended() { Flow::Stop } else { Flow::Continue })
     })?;
     output.end_of_stream()?;

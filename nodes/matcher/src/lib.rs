@@ -203,40 +203,34 @@ impl Matcher {
     /// merged: two existing tracks stay apart, so every id published stays valid.
     fn link(&mut self, new: (usize, usize), old: (usize, usize), features: &FrameFeatures, out: &mut Vec<Observation>, number: u64) {
         let has = |s: &Self, t: u64, f: usize| s.frames_of.get(&t).is_some_and(|v| v.contains(&f));
+        let of_old = |s: &Self, track: u64| {
+            let o = &s.frames[old.0];
+            Observation {
+                track,
+                frame: o.number,
+                px: o.features.px[old.1],
+            }
+        };
+        let of_new = |track: u64| Observation {
+            track,
+            frame: number,
+            px: features.px[new.1],
+        };
         match (self.track_of.get(&new).copied(), self.track_of.get(&old).copied()) {
             (None, Some(t)) if !has(self, t, new.0) => {
                 self.observe(t, new);
-                out.push(Observation {
-                    track: t,
-                    frame: number,
-                    px: features.px[new.1],
-                });
+                out.push(of_new(t));
             }
             (None, None) => {
                 let t = self.next_track;
                 self.next_track += 1;
                 self.observe(t, old);
                 self.observe(t, new);
-                let o = &self.frames[old.0];
-                out.push(Observation {
-                    track: t,
-                    frame: o.number,
-                    px: o.features.px[old.1],
-                });
-                out.push(Observation {
-                    track: t,
-                    frame: number,
-                    px: features.px[new.1],
-                });
+                out.extend([of_old(self, t), of_new(t)]);
             }
             (Some(t), None) if !has(self, t, old.0) => {
                 self.observe(t, old);
-                let o = &self.frames[old.0];
-                out.push(Observation {
-                    track: t,
-                    frame: o.number,
-                    px: o.features.px[old.1],
-                });
+                out.push(of_old(self, t));
             }
             _ => {}
         }
