@@ -345,6 +345,62 @@ pub fn adjust(p: &mut BundleProblem, o: &BundleOptions) -> BundleReport {
     report
 }
 
+/// Space resection: the pose that best fits known object points to their ideal photo coordinates, by Gauss–Newton
+/// with a Huber loss from an initial pose (the neighbouring frame's, in a strip). Returns the pose and the RMS
+/// residual (mm), or `None` with fewer than four points or when the iteration fails.
+pub fn resect(focal: f64, initial: &Pose, points: &[Vec3], ideal: &[[f64; 2]], sigma_mm: f64) -> Option<(Pose, f64)> {
+    if points.len() < 4 || points.len() != ideal.len() {
+        return None;
+    }
+    let mut pose = *initial;
+    let mut lambda = 1e-3;
+    let rms = |pose: &Pose| -> f64 {
+        let mut sum = 0.0;
+        for (x, o) in points.iter().zip(ideal) {
+            match project(focal, pose, x) {
+                Some(f) => sum += (o[0] - f[0]).powi(2) + (o[1] - f[1]).powi(2),
+                None => return f64::INFINITY,
+            }
+        }
+        (sum / points.len() as f64).sqrt()
+    };
+    let mut current = rms(&pose);
+    for _ in 0..100 {
+        let mut h = SMatrix::<f64, 6, 6>::zeros();
+        let mut g = SMatrix::<f64, 6, 1>::zeros();
+        for (x, o) in points.iter().zip(ideal) {
+            let Some((e, (a, _))) = linearise(focal, &pose, x, o) else {
+                continue;
+            };
+            let w = huber((e[0] * e[0] + e[1] * e[1]).sqrt() / sigma_mm, 2.0);
+            let e = nalgebra::Vector2::new(e[0], e[1]);
+            h += a.transpose() * a * w;
+            g += a.transpose() * e * w;
+        }
+        for i in 0..6 {
+            h[(i, i)] *= 1.0 + lambda;
+        }
+        let d = h.cholesky()?.solve(&g);
+        let next = stepped(&pose, d.as_slice());
+        let r = rms(&next);
+        if r < current {
+            let done = (current - r) < 1e-12 * current.max(1e-300) || d.norm() < 1e-12;
+            pose = next;
+            current = r;
+            lambda = (lambda / 3.0).max(1e-12);
+            if done {
+                break;
+            }
+        } else {
+            lambda *= 4.0;
+            if lambda > 1e10 {
+                break;
+            }
+        }
+    }
+    current.is_finite().then_some((pose, current))
+}
+
 fn sigmas(p: &BundleProblem, cov: Option<&DMatrix<f64>>, sigma0: f64) -> Vec<([f64; 3], [f64; 3])> {
     let mut j = 0;
     (0..p.poses.len())
@@ -462,6 +518,21 @@ mod tests {
             .pose_sigmas
             .iter()
             .all(|(c, a)| c.iter().chain(a).all(|s| s.is_finite() && *s > 0.0)));
+    }
+
+    #[test]
+    fn resection_recovers_a_pose_from_a_neighbouring_start() {
+        let (p, poses, points) = block(0.0);
+        let (obs, xyz): (Vec<[f64; 2]>, Vec<Vec3>) = p
+            .observations
+            .iter()
+            .filter(|o| o.camera == 3)
+            .map(|o| (o.ideal, points[o.point]))
+            .unzip();
+        let (pose, rms) = resect(p.focal_mm, &poses[2], &xyz, &obs, 0.005).unwrap();
+        assert!((pose.center - poses[3].center).norm() < 1e-6, "{:?}", pose.center);
+        assert!(rms < 1e-6);
+        assert!(resect(p.focal_mm, &poses[2], &xyz[..3], &obs[..3], 0.005).is_none());
     }
 
     #[test]

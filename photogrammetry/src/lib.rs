@@ -6,6 +6,7 @@
 
 pub mod bundle;
 mod camera;
+pub mod epipolar;
 pub mod intersect;
 mod pose;
 mod rotation;

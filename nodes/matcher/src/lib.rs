@@ -5,12 +5,11 @@
 //! them. Each pair is matched (ratio test, Laplacian sign, mutual check) and verified with RANSAC on the essential
 //! matrix (interior orientation known). Verified matches join tracks; a track keeps its id for good.
 pub mod descriptors;
-pub mod epipolar;
 
 use std::collections::HashMap;
 
 use descriptors::{match_features, FrameFeatures};
-use epipolar::{verify, Ransac, Ray};
+use lineflow_photogrammetry::epipolar::{verify, Ransac, Ray};
 use lineflow_photogrammetry::Camera;
 
 /// Matcher settings.

@@ -1,6 +1,6 @@
-//! Geometric verification with the interior orientation known: RANSAC over essential matrices from the normalised
-//! eight-point algorithm, scored by the Sampson distance (seed 000 §2.4: the fundamental/essential matrix, not a
-//! homography, because a façade has parallax).
+//! Two-view geometry with the interior orientation known: essential matrices from the normalised eight-point
+//! algorithm, the Sampson distance, RANSAC (seed 000 §2.4: the essential matrix, not a homography, because a
+//! façade has parallax), and the relative orientation from the four-fold decomposition with the cheirality test.
 use nalgebra::{Matrix3, SMatrix, Vector3};
 
 /// A viewing direction in the camera frame, (x, y, −f) / f of the ideal image coordinates.
@@ -112,6 +112,44 @@ pub fn verify(a: &[Ray], b: &[Ray], r: &Ransac, min_inliers: usize) -> Vec<usize
     best
 }
 
+/// The relative orientation of the second camera when the first is at the origin with M = I: the rotation and
+/// unit-length centre among the four decompositions of `e` that put the most points in front of both cameras
+/// (in front: camera-frame z < 0). Returns the pose and how many points agreed.
+pub fn relative_pose(e: &Matrix3<f64>, a: &[Ray], b: &[Ray]) -> Option<(crate::Pose, usize)> {
+    let svd = e.svd(true, true);
+    let (mut u, mut v_t) = (svd.u?, svd.v_t?);
+    if u.determinant() < 0.0 {
+        u = -u;
+    }
+    if v_t.determinant() < 0.0 {
+        v_t = -v_t;
+    }
+    let w = Matrix3::new(0.0, -1.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0);
+    let t = u.column(2).into_owned();
+    let mut best: Option<(crate::Pose, usize)> = None;
+    for r in [u * w * v_t, u * w.transpose() * v_t] {
+        for t in [t, -t] {
+            // u2 = R·X + t  ⇔  M2 = R, C2 = −Rᵀ·t.
+            let pose = crate::Pose {
+                rotation: r,
+                center: -(r.transpose() * t),
+            };
+            let front = a
+                .iter()
+                .zip(b)
+                .filter(|(p, q)| {
+                    let rays = [(Vector3::zeros(), **p), (pose.center, r.transpose() * **q)];
+                    crate::intersect::intersect_rays(&rays).is_some_and(|(x, _)| x.z < 0.0 && pose.to_camera(&x).z < 0.0)
+                })
+                .count();
+            if best.as_ref().is_none_or(|(_, n)| front > *n) {
+                best = Some((pose, front));
+            }
+        }
+    }
+    best
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -139,6 +177,18 @@ mod tests {
         for (p, q) in a.iter().zip(&b) {
             assert!(sampson(&e, p, q) < 1e-9);
         }
+    }
+
+    #[test]
+    fn the_relative_pose_is_recovered_from_the_essential_matrix() {
+        let (a, b) = scene();
+        let e = eight_point(&a, &b).unwrap();
+        let (pose, front) = relative_pose(&e, &a, &b).unwrap();
+        assert_eq!(front, a.len());
+        let r = Rotation3::from_euler_angles(0.02, -0.1, 0.03).into_inner();
+        let t = Vector3::new(1.0, 0.1, 0.05);
+        assert!((pose.rotation - r).norm() < 1e-9);
+        assert!((pose.center - (-(r.transpose() * t)).normalize()).norm() < 1e-9);
     }
 
     #[test]
