@@ -346,23 +346,28 @@ pub fn adjust(p: &mut BundleProblem, o: &BundleOptions) -> BundleReport {
 }
 
 /// Space resection: the pose that best fits known object points to their ideal photo coordinates, by Gauss–Newton
-/// with a Huber loss from an initial pose (the neighbouring frame's, in a strip). Returns the pose and the RMS
-/// residual (mm), or `None` with fewer than four points or when the iteration fails.
+/// with a Huber loss from an initial pose (the neighbouring frame's, in a strip). Returns the pose and the median
+/// residual (mm; robust to the wrong tie points a block still holds), or `None` with fewer than four points or when
+/// the iteration fails.
 pub fn resect(focal: f64, initial: &Pose, points: &[Vec3], ideal: &[[f64; 2]], sigma_mm: f64) -> Option<(Pose, f64)> {
     if points.len() < 4 || points.len() != ideal.len() {
         return None;
     }
     let mut pose = *initial;
     let mut lambda = 1e-3;
+    // Huber's ρ summed: the function the weighted iterations minimise.
     let rms = |pose: &Pose| -> f64 {
         let mut sum = 0.0;
         for (x, o) in points.iter().zip(ideal) {
             match project(focal, pose, x) {
-                Some(f) => sum += (o[0] - f[0]).powi(2) + (o[1] - f[1]).powi(2),
+                Some(f) => {
+                    let r = ((o[0] - f[0]).powi(2) + (o[1] - f[1]).powi(2)).sqrt() / sigma_mm;
+                    sum += if r <= 2.0 { r * r } else { 4.0 * r - 4.0 };
+                }
                 None => return f64::INFINITY,
             }
         }
-        (sum / points.len() as f64).sqrt()
+        sum
     };
     let mut current = rms(&pose);
     for _ in 0..100 {
@@ -398,7 +403,16 @@ pub fn resect(focal: f64, initial: &Pose, points: &[Vec3], ideal: &[[f64; 2]], s
             }
         }
     }
-    current.is_finite().then_some((pose, current))
+    if !current.is_finite() {
+        return None;
+    }
+    let mut residuals: Vec<f64> = points
+        .iter()
+        .zip(ideal)
+        .filter_map(|(x, o)| project(focal, &pose, x).map(|f| (o[0] - f[0]).hypot(o[1] - f[1])))
+        .collect();
+    residuals.sort_by(f64::total_cmp);
+    Some((pose, residuals[residuals.len() / 2]))
 }
 
 fn sigmas(p: &BundleProblem, cov: Option<&DMatrix<f64>>, sigma0: f64) -> Vec<([f64; 3], [f64; 3])> {
