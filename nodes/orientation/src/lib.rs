@@ -1,0 +1,398 @@
+//! The orientation stage, implementation `bundle`: exterior orientations from tie points as frames arrive.
+//!
+//! The first pair with enough common tracks is oriented relatively (essential matrix, four-fold decomposition,
+//! cheirality) with the first camera as datum; each later frame by space resection from the tracks already
+//! intersected, starting at the nearest oriented frame; new tracks are intersected; the block is adjusted after
+//! every frame. As soon as three control points are intersected the block is moved into the control frame by a
+//! similarity and the control points join the adjustment with their a-priori standard deviations. At the end, a
+//! full adjustment removes outliers and solves again, and the check points are intersected for `checkpoints.csv`.
+use std::collections::{BTreeMap, BTreeSet};
+
+use lineflow_photogrammetry::bundle::{adjust, resect, BundleOptions, BundleProblem, BundleReport, ImageObservation, PointPrior};
+use lineflow_photogrammetry::epipolar::{relative_pose, verify, Ransac, Ray};
+use lineflow_photogrammetry::intersect::{intersect_rays, similarity};
+use lineflow_photogrammetry::{Camera, Pose, Vec3};
+
+/// Settings.
+#[derive(Debug, Clone, serde::Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct OrientationParams {
+    /// A-priori standard deviation of a tie-point measurement, pixels.
+    pub tie_sigma_px: f64,
+    /// A-priori standard deviation of a target measurement, pixels.
+    pub target_sigma_px: f64,
+    /// Common tracks needed to start from a pair.
+    pub min_init_tracks: usize,
+    /// Intersected tracks needed to resect a frame.
+    pub min_resect_points: usize,
+    /// Smallest angle between rays for a new point, degrees.
+    pub min_angle_deg: f64,
+}
+
+impl Default for OrientationParams {
+    fn default() -> Self {
+        Self {
+            tie_sigma_px: 0.5,
+            target_sigma_px: 0.3,
+            min_init_tracks: 25,
+            min_resect_points: 8,
+            min_angle_deg: 1.0,
+        }
+    }
+}
+
+/// A surveyed point.
+#[derive(Debug, Clone)]
+pub struct Surveyed {
+    /// Coordinates, metres.
+    pub xyz: Vec3,
+    /// Standard deviations, metres.
+    pub sigma_m: [f64; 3],
+    /// Control (in the adjustment) or check point.
+    pub control: bool,
+}
+
+#[derive(Debug, Clone, Default)]
+struct Track {
+    obs: Vec<(u64, [f64; 2])>,
+    point: Option<Vec3>,
+}
+
+/// The block being oriented.
+pub struct Block {
+    params: OrientationParams,
+    camera: Camera,
+    /// Oriented frames.
+    pub poses: BTreeMap<u64, Pose>,
+    tracks: BTreeMap<u64, Track>,
+    targets: BTreeMap<String, Track>,
+    surveyed: BTreeMap<String, Surveyed>,
+    /// Whether the block is in the control frame.
+    pub georeferenced: bool,
+    frames: BTreeSet<u64>,
+    /// The last adjustment's report.
+    pub report: BundleReport,
+}
+
+impl Block {
+    /// An empty block for images of `camera`.
+    pub fn new(params: OrientationParams, camera: Camera) -> Self {
+        Self {
+            params,
+            camera,
+            poses: BTreeMap::new(),
+            tracks: BTreeMap::new(),
+            targets: BTreeMap::new(),
+            surveyed: BTreeMap::new(),
+            georeferenced: false,
+            frames: BTreeSet::new(),
+            report: BundleReport::default(),
+        }
+    }
+
+    fn ideal(&self, px: [f64; 2]) -> [f64; 2] {
+        self.camera.pixel_to_ideal(px)
+    }
+
+    fn ray(&self, ideal: [f64; 2]) -> Ray {
+        Ray::new(ideal[0] / self.camera.focal_mm, ideal[1] / self.camera.focal_mm, -1.0)
+    }
+
+    /// Adds tie-point observations (track, frame, measured pixel).
+    pub fn add_ties(&mut self, ties: impl IntoIterator<Item = (u64, u64, [f64; 2])>) {
+        for (track, frame, px) in ties {
+            let ideal = self.ideal(px);
+            self.tracks.entry(track).or_default().obs.push((frame, ideal));
+        }
+    }
+
+    /// Sets the surveyed points.
+    pub fn set_surveyed(&mut self, points: BTreeMap<String, Surveyed>) {
+        self.surveyed = points;
+    }
+
+    /// Adds a measurement of a surveyed point in a frame.
+    pub fn add_target(&mut self, id: &str, frame: u64, px: [f64; 2]) {
+        let ideal = self.ideal(px);
+        self.targets.entry(id.to_owned()).or_default().obs.push((frame, ideal));
+    }
+
+    fn common(&self, a: u64, b: u64) -> Vec<([f64; 2], [f64; 2], u64)> {
+        self.tracks
+            .iter()
+            .filter_map(|(&id, t)| {
+                let pa = t.obs.iter().find(|o| o.0 == a)?.1;
+                let pb = t.obs.iter().find(|o| o.0 == b)?.1;
+                Some((pa, pb, id))
+            })
+            .collect()
+    }
+
+    /// Orients frame `k` if it can; returns whether it is oriented now.
+    pub fn orient(&mut self, k: u64) -> bool {
+        self.frames.insert(k);
+        if self.poses.contains_key(&k) {
+            return true;
+        }
+        let ok = if self.poses.is_empty() {
+            self.initialise(k)
+        } else {
+            self.resect_frame(k)
+        };
+        if ok {
+            self.intersect_new();
+            self.georeference();
+            self.adjust_block(false);
+        }
+        ok
+    }
+
+    fn initialise(&mut self, k: u64) -> bool {
+        let Some((j, common)) = self
+            .frames
+            .iter()
+            .filter(|&&j| j != k)
+            .map(|&j| (j, self.common(j, k)))
+            .max_by_key(|(j, c)| (c.len(), *j))
+        else {
+            return false;
+        };
+        if common.len() < self.params.min_init_tracks {
+            return false;
+        }
+        let a: Vec<Ray> = common.iter().map(|c| self.ray(c.0)).collect();
+        let b: Vec<Ray> = common.iter().map(|c| self.ray(c.1)).collect();
+        let ransac = Ransac {
+            threshold: 2.0 * self.params.tie_sigma_px * self.camera.pixel_size_mm / self.camera.focal_mm,
+            iterations: 2000,
+            seed: 0x0E1E,
+        };
+        let inliers = verify(&a, &b, &ransac, self.params.min_init_tracks);
+        if inliers.is_empty() {
+            return false;
+        }
+        let (ia, ib): (Vec<Ray>, Vec<Ray>) = inliers.iter().map(|&i| (a[i], b[i])).unzip();
+        let Some(e) = lineflow_photogrammetry::epipolar::eight_point(&ia, &ib) else {
+            return false;
+        };
+        let Some((rel, front)) = relative_pose(&e, &ia, &ib) else {
+            return false;
+        };
+        if front * 2 < inliers.len() {
+            return false;
+        }
+        self.poses.insert(
+            j,
+            Pose {
+                center: Vec3::zeros(),
+                rotation: lineflow_photogrammetry::Mat3::identity(),
+            },
+        );
+        self.poses.insert(k, rel);
+        tracing::info!(
+            "initial pair: frames {j} and {k}, {} of {} common tracks verified",
+            inliers.len(),
+            common.len()
+        );
+        true
+    }
+
+    fn resect_frame(&mut self, k: u64) -> bool {
+        let (xyz, obs): (Vec<Vec3>, Vec<[f64; 2]>) = self
+            .tracks
+            .values()
+            .filter_map(|t| Some((t.point?, t.obs.iter().find(|o| o.0 == k)?.1)))
+            .unzip();
+        if xyz.len() < self.params.min_resect_points {
+            tracing::warn!("frame {k}: only {} intersected tie points, not oriented yet", xyz.len());
+            return false;
+        }
+        let nearest = self.poses.keys().min_by_key(|&&f| f.abs_diff(k)).copied().unwrap_or(k);
+        let sigma = self.params.tie_sigma_px * self.camera.pixel_size_mm;
+        match resect(self.camera.focal_mm, &self.poses[&nearest], &xyz, &obs, sigma) {
+            Some((pose, median)) if median < 3.0 * sigma => {
+                self.poses.insert(k, pose);
+                true
+            }
+            other => {
+                tracing::warn!(
+                    "frame {k}: resection failed (median residual {:?} mm), not oriented yet",
+                    other.map(|o| o.1)
+                );
+                false
+            }
+        }
+    }
+
+    fn triangulate(&self, t: &Track) -> Option<Vec3> {
+        let rays: Vec<(Vec3, Vec3)> = t
+            .obs
+            .iter()
+            .filter_map(|(f, ideal)| self.poses.get(f).map(|p| (p.center, p.ray_of_ideal(&self.camera, *ideal))))
+            .collect();
+        let (x, angle) = intersect_rays(&rays)?;
+        (angle.to_degrees() >= self.params.min_angle_deg && rays.iter().all(|(c, d)| (x - c).dot(d) > 0.0)).then_some(x)
+    }
+
+    fn intersect_new(&mut self) {
+        let updates: Vec<(u64, Vec3)> = self
+            .tracks
+            .iter()
+            .filter(|(_, t)| t.point.is_none())
+            .filter_map(|(&id, t)| self.triangulate(t).map(|x| (id, x)))
+            .collect();
+        for (id, x) in updates {
+            if let Some(t) = self.tracks.get_mut(&id) {
+                t.point = Some(x);
+            }
+        }
+    }
+
+    /// Moves the block into the control frame once three control points are intersected.
+    fn georeference(&mut self) {
+        if self.georeferenced {
+            return;
+        }
+        let pairs: Vec<(Vec3, Vec3)> = self
+            .targets
+            .iter()
+            .filter_map(|(id, t)| {
+                let s = self.surveyed.get(id).filter(|s| s.control)?;
+                Some((self.triangulate(t)?, s.xyz))
+            })
+            .collect();
+        if pairs.len() < 3 {
+            return;
+        }
+        let (from, to): (Vec<Vec3>, Vec<Vec3>) = pairs.into_iter().unzip();
+        let Some(s) = similarity(&from, &to) else {
+            return;
+        };
+        for p in self.poses.values_mut() {
+            p.center = s.apply(&p.center);
+            p.rotation *= s.rotation.transpose();
+        }
+        for t in self.tracks.values_mut() {
+            if let Some(x) = &mut t.point {
+                *x = s.apply(x);
+            }
+        }
+        self.georeferenced = true;
+        tracing::info!("georeferenced with {} control points (scale {:.4})", from.len(), s.scale);
+    }
+
+    /// The adjustment problem of the oriented frames, and the track id of each point.
+    fn problem(&self) -> (BundleProblem, Vec<Option<u64>>, Vec<u64>) {
+        let frames: Vec<u64> = self.poses.keys().copied().collect();
+        let index: BTreeMap<u64, usize> = frames.iter().enumerate().map(|(i, f)| (*f, i)).collect();
+        let tie_sigma = self.params.tie_sigma_px * self.camera.pixel_size_mm;
+        let target_sigma = self.params.target_sigma_px * self.camera.pixel_size_mm;
+        let mut points = Vec::new();
+        let mut ids = Vec::new();
+        let mut observations = Vec::new();
+        let mut priors = Vec::new();
+        for (&id, t) in &self.tracks {
+            let Some(x) = t.point else { continue };
+            let obs: Vec<_> = t.obs.iter().filter_map(|(f, i)| index.get(f).map(|c| (*c, *i))).collect();
+            if obs.len() < 2 {
+                continue;
+            }
+            for (c, ideal) in obs {
+                observations.push(ImageObservation {
+                    camera: c,
+                    point: points.len(),
+                    ideal,
+                    sigma_mm: tie_sigma,
+                });
+            }
+            points.push(x);
+            ids.push(Some(id));
+        }
+        if self.georeferenced {
+            for (id, t) in &self.targets {
+                let Some(s) = self.surveyed.get(id).filter(|s| s.control) else {
+                    continue;
+                };
+                let obs: Vec<_> = t.obs.iter().filter_map(|(f, i)| index.get(f).map(|c| (*c, *i))).collect();
+                if obs.is_empty() {
+                    continue;
+                }
+                for (c, ideal) in obs {
+                    observations.push(ImageObservation {
+                        camera: c,
+                        point: points.len(),
+                        ideal,
+                        sigma_mm: target_sigma,
+                    });
+                }
+                priors.push(PointPrior {
+                    point: points.len(),
+                    xyz: s.xyz,
+                    sigma_m: s.sigma_m,
+                });
+                points.push(s.xyz);
+                ids.push(None);
+            }
+        }
+        let fixed = if self.georeferenced { vec![] } else { vec![0] };
+        let poses = frames.iter().map(|f| self.poses[f]).collect();
+        (
+            BundleProblem {
+                focal_mm: self.camera.focal_mm,
+                poses,
+                points,
+                observations,
+                priors,
+                fixed,
+            },
+            ids,
+            frames,
+        )
+    }
+
+    /// Adjusts the whole block; `last` removes outliers and solves again.
+    pub fn adjust_block(&mut self, last: bool) {
+        let (mut p, ids, frames) = self.problem();
+        let options = if last {
+            BundleOptions::default()
+        } else {
+            BundleOptions {
+                max_iterations: 15,
+                outlier_k: 0.0,
+                ..Default::default()
+            }
+        };
+        self.report = adjust(&mut p, &options);
+        for (f, pose) in frames.iter().zip(&p.poses) {
+            self.poses.insert(*f, *pose);
+        }
+        for (id, x) in ids.iter().zip(&p.points) {
+            if let Some(t) = id.and_then(|id| self.tracks.get_mut(&id)) {
+                t.point = Some(*x);
+            }
+        }
+    }
+
+    /// Orients what is still unoriented now that the block is complete, then the final adjustment.
+    pub fn finish(&mut self) {
+        let pending: Vec<u64> = self.frames.iter().filter(|f| !self.poses.contains_key(f)).copied().collect();
+        for f in pending {
+            if self.resect_frame(f) {
+                self.intersect_new();
+            }
+        }
+        self.georeference();
+        self.adjust_block(true);
+    }
+
+    /// Check points intersected from the oriented frames: (id, estimated − surveyed).
+    pub fn check_points(&self) -> Vec<(String, Vec3)> {
+        self.targets
+            .iter()
+            .filter_map(|(id, t)| {
+                let s = self.surveyed.get(id).filter(|s| !s.control)?;
+                Some((id.clone(), self.triangulate(t)? - s.xyz))
+            })
+            .collect()
+    }
+}
