@@ -9,7 +9,7 @@
 use std::collections::{BTreeMap, BTreeSet};
 
 use lineflow_photogrammetry::bundle::{adjust, resect, BundleOptions, BundleProblem, BundleReport, ImageObservation, PointPrior};
-use lineflow_photogrammetry::epipolar::{relative_pose, verify, Ransac, Ray};
+use lineflow_photogrammetry::epipolar::{verify, Ransac, Ray};
 use lineflow_photogrammetry::intersect::{intersect_rays, similarity};
 use lineflow_photogrammetry::{Camera, Pose, Vec3};
 
@@ -72,6 +72,8 @@ pub struct Block {
     frames: BTreeSet<u64>,
     /// The last adjustment's report.
     pub report: BundleReport,
+    /// The initial pair, held fixed (the datum) until the block is georeferenced.
+    pair: Vec<u64>,
 }
 
 impl Block {
@@ -87,6 +89,7 @@ impl Block {
             georeferenced: false,
             frames: BTreeSet::new(),
             report: BundleReport::default(),
+            pair: Vec::new(),
         }
     }
 
@@ -134,15 +137,15 @@ impl Block {
         if self.poses.contains_key(&k) {
             return true;
         }
-        let ok = if self.poses.is_empty() {
-            self.initialise(k)
-        } else {
-            self.resect_frame(k)
-        };
+        let first = self.poses.is_empty();
+        let ok = if first { self.initialise(k) } else { self.resect_frame(k) };
         if ok {
             self.intersect_new();
             self.georeference();
             self.adjust_block(false);
+            if first {
+                self.pair.truncate(1);
+            }
         }
         ok
     }
@@ -171,16 +174,22 @@ impl Block {
         if inliers.is_empty() {
             return false;
         }
-        let (ia, ib): (Vec<Ray>, Vec<Ray>) = inliers.iter().map(|&i| (a[i], b[i])).unzip();
-        let Some(e) = lineflow_photogrammetry::epipolar::eight_point(&ia, &ib) else {
-            return false;
-        };
-        let Some((rel, front)) = relative_pose(&e, &ia, &ib) else {
-            return false;
-        };
-        if front * 2 < inliers.len() {
+        // A façade is nearly planar, which leaves the linear essential matrix ill-conditioned (seed 001's
+        // warning): start instead from what a strip gives, the second camera turned like the first and moved against
+        // the image flow, and let the adjustment (after the intersection in `orient`) find the relative orientation;
+        // collinearity is well posed for a plane, only its linear solution is not.
+        let flow = inliers.iter().fold([0.0f64; 2], |acc, &i| {
+            let (p, q) = (common[i].0, common[i].1);
+            [acc[0] + q[0] - p[0], acc[1] + q[1] - p[1]]
+        });
+        let away = Vec3::new(-flow[0], -flow[1], 0.0);
+        if away.norm() == 0.0 {
             return false;
         }
+        let rel = Pose {
+            center: away.normalize(),
+            rotation: lineflow_photogrammetry::Mat3::identity(),
+        };
         self.poses.insert(
             j,
             Pose {
@@ -189,6 +198,8 @@ impl Block {
             },
         );
         self.poses.insert(k, rel);
+        // The pair is adjusted once with its first camera fixed, then both are held as the datum.
+        self.pair = vec![j.min(k)];
         tracing::info!(
             "initial pair: frames {j} and {k}, {} of {} common tracks verified",
             inliers.len(),
@@ -334,7 +345,11 @@ impl Block {
                 ids.push(None);
             }
         }
-        let fixed = if self.georeferenced { vec![] } else { vec![0] };
+        let fixed = if self.georeferenced {
+            vec![]
+        } else {
+            self.pair.iter().filter_map(|f| index.get(f).copied()).collect()
+        };
         let poses = frames.iter().map(|f| self.poses[f]).collect();
         (
             BundleProblem {
@@ -358,7 +373,7 @@ impl Block {
         } else {
             BundleOptions {
                 max_iterations: 15,
-                outlier_k: 0.0,
+                outlier_rounds: 1,
                 ..Default::default()
             }
         };

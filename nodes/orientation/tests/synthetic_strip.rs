@@ -70,6 +70,22 @@ fn a_strip_is_oriented_as_it_arrives_and_meets_the_check_points() {
             block.add_target(&t.id, k as u64, t.px);
         }
         let oriented = block.orient(k as u64);
+        if k <= 3 {
+            let p0 = syn.poses()[0];
+            for (f, p) in &block.poses {
+                let t = syn.poses()[*f as usize];
+                // true relative pose in camera-0 frame
+                let rt = t.rotation * p0.rotation.transpose();
+                let ct = p0.rotation * (t.center - p0.center);
+                eprintln!(
+                    "  pose {f}: R err {:.4}, centre {:?} vs true dir {:?} (|{:.3}|)",
+                    (p.rotation - rt).norm(),
+                    p.center.as_slice(),
+                    (ct / ct.norm()).as_slice(),
+                    ct.norm()
+                );
+            }
+        }
         eprintln!(
             "frame {k}: oriented {oriented}, georeferenced {}, sigma0 {:.2}",
             block.georeferenced, block.report.sigma0
