@@ -692,8 +692,17 @@ fn apply_override(file: &mut LaunchFile, item: &str) -> Result<(), String> {
         .iter_mut()
         .find(|n| n.name == node)
         .ok_or_else(|| format!("no node '{node}' in the graph"))?;
+    let text = || parsed.as_str().unwrap_or(value).to_owned();
+    // `executable` and `stage` replace each other: a stage swapped for a node in another language on the command
+    // line (or on replay) without a second launch file.
     if param == "impl" {
-        n.implementation = Some(parsed.as_str().unwrap_or(value).to_owned());
+        n.implementation = Some(text());
+    } else if param == "executable" {
+        n.executable = Some(text());
+        n.stage = None;
+    } else if param == "stage" {
+        n.stage = Some(text());
+        n.executable = None;
     } else {
         n.params.insert(param.to_owned(), parsed);
     }
