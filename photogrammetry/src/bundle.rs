@@ -330,7 +330,12 @@ pub fn adjust(p: &mut BundleProblem, o: &BundleOptions) -> BundleReport {
         if o.outlier_k <= 0.0 || round >= o.outlier_rounds {
             break;
         }
-        let limit = o.outlier_k * report.sigma0.max(1.0);
+        // The scale of the residuals from their median, not from σ0: the blunders being looked for inflate σ0 and
+        // would hide themselves. For a 2-D residual whose coordinates have σ, the median length is 1.1774 σ.
+        let mut lengths: Vec<f64> = (0..active.len()).filter(|&i| active[i]).map(|i| normalised[i]).collect();
+        lengths.sort_by(f64::total_cmp);
+        let robust = lengths.get(lengths.len() / 2).map_or(1.0, |m| m / 1.1774);
+        let limit = o.outlier_k * robust.max(1.0) * std::f64::consts::SQRT_2;
         let bad: Vec<usize> = (0..active.len()).filter(|&i| active[i] && normalised[i] > limit).collect();
         if bad.is_empty() {
             break;

@@ -215,17 +215,39 @@ impl Block {
             .filter_map(|t| Some((t.point?, t.obs.iter().find(|o| o.0 == k)?.1)))
             .unzip();
         if xyz.len() < self.params.min_resect_points {
+            eprintln!("DEBUG resect {k}: only {} points", xyz.len());
             tracing::warn!("frame {k}: only {} intersected tie points, not oriented yet", xyz.len());
             return false;
         }
-        let nearest = self.poses.keys().min_by_key(|&&f| f.abs_diff(k)).copied().unwrap_or(k);
         let sigma = self.params.tie_sigma_px * self.camera.pixel_size_mm;
-        match resect(self.camera.focal_mm, &self.poses[&nearest], &xyz, &obs, sigma) {
+        // Starts: the nearest oriented frame, and the two nearest extrapolated (a strip moves steadily).
+        let mut near: Vec<u64> = self.poses.keys().copied().collect();
+        near.sort_by_key(|&f| (f.abs_diff(k), f));
+        let mut starts = vec![self.poses[&near[0]]];
+        if near.len() >= 2 {
+            let (a, b) = (&self.poses[&near[0]], &self.poses[&near[1]]);
+            let steps = (k as f64 - near[0] as f64) / (near[0] as f64 - near[1] as f64);
+            starts.push(Pose {
+                center: a.center + (a.center - b.center) * steps,
+                rotation: a.rotation,
+            });
+        }
+        let best = starts
+            .iter()
+            .filter_map(|s| resect(self.camera.focal_mm, s, &xyz, &obs, sigma))
+            .min_by(|x, y| x.1.total_cmp(&y.1));
+        match best {
             Some((pose, median)) if median < 3.0 * sigma => {
                 self.poses.insert(k, pose);
                 true
             }
             other => {
+                eprintln!(
+                    "DEBUG resect {k}: {} points, median {:?} mm vs 3 sigma {}",
+                    xyz.len(),
+                    other.map(|o| o.1),
+                    3.0 * sigma
+                );
                 tracing::warn!(
                     "frame {k}: resection failed (median residual {:?} mm), not oriented yet",
                     other.map(|o| o.1)

@@ -40,6 +40,7 @@ fn a_strip_is_oriented_as_it_arrives_and_meets_the_check_points() {
     let mut matcher = Matcher::new(
         MatcherParams {
             ratio: 0.85,
+            retrieval: 0,
             ..Default::default()
         },
         cam,
@@ -62,10 +63,32 @@ fn a_strip_is_oriented_as_it_arrives_and_meets_the_check_points() {
             .collect::<BTreeMap<_, _>>(),
     );
     let targets = syn.target_observations();
+    let mut all: Vec<lineflow_matcher::Observation> = Vec::new();
     for k in 0..n {
         let r = matcher.add_frame(k as u64, features(&syn, k));
         eprintln!("partners {:?}", r.partners);
         block.add_ties(r.observations.iter().map(|o| (o.track, o.frame, o.px)));
+        all.extend(r.observations.iter().cloned());
+        if k == 3 || k == 5 {
+            // DEBUG: how many of this frame's observations agree with the true geometry of their track's other view
+            let mut good = 0;
+            let mut total = 0;
+            for o in r.observations.iter().filter(|o| o.frame == k as u64) {
+                if let Some(other) = all.iter().find(|p| p.track == o.track && p.frame != o.frame) {
+                    let cam = syn.camera();
+                    let (pa, pb) = (&syn.poses()[o.frame as usize], &syn.poses()[other.frame as usize]);
+                    let (da, db) = (pa.ray_of_pixel(cam, o.px), pb.ray_of_pixel(cam, other.px));
+                    let w0 = pa.center - pb.center;
+                    let n = da.cross(&db);
+                    let dist = (w0.dot(&n)).abs() / n.norm();
+                    total += 1;
+                    if dist < 0.02 {
+                        good += 1;
+                    }
+                }
+            }
+            eprintln!("DEBUG frame {k}: {good} of {total} new observations have rays meeting within 2 cm");
+        }
         for t in targets.iter().filter(|t| t.frame == k) {
             block.add_target(&t.id, k as u64, t.px);
         }
