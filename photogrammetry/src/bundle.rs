@@ -330,7 +330,12 @@ pub fn adjust(p: &mut BundleProblem, o: &BundleOptions) -> BundleReport {
         if o.outlier_k <= 0.0 || round >= o.outlier_rounds {
             break;
         }
-        let limit = o.outlier_k * report.sigma0.max(1.0);
+        // The scale of the residuals from their median, not from σ0: the blunders being looked for inflate σ0 and
+        // would hide themselves. For a 2-D residual whose coordinates have σ, the median length is 1.1774 σ.
+        let mut lengths: Vec<f64> = (0..active.len()).filter(|&i| active[i]).map(|i| normalised[i]).collect();
+        lengths.sort_by(f64::total_cmp);
+        let robust = lengths.get(lengths.len() / 2).map_or(1.0, |m| m / 1.1774);
+        let limit = o.outlier_k * robust.max(1.0) * std::f64::consts::SQRT_2;
         let bad: Vec<usize> = (0..active.len()).filter(|&i| active[i] && normalised[i] > limit).collect();
         if bad.is_empty() {
             break;
@@ -345,11 +350,31 @@ pub fn adjust(p: &mut BundleProblem, o: &BundleOptions) -> BundleReport {
     report
 }
 
+/// [`resect_once`], then the points whose residual exceeds three times the median (at least 3σ) are dropped and
+/// the pose solved again, twice: a block's wrong tie points are not random, a Huber loss alone is pulled by them.
+pub fn resect(focal: f64, initial: &Pose, points: &[Vec3], ideal: &[[f64; 2]], sigma_mm: f64) -> Option<(Pose, f64)> {
+    let (mut pose, mut median) = resect_once(focal, initial, points, ideal, sigma_mm)?;
+    for _ in 0..2 {
+        let limit = (3.0 * median).max(3.0 * sigma_mm);
+        let (kept_x, kept_o): (Vec<Vec3>, Vec<[f64; 2]>) = points
+            .iter()
+            .zip(ideal)
+            .filter(|(x, o)| project(focal, &pose, x).is_some_and(|f| (o[0] - f[0]).hypot(o[1] - f[1]) <= limit))
+            .map(|(x, o)| (*x, *o))
+            .unzip();
+        if kept_x.len() == points.len() || kept_x.len() < 4 {
+            break;
+        }
+        (pose, median) = resect_once(focal, &pose, &kept_x, &kept_o, sigma_mm)?;
+    }
+    Some((pose, median))
+}
+
 /// Space resection: the pose that best fits known object points to their ideal photo coordinates, by Gauss–Newton
 /// with a Huber loss from an initial pose (the neighbouring frame's, in a strip). Returns the pose and the median
 /// residual (mm; robust to the wrong tie points a block still holds), or `None` with fewer than four points or when
 /// the iteration fails.
-pub fn resect(focal: f64, initial: &Pose, points: &[Vec3], ideal: &[[f64; 2]], sigma_mm: f64) -> Option<(Pose, f64)> {
+fn resect_once(focal: f64, initial: &Pose, points: &[Vec3], ideal: &[[f64; 2]], sigma_mm: f64) -> Option<(Pose, f64)> {
     if points.len() < 4 || points.len() != ideal.len() {
         return None;
     }

@@ -150,6 +150,81 @@ pub fn relative_pose(e: &Matrix3<f64>, a: &[Ray], b: &[Ray]) -> Option<(crate::P
     best
 }
 
+/// The homography `b ~ H a` of four or more correspondences (normalised DLT on the rays' image-plane points).
+pub fn homography(a: &[Ray], b: &[Ray]) -> Option<Matrix3<f64>> {
+    if a.len() < 4 || a.len() != b.len() {
+        return None;
+    }
+    let mut ata = SMatrix::<f64, 9, 9>::zeros();
+    for (p, q) in a.iter().zip(b) {
+        let (p, q) = (p / p.z, q / q.z);
+        let r1 = SMatrix::<f64, 1, 9>::from_row_slice(&[p.x, p.y, 1.0, 0.0, 0.0, 0.0, -q.x * p.x, -q.x * p.y, -q.x]);
+        let r2 = SMatrix::<f64, 1, 9>::from_row_slice(&[0.0, 0.0, 0.0, p.x, p.y, 1.0, -q.y * p.x, -q.y * p.y, -q.y]);
+        ata += r1.transpose() * r1 + r2.transpose() * r2;
+    }
+    let svd = ata.svd(false, true);
+    let v_t = svd.v_t?;
+    let (k, _) = svd.singular_values.iter().enumerate().min_by(|x, y| x.1.total_cmp(y.1))?;
+    let h = v_t.row(k);
+    Some(Matrix3::new(h[0], h[1], h[2], h[3], h[4], h[5], h[6], h[7], h[8]))
+}
+
+/// Transfer distance of `a` through `h` to `b`, normalised image units.
+pub fn transfer(h: &Matrix3<f64>, a: &Ray, b: &Ray) -> f64 {
+    let (p, q) = (a / a.z, b / b.z);
+    let m = h * p;
+    if m.z.abs() < 1e-12 {
+        return f64::INFINITY;
+    }
+    ((m.x / m.z - q.x).powi(2) + (m.y / m.z - q.y).powi(2)).sqrt()
+}
+
+/// The correspondences consistent with the dominant plane within `r.threshold` (RANSAC over homographies). A façade
+/// strip's epipolar lines run along the brick courses, so whole patches can be matched one brick along and still
+/// satisfy the epipolar constraint; they do not fit the façade's plane. Relief within the threshold is kept.
+pub fn dominant_plane(a: &[Ray], b: &[Ray], r: &Ransac) -> Vec<usize> {
+    let n = a.len();
+    if n < 4 {
+        return (0..n).collect();
+    }
+    let mut state = r.seed | 1;
+    let mut next = move || {
+        state ^= state << 13;
+        state ^= state >> 7;
+        state ^= state << 17;
+        state
+    };
+    let inliers_of = |h: &Matrix3<f64>| -> Vec<usize> { (0..n).filter(|&i| transfer(h, &a[i], &b[i]) < r.threshold).collect() };
+    let mut best: Vec<usize> = Vec::new();
+    for _ in 0..r.iterations {
+        let mut pick = [0usize; 4];
+        let mut k = 0;
+        while k < 4 {
+            let c = (next() % n as u64) as usize;
+            if !pick[..k].contains(&c) {
+                pick[k] = c;
+                k += 1;
+            }
+        }
+        let (sa, sb): (Vec<Ray>, Vec<Ray>) = pick.iter().map(|&i| (a[i], b[i])).unzip();
+        let Some(h) = homography(&sa, &sb) else { continue };
+        let inl = inliers_of(&h);
+        if inl.len() > best.len() {
+            best = inl;
+        }
+    }
+    if best.len() >= 4 {
+        let (sa, sb): (Vec<Ray>, Vec<Ray>) = best.iter().map(|&i| (a[i], b[i])).unzip();
+        if let Some(h) = homography(&sa, &sb) {
+            let refined = inliers_of(&h);
+            if refined.len() >= best.len() {
+                best = refined;
+            }
+        }
+    }
+    best
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -189,6 +264,33 @@ mod tests {
         let t = Vector3::new(1.0, 0.1, 0.05);
         assert!((pose.rotation - r).norm() < 1e-9);
         assert!((pose.center - (-(r.transpose() * t)).normalize()).norm() < 1e-9);
+    }
+
+    #[test]
+    fn the_dominant_plane_rejects_matches_shifted_along_a_repeated_pattern() {
+        // A plane z = −10 seen from two cameras; a third of the matches shifted by a "brick" along x.
+        let t = Vector3::new(1.0, 0.0, 0.0);
+        let (mut a, mut b) = (Vec::new(), Vec::new());
+        for i in 0..60 {
+            let x = Vector3::new((i % 10) as f64 - 4.5, (i / 10) as f64 - 2.5, -10.0);
+            a.push(x / -x.z);
+            let mut y = x + t;
+            if i % 3 == 0 {
+                y.x += 0.25;
+            }
+            b.push(y / -y.z);
+        }
+        let inl = dominant_plane(
+            &a,
+            &b,
+            &Ransac {
+                threshold: 0.005,
+                iterations: 300,
+                seed: 3,
+            },
+        );
+        assert_eq!(inl.len(), 40);
+        assert!(inl.iter().all(|i| i % 3 != 0));
     }
 
     #[test]

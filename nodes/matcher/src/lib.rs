@@ -9,7 +9,7 @@ pub mod descriptors;
 use std::collections::HashMap;
 
 use descriptors::{match_features, FrameFeatures};
-use lineflow_photogrammetry::epipolar::{verify, Ransac, Ray};
+use lineflow_photogrammetry::epipolar::{dominant_plane, verify, Ransac, Ray};
 use lineflow_photogrammetry::Camera;
 
 /// Matcher settings.
@@ -36,6 +36,8 @@ pub struct MatcherParams {
     pub neighbours: usize,
     /// Largest difference, pixels, between a match's displacement and its neighbours' median displacement.
     pub displacement_tolerance_px: f64,
+    /// Matches must also fit the dominant plane (the façade) within this many pixels, relief included (0 = off).
+    pub plane_tolerance_px: f64,
 }
 
 impl Default for MatcherParams {
@@ -51,6 +53,7 @@ impl Default for MatcherParams {
             min_inliers: 15,
             neighbours: 8,
             displacement_tolerance_px: 3.0,
+            plane_tolerance_px: 6.0,
         }
     }
 }
@@ -175,6 +178,18 @@ impl Matcher {
                 .collect();
             let keep = consistent_displacements(&pairs, self.params.neighbours, self.params.displacement_tolerance_px);
             inliers = inliers.into_iter().zip(keep).filter_map(|(m, k)| k.then_some(m)).collect();
+            if self.params.plane_tolerance_px > 0.0 {
+                let (pa, pb): (Vec<Ray>, Vec<Ray>) = inliers.iter().map(|&m| (ra[m], rb[m])).unzip();
+                let plane = Ransac {
+                    threshold: self.params.plane_tolerance_px * self.camera.pixel_size_mm / self.camera.focal_mm,
+                    ..ransac
+                };
+                let on_plane = dominant_plane(&pa, &pb, &plane);
+                // A scene without a dominant plane (a roof, a corner) keeps its epipolar inliers.
+                if on_plane.len() >= self.params.min_inliers {
+                    inliers = on_plane.into_iter().map(|i| inliers[i]).collect();
+                }
+            }
             if inliers.len() < self.params.min_inliers {
                 inliers.clear();
             }
