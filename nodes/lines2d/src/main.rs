@@ -1,5 +1,6 @@
-//! `lineflow-lines2d`: the lines2d stage (`impl = "trace"`). Joins the latched camera with each edge map,
-//! publishes segments and their chains, and writes `lines2d.csv` into the run's output folder.
+//! `lineflow-lines2d`: the lines2d stage. `impl = "trace"` (default) joins the latched camera with each edge map;
+//! `impl = "lsd"` detects segments on the grey images. Both publish segments with their pixel chains and write
+//! `lines2d.csv` into the run's output folder.
 use anyhow::{bail, Context, Result};
 use lineflow_formats::{write_lines2d, Line2Row};
 use lineflow_lines2d::{trace, TraceParams};
@@ -96,13 +97,82 @@ fn main() -> std::process::ExitCode {
 
 fn body() -> Result<()> {
     let ctx = NodeContext::from_env()?;
-    if ctx.implementation("trace") != "trace" {
-        bail!(
-            "node '{}': unknown lines2d impl '{}' (available: trace)",
-            ctx.name(),
-            ctx.implementation("trace")
-        );
+    match ctx.implementation("trace") {
+        "trace" => run_trace(ctx),
+        "lsd" => run_lsd(ctx),
+        other => bail!("node '{}': unknown lines2d impl '{other}' (available: trace, lsd)", ctx.name()),
     }
+}
+
+/// `impl = "lsd"`: segments straight from the grey images (input `images`; `edges` is ignored when wired).
+fn run_lsd(ctx: NodeContext) -> Result<()> {
+    #[derive(Debug, Deserialize)]
+    #[serde(deny_unknown_fields)]
+    struct LsdParams {
+        #[serde(default = "default_length")]
+        min_length_px: f64,
+    }
+    let p: LsdParams = ctx.params()?;
+    if !p.min_length_px.is_finite() || p.min_length_px < 0.0 {
+        bail!("node '{}': min_length_px must be >= 0", ctx.name());
+    }
+    let images = ctx.input::<kinds::Image>("images")?;
+    let unused_edges = ctx.optional_input::<kinds::EdgeMap>("edges")?;
+    let unused_camera = ctx.optional_input::<kinds::CameraModel>("camera")?;
+    let output = ctx.output::<kinds::Lines2D>("lines2d")?;
+    ctx.connect()?;
+    let path = ctx.out_dir().join("lines2d.csv");
+    let (mut gray, mut rows) = (Vec::new(), Vec::new());
+    ctx.run(|| {
+        // Edge maps and the camera, when wired, are not needed: drain them so their publishers never wait.
+        if let Some(e) = &unused_edges {
+            while e.receive()?.is_some() {}
+        }
+        if let Some(c) = &unused_camera {
+            while c.receive()?.is_some() {}
+        }
+        lineflow_convert::for_each_gray(&images, &mut gray, |h, gray| {
+            let found = lineflow_lines2d::lsd::lsd(gray, h.width as usize, h.height as usize, p.min_length_px);
+            let (mut segs, mut chain) = (Vec::with_capacity(found.len()), Vec::<[u16; 2]>::new());
+            for (id, s) in found.iter().enumerate() {
+                segs.push(Segment2 {
+                    id: id as u32,
+                    chain_start: chain.len() as u32,
+                    chain_len: s.chain.len() as u32,
+                    reserved: 0,
+                    start_px: s.start,
+                    end_px: s.end,
+                });
+                chain.extend(&s.chain);
+                rows.push(Line2Row {
+                    image: h.name().to_string(),
+                    id: id as u64,
+                    start_px: s.start,
+                    end_px: s.end,
+                    n_pixels: Some(s.chain.len() as u32),
+                });
+            }
+            let header = Lines2DHeader {
+                stamp: h.stamp,
+                n_segments: segs.len() as u32,
+                n_chain: chain.len() as u32,
+                name: h.name,
+            };
+            output.publish_with(header, parts::two_part_len::<Segment2, [u16; 2]>(segs.len(), chain.len()), |buf| {
+                parts::write(buf, &segs, &chain)
+            })
+        })?;
+        Ok(if images.is_ended() { Flow::Stop } else { Flow::Continue })
+    })?;
+    output.end_of_stream()?;
+    write_lines2d(&path, &rows).with_context(|| format!("writing {}", path.display()))?;
+    tracing::info!("{} segments (lsd) -> {}", rows.len(), path.display());
+    ctx.finish();
+    Ok(())
+}
+
+/// `impl = "trace"`: the thesis's line tracing on the edge maps.
+fn run_trace(ctx: NodeContext) -> Result<()> {
     let p: Params = ctx.params()?;
     if !(p.max_distance_px > 0.0 && p.min_length_px >= 0.0 && p.max_gap_px >= 0.0 && (0.0..90.0).contains(&p.max_merge_angle_deg)) {
         bail!(
@@ -118,6 +188,8 @@ fn body() -> Result<()> {
     };
     let edges = ctx.input::<kinds::EdgeMap>("edges")?;
     let camera_in = ctx.input::<kinds::CameraModel>("camera")?;
+    // Wired so that `impl = "lsd"` can be swapped in without touching the graph; tracing does not need them.
+    let unused_images = ctx.optional_input::<kinds::Image>("images")?;
     let output = ctx.output::<kinds::Lines2D>("lines2d")?;
     ctx.connect()?;
     let path = ctx.out_dir().join("lines2d.csv");
@@ -126,6 +198,9 @@ fn body() -> Result<()> {
     let mut waiting: Vec<(EdgeMapHeader, Vec<EdgePixel>)> = Vec::new();
     let mut rows = Vec::new();
     ctx.run(|| {
+        if let Some(i) = &unused_images {
+            while i.receive()?.is_some() {}
+        }
         while let Some(m) = camera_in.receive()? {
             cam = Some(m.user_header().camera());
         }

@@ -365,3 +365,32 @@ fn the_python_sobel_node_swaps_in_on_replay_and_matches_the_rust_sobel() {
         .collect();
     assert_eq!(differing, ["edges", "lines2d"], "{text}");
 }
+
+#[test]
+fn lsd_swaps_in_for_the_line_tracing_on_replay() {
+    let sb = Sandbox::new();
+    let rec = record_demo(&sb, &sb.path().join("live"), &[]);
+    let out = sb.path().join("lsd");
+    let r = sb.run(&[
+        "replay",
+        rec.to_str().unwrap(),
+        "--rerun",
+        "--set",
+        "lines2d.impl=lsd",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(r.status.success(), "lsd rerun failed");
+    let d = sb.run(&["diff", rec.to_str().unwrap(), out.join("recording.mcap").to_str().unwrap()]);
+    let text = stdout(&d);
+    let differing: Vec<&str> = text
+        .lines()
+        .filter_map(|l| l.strip_prefix("DIFFERS  "))
+        .map(|l| l.split(':').next().unwrap())
+        .collect();
+    assert_eq!(differing, ["lines2d"], "{text}");
+    let rows = std::fs::read_to_string(out.join("lines2d.csv")).unwrap();
+    assert!(rows.lines().count() > 18 * 5, "LSD found few segments:\n{rows}");
+    let report = std::fs::read_to_string(out.join("eval/report.md")).unwrap();
+    assert!(report.contains("Length recall"), "{report}");
+}
