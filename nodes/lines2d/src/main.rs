@@ -42,6 +42,49 @@ fn default_angle() -> f64 {
 /// One frame's segments, their concatenated pixel chains, and their `lines2d.csv` rows.
 type FrameLines = (Vec<Segment2>, Vec<[u16; 2]>, Vec<Line2Row>);
 
+/// Numbers segments in order and lays out their chains one after the other, with their `lines2d.csv` rows.
+fn assemble<'a>(image: &str, found: impl Iterator<Item = ([f64; 2], [f64; 2], &'a [[u16; 2]])>) -> FrameLines {
+    let (mut segs, mut chain, mut rows) = (Vec::new(), Vec::new(), Vec::new());
+    for (id, (a, b, pixels)) in found.enumerate() {
+        segs.push(Segment2 {
+            id: id as u32,
+            chain_start: chain.len() as u32,
+            chain_len: pixels.len() as u32,
+            reserved: 0,
+            start_px: a,
+            end_px: b,
+        });
+        chain.extend_from_slice(pixels);
+        rows.push(Line2Row {
+            image: image.to_owned(),
+            id: id as u64,
+            start_px: a,
+            end_px: b,
+            n_pixels: Some(pixels.len() as u32),
+        });
+    }
+    (segs, chain, rows)
+}
+
+/// Publishes one frame's segments with the stamp and image name of its source.
+fn publish(
+    output: &lineflow_runtime::Output<kinds::Lines2D>,
+    stamp: lineflow_messages::Stamp,
+    name: [u8; 64],
+    segs: &[Segment2],
+    chain: &[[u16; 2]],
+) -> Result<()> {
+    let header = Lines2DHeader {
+        stamp,
+        n_segments: segs.len() as u32,
+        n_chain: chain.len() as u32,
+        name,
+    };
+    output.publish_with(header, parts::two_part_len::<Segment2, [u16; 2]>(segs.len(), chain.len()), |buf| {
+        parts::write(buf, segs, chain)
+    })
+}
+
 /// Segments of one edge map, with their rows for `lines2d.csv`.
 fn segments(cam: &Camera, h: &EdgeMapHeader, px: &[EdgePixel], p: &TraceParams) -> Result<FrameLines> {
     if (h.width, h.height) != (cam.width, cam.height) {
@@ -65,30 +108,13 @@ fn segments(cam: &Camera, h: &EdgeMapHeader, px: &[EdgePixel], p: &TraceParams) 
         })
         .collect();
     let traced = trace(h.width as usize, h.height as usize, &pixels, &corrected, p);
-    let (mut segs, mut chain, mut rows) = (Vec::new(), Vec::new(), Vec::new());
-    for (id, t) in traced.iter().enumerate() {
-        let measured = |c: [f64; 2]| cam.ideal_to_pixel([c[0] * ps, c[1] * ps]);
-        let (Some(a), Some(b)) = (measured(t.start), measured(t.end)) else {
-            continue;
-        };
-        segs.push(Segment2 {
-            id: id as u32,
-            chain_start: chain.len() as u32,
-            chain_len: t.chain.len() as u32,
-            reserved: 0,
-            start_px: a,
-            end_px: b,
-        });
-        chain.extend(&t.chain);
-        rows.push(Line2Row {
-            image: h.name().to_string(),
-            id: id as u64,
-            start_px: a,
-            end_px: b,
-            n_pixels: Some(t.chain.len() as u32),
-        });
-    }
-    Ok((segs, chain, rows))
+    let measured = |c: [f64; 2]| cam.ideal_to_pixel([c[0] * ps, c[1] * ps]);
+    Ok(assemble(
+        h.name(),
+        traced
+            .iter()
+            .filter_map(|t| Some((measured(t.start)?, measured(t.end)?, t.chain.as_slice()))),
+    ))
 }
 
 fn main() -> std::process::ExitCode {
@@ -133,34 +159,9 @@ fn run_lsd(ctx: NodeContext) -> Result<()> {
         }
         lineflow_convert::for_each_gray(&images, &mut gray, |h, gray| {
             let found = lineflow_lines2d::lsd::lsd(gray, h.width as usize, h.height as usize, p.min_length_px);
-            let (mut segs, mut chain) = (Vec::with_capacity(found.len()), Vec::<[u16; 2]>::new());
-            for (id, s) in found.iter().enumerate() {
-                segs.push(Segment2 {
-                    id: id as u32,
-                    chain_start: chain.len() as u32,
-                    chain_len: s.chain.len() as u32,
-                    reserved: 0,
-                    start_px: s.start,
-                    end_px: s.end,
-                });
-                chain.extend(&s.chain);
-                rows.push(Line2Row {
-                    image: h.name().to_string(),
-                    id: id as u64,
-                    start_px: s.start,
-                    end_px: s.end,
-                    n_pixels: Some(s.chain.len() as u32),
-                });
-            }
-            let header = Lines2DHeader {
-                stamp: h.stamp,
-                n_segments: segs.len() as u32,
-                n_chain: chain.len() as u32,
-                name: h.name,
-            };
-            output.publish_with(header, parts::two_part_len::<Segment2, [u16; 2]>(segs.len(), chain.len()), |buf| {
-                parts::write(buf, &segs, &chain)
-            })
+            let (segs, chain, r) = assemble(h.name(), found.iter().map(|s| (s.start, s.end, s.chain.as_slice())));
+            rows.extend(r);
+            publish(&output, h.stamp, h.name, &segs, &chain)
         })?;
         Ok(if images.is_ended() { Flow::Stop } else { Flow::Continue })
     })?;
@@ -210,15 +211,7 @@ fn run_trace(ctx: NodeContext) -> Result<()> {
         if let Some(c) = &cam {
             for (h, px) in waiting.drain(..) {
                 let (segs, chain, r) = segments(c, &h, &px, &params)?;
-                let header = Lines2DHeader {
-                    stamp: h.stamp,
-                    n_segments: segs.len() as u32,
-                    n_chain: chain.len() as u32,
-                    name: h.name,
-                };
-                output.publish_with(header, parts::two_part_len::<Segment2, [u16; 2]>(segs.len(), chain.len()), |buf| {
-                    parts::write(buf, &segs, &chain)
-                })?;
+                publish(&output, h.stamp, h.name, &segs, &chain)?;
                 rows.extend(r);
             }
         }
