@@ -150,14 +150,11 @@ fn run_lsd(ctx: NodeContext) -> Result<()> {
     let path = ctx.out_dir().join("lines2d.csv");
     let (mut gray, mut rows) = (Vec::new(), Vec::new());
     ctx.run(|| {
-        // Edge maps and the camera, when wired, are not needed: drain them so their publishers never wait.
-        if let Some(e) = &unused_edges {
-            while e.receive()?.is_some() {}
-        }
-        if let Some(c) = &unused_camera {
-            while c.receive()?.is_some() {}
-        }
+        drain(&unused_edges)?;
+        drain(&unused_camera)?;
         lineflow_convert::for_each_gray(&images, &mut gray, |h, gray| {
+            // Between frames too: LSD takes long enough for the unused queues to fill.
+            drain(&unused_edges)?;
             let found = lineflow_lines2d::lsd::lsd(gray, h.width as usize, h.height as usize, p.min_length_px);
             let (segs, chain, r) = assemble(h.name(), found.iter().map(|s| (s.start, s.end, s.chain.as_slice())));
             rows.extend(r);
@@ -169,6 +166,15 @@ fn run_lsd(ctx: NodeContext) -> Result<()> {
     write_lines2d(&path, &rows).with_context(|| format!("writing {}", path.display()))?;
     tracing::info!("{} segments (lsd) -> {}", rows.len(), path.display());
     ctx.finish();
+    Ok(())
+}
+
+/// Takes and drops what waits on an input the implementation does not use (wired so that another implementation can
+/// be swapped in without editing the graph), so that its publisher never waits for this node.
+fn drain<M: lineflow_messages::Message>(input: &Option<lineflow_runtime::Input<M>>) -> Result<()> {
+    if let Some(i) = input {
+        while i.receive()?.is_some() {}
+    }
     Ok(())
 }
 
@@ -199,9 +205,7 @@ fn run_trace(ctx: NodeContext) -> Result<()> {
     let mut waiting: Vec<(EdgeMapHeader, Vec<EdgePixel>)> = Vec::new();
     let mut rows = Vec::new();
     ctx.run(|| {
-        if let Some(i) = &unused_images {
-            while i.receive()?.is_some() {}
-        }
+        drain(&unused_images)?;
         while let Some(m) = camera_in.receive()? {
             cam = Some(m.user_header().camera());
         }
@@ -213,6 +217,7 @@ fn run_trace(ctx: NodeContext) -> Result<()> {
                 let (segs, chain, r) = segments(c, &h, &px, &params)?;
                 publish(&output, h.stamp, h.name, &segs, &chain)?;
                 rows.extend(r);
+                drain(&unused_images)?;
             }
         }
         let done = edges.is_ended() && waiting.is_empty();
