@@ -296,6 +296,17 @@ fn a_recording_plays_back_for_viewers_until_ctrl_c() {
         std::thread::sleep(Duration::from_millis(200));
     };
     assert_eq!(lines.lines().filter(|l| l.starts_with("lines2d: frame")).count(), 3, "{lines}");
+    // `topics` lists what the player publishes; `hz` measures a topic's rate (its value is not asserted: timing).
+    let topics = stdout(&sb.run(&["topics"]));
+    for t in ["images", "lines2d", "tiepoints", "camera"] {
+        assert!(topics.lines().any(|l| l.starts_with(&format!("{t} "))), "{t} missing:\n{topics}");
+    }
+    let hz = sb.run(&["hz", "lines2d", "--seconds", "2"]);
+    assert!(
+        hz.status.success() && stdout(&hz).contains("lines2d:") && stdout(&hz).contains("Hz"),
+        "{}",
+        stdout(&hz)
+    );
     // SAFETY: signalling the process this test started.
     unsafe { libc::kill(player.id() as i32, libc::SIGINT) };
     let r = player.wait_with_output().unwrap();
