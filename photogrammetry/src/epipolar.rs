@@ -58,11 +58,18 @@ pub struct Ransac {
     pub seed: u64,
 }
 
-/// The inliers of the best essential matrix (refitted on all its inliers), or an empty set when fewer than
-/// `min_inliers` agree.
-pub fn verify(a: &[Ray], b: &[Ray], r: &Ransac, min_inliers: usize) -> Vec<usize> {
+/// RANSAC over a model fitted to `size` correspondences: the largest consensus among `r.iterations` random samples
+/// (deterministic from `r.seed`, stopping early once another better sample is unlikely), refitted on its inliers.
+fn consensus<M>(
+    a: &[Ray],
+    b: &[Ray],
+    size: usize,
+    r: &Ransac,
+    fit: impl Fn(&[Ray], &[Ray]) -> Option<M>,
+    error: impl Fn(&M, &Ray, &Ray) -> f64,
+) -> Vec<usize> {
     let n = a.len();
-    if n < 8 {
+    if n < size {
         return Vec::new();
     }
     let mut state = r.seed | 1;
@@ -72,40 +79,47 @@ pub fn verify(a: &[Ray], b: &[Ray], r: &Ransac, min_inliers: usize) -> Vec<usize
         state ^= state << 17;
         state
     };
-    let inliers_of = |e: &Matrix3<f64>| -> Vec<usize> { (0..n).filter(|&i| sampson(e, &a[i], &b[i]) < r.threshold).collect() };
+    let inliers_of = |m: &M| -> Vec<usize> { (0..n).filter(|&i| error(m, &a[i], &b[i]) < r.threshold).collect() };
+    let fit_on = |idx: &[usize]| -> Option<M> {
+        let (sa, sb): (Vec<Ray>, Vec<Ray>) = idx.iter().map(|&i| (a[i], b[i])).unzip();
+        fit(&sa, &sb)
+    };
     let mut best: Vec<usize> = Vec::new();
+    let mut pick = Vec::with_capacity(size);
     for _ in 0..r.iterations {
-        let mut pick = [0usize; 8];
-        let mut k = 0;
-        while k < 8 {
+        pick.clear();
+        while pick.len() < size {
             let c = (next() % n as u64) as usize;
-            if !pick[..k].contains(&c) {
-                pick[k] = c;
-                k += 1;
+            if !pick.contains(&c) {
+                pick.push(c);
             }
         }
-        let (sa, sb): (Vec<Ray>, Vec<Ray>) = pick.iter().map(|&i| (a[i], b[i])).unzip();
-        let Some(e) = eight_point(&sa, &sb) else { continue };
-        let inl = inliers_of(&e);
+        let Some(m) = fit_on(&pick) else { continue };
+        let inl = inliers_of(&m);
         if inl.len() > best.len() {
             best = inl;
             // Stop early once the inlier ratio makes another better sample unlikely (p = 0.999).
             let w = best.len() as f64 / n as f64;
-            let needed = (0.001f64).ln() / (1.0 - w.powi(8)).max(1e-12).ln();
+            let needed = (0.001f64).ln() / (1.0 - w.powi(size as i32)).max(1e-12).ln();
             if needed.is_finite() && (needed as usize) < r.iterations && best.len() > n / 2 {
                 break;
             }
         }
     }
-    if best.len() >= 8 {
-        let (sa, sb): (Vec<Ray>, Vec<Ray>) = best.iter().map(|&i| (a[i], b[i])).unzip();
-        if let Some(e) = eight_point(&sa, &sb) {
-            let refined = inliers_of(&e);
+    if best.len() >= size {
+        if let Some(refined) = fit_on(&best).map(|m| inliers_of(&m)) {
             if refined.len() >= best.len() {
                 best = refined;
             }
         }
     }
+    best
+}
+
+/// The inliers of the best essential matrix (refitted on all its inliers), or an empty set when fewer than
+/// `min_inliers` agree.
+pub fn verify(a: &[Ray], b: &[Ray], r: &Ransac, min_inliers: usize) -> Vec<usize> {
+    let mut best = consensus(a, b, 8, r, eight_point, sampson);
     if best.len() < min_inliers {
         best.clear();
     }
@@ -183,46 +197,10 @@ pub fn transfer(h: &Matrix3<f64>, a: &Ray, b: &Ray) -> f64 {
 /// strip's epipolar lines run along the brick courses, so whole patches can be matched one brick along and still
 /// satisfy the epipolar constraint; they do not fit the façade's plane. Relief within the threshold is kept.
 pub fn dominant_plane(a: &[Ray], b: &[Ray], r: &Ransac) -> Vec<usize> {
-    let n = a.len();
-    if n < 4 {
-        return (0..n).collect();
+    if a.len() < 4 {
+        return (0..a.len()).collect();
     }
-    let mut state = r.seed | 1;
-    let mut next = move || {
-        state ^= state << 13;
-        state ^= state >> 7;
-        state ^= state << 17;
-        state
-    };
-    let inliers_of = |h: &Matrix3<f64>| -> Vec<usize> { (0..n).filter(|&i| transfer(h, &a[i], &b[i]) < r.threshold).collect() };
-    let mut best: Vec<usize> = Vec::new();
-    for _ in 0..r.iterations {
-        let mut pick = [0usize; 4];
-        let mut k = 0;
-        while k < 4 {
-            let c = (next() % n as u64) as usize;
-            if !pick[..k].contains(&c) {
-                pick[k] = c;
-                k += 1;
-            }
-        }
-        let (sa, sb): (Vec<Ray>, Vec<Ray>) = pick.iter().map(|&i| (a[i], b[i])).unzip();
-        let Some(h) = homography(&sa, &sb) else { continue };
-        let inl = inliers_of(&h);
-        if inl.len() > best.len() {
-            best = inl;
-        }
-    }
-    if best.len() >= 4 {
-        let (sa, sb): (Vec<Ray>, Vec<Ray>) = best.iter().map(|&i| (a[i], b[i])).unzip();
-        if let Some(h) = homography(&sa, &sb) {
-            let refined = inliers_of(&h);
-            if refined.len() >= best.len() {
-                best = refined;
-            }
-        }
-    }
-    best
+    consensus(a, b, 4, r, homography, transfer)
 }
 
 #[cfg(test)]

@@ -5,6 +5,8 @@
 //! collinear fragments (broken at junctions, where a pixel can belong to one chain only) are joined across small gaps.
 #![warn(missing_docs)]
 
+pub mod lsd;
+
 /// Tracing parameters.
 #[derive(Debug, Clone, Copy)]
 pub struct TraceParams {

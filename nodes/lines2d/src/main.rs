@@ -1,5 +1,6 @@
-//! `lineflow-lines2d`: the lines2d stage (`impl = "trace"`). Joins the latched camera with each edge map,
-//! publishes segments and their chains, and writes `lines2d.csv` into the run's output folder.
+//! `lineflow-lines2d`: the lines2d stage. `impl = "trace"` (default) joins the latched camera with each edge map;
+//! `impl = "lsd"` detects segments on the grey images. Both publish segments with their pixel chains and write
+//! `lines2d.csv` into the run's output folder.
 use anyhow::{bail, Context, Result};
 use lineflow_formats::{write_lines2d, Line2Row};
 use lineflow_lines2d::{trace, TraceParams};
@@ -41,6 +42,49 @@ fn default_angle() -> f64 {
 /// One frame's segments, their concatenated pixel chains, and their `lines2d.csv` rows.
 type FrameLines = (Vec<Segment2>, Vec<[u16; 2]>, Vec<Line2Row>);
 
+/// Numbers segments in order and lays out their chains one after the other, with their `lines2d.csv` rows.
+fn assemble<'a>(image: &str, found: impl Iterator<Item = ([f64; 2], [f64; 2], &'a [[u16; 2]])>) -> FrameLines {
+    let (mut segs, mut chain, mut rows) = (Vec::new(), Vec::new(), Vec::new());
+    for (id, (a, b, pixels)) in found.enumerate() {
+        segs.push(Segment2 {
+            id: id as u32,
+            chain_start: chain.len() as u32,
+            chain_len: pixels.len() as u32,
+            reserved: 0,
+            start_px: a,
+            end_px: b,
+        });
+        chain.extend_from_slice(pixels);
+        rows.push(Line2Row {
+            image: image.to_owned(),
+            id: id as u64,
+            start_px: a,
+            end_px: b,
+            n_pixels: Some(pixels.len() as u32),
+        });
+    }
+    (segs, chain, rows)
+}
+
+/// Publishes one frame's segments with the stamp and image name of its source.
+fn publish(
+    output: &lineflow_runtime::Output<kinds::Lines2D>,
+    stamp: lineflow_messages::Stamp,
+    name: [u8; 64],
+    segs: &[Segment2],
+    chain: &[[u16; 2]],
+) -> Result<()> {
+    let header = Lines2DHeader {
+        stamp,
+        n_segments: segs.len() as u32,
+        n_chain: chain.len() as u32,
+        name,
+    };
+    output.publish_with(header, parts::two_part_len::<Segment2, [u16; 2]>(segs.len(), chain.len()), |buf| {
+        parts::write(buf, segs, chain)
+    })
+}
+
 /// Segments of one edge map, with their rows for `lines2d.csv`.
 fn segments(cam: &Camera, h: &EdgeMapHeader, px: &[EdgePixel], p: &TraceParams) -> Result<FrameLines> {
     if (h.width, h.height) != (cam.width, cam.height) {
@@ -64,30 +108,13 @@ fn segments(cam: &Camera, h: &EdgeMapHeader, px: &[EdgePixel], p: &TraceParams) 
         })
         .collect();
     let traced = trace(h.width as usize, h.height as usize, &pixels, &corrected, p);
-    let (mut segs, mut chain, mut rows) = (Vec::new(), Vec::new(), Vec::new());
-    for (id, t) in traced.iter().enumerate() {
-        let measured = |c: [f64; 2]| cam.ideal_to_pixel([c[0] * ps, c[1] * ps]);
-        let (Some(a), Some(b)) = (measured(t.start), measured(t.end)) else {
-            continue;
-        };
-        segs.push(Segment2 {
-            id: id as u32,
-            chain_start: chain.len() as u32,
-            chain_len: t.chain.len() as u32,
-            reserved: 0,
-            start_px: a,
-            end_px: b,
-        });
-        chain.extend(&t.chain);
-        rows.push(Line2Row {
-            image: h.name().to_string(),
-            id: id as u64,
-            start_px: a,
-            end_px: b,
-            n_pixels: Some(t.chain.len() as u32),
-        });
-    }
-    Ok((segs, chain, rows))
+    let measured = |c: [f64; 2]| cam.ideal_to_pixel([c[0] * ps, c[1] * ps]);
+    Ok(assemble(
+        h.name(),
+        traced
+            .iter()
+            .filter_map(|t| Some((measured(t.start)?, measured(t.end)?, t.chain.as_slice()))),
+    ))
 }
 
 fn main() -> std::process::ExitCode {
@@ -96,13 +123,63 @@ fn main() -> std::process::ExitCode {
 
 fn body() -> Result<()> {
     let ctx = NodeContext::from_env()?;
-    if ctx.implementation("trace") != "trace" {
-        bail!(
-            "node '{}': unknown lines2d impl '{}' (available: trace)",
-            ctx.name(),
-            ctx.implementation("trace")
-        );
+    match ctx.implementation("trace") {
+        "trace" => run_trace(ctx),
+        "lsd" => run_lsd(ctx),
+        other => bail!("node '{}': unknown lines2d impl '{other}' (available: trace, lsd)", ctx.name()),
     }
+}
+
+/// `impl = "lsd"`: segments straight from the grey images (input `images`; `edges` is ignored when wired).
+fn run_lsd(ctx: NodeContext) -> Result<()> {
+    #[derive(Debug, Deserialize)]
+    #[serde(deny_unknown_fields)]
+    struct LsdParams {
+        #[serde(default = "default_length")]
+        min_length_px: f64,
+    }
+    let p: LsdParams = ctx.params()?;
+    if !p.min_length_px.is_finite() || p.min_length_px < 0.0 {
+        bail!("node '{}': min_length_px must be >= 0", ctx.name());
+    }
+    let images = ctx.input::<kinds::Image>("images")?;
+    let unused_edges = ctx.optional_input::<kinds::EdgeMap>("edges")?;
+    let unused_camera = ctx.optional_input::<kinds::CameraModel>("camera")?;
+    let output = ctx.output::<kinds::Lines2D>("lines2d")?;
+    ctx.connect()?;
+    let path = ctx.out_dir().join("lines2d.csv");
+    let (mut gray, mut rows) = (Vec::new(), Vec::new());
+    ctx.run(|| {
+        drain(&unused_edges)?;
+        drain(&unused_camera)?;
+        lineflow_convert::for_each_gray(&images, &mut gray, |h, gray| {
+            // Between frames too: LSD takes long enough for the unused queues to fill.
+            drain(&unused_edges)?;
+            let found = lineflow_lines2d::lsd::lsd(gray, h.width as usize, h.height as usize, p.min_length_px);
+            let (segs, chain, r) = assemble(h.name(), found.iter().map(|s| (s.start, s.end, s.chain.as_slice())));
+            rows.extend(r);
+            publish(&output, h.stamp, h.name, &segs, &chain)
+        })?;
+        Ok(if images.is_ended() { Flow::Stop } else { Flow::Continue })
+    })?;
+    output.end_of_stream()?;
+    write_lines2d(&path, &rows).with_context(|| format!("writing {}", path.display()))?;
+    tracing::info!("{} segments (lsd) -> {}", rows.len(), path.display());
+    ctx.finish();
+    Ok(())
+}
+
+/// Takes and drops what waits on an input the implementation does not use (wired so that another implementation can
+/// be swapped in without editing the graph), so that its publisher never waits for this node.
+fn drain<M: lineflow_messages::Message>(input: &Option<lineflow_runtime::Input<M>>) -> Result<()> {
+    if let Some(i) = input {
+        while i.receive()?.is_some() {}
+    }
+    Ok(())
+}
+
+/// `impl = "trace"`: the thesis's line tracing on the edge maps.
+fn run_trace(ctx: NodeContext) -> Result<()> {
     let p: Params = ctx.params()?;
     if !(p.max_distance_px > 0.0 && p.min_length_px >= 0.0 && p.max_gap_px >= 0.0 && (0.0..90.0).contains(&p.max_merge_angle_deg)) {
         bail!(
@@ -118,6 +195,8 @@ fn body() -> Result<()> {
     };
     let edges = ctx.input::<kinds::EdgeMap>("edges")?;
     let camera_in = ctx.input::<kinds::CameraModel>("camera")?;
+    // Wired so that `impl = "lsd"` can be swapped in without touching the graph; tracing does not need them.
+    let unused_images = ctx.optional_input::<kinds::Image>("images")?;
     let output = ctx.output::<kinds::Lines2D>("lines2d")?;
     ctx.connect()?;
     let path = ctx.out_dir().join("lines2d.csv");
@@ -126,6 +205,7 @@ fn body() -> Result<()> {
     let mut waiting: Vec<(EdgeMapHeader, Vec<EdgePixel>)> = Vec::new();
     let mut rows = Vec::new();
     ctx.run(|| {
+        drain(&unused_images)?;
         while let Some(m) = camera_in.receive()? {
             cam = Some(m.user_header().camera());
         }
@@ -135,16 +215,9 @@ fn body() -> Result<()> {
         if let Some(c) = &cam {
             for (h, px) in waiting.drain(..) {
                 let (segs, chain, r) = segments(c, &h, &px, &params)?;
-                let header = Lines2DHeader {
-                    stamp: h.stamp,
-                    n_segments: segs.len() as u32,
-                    n_chain: chain.len() as u32,
-                    name: h.name,
-                };
-                output.publish_with(header, parts::two_part_len::<Segment2, [u16; 2]>(segs.len(), chain.len()), |buf| {
-                    parts::write(buf, &segs, &chain)
-                })?;
+                publish(&output, h.stamp, h.name, &segs, &chain)?;
                 rows.extend(r);
+                drain(&unused_images)?;
             }
         }
         let done = edges.is_ended() && waiting.is_empty();

@@ -32,6 +32,9 @@ pub struct MatcherParams {
     pub iterations: usize,
     /// Verified matches needed to accept a pair.
     pub min_inliers: usize,
+    /// Share of the mutual matches that must survive verification to accept a pair: between frames that do not
+    /// really overlap, the few "verified" matches are repeated texture.
+    pub min_inlier_ratio: f64,
     /// Neighbours compared in the displacement-consistency check (0 turns it off).
     pub neighbours: usize,
     /// Largest difference, pixels, between a match's displacement and its neighbours' median displacement.
@@ -51,6 +54,7 @@ impl Default for MatcherParams {
             threshold_px: 1.5,
             iterations: 1000,
             min_inliers: 15,
+            min_inlier_ratio: 0.3,
             neighbours: 8,
             displacement_tolerance_px: 3.0,
             plane_tolerance_px: 6.0,
@@ -191,6 +195,9 @@ impl Matcher {
                 }
             }
             if inliers.len() < self.params.min_inliers {
+                inliers.clear();
+            }
+            if (inliers.len() as f64) < self.params.min_inlier_ratio * matches.len() as f64 {
                 inliers.clear();
             }
             result.partners.push((other.number, matches.len(), inliers.len()));

@@ -80,9 +80,9 @@ fn verified_tie_points_agree_with_the_true_geometry_and_tie_every_frame() {
     );
     assert!(errors.len() > 20 * n, "{} tracks for {n} frames", errors.len());
     assert!(median < 1.0, "median ray error {median} px");
-    // The rest are matches shifted along the epipolar line by a brick period that also move like their
-    // neighbours; the bundle adjustment's robust loss and outlier removal are the next filter.
-    assert!(good > 0.93, "{:.1} % of tracks within 3 px", 100.0 * good);
+    // Matches shifted along the epipolar line by a brick period are caught by the displacement, plane and
+    // inlier-share checks; what remains is for the bundle adjustment's robust loss and outlier removal.
+    assert!(good > 0.98, "{:.1} % of tracks within 3 px", 100.0 * good);
     // The frames form one block: every frame is tied to another, and the strips to each other.
     let mut linked = vec![false; n];
     for (k, p) in partners.iter().enumerate() {

@@ -30,6 +30,27 @@ fn record_demo(sb: &Sandbox, out: &Path, sets: &[&str]) -> PathBuf {
     out.join("recording.mcap")
 }
 
+/// `lineflow replay REC --rerun` with `--set`s into `out`; whether it succeeded.
+fn rerun(sb: &Sandbox, rec: &Path, sets: &[&str], out: &Path) -> bool {
+    let mut args = vec!["replay", rec.to_str().unwrap(), "--rerun"];
+    for s in sets {
+        args.extend(["--set", s]);
+    }
+    args.extend(["--out", out.to_str().unwrap()]);
+    sb.run(&args).status.success()
+}
+
+/// The topics `lineflow diff` reports as differing, and its whole output.
+fn differing(sb: &Sandbox, a: &Path, b: &Path) -> (Vec<String>, String) {
+    let text = stdout(&sb.run(&["diff", a.to_str().unwrap(), b.to_str().unwrap()]));
+    let topics = text
+        .lines()
+        .filter_map(|l| l.strip_prefix("DIFFERS  "))
+        .map(|l| l.split(':').next().unwrap().to_owned())
+        .collect();
+    (topics, text)
+}
+
 #[test]
 fn a_demo_recording_replays_byte_for_byte_swaps_a_stage_and_decodes_in_python() {
     let sb = Sandbox::new();
@@ -56,15 +77,7 @@ fn a_demo_recording_replays_byte_for_byte_swaps_a_stage_and_decodes_in_python() 
 
     // The same graph on the recorded source topics: every derived topic byte for byte the same.
     let again = sb.path().join("again");
-    let r = sb.run(&[
-        "replay",
-        rec.to_str().unwrap(),
-        "--rerun",
-        "--max",
-        "--out",
-        again.to_str().unwrap(),
-    ]);
-    assert!(r.status.success(), "rerun failed");
+    assert!(rerun(&sb, &rec, &[], &again), "rerun failed");
     let d = sb.run(&["diff", rec.to_str().unwrap(), again.join("recording.mcap").to_str().unwrap()]);
     assert!(d.status.success(), "replay differs:\n{}", stdout(&d));
     assert!(stdout(&d).contains("recordings are equal on all 9 topics"), "{}", stdout(&d));
@@ -75,25 +88,11 @@ fn a_demo_recording_replays_byte_for_byte_swaps_a_stage_and_decodes_in_python() 
 
     // Sobel instead of Canny on replay: only the edge topic and what follows from it differ.
     let swapped = sb.path().join("sobel");
-    let r = sb.run(&[
-        "replay",
-        rec.to_str().unwrap(),
-        "--rerun",
-        "--set",
-        "edges.impl=sobel",
-        "--out",
-        swapped.to_str().unwrap(),
-    ]);
-    assert!(r.status.success(), "swapped rerun failed");
+    assert!(rerun(&sb, &rec, &["edges.impl=sobel"], &swapped), "swapped rerun failed");
     let d = sb.run(&["diff", rec.to_str().unwrap(), swapped.join("recording.mcap").to_str().unwrap()]);
     assert_eq!(d.status.code(), Some(1), "a swapped detector must differ");
-    let text = stdout(&d);
-    let differing: Vec<&str> = text
-        .lines()
-        .filter_map(|l| l.strip_prefix("DIFFERS  "))
-        .map(|l| l.split(':').next().unwrap())
-        .collect();
-    assert_eq!(differing, ["edges", "lines2d"], "{text}");
+    let (topics, text) = differing(&sb, &rec, &swapped.join("recording.mcap"));
+    assert_eq!(topics, ["edges", "lines2d"], "{text}");
     assert!(text.contains("field 'detector' differs"), "{text}");
 
     // An independent reader: Python's mcap decodes every channel from the embedded schemas and checks the
@@ -297,6 +296,17 @@ fn a_recording_plays_back_for_viewers_until_ctrl_c() {
         std::thread::sleep(Duration::from_millis(200));
     };
     assert_eq!(lines.lines().filter(|l| l.starts_with("lines2d: frame")).count(), 3, "{lines}");
+    // `topics` lists what the player publishes; `hz` measures a topic's rate (its value is not asserted: timing).
+    let topics = stdout(&sb.run(&["topics"]));
+    for t in ["images", "lines2d", "tiepoints", "camera"] {
+        assert!(topics.lines().any(|l| l.starts_with(&format!("{t} "))), "{t} missing:\n{topics}");
+    }
+    let hz = sb.run(&["hz", "lines2d", "--seconds", "2"]);
+    assert!(
+        hz.status.success() && stdout(&hz).contains("lines2d:") && stdout(&hz).contains("Hz"),
+        "{}",
+        stdout(&hz)
+    );
     // SAFETY: signalling the process this test started.
     unsafe { libc::kill(player.id() as i32, libc::SIGINT) };
     let r = player.wait_with_output().unwrap();
@@ -314,31 +324,12 @@ fn the_python_sobel_node_swaps_in_on_replay_and_matches_the_rust_sobel() {
     let py = sb.path().join("python");
     let rs = sb.path().join("rust");
     // Relative executables are taken from the launch file's folder (launch/).
-    let r = sb.run(&[
-        "replay",
-        rec.to_str().unwrap(),
-        "--rerun",
-        "--set",
-        "edges.executable=\"../nodes/python/sobel_node.py\"",
-        "--set",
-        "edges.threshold=100.0",
-        "--out",
-        py.to_str().unwrap(),
-    ]);
+    let python = ["edges.executable=\"../nodes/python/sobel_node.py\"", "edges.threshold=100.0"];
     assert!(
-        r.status.success(),
+        rerun(&sb, &rec, &python, &py),
         "the Python node failed (CI installs numpy and iceoryx2 for Python)"
     );
-    let r = sb.run(&[
-        "replay",
-        rec.to_str().unwrap(),
-        "--rerun",
-        "--set",
-        "edges.impl=sobel",
-        "--out",
-        rs.to_str().unwrap(),
-    ]);
-    assert!(r.status.success());
+    assert!(rerun(&sb, &rec, &["edges.impl=sobel"], &rs));
     // The same edge pixels frame by frame, hence the same 2-D lines downstream.
     let counts = |dir: &Path| -> Vec<String> {
         std::fs::read_to_string(dir.join("edges.csv"))
@@ -356,12 +347,20 @@ fn the_python_sobel_node_swaps_in_on_replay_and_matches_the_rust_sobel() {
         std::fs::read(rs.join("lines2d.csv")).unwrap()
     );
     // Against the recorded Canny run, only the swapped stage's topic and what follows from it differ.
-    let d = sb.run(&["diff", rec.to_str().unwrap(), py.join("recording.mcap").to_str().unwrap()]);
-    let text = stdout(&d);
-    let differing: Vec<&str> = text
-        .lines()
-        .filter_map(|l| l.strip_prefix("DIFFERS  "))
-        .map(|l| l.split(':').next().unwrap())
-        .collect();
-    assert_eq!(differing, ["edges", "lines2d"], "{text}");
+    let (topics, text) = differing(&sb, &rec, &py.join("recording.mcap"));
+    assert_eq!(topics, ["edges", "lines2d"], "{text}");
+}
+
+#[test]
+fn lsd_swaps_in_for_the_line_tracing_on_replay() {
+    let sb = Sandbox::new();
+    let rec = record_demo(&sb, &sb.path().join("live"), &[]);
+    let out = sb.path().join("lsd");
+    assert!(rerun(&sb, &rec, &["lines2d.impl=lsd"], &out), "lsd rerun failed");
+    let (topics, text) = differing(&sb, &rec, &out.join("recording.mcap"));
+    assert_eq!(topics, ["lines2d"], "{text}");
+    let rows = std::fs::read_to_string(out.join("lines2d.csv")).unwrap();
+    assert!(rows.lines().count() > 18 * 5, "LSD found few segments:\n{rows}");
+    let report = std::fs::read_to_string(out.join("eval/report.md")).unwrap();
+    assert!(report.contains("Length recall"), "{report}");
 }
