@@ -39,7 +39,7 @@ fn a_strip_is_oriented_as_it_arrives_and_meets_the_check_points() {
     let n = syn.poses().len();
     let mut matcher = Matcher::new(
         MatcherParams {
-            ratio: 0.85,
+            ratio: 0.7,
             retrieval: 0,
             ..Default::default()
         },
