@@ -4,6 +4,7 @@ use std::process::ExitCode;
 use std::time::Instant;
 
 use anyhow::Result;
+use lineflow_capture::synth::rng::Rng;
 use lineflow_photogrammetry::bundle::{adjust, BundleOptions, BundleProblem, ImageObservation, PointPrior};
 use lineflow_photogrammetry::{look_at, Pose, Vec3};
 
@@ -21,13 +22,8 @@ fn block(cameras: usize, points: usize) -> (BundleProblem, Vec<Pose>) {
             }
         })
         .collect();
-    let mut state = 99u64;
-    let mut uniform = move || {
-        state ^= state << 13;
-        state ^= state >> 7;
-        state ^= state << 17;
-        (state >> 11) as f64 / (1u64 << 53) as f64
-    };
+    let mut rng = Rng::new(99, 0);
+    let mut uniform = move || rng.uniform(0.0, 1.0);
     let width = cameras as f64 * 1.2;
     let pts: Vec<Vec3> = (0..points)
         .map(|_| Vec3::new(uniform() * width, uniform() * 0.3, uniform() * 12.0))

@@ -10,6 +10,7 @@ use std::process::ExitCode;
 use std::time::Instant;
 
 use anyhow::{bail, Context, Result};
+use lineflow_capture::synth::rng::Rng;
 use lineflow_messages::schema::{bytes_of, encode};
 use lineflow_messages::{Encoding, ImageHeader, MessageKind, Stamp};
 use lineflow_runtime::launch::{self, Resolver};
@@ -21,14 +22,11 @@ const TARGET_MBPS: f64 = 500.0;
 
 /// A camera-like frame: a smooth pattern plus per-pixel noise, so that compression cannot cheat.
 fn frame(width: u32, height: u32, seed: u64) -> Vec<u8> {
-    let mut state = seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1;
+    let mut rng = Rng::new(seed, 0);
     let mut out = Vec::with_capacity(width as usize * height as usize * 3);
     for y in 0..height {
         for x in 0..width {
-            // xorshift64: cheap, deterministic noise.
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
+            let state = rng.next_u64();
             let base = ((x / 8 + y / 8) % 200) as u8;
             out.extend([
                 base.wrapping_add((state & 7) as u8),
@@ -137,7 +135,7 @@ pub fn bench_record(frames: usize, width: u32, height: u32, preview_max_px: u32)
             .map(|s| s.message_start_time)
             .context("recording without statistics")?;
         let end = rec.metadata.get(META_END).context("no end record")?;
-        let complete = end.get("complete").is_some_and(|v| v == "true");
+        let complete = rec.is_complete();
         let dropped: u64 = end.get("drops_total").and_then(|v| v.parse().ok()).unwrap_or(u64::MAX);
         let seconds = (ended.saturating_sub(first)) as f64 * 1e-9;
         let mbps = frame_mb * frames as f64 / seconds;

@@ -5,7 +5,7 @@ use std::process::ExitCode;
 
 use anyhow::{bail, Context, Result};
 use lineflow_formats::{Line2Row, Line3Row, PoseRow};
-use lineflow_messages::schema::{decode, Decoded};
+use lineflow_messages::schema::{decode, decode_view, read_elements, read_pod, Decoded};
 use lineflow_messages::{parts, EdgeMapHeader, Encoding, ImageHeader, Line3, Lines2DHeader, MessageKind, Pose, Segment2};
 use lineflow_runtime::launch::Resolver;
 use lineflow_runtime::recording::replay::{playback_graph, rerun_graph, Pace};
@@ -109,20 +109,6 @@ pub fn recover(path: &Path, out: &Path) -> Result<ExitCode> {
     Ok(ExitCode::SUCCESS)
 }
 
-fn header<T: Copy>(d: &Decoded) -> T {
-    assert_eq!(d.header.len(), size_of::<T>());
-    // SAFETY: decoded header bytes of exactly this struct; plain old data.
-    unsafe { std::ptr::read_unaligned(d.header.as_ptr().cast()) }
-}
-
-fn elements<T: Copy>(bytes: &[u8]) -> Vec<T> {
-    // SAFETY: whole decoded elements; plain old data.
-    bytes
-        .chunks_exact(size_of::<T>())
-        .map(|c| unsafe { std::ptr::read_unaligned(c.as_ptr().cast()) })
-        .collect()
-}
-
 /// `lineflow export`: images (and edge maps) as PNG, 2-D lines as `lines2d.csv`, 3-D lines as `lines3d.csv` and
 /// `.ply`, poses as `poses.csv` (formats of `conventions.md`).
 pub fn export(path: &Path, topic: &str, out: &Path) -> Result<ExitCode> {
@@ -139,12 +125,14 @@ pub fn export(path: &Path, topic: &str, out: &Path) -> Result<ExitCode> {
         );
     };
     std::fs::create_dir_all(out).with_context(|| format!("cannot create {}", out.display()))?;
+    // Poses name their images by frame number: take the names from the image headers (pixels not copied).
     let mut frame_names = BTreeMap::new();
+    let mut scratch = Decoded::default();
     let mut decoded = Vec::new();
     let read = rec.for_each_message(|m| {
-        if m.kind == Some(MessageKind::Image) {
-            if let Ok(d) = decode(MessageKind::Image, &m.data) {
-                let h: ImageHeader = header(&d);
+        if kind == MessageKind::Poses && m.kind == Some(MessageKind::Image) {
+            if let Ok((h, _)) = decode_view(MessageKind::Image, &m.data, &mut scratch) {
+                let h: ImageHeader = read_pod(h);
                 frame_names.insert(h.stamp.frame, h.name().to_owned());
             }
         }
@@ -166,7 +154,7 @@ pub fn export(path: &Path, topic: &str, out: &Path) -> Result<ExitCode> {
     let written = match kind {
         MessageKind::Image => {
             for d in &decoded {
-                let h: ImageHeader = header(d);
+                let h: ImageHeader = read_pod(&d.header);
                 let file = out.join(Path::new(&name_of(h.stamp.frame, h.name())).with_extension("png"));
                 save_image(&h, &d.payload, &file)?;
             }
@@ -174,9 +162,9 @@ pub fn export(path: &Path, topic: &str, out: &Path) -> Result<ExitCode> {
         }
         MessageKind::EdgeMap => {
             for d in &decoded {
-                let h: EdgeMapHeader = header(d);
+                let h: EdgeMapHeader = read_pod(&d.header);
                 let mut mask = image::GrayImage::new(h.width, h.height);
-                for p in elements::<lineflow_messages::EdgePixel>(&d.payload) {
+                for p in read_elements::<lineflow_messages::EdgePixel>(&d.payload) {
                     if (p.col as u32) < h.width && (p.row as u32) < h.height {
                         mask.put_pixel(p.col as u32, p.row as u32, image::Luma([255]));
                     }
@@ -189,9 +177,9 @@ pub fn export(path: &Path, topic: &str, out: &Path) -> Result<ExitCode> {
         MessageKind::Lines2D => {
             let mut rows = Vec::new();
             for d in &decoded {
-                let h: Lines2DHeader = header(d);
+                let h: Lines2DHeader = read_pod(&d.header);
                 let off = parts::align8(h.n_segments as usize * size_of::<Segment2>());
-                for s in elements::<Segment2>(&d.payload[..off.min(d.payload.len())])
+                for s in read_elements::<Segment2>(&d.payload[..off.min(d.payload.len())])
                     .iter()
                     .take(h.n_segments as usize)
                 {
@@ -211,7 +199,7 @@ pub fn export(path: &Path, topic: &str, out: &Path) -> Result<ExitCode> {
             // The latest message holds the current estimate of every line.
             let rows: Vec<Line3Row> = decoded
                 .last()
-                .map(|d| elements::<Line3>(&d.payload))
+                .map(|d| read_elements::<Line3>(&d.payload))
                 .unwrap_or_default()
                 .iter()
                 .map(|l| Line3Row {
@@ -231,7 +219,7 @@ pub fn export(path: &Path, topic: &str, out: &Path) -> Result<ExitCode> {
             // The highest revision of each frame.
             let mut latest: BTreeMap<u64, Pose> = BTreeMap::new();
             for d in &decoded {
-                for p in elements::<Pose>(&d.payload) {
+                for p in read_elements::<Pose>(&d.payload) {
                     if latest.get(&p.frame).is_none_or(|q| q.revision <= p.revision) {
                         latest.insert(p.frame, p);
                     }

@@ -484,7 +484,7 @@ pub fn encode(kind: MessageKind, header: &[u8], payload: &[u8], out: &mut Vec<u8
 }
 
 /// A decoded message: header bytes (`size_of` the header) and payload bytes (whole elements).
-#[derive(Debug, Clone, PartialEq, Eq)]
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
 pub struct Decoded {
     /// Header struct bytes.
     pub header: Vec<u8>,
@@ -495,9 +495,8 @@ pub struct Decoded {
 impl Decoded {
     /// The stamp at the start of the header.
     pub fn stamp(&self) -> Stamp {
-        // SAFETY: every header starts with a Stamp (repr(C)), and `header` holds at least a whole header; Stamp is
-        // plain old data, valid for any bits.
-        unsafe { std::ptr::read_unaligned(self.header.as_ptr().cast::<Stamp>()) }
+        // Every header starts with its Stamp (repr(C)).
+        read_pod(&self.header)
     }
 }
 
@@ -506,10 +505,7 @@ impl Decoded {
 /// # Errors
 /// A [`DecodeError`] naming what is wrong (truncated data, a count that disagrees with the header, not CDR).
 pub fn decode(kind: MessageKind, cdr: &[u8]) -> Result<Decoded, DecodeError> {
-    let mut d = Decoded {
-        header: Vec::new(),
-        payload: Vec::new(),
-    };
+    let mut d = Decoded::default();
     decode_into(kind, cdr, &mut d)?;
     Ok(d)
 }
@@ -520,7 +516,29 @@ pub fn decode(kind: MessageKind, cdr: &[u8]) -> Result<Decoded, DecodeError> {
 /// # Errors
 /// As [`decode`].
 pub fn decode_into(kind: MessageKind, cdr: &[u8], out: &mut Decoded) -> Result<(), DecodeError> {
-    let schema = kind.schema();
+    let mut r = read_header(kind, cdr, &mut out.header)?;
+    out.payload.clear();
+    read_payload(kind, &mut r, &out.header, &mut out.payload)
+}
+
+/// The header bytes (decoded into `scratch.header`) and the payload of a message, borrowed from `cdr` itself when
+/// the payload is raw bytes (an image: no copy of its pixels), else decoded into `scratch.payload`.
+///
+/// # Errors
+/// As [`decode`].
+pub fn decode_view<'a>(kind: MessageKind, cdr: &'a [u8], scratch: &'a mut Decoded) -> Result<(&'a [u8], &'a [u8]), DecodeError> {
+    let mut r = read_header(kind, cdr, &mut scratch.header)?;
+    if let Payload::One(Part { elem: Elem::Byte, .. }) = kind.schema().payload {
+        let n = r.u32()?;
+        return Ok((&scratch.header, r.take(1, n)?));
+    }
+    scratch.payload.clear();
+    read_payload(kind, &mut r, &scratch.header, &mut scratch.payload)?;
+    Ok((&scratch.header, &scratch.payload))
+}
+
+/// Checks the encapsulation, decodes the header into `header` and returns the reader positioned after it.
+fn read_header<'c>(kind: MessageKind, cdr: &'c [u8], header: &mut Vec<u8>) -> Result<CdrReader<'c>, DecodeError> {
     if cdr.len() < 4 || cdr[..2] != [0, 1] {
         return err(format!(
             "{}: not little-endian CDR (encapsulation {:02x?})",
@@ -528,27 +546,32 @@ pub fn decode_into(kind: MessageKind, cdr: &[u8], out: &mut Decoded) -> Result<(
             &cdr[..cdr.len().min(4)]
         ));
     }
+    let layout = kind.schema().header;
     let mut r = CdrReader { data: &cdr[4..], pos: 0 };
-    out.header.clear();
-    out.header.resize(schema.header.size, 0);
-    r.layout(schema.header, &mut out.header)?;
-    out.payload.clear();
+    header.clear();
+    header.resize(layout.size, 0);
+    r.layout(layout, header)?;
+    Ok(r)
+}
+
+fn read_payload(kind: MessageKind, r: &mut CdrReader<'_>, header: &[u8], out: &mut Vec<u8>) -> Result<(), DecodeError> {
+    let schema = kind.schema();
     match schema.payload {
         Payload::Empty => {}
-        Payload::One(p) => r.sequence(p.elem, &mut out.payload)?,
+        Payload::One(p) => r.sequence(p.elem, out)?,
         Payload::Two { a, b, .. } => {
-            let count = schema.count_of(&out.header).unwrap_or(0);
-            r.sequence(a.elem, &mut out.payload)?;
-            if out.payload.len() != count * a.elem.size() {
+            let count = schema.count_of(header).unwrap_or(0);
+            r.sequence(a.elem, out)?;
+            if out.len() != count * a.elem.size() {
                 return err(format!(
                     "{}: header says {count} elements in '{}' but {} were recorded",
                     kind.name(),
                     a.name,
-                    out.payload.len() / a.elem.size()
+                    out.len() / a.elem.size()
                 ));
             }
-            out.payload.resize(parts::align8(out.payload.len()), 0);
-            r.sequence(b.elem, &mut out.payload)?;
+            out.resize(parts::align8(out.len()), 0);
+            r.sequence(b.elem, out)?;
         }
     }
     Ok(())
@@ -614,8 +637,8 @@ struct CdrReader<'a> {
     pos: usize,
 }
 
-impl CdrReader<'_> {
-    fn take(&mut self, align: usize, n: usize) -> Result<&[u8], DecodeError> {
+impl<'a> CdrReader<'a> {
+    fn take(&mut self, align: usize, n: usize) -> Result<&'a [u8], DecodeError> {
         let start = self.pos.next_multiple_of(align);
         let end = start.checked_add(n).filter(|&e| e <= self.data.len());
         let Some(end) = end else {
@@ -693,6 +716,26 @@ pub fn bytes_of<T: Copy>(value: &T) -> &[u8] {
     // SAFETY: message structs are repr(C) plain old data without pointers; reading their bytes is defined for the
     // initialised fields. Padding bytes are never encoded (encoders read fields at their offsets).
     unsafe { std::slice::from_raw_parts((value as *const T).cast::<u8>(), size_of::<T>()) }
+}
+
+/// A plain-old-data value (a header, its leading `Stamp`, an element) read from the start of `bytes`.
+///
+/// # Panics
+/// When `bytes` is shorter than `T` (a caller bug: decoded headers have their full size).
+pub fn read_pod<T: Copy>(bytes: &[u8]) -> T {
+    assert!(
+        bytes.len() >= size_of::<T>(),
+        "{} bytes for a {}-byte value",
+        bytes.len(),
+        size_of::<T>()
+    );
+    // SAFETY: length checked; message structs are repr(C) plain old data, valid for any bits a publisher wrote.
+    unsafe { std::ptr::read_unaligned(bytes.as_ptr().cast::<T>()) }
+}
+
+/// The whole elements in `bytes`.
+pub fn read_elements<T: Copy>(bytes: &[u8]) -> Vec<T> {
+    bytes.chunks_exact(size_of::<T>()).map(read_pod).collect()
 }
 
 /// The bytes of a slice of plain-old-data values.
@@ -780,7 +823,7 @@ mod tests {
         let d = decode(MessageKind::Lines2D, &cdr).unwrap();
         assert_eq!(d.payload, payload);
         assert_eq!(d.header.len(), size_of::<Lines2DHeader>());
-        let back: Lines2DHeader = unsafe { std::ptr::read_unaligned(d.header.as_ptr().cast()) };
+        let back: Lines2DHeader = read_pod(&d.header);
         assert_eq!(back.stamp, header.stamp);
         assert_eq!(back.name(), "IMG_0004.JPG");
         assert_eq!((back.n_segments, back.n_chain), (1, 3));
@@ -802,6 +845,13 @@ mod tests {
         assert_eq!(&cdr[..4], &[0, 1, 0, 0]);
         assert_eq!(&cdr[cdr.len() - 6..], &pixels);
         assert_eq!(decode(MessageKind::Image, &cdr).unwrap().payload, pixels);
+        let mut scratch = Decoded::default();
+        let (h, px) = decode_view(MessageKind::Image, &cdr, &mut scratch).unwrap();
+        assert_eq!((h.len(), px), (size_of::<ImageHeader>(), &pixels[..]));
+        assert!(
+            std::ptr::eq(px.as_ptr(), cdr[cdr.len() - 6..].as_ptr()),
+            "the pixels are borrowed, not copied"
+        );
     }
 
     #[test]

@@ -572,6 +572,15 @@ mod tests {
         assert!((pose.center - poses[3].center).norm() < 1e-6, "{:?}", pose.center);
         assert!(rms < 1e-6);
         assert!(resect(p.focal_mm, &poses[2], &xyz[..3], &obs[..3], 0.005).is_none());
+        // A fifth of the points are wrong tie points (shifted one "brick" along x): trimmed away, not averaged in.
+        let wrong: Vec<Vec3> = xyz
+            .iter()
+            .enumerate()
+            .map(|(i, x)| if i % 5 == 0 { x + Vec3::new(0.25, 0.0, 0.0) } else { *x })
+            .collect();
+        let (pose, median) = resect(p.focal_mm, &poses[2], &wrong, &obs, 0.005).unwrap();
+        assert!((pose.center - poses[3].center).norm() < 1e-3, "{:?}", pose.center - poses[3].center);
+        assert!(median < 1e-4, "median residual {median} mm");
     }
 
     #[test]

@@ -5,7 +5,7 @@ use std::collections::HashMap;
 use std::time::{Duration, Instant};
 
 use anyhow::{bail, Context, Result};
-use lineflow_messages::schema::{decode_into, Decoded};
+use lineflow_messages::schema::{decode_view, read_pod, Decoded};
 use lineflow_messages::{with_kind, Message, MessageKind};
 use lineflow_runtime::recording::Recording;
 use lineflow_runtime::{NodeContext, Output};
@@ -25,27 +25,27 @@ struct Params {
 
 /// An output of any message type.
 trait Emit {
-    fn emit(&self, d: &Decoded) -> Result<()>;
+    /// Publishes a message from its header and payload bytes.
+    fn emit(&self, header: &[u8], payload: &[u8]) -> Result<()>;
     fn end(&self) -> Result<()>;
 }
 
 struct TypedEmit<M: Message>(Output<M>);
 
 impl<M: Message> Emit for TypedEmit<M> {
-    fn emit(&self, d: &Decoded) -> Result<()> {
-        if d.header.len() != size_of::<M::Header>() {
-            bail!("{}: decoded header of {} bytes", M::KIND.name(), d.header.len());
+    fn emit(&self, header: &[u8], payload: &[u8]) -> Result<()> {
+        if header.len() != size_of::<M::Header>() {
+            bail!("{}: decoded header of {} bytes", M::KIND.name(), header.len());
         }
-        // SAFETY: `decode` produced exactly the header struct's bytes; headers are plain old data.
-        let header: M::Header = unsafe { std::ptr::read_unaligned(d.header.as_ptr().cast()) };
+        let header: M::Header = read_pod(header);
         let size = size_of::<M::Element>().max(1);
-        if !d.payload.len().is_multiple_of(size) {
-            bail!("{}: payload of {} bytes is not whole elements", M::KIND.name(), d.payload.len());
+        if !payload.len().is_multiple_of(size) {
+            bail!("{}: payload of {} bytes is not whole elements", M::KIND.name(), payload.len());
         }
-        self.0.publish_with(header, d.payload.len() / size, |out| {
+        self.0.publish_with(header, payload.len() / size, |out| {
             // SAFETY: `out` holds exactly payload.len() bytes of plain-old-data elements.
-            let bytes = unsafe { std::slice::from_raw_parts_mut(out.as_mut_ptr().cast::<u8>(), d.payload.len()) };
-            bytes.copy_from_slice(&d.payload);
+            let bytes = unsafe { std::slice::from_raw_parts_mut(out.as_mut_ptr().cast::<u8>(), payload.len()) };
+            bytes.copy_from_slice(payload);
         })
     }
     fn end(&self) -> Result<()> {
@@ -98,10 +98,8 @@ fn body() -> Result<()> {
     ctx.connect()?;
     let rec = recording.context("no recording")?;
     let mut sent = 0u64;
-    let mut d = Decoded {
-        header: Vec::new(),
-        payload: Vec::new(),
-    };
+    // Image pixels go from the recorded bytes straight into shared memory; other payloads reuse these buffers.
+    let mut scratch = Decoded::default();
     // iceoryx2 reports a signal once: remember it.
     let mut stopped = false;
     loop {
@@ -121,8 +119,9 @@ fn body() -> Result<()> {
                     std::thread::sleep(wait);
                 }
             }
-            decode_into(*kind, &m.data, &mut d).with_context(|| format!("topic '{}' message {}", m.topic, m.sequence))?;
-            out.emit(&d)?;
+            let (header, payload) =
+                decode_view(*kind, &m.data, &mut scratch).with_context(|| format!("topic '{}' message {}", m.topic, m.sequence))?;
+            out.emit(header, payload)?;
             sent += 1;
             Ok(())
         });

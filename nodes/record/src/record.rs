@@ -11,7 +11,7 @@ use crossbeam::channel::Receiver;
 use lineflow_messages::schema::{bytes_of, encode, slice_bytes};
 use lineflow_messages::{with_kind, Message, MessageKind, NodeStatus};
 use lineflow_runtime::launch::Graph;
-use lineflow_runtime::recording::views::{views_of, ViewRenderer};
+use lineflow_runtime::recording::views::ViewRenderer;
 use lineflow_runtime::recording::{now_ns, Compression, McapWriter, META_END, META_RUN};
 use lineflow_runtime::{Flow, Input, NodeContext, RunEnd};
 
@@ -133,12 +133,11 @@ fn body() -> Result<()> {
     let path = ctx.out_dir().join(&p.file);
     let mut writer = McapWriter::create(&path, p.compression)?;
     writer.metadata(META_RUN, run_metadata(&graph))?;
+    let renderer = ViewRenderer::new(p.preview_max_px);
     for t in &topics {
         writer.add_topic(&t.name, t.kind)?;
-        for (suffix, view) in views_of(t.kind) {
-            if p.preview_max_px > 0 || *suffix != "preview" {
-                writer.add_view(&format!("{}/{suffix}", t.name), view)?;
-            }
+        for (suffix, view) in renderer.views(t.kind) {
+            writer.add_view(&format!("{}/{suffix}", t.name), view)?;
         }
     }
     // Bounded by memory: as many of the largest messages as fit in the queue budget.
@@ -147,7 +146,7 @@ fn body() -> Result<()> {
     let (tx, rx) = crossbeam::channel::bounded::<Item>(capacity);
     let (give_back, pool) = crossbeam::channel::bounded::<Vec<u8>>(capacity);
     let names: Vec<(String, MessageKind)> = topics.iter().map(|t| (t.name.clone(), t.kind)).collect();
-    let thread = spawn_writer(writer, rx, give_back, names, p.preview_max_px)?;
+    let thread = spawn_writer(writer, rx, give_back, names, renderer)?;
     ctx.connect()?;
     tracing::info!("recording {} topics to {}", topics.len(), path.display());
 
@@ -198,25 +197,16 @@ fn spawn_writer(
     rx: Receiver<Item>,
     give_back: crossbeam::channel::Sender<Vec<u8>>,
     topics: Vec<(String, MessageKind)>,
-    preview_max_px: u32,
+    mut renderer: ViewRenderer,
 ) -> Result<JoinHandle<Result<McapWriter>>> {
-    let views: Vec<Vec<String>> = topics
-        .iter()
-        .map(|(t, k)| views_of(*k).iter().map(|(s, _)| format!("{t}/{s}")).collect())
-        .collect();
     std::thread::Builder::new()
         .name("mcap-writer".into())
         .spawn(move || {
-            let mut renderer = ViewRenderer::new(preview_max_px);
             for item in rx {
                 let (topic, kind) = &topics[item.topic];
                 writer.write(topic, item.log_time, item.publish_time, &item.cdr)?;
                 for (suffix, bytes) in renderer.render(*kind, &item.cdr) {
-                    if let Some(view) = views[item.topic].iter().find(|v| v.ends_with(suffix)) {
-                        if writer.has_channel(view) {
-                            writer.write(view, item.log_time, item.publish_time, &bytes)?;
-                        }
-                    }
+                    writer.write(&format!("{topic}/{suffix}"), item.log_time, item.publish_time, &bytes)?;
                 }
                 let _ = give_back.try_send(item.cdr);
             }

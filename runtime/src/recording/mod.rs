@@ -129,7 +129,7 @@ impl Recording {
         self.summary.is_some()
     }
 
-    /// Whether the recorder saw end-of-stream on every topic.
+    /// Whether the recorder saw end-of-stream on every topic and nothing was dropped or missed.
     pub fn is_complete(&self) -> bool {
         self.metadata
             .get(META_END)
@@ -158,18 +158,6 @@ impl Recording {
             }
         }
         out
-    }
-
-    /// Every message in file order, then the error that ended the file early, if any.
-    pub fn messages(&self) -> (Vec<RecordedMessage>, Option<String>) {
-        let mut out = Vec::new();
-        let mut failure = None;
-        self.for_each_message(|m| {
-            out.push(m);
-            Ok(())
-        })
-        .unwrap_or_else(|e| failure = Some(format!("{e:#}")));
-        (out, failure)
     }
 
     /// Calls `f` with every message in file order.

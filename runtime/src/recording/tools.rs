@@ -97,9 +97,7 @@ fn completeness(rec: &Recording, read_error: Option<String>) -> String {
         return format!("status:    CORRUPT: {e}");
     }
     match rec.metadata.get(META_END) {
-        Some(end) if end.get("complete").is_some_and(|v| v == "true") => {
-            "status:    complete (end-of-stream on every topic, nothing dropped)".into()
-        }
+        Some(_) if rec.is_complete() => "status:    complete (end-of-stream on every topic, nothing dropped)".into(),
         Some(end) => format!(
             "status:    incomplete: {}",
             end.get("reason").map(String::as_str).unwrap_or("unknown")

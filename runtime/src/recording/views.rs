@@ -5,7 +5,7 @@
 //! `preview_max_px` on the long side so that previews do not double the recording; 2-D segments and keypoints
 //! become `foxglove.ImageAnnotations` in the preview's pixel grid; poses, 3-D lines and wire-frame models become
 //! `foxglove.SceneUpdate` entities (JSON) in the object frame `world`.
-use lineflow_messages::schema::{decode, Decoded};
+use lineflow_messages::schema::{decode_view, read_elements, read_pod, Decoded};
 use lineflow_messages::{
     parts, Encoding, ImageHeader, Keypoint, KeypointsHeader, Line3, Lines2DHeader, MessageKind, Pose, Segment2, Stamp, WireEdge,
     WireframeHeader,
@@ -51,8 +51,8 @@ pub const SCENE_UPDATE: ViewSchema = ViewSchema {
     message_encoding: "json",
 };
 
-/// The viewer channels of a topic: (channel suffix, schema).
-pub fn views_of(kind: MessageKind) -> &'static [(&'static str, &'static ViewSchema)] {
+/// The viewer channels a kind can have: (channel suffix, schema).
+fn views_of(kind: MessageKind) -> &'static [(&'static str, &'static ViewSchema)] {
     match kind {
         MessageKind::Image => &[("preview", &RAW_IMAGE)],
         MessageKind::Lines2D | MessageKind::Keypoints => &[("annotations", &IMAGE_ANNOTATIONS)],
@@ -68,6 +68,8 @@ pub struct ViewRenderer {
     pub preview_max_px: u32,
     /// Preview pixels per image pixel of the latest image.
     scale: f64,
+    /// Decoding buffers reused from message to message.
+    scratch: Decoded,
 }
 
 impl ViewRenderer {
@@ -76,39 +78,54 @@ impl ViewRenderer {
         Self {
             preview_max_px,
             scale: 1.0,
+            scratch: Decoded::default(),
         }
+    }
+
+    /// The viewer channels this renderer fills for a topic of `kind` (channel suffix, schema): the recorder adds
+    /// exactly these, [`render`](Self::render) writes no other.
+    pub fn views(&self, kind: MessageKind) -> impl Iterator<Item = (&'static str, &'static ViewSchema)> + '_ {
+        views_of(kind)
+            .iter()
+            .copied()
+            .filter(move |(suffix, _)| self.preview_max_px > 0 || *suffix != "preview")
     }
 
     /// The viewer messages of one recorded message: `(channel suffix, bytes)`.
     pub fn render(&mut self, kind: MessageKind, cdr: &[u8]) -> Vec<(&'static str, Vec<u8>)> {
-        let Ok(d) = decode(kind, cdr) else {
+        // Most messages (edge maps, tie points) have no view: do not decode them at all.
+        if self.views(kind).next().is_none() {
+            return Vec::new();
+        }
+        // An image's pixels are read in place from the recorded bytes, not copied out first.
+        let Ok((header, payload)) = decode_view(kind, cdr, &mut self.scratch) else {
             return Vec::new();
         };
-        let stamp = d.stamp();
+        let stamp: Stamp = read_pod(header);
         match kind {
-            MessageKind::Image if self.preview_max_px > 0 => {
-                let h: ImageHeader = header_of(&d);
+            MessageKind::Image => {
+                let h: ImageHeader = read_pod(header);
                 let factor = h.width.max(h.height).div_ceil(self.preview_max_px).max(1);
                 self.scale = 1.0 / factor as f64;
-                preview(&h, &d.payload, factor).map(|p| vec![("preview", p)]).unwrap_or_default()
+                preview(&h, payload, factor).map(|p| vec![("preview", p)]).unwrap_or_default()
             }
             MessageKind::Lines2D => {
-                let h: Lines2DHeader = header_of(&d);
-                let segs: Vec<Segment2> = elements(&d.payload[..(h.n_segments as usize * size_of::<Segment2>()).min(d.payload.len())]);
+                let h: Lines2DHeader = read_pod(header);
+                let segs: Vec<Segment2> = read_elements(&payload[..(h.n_segments as usize * size_of::<Segment2>()).min(payload.len())]);
                 vec![("annotations", annotations(&stamp, &segs, self.scale))]
             }
             MessageKind::Keypoints => {
-                let h: KeypointsHeader = header_of(&d);
-                let kps: Vec<Keypoint> = elements(&d.payload[..(h.count as usize * size_of::<Keypoint>()).min(d.payload.len())]);
+                let h: KeypointsHeader = read_pod(header);
+                let kps: Vec<Keypoint> = read_elements(&payload[..(h.count as usize * size_of::<Keypoint>()).min(payload.len())]);
                 let pts = kps.iter().map(|k| [k.col as f64, k.row as f64]);
                 vec![("annotations", image_points(&stamp, pts, 1, self.scale))]
             }
             MessageKind::Wireframe => {
-                let h: WireframeHeader = header_of(&d);
+                let h: WireframeHeader = read_pod(header);
                 let nv = h.n_vertices as usize;
-                let split = parts::align8(nv * 24).min(d.payload.len());
-                let vertices: Vec<[f64; 3]> = elements(&d.payload[..(nv * 24).min(split)]);
-                let edges: Vec<WireEdge> = elements(&d.payload[split..]);
+                let split = parts::align8(nv * 24).min(payload.len());
+                let vertices: Vec<[f64; 3]> = read_elements(&payload[..(nv * 24).min(split)]);
+                let edges: Vec<WireEdge> = read_elements(&payload[split..]);
                 let pts = edges
                     .iter()
                     .filter(|e| (e.a as usize) < vertices.len() && (e.b as usize) < vertices.len())
@@ -120,25 +137,11 @@ impl ViewRenderer {
                     serde_json::to_vec(&json!({ "deletions": [], "entities": [e] })).unwrap_or_default(),
                 )]
             }
-            MessageKind::Poses => vec![("scene", scene_poses(&stamp, &elements::<Pose>(&d.payload)))],
-            MessageKind::Lines3D => vec![("scene", scene_lines(&stamp, &elements::<Line3>(&d.payload)))],
+            MessageKind::Poses => vec![("scene", scene_poses(&stamp, &read_elements::<Pose>(payload)))],
+            MessageKind::Lines3D => vec![("scene", scene_lines(&stamp, &read_elements::<Line3>(payload)))],
             _ => Vec::new(),
         }
     }
-}
-
-fn header_of<T: Copy>(d: &Decoded) -> T {
-    assert!(d.header.len() >= size_of::<T>());
-    // SAFETY: `decode` returns exactly the header struct's bytes; headers are plain old data.
-    unsafe { std::ptr::read_unaligned(d.header.as_ptr().cast::<T>()) }
-}
-
-fn elements<T: Copy>(bytes: &[u8]) -> Vec<T> {
-    bytes
-        .chunks_exact(size_of::<T>())
-        // SAFETY: each chunk holds one element's bytes as decoded; elements are plain old data.
-        .map(|c| unsafe { std::ptr::read_unaligned(c.as_ptr().cast::<T>()) })
-        .collect()
 }
 
 fn time(ns: u64) -> Value {

@@ -89,11 +89,6 @@ impl McapWriter {
         })
     }
 
-    /// The file.
-    pub fn path(&self) -> &Path {
-        &self.path
-    }
-
     fn schema_id(&mut self, name: &str, encoding: &str, data: &[u8]) -> Result<u16> {
         if let Some(id) = self.schemas.get(name) {
             return Ok(*id);

@@ -4,7 +4,7 @@ mod bvh;
 pub mod geometry;
 mod presets;
 pub mod render;
-mod rng;
+pub mod rng;
 pub mod scene;
 mod texture;
 mod tiles;
