@@ -48,8 +48,11 @@ fn ray_error(syn: &Synthetic, a: &Observation, b: &Observation) -> f64 {
     err(pa, a).max(err(pb, b))
 }
 
+/// Each frame's partners: (frame, mutual matches, verified).
+type Partners = Vec<Vec<(u64, usize, usize)>>;
+
 /// Matches a preset's frames in order; returns every frame's partners and the tracks' ray errors, sorted.
-fn match_preset(preset: &str) -> (Vec<Vec<(u64, usize, usize)>>, Vec<f64>) {
+fn match_preset(preset: &str) -> (Partners, Vec<f64>) {
     let syn = Synthetic::new(preset, 0.3, 1).unwrap();
     let n = syn.poses().len();
     let mut m = Matcher::new(MatcherParams::default(), *syn.camera());
@@ -74,7 +77,7 @@ fn match_preset(preset: &str) -> (Vec<Vec<(u64, usize, usize)>>, Vec<f64>) {
     (partners, errors)
 }
 
-fn check(preset: &str) -> Vec<Vec<(u64, usize, usize)>> {
+fn check(preset: &str) -> Partners {
     let (partners, errors) = match_preset(preset);
     let n = partners.len();
     let median = errors[errors.len() / 2];
