@@ -27,6 +27,27 @@ pub struct OrientationParams {
     pub min_resect_points: usize,
     /// Smallest angle between rays for a new point, degrees.
     pub min_angle_deg: f64,
+    /// Frames adjusted as each new one arrives (the sliding window); earlier frames are held and settled.
+    pub window: usize,
+}
+
+impl OrientationParams {
+    /// Checks the settings, naming the first one out of range.
+    pub fn validate(&self) -> Result<(), String> {
+        if !(self.tie_sigma_px > 0.0 && self.target_sigma_px > 0.0) {
+            return Err("tie_sigma_px and target_sigma_px must be > 0".into());
+        }
+        if self.min_init_tracks < 8 || self.min_resect_points < 6 {
+            return Err("min_init_tracks must be >= 8 and min_resect_points >= 6".into());
+        }
+        if !(self.min_angle_deg >= 0.0 && self.min_angle_deg < 90.0) {
+            return Err("min_angle_deg must be in [0, 90)".into());
+        }
+        if self.window < 2 {
+            return Err("window must be >= 2".into());
+        }
+        Ok(())
+    }
 }
 
 impl Default for OrientationParams {
@@ -37,6 +58,7 @@ impl Default for OrientationParams {
             min_init_tracks: 25,
             min_resect_points: 8,
             min_angle_deg: 1.0,
+            window: 10,
         }
     }
 }
@@ -74,6 +96,24 @@ pub struct Block {
     pub report: BundleReport,
     /// The initial pair, held fixed (the datum) until the block is georeferenced.
     pair: Vec<u64>,
+    /// Frames in the order they were oriented.
+    order: Vec<u64>,
+    /// Per frame: how often its pose changed, and its standard deviations (centre m, angles rad) from the last
+    /// adjustment that moved it.
+    pub states: BTreeMap<u64, FrameState>,
+    /// Whether the end-of-stream adjustment has run.
+    pub finished: bool,
+}
+
+/// What is known about one oriented frame besides its pose.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct FrameState {
+    /// Adjustments that changed the pose.
+    pub revision: u32,
+    /// Outside the sliding window: held until the end-of-stream adjustment.
+    pub settled: bool,
+    /// Standard deviations of the centre (m) and angles (rad); NaN where not estimated.
+    pub sigmas: Option<([f64; 3], [f64; 3])>,
 }
 
 impl Block {
@@ -90,6 +130,9 @@ impl Block {
             frames: BTreeSet::new(),
             report: BundleReport::default(),
             pair: Vec::new(),
+            order: Vec::new(),
+            states: BTreeMap::new(),
+            finished: false,
         }
     }
 
@@ -107,6 +150,11 @@ impl Block {
             let ideal = self.ideal(px);
             self.tracks.entry(track).or_default().obs.push((frame, ideal));
         }
+    }
+
+    /// Every frame seen so far, oriented or not.
+    pub fn frames(&self) -> impl Iterator<Item = u64> + '_ {
+        self.frames.iter().copied()
     }
 
     /// Sets the surveyed points.
@@ -140,6 +188,7 @@ impl Block {
         let first = self.poses.is_empty();
         let ok = if first { self.initialise(k) } else { self.resect_frame(k) };
         if ok {
+            self.order.extend(self.poses.keys().filter(|f| !self.order.contains(f)).copied().collect::<Vec<_>>());
             self.intersect_new();
             self.georeference();
             self.adjust_block(false);
@@ -215,7 +264,6 @@ impl Block {
             .filter_map(|t| Some((t.point?, t.obs.iter().find(|o| o.0 == k)?.1)))
             .unzip();
         if xyz.len() < self.params.min_resect_points {
-            eprintln!("DEBUG resect {k}: only {} points", xyz.len());
             tracing::warn!("frame {k}: only {} intersected tie points, not oriented yet", xyz.len());
             return false;
         }
@@ -242,12 +290,6 @@ impl Block {
                 true
             }
             other => {
-                eprintln!(
-                    "DEBUG resect {k}: {} points, median {:?} mm vs 3 sigma {}",
-                    xyz.len(),
-                    other.map(|o| o.1),
-                    3.0 * sigma
-                );
                 tracing::warn!(
                     "frame {k}: resection failed (median residual {:?} mm), not oriented yet",
                     other.map(|o| o.1)
@@ -315,8 +357,9 @@ impl Block {
     }
 
     /// The adjustment problem of the oriented frames, and the track id of each point.
-    fn problem(&self) -> (BundleProblem, Vec<Option<u64>>, Vec<u64>) {
+    fn problem(&self, window: Option<&BTreeSet<u64>>) -> (BundleProblem, Vec<Option<u64>>, Vec<u64>) {
         let frames: Vec<u64> = self.poses.keys().copied().collect();
+        let in_window = |f: &u64| window.is_none_or(|w| w.contains(f));
         let index: BTreeMap<u64, usize> = frames.iter().enumerate().map(|(i, f)| (*f, i)).collect();
         let tie_sigma = self.params.tie_sigma_px * self.camera.pixel_size_mm;
         let target_sigma = self.params.target_sigma_px * self.camera.pixel_size_mm;
@@ -327,7 +370,7 @@ impl Block {
         for (&id, t) in &self.tracks {
             let Some(x) = t.point else { continue };
             let obs: Vec<_> = t.obs.iter().filter_map(|(f, i)| index.get(f).map(|c| (*c, *i))).collect();
-            if obs.len() < 2 {
+            if obs.len() < 2 || !t.obs.iter().any(|(f, _)| in_window(f)) {
                 continue;
             }
             for (c, ideal) in obs {
@@ -367,11 +410,13 @@ impl Block {
                 ids.push(None);
             }
         }
-        let fixed = if self.georeferenced {
-            vec![]
-        } else {
-            self.pair.iter().filter_map(|f| index.get(f).copied()).collect()
-        };
+        let mut fixed: Vec<usize> = frames
+            .iter()
+            .enumerate()
+            .filter(|(_, f)| !in_window(f) || (!self.georeferenced && self.pair.contains(f)))
+            .map(|(i, _)| i)
+            .collect();
+        fixed.dedup();
         let poses = frames.iter().map(|f| self.poses[f]).collect();
         (
             BundleProblem {
@@ -387,9 +432,11 @@ impl Block {
         )
     }
 
-    /// Adjusts the whole block; `last` removes outliers and solves again.
+    /// Adjusts the block: the sliding window of the latest frames, or, with `last`, every frame, removing
+    /// outliers and solving again.
     pub fn adjust_block(&mut self, last: bool) {
-        let (mut p, ids, frames) = self.problem();
+        let window: Option<BTreeSet<u64>> = (!last).then(|| self.order.iter().rev().take(self.params.window).copied().collect());
+        let (mut p, ids, frames) = self.problem(window.as_ref());
         let options = if last {
             BundleOptions::default()
         } else {
@@ -400,7 +447,15 @@ impl Block {
             }
         };
         self.report = adjust(&mut p, &options);
-        for (f, pose) in frames.iter().zip(&p.poses) {
+        for (i, (f, pose)) in frames.iter().zip(&p.poses).enumerate() {
+            let state = self.states.entry(*f).or_default();
+            if p.fixed.contains(&i) {
+                state.settled = window.as_ref().is_some_and(|w| !w.contains(f));
+                continue;
+            }
+            state.revision += 1;
+            state.settled = false;
+            state.sigmas = self.report.pose_sigmas.get(i).copied();
             self.poses.insert(*f, *pose);
         }
         for (id, x) in ids.iter().zip(&p.points) {
@@ -420,6 +475,7 @@ impl Block {
         }
         self.georeference();
         self.adjust_block(true);
+        self.finished = true;
     }
 
     /// Check points intersected from the oriented frames: (id, estimated − surveyed).
