@@ -130,7 +130,6 @@ fn body() -> Result<()> {
             p if p.exists() => Some(lineflow_formats::read_checkpoints(&p).context("reading checkpoints.csv")?),
             _ => None,
         },
-        ..Default::default()
     };
     let evaluation = evaluate(&truth, &results);
     let path = report::write(&truth, &out, &evaluation, &out.join("eval")).context("writing the evaluation report")?;

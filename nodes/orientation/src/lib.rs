@@ -188,7 +188,8 @@ impl Block {
         let first = self.poses.is_empty();
         let ok = if first { self.initialise(k) } else { self.resect_frame(k) };
         if ok {
-            self.order.extend(self.poses.keys().filter(|f| !self.order.contains(f)).copied().collect::<Vec<_>>());
+            self.order
+                .extend(self.poses.keys().filter(|f| !self.order.contains(f)).copied().collect::<Vec<_>>());
             self.intersect_new();
             self.georeference();
             self.adjust_block(false);

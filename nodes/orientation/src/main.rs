@@ -84,6 +84,10 @@ fn write_results(ctx: &NodeContext, block: &Block, names: &BTreeMap<u64, String>
         .collect();
     let path = dir.join("poses.csv");
     write_poses(&path, &rows).with_context(|| format!("writing {}", path.display()))?;
+    if block.poses.is_empty() {
+        tracing::warn!("no frame could be oriented (too few verified tie points): poses.csv has no rows");
+        return Ok(());
+    }
     if !block.georeferenced {
         tracing::warn!(
             "fewer than three control points were intersected: poses.csv is in the arbitrary frame of the first pair, \
@@ -135,8 +139,10 @@ fn body() -> Result<()> {
 
     let mut block: Option<Block> = None;
     let mut pixel_mm = 1.0;
+    // The latched survey topics, when wired, are awaited before the first frame is oriented (`None` = pending).
     let mut survey: Option<BTreeMap<String, Surveyed>> = control_in.is_none().then(BTreeMap::new);
     let mut targets: Option<Vec<(String, u64, [f64; 2])>> = observations_in.is_none().then(Vec::new);
+    let mut survey_joined = false;
     let mut waiting: Vec<(Stamp, Vec<TiePoint>)> = Vec::new();
     let mut names: BTreeMap<u64, String> = BTreeMap::new();
     let (mut revision, mut last_stamp, mut frames) = (0u32, Stamp::default(), 0usize);
@@ -153,7 +159,12 @@ fn body() -> Result<()> {
         }
         if let Some(input) = &observations_in {
             while let Some(m) = input.receive()? {
-                targets = Some(m.payload().iter().map(|o| (o.point_id().to_owned(), o.frame, [o.col, o.row])).collect());
+                targets = Some(
+                    m.payload()
+                        .iter()
+                        .map(|o| (o.point_id().to_owned(), o.frame, [o.col, o.row]))
+                        .collect(),
+                );
             }
         }
         if let Some(input) = &images_in {
@@ -164,21 +175,24 @@ fn body() -> Result<()> {
         while let Some(m) = ties_in.receive()? {
             waiting.push((m.user_header().stamp, m.payload().to_vec()));
         }
-        // The survey joins the block once, before the first frame.
-        if let (Some(b), Some(s), Some(t)) = (block.as_mut(), survey.take(), targets.take()) {
+        // The survey joins the block once, before the first frame; if it never comes, the frames go on without.
+        let survey_ready = survey.is_some() && targets.is_some();
+        if let (Some(b), false, true) = (block.as_mut(), survey_joined, survey_ready || ties_in.is_ended()) {
+            if !survey_ready {
+                tracing::warn!("the control points or their observations never arrived: orienting without them");
+            }
+            let s = survey.take().unwrap_or_default();
             let controls = s.values().filter(|p| p.control).count();
-            if controls < 3 && control_in.is_some() {
-                tracing::warn!("only {controls} control points: the block cannot be georeferenced");
+            if controls < 3 {
+                tracing::warn!("{controls} control points: the block cannot be georeferenced (three are needed)");
             }
             b.set_surveyed(s);
-            for (id, frame, px) in t {
+            for (id, frame, px) in targets.take().unwrap_or_default() {
                 b.add_target(&id, frame, px);
             }
-            survey = None;
-            targets = None;
+            survey_joined = true;
         }
-        let ready = survey.is_none() && targets.is_none();
-        if let (Some(b), true) = (block.as_mut(), ready) {
+        if let (Some(b), true) = (block.as_mut(), survey_joined) {
             waiting.sort_by_key(|(s, _)| s.frame);
             for (stamp, ties) in waiting.drain(..) {
                 b.add_ties(ties.iter().map(|t| (t.track, t.frame, [t.col, t.row])));

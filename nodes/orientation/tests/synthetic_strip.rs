@@ -37,10 +37,7 @@ fn a_strip_is_oriented_as_it_arrives_and_meets_the_check_points() {
     let syn = Synthetic::new("d2x-strip", 0.3, 1).unwrap();
     let cam = *syn.camera();
     let n = syn.poses().len();
-    let mut matcher = Matcher::new(
-        MatcherParams::default(),
-        cam,
-    );
+    let mut matcher = Matcher::new(MatcherParams::default(), cam);
     let mut block = Block::new(OrientationParams::default(), cam);
     block.set_surveyed(
         syn.building
