@@ -404,6 +404,9 @@ fn essential(
     Some(rmse(&errors))
 }
 
+/// A method's name, its result in a trial, and the thesis's figures for it.
+type Method = (&'static str, fn(&Trial) -> Option<Rmse>, Option<[f64; 4]>);
+
 /// Median and 10 % / 90 % quantiles.
 fn band(mut v: Vec<f64>) -> Option<[f64; 3]> {
     if v.is_empty() {
@@ -427,7 +430,7 @@ pub fn experiment(trials: u64, seed: u64) -> String {
     ));
     for config in configs() {
         let results: Vec<Trial> = (0..trials).map(|t| run_trial(&config, seed, t, NOISE_MM)).collect();
-        let methods: [(&str, fn(&Trial) -> Option<Rmse>, Option<[f64; 4]>); 4] = [
+        let methods: [Method; 4] = [
             ("collinearity", |t| t.collinearity, Some(config.thesis_collinearity)),
             ("essential + affine", |t| t.essential_affine, Some(config.thesis_essential)),
             ("essential + similarity", |t| t.essential_similarity, None),

@@ -1,11 +1,15 @@
 //! The orientation stage, implementation `bundle`: exterior orientations from tie points as frames arrive.
 //!
-//! The first pair with enough common tracks is oriented relatively (essential matrix, four-fold decomposition,
-//! cheirality) with the first camera as datum; each later frame by space resection from the tracks already
-//! intersected, starting at the nearest oriented frame; new tracks are intersected; the block is adjusted after
-//! every frame. As soon as three control points are intersected the block is moved into the control frame by a
-//! similarity and the control points join the adjustment with their a-priori standard deviations. At the end, a
-//! full adjustment removes outliers and solves again, and the check points are intersected for `checkpoints.csv`.
+//! The first pair with enough verified common tracks starts the block: the second camera is placed against the
+//! image flow with the first as datum and the pair is adjusted (a façade is nearly a plane, where the linear
+//! essential matrix is ill-conditioned but the collinearity adjustment is not). Each later frame is resected from
+//! the tracks already intersected, starting at the nearest oriented frame or its extrapolation along the path; new
+//! tracks are intersected; the latest `window` frames are adjusted (the sliding window), the earlier ones held. As
+//! soon as three control points are intersected the block is moved into the control frame by a similarity and the
+//! control points join the adjustment with their a-priori standard deviations. At the end a full adjustment removes
+//! outliers and solves again, and the check points are intersected for `checkpoints.csv`.
+pub mod colmap;
+
 use std::collections::{BTreeMap, BTreeSet};
 
 use lineflow_photogrammetry::bundle::{adjust, resect, BundleOptions, BundleProblem, BundleReport, ImageObservation, PointPrior};
@@ -76,7 +80,10 @@ pub struct Surveyed {
 
 #[derive(Debug, Clone, Default)]
 struct Track {
+    /// (frame, ideal photo coordinates).
     obs: Vec<(u64, [f64; 2])>,
+    /// The measured pixel of each observation, in the order of `obs`.
+    measured: Vec<[f64; 2]>,
     point: Option<Vec3>,
 }
 
@@ -148,8 +155,32 @@ impl Block {
     pub fn add_ties(&mut self, ties: impl IntoIterator<Item = (u64, u64, [f64; 2])>) {
         for (track, frame, px) in ties {
             let ideal = self.ideal(px);
-            self.tracks.entry(track).or_default().obs.push((frame, ideal));
+            let t = self.tracks.entry(track).or_default();
+            t.obs.push((frame, ideal));
+            t.measured.push(px);
         }
+    }
+
+    /// The camera the block was made for.
+    pub fn camera(&self) -> &Camera {
+        &self.camera
+    }
+
+    /// Every intersected tie point with its (frame, measured pixel) observations in oriented frames.
+    pub fn points(&self) -> Vec<colmap::TrackPoint> {
+        self.tracks
+            .values()
+            .filter_map(|t| {
+                let obs: Vec<(u64, [f64; 2])> = t
+                    .obs
+                    .iter()
+                    .zip(&t.measured)
+                    .filter(|((f, _), _)| self.poses.contains_key(f))
+                    .map(|((f, _), px)| (*f, *px))
+                    .collect();
+                (obs.len() >= 2).then_some((t.point?, obs))
+            })
+            .collect()
     }
 
     /// Every frame seen so far, oriented or not.

@@ -84,6 +84,16 @@ fn write_results(ctx: &NodeContext, block: &Block, names: &BTreeMap<u64, String>
         .collect();
     let path = dir.join("poses.csv");
     write_poses(&path, &rows).with_context(|| format!("writing {}", path.display()))?;
+    if !block.poses.is_empty() {
+        let colmap_dir = dir.join("colmap");
+        let name = |f: u64| names.get(&f).cloned().unwrap_or_else(|| format!("frame_{f:05}"));
+        let worst = lineflow_orientation::colmap::write_text_model(&colmap_dir, block.camera(), &block.poses, &name, &block.points())
+            .with_context(|| format!("writing the COLMAP model into {}", colmap_dir.display()))?;
+        tracing::info!(
+            "COLMAP text model in {} (distortion fitted within {worst:.3} px)",
+            colmap_dir.display()
+        );
+    }
     if block.poses.is_empty() {
         tracing::warn!("no frame could be oriented (too few verified tie points): poses.csv has no rows");
         return Ok(());
