@@ -9,6 +9,7 @@ mod bench_util;
 mod doctor;
 mod recordings;
 mod run;
+mod seed001;
 mod synth;
 
 use std::path::PathBuf;
@@ -181,6 +182,18 @@ enum Cmd {
         #[arg(long)]
         out: Option<PathBuf>,
     },
+    /// Reproduce a seed document's experiment (seed001: collinearity vs essential-matrix orientation of a
+    /// simulated stereo pair, Monte Carlo); prints a Markdown table.
+    Experiment {
+        /// Which experiment: seed001.
+        name: String,
+        /// Trials per configuration.
+        #[arg(long, default_value_t = 500)]
+        trials: u64,
+        /// Seed of the simulation.
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+    },
     /// Benchmarks.
     Bench {
         #[command(subcommand)]
@@ -239,6 +252,13 @@ fn main() -> ExitCode {
             noise_dn: noise,
         }),
         Cmd::Eval { results, gt, out } => eval(&results, &gt, out),
+        Cmd::Experiment { name, trials, seed } => match name.as_str() {
+            "seed001" => {
+                print!("{}", seed001::experiment(trials.max(1), seed));
+                Ok(ExitCode::SUCCESS)
+            }
+            other => Err(anyhow::anyhow!("unknown experiment '{other}' (available: seed001)")),
+        },
         Cmd::Bench { what } => bench::bench(what),
     };
     match result {

@@ -64,6 +64,13 @@ pub struct Observation {
     pub row: f64,
 }
 
+impl Observation {
+    /// The observed point's id.
+    pub fn point_id(&self) -> &str {
+        crate::str_from_fixed(&self.point_id)
+    }
+}
+
 /// Header of a `Site` message; the payload is `[Wall]`.
 #[derive(Debug, Default, Clone, Copy, ZeroCopySend)]
 #[repr(C)]

@@ -12,10 +12,12 @@ pub fn eight_point(a: &[Ray], b: &[Ray]) -> Option<Matrix3<f64>> {
     if a.len() < 8 || a.len() != b.len() {
         return None;
     }
-    // Rows of the homogeneous system, accumulated as AᵀA (9×9) so any number of points costs one 9×9 SVD.
+    // Hartley's normalisation: each image's points centred and scaled to a mean distance of √2, which keeps the
+    // linear system well conditioned whatever the field of view and the noise.
+    let (ta, tb) = (normalising(a), normalising(b));
     let mut ata = SMatrix::<f64, 9, 9>::zeros();
     for (p, q) in a.iter().zip(b) {
-        let (p, q) = (p / p.z, q / q.z);
+        let (p, q) = (ta * (p / p.z), tb * (q / q.z));
         let row = SMatrix::<f64, 1, 9>::from_row_slice(&[q.x * p.x, q.x * p.y, q.x, q.y * p.x, q.y * p.y, q.y, p.x, p.y, 1.0]);
         ata += row.transpose() * row;
     }
@@ -23,7 +25,7 @@ pub fn eight_point(a: &[Ray], b: &[Ray]) -> Option<Matrix3<f64>> {
     let v_t = svd.v_t?;
     let (k, _) = svd.singular_values.iter().enumerate().min_by(|x, y| x.1.total_cmp(y.1))?;
     let e = v_t.row(k);
-    let e = Matrix3::new(e[0], e[1], e[2], e[3], e[4], e[5], e[6], e[7], e[8]);
+    let e = tb.transpose() * Matrix3::new(e[0], e[1], e[2], e[3], e[4], e[5], e[6], e[7], e[8]) * ta;
     let svd = e.svd(true, true);
     let (u, v_t) = (svd.u?, svd.v_t?);
     let mut s = svd.singular_values;
@@ -31,6 +33,16 @@ pub fn eight_point(a: &[Ray], b: &[Ray]) -> Option<Matrix3<f64>> {
     let mean = (s[0] + s[1]) / 2.0;
     s = Vector3::new(mean, mean, 0.0);
     Some(u * Matrix3::from_diagonal(&s) * v_t)
+}
+
+/// The similarity that centres the image-plane points of `rays` and scales their mean distance to √2.
+fn normalising(rays: &[Ray]) -> Matrix3<f64> {
+    let n = rays.len() as f64;
+    let pts: Vec<(f64, f64)> = rays.iter().map(|r| (r.x / r.z, r.y / r.z)).collect();
+    let (cx, cy) = pts.iter().fold((0.0, 0.0), |(x, y), p| (x + p.0 / n, y + p.1 / n));
+    let mean = pts.iter().map(|p| (p.0 - cx).hypot(p.1 - cy)).sum::<f64>() / n;
+    let k = if mean > 0.0 { std::f64::consts::SQRT_2 / mean } else { 1.0 };
+    Matrix3::new(k, 0.0, -k * cx, 0.0, k, -k * cy, 0.0, 0.0, 1.0)
 }
 
 /// Sampson distance of a correspondence in normalised image units (divide pixel thresholds by the focal length in

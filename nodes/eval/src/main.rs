@@ -125,7 +125,11 @@ fn body() -> Result<()> {
         poses: est_poses.map(|p| pose_rows(&truth.scene, &p)),
         lines3d: est_lines.map(|l| line_rows(&l)),
         lines2d: est_segments,
-        ..Default::default()
+        // Written by the orientation stage before it ended its `poses`, so complete by now.
+        checkpoints: match out.join("checkpoints.csv") {
+            p if p.exists() => Some(lineflow_formats::read_checkpoints(&p).context("reading checkpoints.csv")?),
+            _ => None,
+        },
     };
     let evaluation = evaluate(&truth, &results);
     let path = report::write(&truth, &out, &evaluation, &out.join("eval")).context("writing the evaluation report")?;

@@ -35,6 +35,11 @@ impl FrameFeatures {
     }
 }
 
+/// Descriptor distance between keypoint `i` of `a` and keypoint `j` of `b`.
+pub fn distance(a: &FrameFeatures, i: usize, b: &FrameFeatures, j: usize) -> f32 {
+    squared_distance(a.descriptor(i), b.descriptor(j)).sqrt()
+}
+
 fn squared_distance(a: &[f32], b: &[f32]) -> f32 {
     a.iter().zip(b).map(|(x, y)| (x - y) * (x - y)).sum()
 }
@@ -77,6 +82,86 @@ pub fn match_features(a: &FrameFeatures, b: &FrameFeatures, ratio: f32) -> Vec<(
     ab.iter()
         .enumerate()
         .filter_map(|(i, j)| j.filter(|&j| ba[j] == Some(i)).map(|j| (i, j)))
+        .collect()
+}
+
+/// Guided matching: each keypoint `i` of `a` whose position in `b` is predicted (`predicted[i]`, in the units of
+/// `b_at`) is compared only with the keypoints of `b` within `radius` of the prediction that have the same Laplacian
+/// sign. The ratio test then runs among those few candidates, both ways, and matches must be mutual. Repeated
+/// texture (bricks, window rows) defeats the global ratio test; inside a radius smaller than its period the
+/// repetitions are not candidates at all. A lone candidate is accepted when its descriptor distance is below
+/// `max_distance`.
+pub fn guided_match(
+    a: &FrameFeatures,
+    b: &FrameFeatures,
+    predicted: &[Option<[f64; 2]>],
+    b_at: &[[f64; 2]],
+    radius: f64,
+    ratio: f32,
+    max_distance: f32,
+) -> Vec<(usize, usize)> {
+    if a.len != b.len || radius <= 0.0 || b.count() == 0 {
+        return Vec::new();
+    }
+    let cell = |p: [f64; 2]| ((p[0] / radius).floor() as i64, (p[1] / radius).floor() as i64);
+    let mut grid: std::collections::HashMap<(i64, i64), Vec<usize>> = std::collections::HashMap::new();
+    for (j, &p) in b_at.iter().enumerate() {
+        grid.entry(cell(p)).or_default().push(j);
+    }
+    let r2 = radius * radius;
+    // Every candidate pair with its squared descriptor distance, per keypoint of `a`.
+    let candidates: Vec<Vec<(f32, usize)>> = (0..a.count())
+        .into_par_iter()
+        .map(|i| {
+            let Some(p) = predicted.get(i).copied().flatten() else {
+                return Vec::new();
+            };
+            let (cx, cy) = cell(p);
+            let mut out = Vec::new();
+            for gx in cx - 1..=cx + 1 {
+                for gy in cy - 1..=cy + 1 {
+                    for &j in grid.get(&(gx, gy)).map(Vec::as_slice).unwrap_or(&[]) {
+                        let q = b_at[j];
+                        if b.signs[j] == a.signs[i] && (q[0] - p[0]).powi(2) + (q[1] - p[1]).powi(2) <= r2 {
+                            out.push((squared_distance(a.descriptor(i), b.descriptor(j)), j));
+                        }
+                    }
+                }
+            }
+            out
+        })
+        .collect();
+    let (r2d, max2) = (ratio * ratio, max_distance * max_distance);
+    let passes = |best: f32, second: f32| best < max2 && (second.is_infinite() || best < r2d * second);
+    // Best and second-best per keypoint of `b`, over the keypoints of `a` that chose it as a candidate.
+    let mut of_b = vec![(f32::INFINITY, f32::INFINITY, usize::MAX); b.count()];
+    for (i, list) in candidates.iter().enumerate() {
+        for &(d, j) in list {
+            let e = &mut of_b[j];
+            if d < e.0 || (d == e.0 && i < e.2) {
+                *e = (d, e.0, i);
+            } else if d < e.1 {
+                e.1 = d;
+            }
+        }
+    }
+    candidates
+        .iter()
+        .enumerate()
+        .filter_map(|(i, list)| {
+            let (mut best, mut second, mut at) = (f32::INFINITY, f32::INFINITY, usize::MAX);
+            for &(d, j) in list {
+                if d < best || (d == best && j < at) {
+                    second = best;
+                    best = d;
+                    at = j;
+                } else if d < second {
+                    second = d;
+                }
+            }
+            let back = of_b.get(at)?;
+            (passes(best, second) && back.2 == i && passes(back.0, back.1)).then_some((i, at))
+        })
         .collect()
 }
 

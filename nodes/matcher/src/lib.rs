@@ -2,15 +2,20 @@
 //!
 //! Partners are the previous `window` frames plus the earlier frames that look most alike (a quick match of the
 //! strongest keypoints), so that a second strip finds the first one although file order puts other images between
-//! them. Each pair is matched (ratio test, Laplacian sign, mutual check) and verified with RANSAC on the essential
-//! matrix (interior orientation known). Verified matches join tracks; a track keeps its id for good.
+//! them. Each pair is matched (ratio test, Laplacian sign, mutual check); a façade being nearly a plane, the
+//! dominant plane's homography is found by RANSAC and guides a second, much richer matching among the keypoints
+//! near their predicted positions. Repeated window bays make more than one transfer plausible; the loop through
+//! the partners already accepted (or the camera's steady motion) picks the true one. Scenes without a dominant
+//! plane are verified with the essential matrix instead. Verified matches join tracks; a track keeps its id for
+//! good.
 pub mod descriptors;
 
 use std::collections::HashMap;
 
-use descriptors::{match_features, FrameFeatures};
-use lineflow_photogrammetry::epipolar::{dominant_plane, verify, Ransac, Ray};
+use descriptors::{guided_match, match_features, FrameFeatures};
+use lineflow_photogrammetry::epipolar::{dominant_plane, homography, verify, Ransac, Ray};
 use lineflow_photogrammetry::Camera;
+use nalgebra::Matrix3;
 
 /// Matcher settings.
 #[derive(Debug, Clone, serde::Deserialize)]
@@ -41,6 +46,15 @@ pub struct MatcherParams {
     pub displacement_tolerance_px: f64,
     /// Matches must also fit the dominant plane (the façade) within this many pixels, relief included (0 = off).
     pub plane_tolerance_px: f64,
+    /// Ratio test among the candidates of guided matching (within `plane_tolerance_px` of the dominant plane's
+    /// transfer).
+    pub guided_ratio: f32,
+    /// Largest descriptor distance of a guided match that has no second candidate.
+    pub guided_max_distance: f32,
+    /// Plane transfers tried per pair (repeated bays make more than one plausible).
+    pub plane_hypotheses: usize,
+    /// Longest chain of consecutive frames through which two frames' plane transfer is composed for the loop check.
+    pub loop_chain: usize,
 }
 
 impl Default for MatcherParams {
@@ -58,6 +72,10 @@ impl Default for MatcherParams {
             neighbours: 8,
             displacement_tolerance_px: 3.0,
             plane_tolerance_px: 6.0,
+            guided_ratio: 0.8,
+            guided_max_distance: 0.5,
+            plane_hypotheses: 3,
+            loop_chain: 40,
         }
     }
 }
@@ -108,6 +126,22 @@ pub fn consistent_displacements(pairs: &[([f64; 2], [f64; 2])], neighbours: usiz
         .collect()
 }
 
+/// One explanation of a pair's matches.
+#[derive(Default)]
+struct Hypothesis {
+    /// Verified matches (new frame keypoint, partner keypoint).
+    matches: Vec<(usize, usize)>,
+    /// The dominant plane's homography, new frame → partner, normalised image coordinates (the image plane at
+    /// distance 1).
+    plane: Option<Matrix3<f64>>,
+}
+
+/// Where `h` takes the ray `r`, in normalised image coordinates.
+fn transfer_point(h: &Matrix3<f64>, r: &Ray) -> Option<[f64; 2]> {
+    let m = h * (r / r.z);
+    (m.z.abs() > 1e-12).then(|| [m.x / m.z, m.y / m.z])
+}
+
 struct Frame {
     number: u64,
     features: FrameFeatures,
@@ -125,6 +159,8 @@ pub struct Matcher {
     /// track → frame indices it is observed in.
     frames_of: HashMap<u64, Vec<usize>>,
     next_track: u64,
+    /// Accepted pairs' plane homographies, (later, earlier) frame index → later to earlier.
+    planes: HashMap<(usize, usize), Matrix3<f64>>,
 }
 
 impl Matcher {
@@ -137,6 +173,7 @@ impl Matcher {
             track_of: HashMap::new(),
             frames_of: HashMap::new(),
             next_track: 1,
+            planes: HashMap::new(),
         }
     }
 
@@ -171,38 +208,23 @@ impl Matcher {
             iterations: self.params.iterations,
             seed: 0x5EED ^ number,
         };
+        // Partners in order of preference (the window first): each pair's hypotheses are judged against the
+        // pairs already accepted for this frame.
+        let mut accepted: Vec<(usize, Matrix3<f64>)> = Vec::new();
         for p in self.partners(&sample) {
-            let other = &self.frames[p];
-            let matches = match_features(&features, &other.features, self.params.ratio);
-            let (ra, rb): (Vec<Ray>, Vec<Ray>) = matches.iter().map(|&(i, j)| (rays[i], other.rays[j])).unzip();
-            let mut inliers = verify(&ra, &rb, &ransac, self.params.min_inliers);
-            let pairs: Vec<([f64; 2], [f64; 2])> = inliers
-                .iter()
-                .map(|&m| (features.px[matches[m].0], other.features.px[matches[m].1]))
-                .collect();
-            let keep = consistent_displacements(&pairs, self.params.neighbours, self.params.displacement_tolerance_px);
-            inliers = inliers.into_iter().zip(keep).filter_map(|(m, k)| k.then_some(m)).collect();
-            if self.params.plane_tolerance_px > 0.0 {
-                let (pa, pb): (Vec<Ray>, Vec<Ray>) = inliers.iter().map(|&m| (ra[m], rb[m])).unzip();
-                let plane = Ransac {
-                    threshold: self.params.plane_tolerance_px * self.camera.pixel_size_mm / self.camera.focal_mm,
-                    ..ransac
-                };
-                let on_plane = dominant_plane(&pa, &pb, &plane);
-                // A scene without a dominant plane (a roof, a corner) keeps its epipolar inliers.
-                if on_plane.len() >= self.params.min_inliers {
-                    inliers = on_plane.into_iter().map(|i| inliers[i]).collect();
-                }
+            let mutual = match_features(&features, &self.frames[p].features, self.params.ratio);
+            let predicted = accepted.iter().find_map(|&(a, h_ka)| Some(self.plane_between(a, p)? * h_ka));
+            let hypotheses = self.hypotheses(&features, &rays, p, &mutual, &ransac, predicted);
+            let chosen = self.choose(new, p, hypotheses, &accepted, &rays);
+            result.partners.push((self.frames[p].number, mutual.len(), chosen.matches.len()));
+            if chosen.matches.is_empty() {
+                continue;
             }
-            if inliers.len() < self.params.min_inliers {
-                inliers.clear();
+            if let Some(h) = chosen.plane {
+                self.planes.insert((new, p), h);
+                accepted.push((p, h));
             }
-            if (inliers.len() as f64) < self.params.min_inlier_ratio * matches.len() as f64 {
-                inliers.clear();
-            }
-            result.partners.push((other.number, matches.len(), inliers.len()));
-            for &m in &inliers {
-                let (i, j) = matches[m];
+            for (i, j) in chosen.matches {
                 self.link((new, i), (p, j), &features, &mut result.observations, number);
             }
         }
@@ -213,6 +235,176 @@ impl Matcher {
             sample,
         });
         result
+    }
+
+    /// The candidate verified match sets between the new frame and partner `p`, none when the pair is refused.
+    ///
+    /// A façade is nearly a plane, which makes the eight-point essential matrix ill-conditioned and, with the low
+    /// inlier share of repeated texture, hard to find by sampling eight at a time. So the dominant plane comes
+    /// first (four-point samples), and when it holds a fair share of the matches its homography guides a second,
+    /// much richer matching: candidates only near their predicted position. Scenes without a dominant plane (a
+    /// roof, a corner) are verified with the essential matrix.
+    /// `predicted` is the transfer the loops through partners already accepted expect; it guides a matching of
+    /// its own, which finds the pair's true matches even where its mutual matches are mostly repeated texture.
+    fn hypotheses(
+        &self,
+        features: &FrameFeatures,
+        rays: &[Ray],
+        p: usize,
+        matches: &[(usize, usize)],
+        ransac: &Ransac,
+        predicted: Option<Matrix3<f64>>,
+    ) -> Vec<Hypothesis> {
+        let other = &self.frames[p];
+        let (ra, rb): (Vec<Ray>, Vec<Ray>) = matches.iter().map(|&(i, j)| (rays[i], other.rays[j])).unzip();
+        let enough = |n: usize| n >= self.params.min_inliers && n as f64 >= self.params.min_inlier_ratio * matches.len() as f64;
+        let tolerance = self.params.plane_tolerance_px * self.camera.pixel_size_mm / self.camera.focal_mm;
+        if tolerance > 0.0 {
+            // Repeated bays offer more than one plausible plane transfer (the true one, and one bay off), all
+            // of them kept for `choose`.
+            let mut remaining: Vec<usize> = (0..matches.len()).collect();
+            let mut found: Vec<Hypothesis> = predicted.iter().filter_map(|h| self.guided(features, rays, other, h)).collect();
+            for _ in 0..self.params.plane_hypotheses {
+                let (sa, sb): (Vec<Ray>, Vec<Ray>) = remaining.iter().map(|&m| (ra[m], rb[m])).unzip();
+                let plane: Vec<usize> = dominant_plane(
+                    &sa,
+                    &sb,
+                    &Ransac {
+                        threshold: tolerance,
+                        ..*ransac
+                    },
+                )
+                .into_iter()
+                .map(|i| remaining[i])
+                .collect();
+                // The share test is for the pair; a further hypothesis needs only its minimum support.
+                if plane.len() < self.params.min_inliers || (remaining.len() == matches.len() && !enough(plane.len())) {
+                    break;
+                }
+                let Some(h) = homography(
+                    &plane.iter().map(|&m| ra[m]).collect::<Vec<_>>(),
+                    &plane.iter().map(|&m| rb[m]).collect::<Vec<_>>(),
+                ) else {
+                    break;
+                };
+                remaining.retain(|m| !plane.contains(m));
+                found.extend(self.guided(features, rays, other, &h));
+            }
+            if !found.is_empty() {
+                return found;
+            }
+        }
+        let inliers = verify(&ra, &rb, ransac, self.params.min_inliers);
+        let verified = self.consistent(features, other, inliers.iter().map(|&m| matches[m]).collect());
+        if enough(verified.len()) {
+            vec![Hypothesis {
+                matches: verified,
+                plane: None,
+            }]
+        } else {
+            Vec::new()
+        }
+    }
+
+    /// The matches guided by the plane transfer `h` (new frame → `other`), with `h` refitted to them.
+    fn guided(&self, features: &FrameFeatures, rays: &[Ray], other: &Frame, h: &Matrix3<f64>) -> Option<Hypothesis> {
+        let tolerance = self.params.plane_tolerance_px * self.camera.pixel_size_mm / self.camera.focal_mm;
+        let at: Vec<[f64; 2]> = other.rays.iter().map(|r| [r.x / r.z, r.y / r.z]).collect();
+        let predicted: Vec<Option<[f64; 2]>> = rays.iter().map(|r| transfer_point(h, r)).collect();
+        let guided = guided_match(
+            features,
+            &other.features,
+            &predicted,
+            &at,
+            tolerance,
+            self.params.guided_ratio,
+            self.params.guided_max_distance,
+        );
+        let matches = self.consistent(features, other, guided);
+        if matches.is_empty() {
+            return None;
+        }
+        let (a, b): (Vec<Ray>, Vec<Ray>) = matches.iter().map(|&(i, j)| (rays[i], other.rays[j])).unzip();
+        let plane = homography(&a, &b).or(Some(*h));
+        Some(Hypothesis { matches, plane })
+    }
+
+    /// Picks among a pair's hypotheses. A façade of identical bays can be matched one bay off as a whole,
+    /// consistently enough to pass every two-view test; what tells the true transfer from the others is the loop
+    /// through a third view (`H_kp ≈ H_ap · H_ka` for a partner `a` already accepted, with `H_ap` known from when
+    /// the later of the two arrived), or, for the first partner, the camera's steady motion along its path (the
+    /// step to the previous frame resembles the previous frame's step). Without either, the hypothesis that guides
+    /// the most matches wins. A hypothesis that contradicts every loop is refused.
+    fn choose(&self, new: usize, p: usize, hypotheses: Vec<Hypothesis>, accepted: &[(usize, Matrix3<f64>)], rays: &[Ray]) -> Hypothesis {
+        let tolerance = 2.0 * self.params.plane_tolerance_px * self.camera.pixel_size_mm / self.camera.focal_mm;
+        let gap = |h: &Hypothesis, expected: &Matrix3<f64>| -> f64 {
+            let Some(plane) = h.plane else { return f64::INFINITY };
+            let mut gaps: Vec<f64> = h
+                .matches
+                .iter()
+                .filter_map(|&(i, _)| {
+                    let (u, v) = (transfer_point(&plane, &rays[i])?, transfer_point(expected, &rays[i])?);
+                    Some((u[0] - v[0]).hypot(u[1] - v[1]))
+                })
+                .collect();
+            gaps.sort_by(f64::total_cmp);
+            gaps.get(gaps.len() / 2).copied().unwrap_or(f64::INFINITY)
+        };
+        let loops: Vec<Matrix3<f64>> = accepted
+            .iter()
+            .filter_map(|&(a, h_ka)| Some(self.plane_between(a, p)? * h_ka))
+            .collect();
+        let most = |hs: Vec<Hypothesis>| hs.into_iter().max_by_key(|h| h.matches.len()).unwrap_or_default();
+        if !loops.is_empty() {
+            // The hypothesis closest to the loops, if it agrees with most of them.
+            let agreeing = |h: &Hypothesis| loops.iter().filter(|l| gap(h, l) <= tolerance).count();
+            let best = hypotheses.into_iter().max_by_key(|h| (agreeing(h), h.matches.len()));
+            return best.filter(|h| 2 * agreeing(h) > loops.len()).unwrap_or_default();
+        }
+        // The previous frame's step to its own predecessor, when this partner is that previous frame.
+        let step = (p + 1 == new).then(|| self.plane_between(p, p.checked_sub(1)?)).flatten();
+        match step {
+            Some(step) if hypotheses.len() > 1 => hypotheses
+                .into_iter()
+                .min_by(|a, b| gap(a, &step).total_cmp(&gap(b, &step)).then(b.matches.len().cmp(&a.matches.len())))
+                .unwrap_or_default(),
+            _ => most(hypotheses),
+        }
+    }
+
+    /// The plane homography from frame index `a` to `b`: the one measured between them, else composed along the
+    /// path of consecutive frames (within `loop_chain` steps), else none.
+    fn plane_between(&self, a: usize, b: usize) -> Option<Matrix3<f64>> {
+        let direct = |a: usize, b: usize| match (self.planes.get(&(a, b)), self.planes.get(&(b, a))) {
+            (Some(h), _) => Some(*h),
+            (None, Some(h)) => h.try_inverse(),
+            _ => None,
+        };
+        if let Some(h) = direct(a, b) {
+            return Some(h);
+        }
+        if a.abs_diff(b) > self.params.loop_chain {
+            return None;
+        }
+        let mut h = Matrix3::identity();
+        let mut at = a;
+        while at != b {
+            let next = if b > at { at + 1 } else { at - 1 };
+            h = direct(at, next)? * h;
+            at = next;
+        }
+        Some(h)
+    }
+
+    /// The matches whose displacement agrees with their neighbours', or none when fewer than `min_inliers` do.
+    fn consistent(&self, features: &FrameFeatures, other: &Frame, matches: Vec<(usize, usize)>) -> Vec<(usize, usize)> {
+        let pairs: Vec<([f64; 2], [f64; 2])> = matches.iter().map(|&(i, j)| (features.px[i], other.features.px[j])).collect();
+        let keep = consistent_displacements(&pairs, self.params.neighbours, self.params.displacement_tolerance_px);
+        let kept: Vec<(usize, usize)> = matches.into_iter().zip(keep).filter_map(|(m, k)| k.then_some(m)).collect();
+        if kept.len() < self.params.min_inliers {
+            return Vec::new();
+        }
+        kept
     }
 
     fn observe(&mut self, track: u64, at: (usize, usize)) {

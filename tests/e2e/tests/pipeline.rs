@@ -478,3 +478,46 @@ to = []
     assert!(!bad.status.success());
     assert!(String::from_utf8_lossy(&bad.stderr).contains("octaves in 1..=6"));
 }
+
+#[test]
+fn the_demo_graph_orients_both_strips_within_a_ground_sample_distance_at_the_check_points() {
+    let sb = Sandbox::new();
+    let demo = repo_file("launch/demo.toml");
+    let mut poses = Vec::new();
+    for k in 0..2 {
+        let out = sb.path().join(format!("out{k}"));
+        let r = sb.run(&[
+            "run",
+            demo.to_str().unwrap(),
+            "--set",
+            "capture.scale=0.3",
+            "--out",
+            out.to_str().unwrap(),
+        ]);
+        assert!(r.status.success(), "demo run failed");
+        let text = std::fs::read_to_string(out.join("poses.csv")).expect("no poses.csv");
+        assert!(text.starts_with("image,X,Y,Z,omega_deg,phi_deg,kappa_deg,sX,sY,sZ,"), "{text}");
+        assert_eq!(text.lines().count(), 19, "every frame of a55-two-strips oriented:\n{text}");
+        assert!(text.contains("IMG_0018.png"), "{text}");
+        let checks = std::fs::read_to_string(out.join("checkpoints.csv")).expect("no checkpoints.csv");
+        let deltas: Vec<[f64; 3]> = checks
+            .lines()
+            .skip(1)
+            .map(|l| {
+                let v: Vec<f64> = l.split(',').skip(1).map(|x| x.parse().unwrap()).collect();
+                [v[0], v[1], v[2]]
+            })
+            .collect();
+        assert!(deltas.len() >= 10, "{checks}");
+        // GSD of the a55 preset at scale 0.3: 6.7 mm / 0.3.
+        let gsd = 0.0067 / 0.3;
+        for axis in 0..3 {
+            let rmse = (deltas.iter().map(|d| d[axis] * d[axis]).sum::<f64>() / deltas.len() as f64).sqrt();
+            assert!(rmse < 1.5 * gsd, "check-point RMSE on axis {axis}: {rmse} m (GSD {gsd} m)");
+        }
+        let report = std::fs::read_to_string(out.join("eval/report.md")).unwrap();
+        assert!(report.contains("| 18 | 0 |"), "the live eval saw missing poses:\n{report}");
+        poses.push(text);
+    }
+    assert_eq!(poses[0], poses[1], "two runs oriented differently");
+}

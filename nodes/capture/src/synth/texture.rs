@@ -71,6 +71,12 @@ fn scale(c: Rgb, k: f64) -> Rgb {
     [c[0] * k, c[1] * k, c[2] * k]
 }
 
+/// Soot and rain streaks over a wall, a factor around 1. Real walls are never periodic at the scale of their window
+/// bays; without this, a façade of identical bays can be matched one bay off as consistently as in truth.
+fn weathering(s: f64, t: f64, fw: f64, seed: u64) -> f64 {
+    1.0 + 0.12 * noise(s, t, 1.3, fw, seed ^ 20) + 0.08 * noise(s, t * 0.25, 0.4, fw, seed ^ 21)
+}
+
 /// Albedo of `material` at texture coordinates (s, t) in metres, filtered over a footprint `fw` metres wide.
 pub fn albedo(material: Material, s: f64, t: f64, fw: f64, seed: u64) -> Rgb {
     match material {
@@ -86,11 +92,11 @@ pub fn albedo(material: Material, s: f64, t: f64, fw: f64, seed: u64) -> Rgb {
             let mortar = 1.0 - (1.0 - mortar_h) * (1.0 - mortar_v);
             let tint = (unit(hash(&[seed, 11, row as i64 as u64, col as i64 as u64])) - 0.5) * 0.25 * (1.0 - fw / LEN).clamp(0.0, 1.0);
             let brick = scale([0.56, 0.28, 0.19], 1.0 + tint + 0.06 * noise(s, t, 0.02, fw, seed ^ 1));
-            mix(brick, [0.74, 0.71, 0.66], mortar)
+            scale(mix(brick, [0.74, 0.71, 0.66], mortar), weathering(s, t, fw, seed))
         }
         Material::Plaster => scale(
             [0.80, 0.78, 0.72],
-            1.0 + 0.05 * noise(s, t, 0.04, fw, seed ^ 2) + 0.04 * noise(s, t, 0.6, fw, seed ^ 3),
+            (1.0 + 0.05 * noise(s, t, 0.04, fw, seed ^ 2) + 0.04 * noise(s, t, 0.6, fw, seed ^ 3)) * weathering(s, t, fw, seed),
         ),
         Material::Tiles => {
             let gap = 1.0 - (1.0 - pulse_coverage(t, 0.33, 0.03, fw)) * (1.0 - pulse_coverage(s, 0.25, 0.015, fw));

@@ -1,0 +1,523 @@
+//! The orientation stage, implementation `bundle`: exterior orientations from tie points as frames arrive.
+//!
+//! The first pair with enough verified common tracks starts the block: the second camera is placed against the
+//! image flow with the first as datum and the pair is adjusted (a façade is nearly a plane, where the linear
+//! essential matrix is ill-conditioned but the collinearity adjustment is not). Each later frame is resected from
+//! the tracks already intersected, starting at the nearest oriented frame or its extrapolation along the path; new
+//! tracks are intersected; the latest `window` frames are adjusted (the sliding window), the earlier ones held. As
+//! soon as three control points are intersected the block is moved into the control frame by a similarity and the
+//! control points join the adjustment with their a-priori standard deviations. At the end a full adjustment removes
+//! outliers and solves again, and the check points are intersected for `checkpoints.csv`.
+pub mod colmap;
+
+use std::collections::{BTreeMap, BTreeSet};
+
+use lineflow_photogrammetry::bundle::{adjust, resect, BundleOptions, BundleProblem, BundleReport, ImageObservation, PointPrior};
+use lineflow_photogrammetry::epipolar::{verify, Ransac, Ray};
+use lineflow_photogrammetry::intersect::{intersect_rays, similarity};
+use lineflow_photogrammetry::{Camera, Pose, Vec3};
+
+/// Settings.
+#[derive(Debug, Clone, serde::Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct OrientationParams {
+    /// A-priori standard deviation of a tie-point measurement, pixels.
+    pub tie_sigma_px: f64,
+    /// A-priori standard deviation of a target measurement, pixels.
+    pub target_sigma_px: f64,
+    /// Common tracks needed to start from a pair.
+    pub min_init_tracks: usize,
+    /// Intersected tracks needed to resect a frame.
+    pub min_resect_points: usize,
+    /// Smallest angle between rays for a new point, degrees.
+    pub min_angle_deg: f64,
+    /// Frames adjusted as each new one arrives (the sliding window); earlier frames are held and settled.
+    pub window: usize,
+}
+
+impl OrientationParams {
+    /// Checks the settings, naming the first one out of range.
+    pub fn validate(&self) -> Result<(), String> {
+        if !(self.tie_sigma_px > 0.0 && self.target_sigma_px > 0.0) {
+            return Err("tie_sigma_px and target_sigma_px must be > 0".into());
+        }
+        if self.min_init_tracks < 8 || self.min_resect_points < 6 {
+            return Err("min_init_tracks must be >= 8 and min_resect_points >= 6".into());
+        }
+        if !(self.min_angle_deg >= 0.0 && self.min_angle_deg < 90.0) {
+            return Err("min_angle_deg must be in [0, 90)".into());
+        }
+        if self.window < 2 {
+            return Err("window must be >= 2".into());
+        }
+        Ok(())
+    }
+}
+
+impl Default for OrientationParams {
+    fn default() -> Self {
+        Self {
+            tie_sigma_px: 0.5,
+            target_sigma_px: 0.3,
+            min_init_tracks: 25,
+            min_resect_points: 8,
+            min_angle_deg: 1.0,
+            window: 10,
+        }
+    }
+}
+
+/// A surveyed point.
+#[derive(Debug, Clone)]
+pub struct Surveyed {
+    /// Coordinates, metres.
+    pub xyz: Vec3,
+    /// Standard deviations, metres.
+    pub sigma_m: [f64; 3],
+    /// Control (in the adjustment) or check point.
+    pub control: bool,
+}
+
+#[derive(Debug, Clone, Default)]
+struct Track {
+    /// (frame, ideal photo coordinates).
+    obs: Vec<(u64, [f64; 2])>,
+    /// The measured pixel of each observation, in the order of `obs`.
+    measured: Vec<[f64; 2]>,
+    point: Option<Vec3>,
+}
+
+/// The block being oriented.
+pub struct Block {
+    params: OrientationParams,
+    camera: Camera,
+    /// Oriented frames.
+    pub poses: BTreeMap<u64, Pose>,
+    tracks: BTreeMap<u64, Track>,
+    targets: BTreeMap<String, Track>,
+    surveyed: BTreeMap<String, Surveyed>,
+    /// Whether the block is in the control frame.
+    pub georeferenced: bool,
+    frames: BTreeSet<u64>,
+    /// The last adjustment's report.
+    pub report: BundleReport,
+    /// The initial pair, held fixed (the datum) until the block is georeferenced.
+    pair: Vec<u64>,
+    /// Frames in the order they were oriented.
+    order: Vec<u64>,
+    /// Per frame: how often its pose changed, and its standard deviations (centre m, angles rad) from the last
+    /// adjustment that moved it.
+    pub states: BTreeMap<u64, FrameState>,
+    /// Whether the end-of-stream adjustment has run.
+    pub finished: bool,
+}
+
+/// What is known about one oriented frame besides its pose.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct FrameState {
+    /// Adjustments that changed the pose.
+    pub revision: u32,
+    /// Outside the sliding window: held until the end-of-stream adjustment.
+    pub settled: bool,
+    /// Standard deviations of the centre (m) and angles (rad); NaN where not estimated.
+    pub sigmas: Option<([f64; 3], [f64; 3])>,
+}
+
+impl Block {
+    /// An empty block for images of `camera`.
+    pub fn new(params: OrientationParams, camera: Camera) -> Self {
+        Self {
+            params,
+            camera,
+            poses: BTreeMap::new(),
+            tracks: BTreeMap::new(),
+            targets: BTreeMap::new(),
+            surveyed: BTreeMap::new(),
+            georeferenced: false,
+            frames: BTreeSet::new(),
+            report: BundleReport::default(),
+            pair: Vec::new(),
+            order: Vec::new(),
+            states: BTreeMap::new(),
+            finished: false,
+        }
+    }
+
+    fn ideal(&self, px: [f64; 2]) -> [f64; 2] {
+        self.camera.pixel_to_ideal(px)
+    }
+
+    fn ray(&self, ideal: [f64; 2]) -> Ray {
+        Ray::new(ideal[0] / self.camera.focal_mm, ideal[1] / self.camera.focal_mm, -1.0)
+    }
+
+    /// Adds tie-point observations (track, frame, measured pixel).
+    pub fn add_ties(&mut self, ties: impl IntoIterator<Item = (u64, u64, [f64; 2])>) {
+        for (track, frame, px) in ties {
+            let ideal = self.ideal(px);
+            let t = self.tracks.entry(track).or_default();
+            t.obs.push((frame, ideal));
+            t.measured.push(px);
+        }
+    }
+
+    /// The camera the block was made for.
+    pub fn camera(&self) -> &Camera {
+        &self.camera
+    }
+
+    /// Every intersected tie point with its (frame, measured pixel) observations in oriented frames.
+    pub fn points(&self) -> Vec<colmap::TrackPoint> {
+        self.tracks
+            .values()
+            .filter_map(|t| {
+                let obs: Vec<(u64, [f64; 2])> = t
+                    .obs
+                    .iter()
+                    .zip(&t.measured)
+                    .filter(|((f, _), _)| self.poses.contains_key(f))
+                    .map(|((f, _), px)| (*f, *px))
+                    .collect();
+                (obs.len() >= 2).then_some((t.point?, obs))
+            })
+            .collect()
+    }
+
+    /// Every frame seen so far, oriented or not.
+    pub fn frames(&self) -> impl Iterator<Item = u64> + '_ {
+        self.frames.iter().copied()
+    }
+
+    /// Sets the surveyed points.
+    pub fn set_surveyed(&mut self, points: BTreeMap<String, Surveyed>) {
+        self.surveyed = points;
+    }
+
+    /// Adds a measurement of a surveyed point in a frame.
+    pub fn add_target(&mut self, id: &str, frame: u64, px: [f64; 2]) {
+        let ideal = self.ideal(px);
+        self.targets.entry(id.to_owned()).or_default().obs.push((frame, ideal));
+    }
+
+    fn common(&self, a: u64, b: u64) -> Vec<([f64; 2], [f64; 2], u64)> {
+        self.tracks
+            .iter()
+            .filter_map(|(&id, t)| {
+                let pa = t.obs.iter().find(|o| o.0 == a)?.1;
+                let pb = t.obs.iter().find(|o| o.0 == b)?.1;
+                Some((pa, pb, id))
+            })
+            .collect()
+    }
+
+    /// Orients frame `k` if it can; returns whether it is oriented now.
+    pub fn orient(&mut self, k: u64) -> bool {
+        self.frames.insert(k);
+        if self.poses.contains_key(&k) {
+            return true;
+        }
+        let first = self.poses.is_empty();
+        let ok = if first { self.initialise(k) } else { self.resect_frame(k) };
+        if ok {
+            self.order
+                .extend(self.poses.keys().filter(|f| !self.order.contains(f)).copied().collect::<Vec<_>>());
+            self.intersect_new();
+            self.georeference();
+            self.adjust_block(false);
+            if first {
+                self.pair.truncate(1);
+            }
+        }
+        ok
+    }
+
+    fn initialise(&mut self, k: u64) -> bool {
+        let Some((j, common)) = self
+            .frames
+            .iter()
+            .filter(|&&j| j != k)
+            .map(|&j| (j, self.common(j, k)))
+            .max_by_key(|(j, c)| (c.len(), *j))
+        else {
+            return false;
+        };
+        if common.len() < self.params.min_init_tracks {
+            return false;
+        }
+        let a: Vec<Ray> = common.iter().map(|c| self.ray(c.0)).collect();
+        let b: Vec<Ray> = common.iter().map(|c| self.ray(c.1)).collect();
+        let ransac = Ransac {
+            threshold: 2.0 * self.params.tie_sigma_px * self.camera.pixel_size_mm / self.camera.focal_mm,
+            iterations: 2000,
+            seed: 0x0E1E,
+        };
+        let inliers = verify(&a, &b, &ransac, self.params.min_init_tracks);
+        if inliers.is_empty() {
+            return false;
+        }
+        // A façade is nearly planar, which leaves the linear essential matrix ill-conditioned (seed 001's
+        // warning): start instead from what a strip gives, the second camera turned like the first and moved against
+        // the image flow, and let the adjustment (after the intersection in `orient`) find the relative orientation;
+        // collinearity is well posed for a plane, only its linear solution is not.
+        let flow = inliers.iter().fold([0.0f64; 2], |acc, &i| {
+            let (p, q) = (common[i].0, common[i].1);
+            [acc[0] + q[0] - p[0], acc[1] + q[1] - p[1]]
+        });
+        let away = Vec3::new(-flow[0], -flow[1], 0.0);
+        if away.norm() == 0.0 {
+            return false;
+        }
+        let rel = Pose {
+            center: away.normalize(),
+            rotation: lineflow_photogrammetry::Mat3::identity(),
+        };
+        self.poses.insert(
+            j,
+            Pose {
+                center: Vec3::zeros(),
+                rotation: lineflow_photogrammetry::Mat3::identity(),
+            },
+        );
+        self.poses.insert(k, rel);
+        // The pair is adjusted once with its first camera fixed, then both are held as the datum.
+        self.pair = vec![j.min(k)];
+        tracing::info!(
+            "initial pair: frames {j} and {k}, {} of {} common tracks verified",
+            inliers.len(),
+            common.len()
+        );
+        true
+    }
+
+    fn resect_frame(&mut self, k: u64) -> bool {
+        let (xyz, obs): (Vec<Vec3>, Vec<[f64; 2]>) = self
+            .tracks
+            .values()
+            .filter_map(|t| Some((t.point?, t.obs.iter().find(|o| o.0 == k)?.1)))
+            .unzip();
+        if xyz.len() < self.params.min_resect_points {
+            tracing::warn!("frame {k}: only {} intersected tie points, not oriented yet", xyz.len());
+            return false;
+        }
+        let sigma = self.params.tie_sigma_px * self.camera.pixel_size_mm;
+        // Starts: the nearest oriented frame, and the two nearest extrapolated (a strip moves steadily).
+        let mut near: Vec<u64> = self.poses.keys().copied().collect();
+        near.sort_by_key(|&f| (f.abs_diff(k), f));
+        let mut starts = vec![self.poses[&near[0]]];
+        if near.len() >= 2 {
+            let (a, b) = (&self.poses[&near[0]], &self.poses[&near[1]]);
+            let steps = (k as f64 - near[0] as f64) / (near[0] as f64 - near[1] as f64);
+            starts.push(Pose {
+                center: a.center + (a.center - b.center) * steps,
+                rotation: a.rotation,
+            });
+        }
+        let best = starts
+            .iter()
+            .filter_map(|s| resect(self.camera.focal_mm, s, &xyz, &obs, sigma))
+            .min_by(|x, y| x.1.total_cmp(&y.1));
+        match best {
+            Some((pose, median)) if median < 3.0 * sigma => {
+                self.poses.insert(k, pose);
+                true
+            }
+            other => {
+                tracing::warn!(
+                    "frame {k}: resection failed (median residual {:?} mm), not oriented yet",
+                    other.map(|o| o.1)
+                );
+                false
+            }
+        }
+    }
+
+    fn triangulate(&self, t: &Track) -> Option<Vec3> {
+        let rays: Vec<(Vec3, Vec3)> = t
+            .obs
+            .iter()
+            .filter_map(|(f, ideal)| self.poses.get(f).map(|p| (p.center, p.ray_of_ideal(&self.camera, *ideal))))
+            .collect();
+        let (x, angle) = intersect_rays(&rays)?;
+        (angle.to_degrees() >= self.params.min_angle_deg && rays.iter().all(|(c, d)| (x - c).dot(d) > 0.0)).then_some(x)
+    }
+
+    fn intersect_new(&mut self) {
+        let updates: Vec<(u64, Vec3)> = self
+            .tracks
+            .iter()
+            .filter(|(_, t)| t.point.is_none())
+            .filter_map(|(&id, t)| self.triangulate(t).map(|x| (id, x)))
+            .collect();
+        for (id, x) in updates {
+            if let Some(t) = self.tracks.get_mut(&id) {
+                t.point = Some(x);
+            }
+        }
+    }
+
+    /// Moves the block into the control frame once three control points are intersected.
+    fn georeference(&mut self) {
+        if self.georeferenced {
+            return;
+        }
+        let pairs: Vec<(Vec3, Vec3)> = self
+            .targets
+            .iter()
+            .filter_map(|(id, t)| {
+                let s = self.surveyed.get(id).filter(|s| s.control)?;
+                Some((self.triangulate(t)?, s.xyz))
+            })
+            .collect();
+        if pairs.len() < 3 {
+            return;
+        }
+        let (from, to): (Vec<Vec3>, Vec<Vec3>) = pairs.into_iter().unzip();
+        let Some(s) = similarity(&from, &to) else {
+            return;
+        };
+        for p in self.poses.values_mut() {
+            p.center = s.apply(&p.center);
+            p.rotation *= s.rotation.transpose();
+        }
+        for t in self.tracks.values_mut() {
+            if let Some(x) = &mut t.point {
+                *x = s.apply(x);
+            }
+        }
+        self.georeferenced = true;
+        tracing::info!("georeferenced with {} control points (scale {:.4})", from.len(), s.scale);
+    }
+
+    /// The adjustment problem of the oriented frames, and the track id of each point.
+    fn problem(&self, window: Option<&BTreeSet<u64>>) -> (BundleProblem, Vec<Option<u64>>, Vec<u64>) {
+        let frames: Vec<u64> = self.poses.keys().copied().collect();
+        let in_window = |f: &u64| window.is_none_or(|w| w.contains(f));
+        let index: BTreeMap<u64, usize> = frames.iter().enumerate().map(|(i, f)| (*f, i)).collect();
+        let tie_sigma = self.params.tie_sigma_px * self.camera.pixel_size_mm;
+        let target_sigma = self.params.target_sigma_px * self.camera.pixel_size_mm;
+        let mut points = Vec::new();
+        let mut ids = Vec::new();
+        let mut observations = Vec::new();
+        let mut priors = Vec::new();
+        for (&id, t) in &self.tracks {
+            let Some(x) = t.point else { continue };
+            let obs: Vec<_> = t.obs.iter().filter_map(|(f, i)| index.get(f).map(|c| (*c, *i))).collect();
+            if obs.len() < 2 || !t.obs.iter().any(|(f, _)| in_window(f)) {
+                continue;
+            }
+            for (c, ideal) in obs {
+                observations.push(ImageObservation {
+                    camera: c,
+                    point: points.len(),
+                    ideal,
+                    sigma_mm: tie_sigma,
+                });
+            }
+            points.push(x);
+            ids.push(Some(id));
+        }
+        if self.georeferenced {
+            for (id, t) in &self.targets {
+                let Some(s) = self.surveyed.get(id).filter(|s| s.control) else {
+                    continue;
+                };
+                let obs: Vec<_> = t.obs.iter().filter_map(|(f, i)| index.get(f).map(|c| (*c, *i))).collect();
+                if obs.is_empty() {
+                    continue;
+                }
+                for (c, ideal) in obs {
+                    observations.push(ImageObservation {
+                        camera: c,
+                        point: points.len(),
+                        ideal,
+                        sigma_mm: target_sigma,
+                    });
+                }
+                priors.push(PointPrior {
+                    point: points.len(),
+                    xyz: s.xyz,
+                    sigma_m: s.sigma_m,
+                });
+                points.push(s.xyz);
+                ids.push(None);
+            }
+        }
+        let mut fixed: Vec<usize> = frames
+            .iter()
+            .enumerate()
+            .filter(|(_, f)| !in_window(f) || (!self.georeferenced && self.pair.contains(f)))
+            .map(|(i, _)| i)
+            .collect();
+        fixed.dedup();
+        let poses = frames.iter().map(|f| self.poses[f]).collect();
+        (
+            BundleProblem {
+                focal_mm: self.camera.focal_mm,
+                poses,
+                points,
+                observations,
+                priors,
+                fixed,
+            },
+            ids,
+            frames,
+        )
+    }
+
+    /// Adjusts the block: the sliding window of the latest frames, or, with `last`, every frame, removing
+    /// outliers and solving again.
+    pub fn adjust_block(&mut self, last: bool) {
+        let window: Option<BTreeSet<u64>> = (!last).then(|| self.order.iter().rev().take(self.params.window).copied().collect());
+        let (mut p, ids, frames) = self.problem(window.as_ref());
+        let options = if last {
+            BundleOptions::default()
+        } else {
+            BundleOptions {
+                max_iterations: 15,
+                outlier_rounds: 1,
+                ..Default::default()
+            }
+        };
+        self.report = adjust(&mut p, &options);
+        for (i, (f, pose)) in frames.iter().zip(&p.poses).enumerate() {
+            let state = self.states.entry(*f).or_default();
+            if p.fixed.contains(&i) {
+                state.settled = window.as_ref().is_some_and(|w| !w.contains(f));
+                continue;
+            }
+            state.revision += 1;
+            state.settled = false;
+            state.sigmas = self.report.pose_sigmas.get(i).copied();
+            self.poses.insert(*f, *pose);
+        }
+        for (id, x) in ids.iter().zip(&p.points) {
+            if let Some(t) = id.and_then(|id| self.tracks.get_mut(&id)) {
+                t.point = Some(*x);
+            }
+        }
+    }
+
+    /// Orients what is still unoriented now that the block is complete, then the final adjustment.
+    pub fn finish(&mut self) {
+        let pending: Vec<u64> = self.frames.iter().filter(|f| !self.poses.contains_key(f)).copied().collect();
+        for f in pending {
+            if self.resect_frame(f) {
+                self.intersect_new();
+            }
+        }
+        self.georeference();
+        self.adjust_block(true);
+        self.finished = true;
+    }
+
+    /// Check points intersected from the oriented frames: (id, estimated − surveyed).
+    pub fn check_points(&self) -> Vec<(String, Vec3)> {
+        self.targets
+            .iter()
+            .filter_map(|(id, t)| {
+                let s = self.surveyed.get(id).filter(|s| !s.control)?;
+                Some((id.clone(), self.triangulate(t)? - s.xyz))
+            })
+            .collect()
+    }
+}
