@@ -399,20 +399,27 @@ impl Block {
         let mut ids = Vec::new();
         let mut observations = Vec::new();
         let mut priors = Vec::new();
+        // A track's observations in the adjusted frames, as observations of point `point`.
+        let observed = |t: &Track, point: usize, sigma_mm: f64| -> Vec<ImageObservation> {
+            t.obs
+                .iter()
+                .filter_map(|(f, ideal)| {
+                    index.get(f).map(|&camera| ImageObservation {
+                        camera,
+                        point,
+                        ideal: *ideal,
+                        sigma_mm,
+                    })
+                })
+                .collect()
+        };
         for (&id, t) in &self.tracks {
             let Some(x) = t.point else { continue };
-            let obs: Vec<_> = t.obs.iter().filter_map(|(f, i)| index.get(f).map(|c| (*c, *i))).collect();
+            let obs = observed(t, points.len(), tie_sigma);
             if obs.len() < 2 || !t.obs.iter().any(|(f, _)| in_window(f)) {
                 continue;
             }
-            for (c, ideal) in obs {
-                observations.push(ImageObservation {
-                    camera: c,
-                    point: points.len(),
-                    ideal,
-                    sigma_mm: tie_sigma,
-                });
-            }
+            observations.extend(obs);
             points.push(x);
             ids.push(Some(id));
         }
@@ -421,18 +428,11 @@ impl Block {
                 let Some(s) = self.surveyed.get(id).filter(|s| s.control) else {
                     continue;
                 };
-                let obs: Vec<_> = t.obs.iter().filter_map(|(f, i)| index.get(f).map(|c| (*c, *i))).collect();
+                let obs = observed(t, points.len(), target_sigma);
                 if obs.is_empty() {
                     continue;
                 }
-                for (c, ideal) in obs {
-                    observations.push(ImageObservation {
-                        camera: c,
-                        point: points.len(),
-                        ideal,
-                        sigma_mm: target_sigma,
-                    });
-                }
+                observations.extend(obs);
                 priors.push(PointPrior {
                     point: points.len(),
                     xyz: s.xyz,
