@@ -1,0 +1,232 @@
+//! The linematch stage: object-space multi-image matching of 2-D line chains (seed 000 §2.8–2.15).
+//!
+//! Every frame is a master for its own 2-D lines. Each line's sampled chain pixels are searched along their master
+//! rays through planes parallel to the line's wall ([`wall`]), with the master and slave images resampled on an
+//! object-space lattice ([`view`]) and compared by SNCC over several window modes ([`ncc`], [`search`]).
+#![warn(missing_docs)]
+
+pub mod ncc;
+pub mod search;
+pub mod view;
+pub mod wall;
+
+use lineflow_photogrammetry::{Camera, Pose, Vec3};
+use rayon::prelude::*;
+use serde::Deserialize;
+
+pub use search::{match_segment, MatchedPoint, SegmentInput, SegmentMatch};
+pub use view::{DistortionLut, View};
+pub use wall::{fit_wall, wall_of_ray, WallPlane};
+
+/// A correlation window (seed 000 §2.12), in the line's own lattice: "along" follows the line, "across" is its
+/// normal in the wall plane. For the horizontal and vertical lines of a façade these are the thesis's windows.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Deserialize)]
+pub enum Mode {
+    /// Single point, centred.
+    C,
+    /// Single point at the window's left edge (window extends along the line).
+    L,
+    /// Single point at the right edge.
+    R,
+    /// Single point at the upper edge (window extends across the line, negative side).
+    U,
+    /// Single point at the bottom edge.
+    B,
+    /// The whole segment, centred across.
+    #[serde(rename = "linear-C")]
+    LinearC,
+    /// The whole segment along one side.
+    #[serde(rename = "linear-L")]
+    LinearL,
+    /// The whole segment along the other side.
+    #[serde(rename = "linear-R")]
+    LinearR,
+}
+
+impl Mode {
+    /// Every mode.
+    pub const ALL: [Mode; 8] = [Mode::C, Mode::L, Mode::R, Mode::U, Mode::B, Mode::LinearC, Mode::LinearL, Mode::LinearR];
+
+    /// Whether the window spans the whole segment.
+    pub fn is_linear(self) -> bool {
+        matches!(self, Mode::LinearC | Mode::LinearL | Mode::LinearR)
+    }
+
+    /// The window's inclusive lattice ranges (cols, rows) around the target (c, r) for half-size `h`; for linear
+    /// modes only the rows are meaningful.
+    pub fn window(self, c: i32, r: i32, h: i32) -> ((i32, i32), (i32, i32)) {
+        // Off-centre windows reach a third of a half-window past the target, so that the edge itself, not only the
+        // surface beside it, is inside the window: otherwise a textured surface beside an edge pulls the edge to its
+        // own depth.
+        let o = (h / 3).max(1);
+        match self {
+            Mode::C | Mode::LinearC => ((c - h, c + h), (r - h, r + h)),
+            Mode::L => ((c - o, c + 2 * h), (r - h, r + h)),
+            Mode::R => ((c - 2 * h, c + o), (r - h, r + h)),
+            Mode::U | Mode::LinearR => ((c - h, c + h), (r - 2 * h, r + o)),
+            Mode::B | Mode::LinearL => ((c - h, c + h), (r - o, r + 2 * h)),
+        }
+    }
+
+    /// Short name ("C", "linear-L", ...).
+    pub fn name(self) -> &'static str {
+        match self {
+            Mode::C => "C",
+            Mode::L => "L",
+            Mode::R => "R",
+            Mode::U => "U",
+            Mode::B => "B",
+            Mode::LinearC => "linear-C",
+            Mode::LinearL => "linear-L",
+            Mode::LinearR => "linear-R",
+        }
+    }
+
+    /// The mode's code in `Point3.mode` (its index in [`Mode::ALL`]).
+    pub fn code(self) -> u32 {
+        Mode::ALL.iter().position(|&m| m == self).unwrap_or(0) as u32
+    }
+}
+
+/// Parameters of the matching (launch-file `params` of the `linematch` node).
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct MatchParams {
+    /// Distance between matched chain pixels, pixels.
+    pub spacing_px: f64,
+    /// Shorter segments are not matched, pixels.
+    pub min_length_px: f64,
+    /// Depth search range on each side of the wall, metres (thesis: 1 m).
+    pub depth_range_m: f64,
+    /// Depth step, metres (the thesis leaves it open; 1 cm, equal to the grid).
+    pub depth_step_m: f64,
+    /// Grid cell, metres (thesis: 1 cm).
+    pub cell_m: f64,
+    /// Cells are at least this many ground sample distances (cell and depth step grow together).
+    pub min_cell_gsd: f64,
+    /// Half the window size in cells (thesis: 21×21 → 10).
+    pub half_window: usize,
+    /// Window modes; the match is the best over all of them.
+    pub modes: Vec<Mode>,
+    /// The coarse pass tests every `coarse_factor`-th depth on a lattice of double cells.
+    pub coarse_factor: usize,
+    /// Coarse peaks refined at every depth step.
+    pub max_candidates: usize,
+    /// Smallest accepted SNCC (the thesis accepts everything; 0 reproduces that).
+    pub min_sncc: f64,
+    /// A peak is rejected when another one, two coarse steps away or more, reaches this share of it (flat curves of
+    /// lines along the epipolar direction). 1 or more disables the test.
+    pub max_ambiguity: f64,
+    /// Each point takes the front-most window peak within this much SNCC of the best (edges at depth steps belong
+    /// to the nearer surface); a negative value takes the best SNCC over all modes, as the thesis does.
+    pub front_margin: f64,
+    /// Slaves per master (nearest by overlap).
+    pub max_slaves: usize,
+    /// Fewest slaves that must see a window.
+    pub min_slaves: usize,
+    /// Lines are assigned to walls whose polygon, grown by this margin, their ray hits, metres.
+    pub wall_margin_m: f64,
+}
+
+impl Default for MatchParams {
+    fn default() -> Self {
+        MatchParams {
+            spacing_px: 3.0,
+            min_length_px: 20.0,
+            depth_range_m: 1.0,
+            depth_step_m: 0.01,
+            cell_m: 0.01,
+            min_cell_gsd: 1.0,
+            half_window: 10,
+            modes: Mode::ALL.to_vec(),
+            coarse_factor: 4,
+            max_candidates: 3,
+            min_sncc: 0.6,
+            max_ambiguity: 0.95,
+            front_margin: -1.0,
+            max_slaves: 6,
+            min_slaves: 1,
+            wall_margin_m: 0.5,
+        }
+    }
+}
+
+impl MatchParams {
+    /// Checks the ranges; the message names the parameter.
+    pub fn validate(&self) -> Result<(), String> {
+        let positive = [
+            ("spacing_px", self.spacing_px),
+            ("depth_range_m", self.depth_range_m),
+            ("depth_step_m", self.depth_step_m),
+            ("cell_m", self.cell_m),
+        ];
+        for (name, v) in positive {
+            if !(v.is_finite() && v > 0.0) {
+                return Err(format!("{name} must be > 0 (got {v})"));
+            }
+        }
+        if !(self.min_length_px >= 0.0 && self.min_cell_gsd >= 0.0 && self.wall_margin_m >= 0.0) {
+            return Err("min_length_px, min_cell_gsd and wall_margin_m must be >= 0".into());
+        }
+        if self.half_window == 0 || self.half_window > 50 {
+            return Err(format!("half_window must be in 1..=50 (got {})", self.half_window));
+        }
+        if self.modes.is_empty() {
+            return Err("modes must name at least one window mode".into());
+        }
+        if self.max_slaves == 0 || self.min_slaves > self.max_slaves {
+            return Err("max_slaves must be >= 1 and >= min_slaves".into());
+        }
+        if self.depth_step_m > self.depth_range_m {
+            return Err("depth_step_m must not exceed depth_range_m".into());
+        }
+        Ok(())
+    }
+}
+
+/// Matches every segment of one master (in parallel, results in segment order) and returns those with points.
+pub fn match_master(master: &View, slaves: &[View], walls: &[WallPlane], segments: &[SegmentInput], p: &MatchParams) -> Vec<SegmentMatch> {
+    segments
+        .par_iter()
+        .filter_map(|s| match_segment(master, slaves, walls, s, p))
+        .filter(|m| !m.points.is_empty())
+        .collect()
+}
+
+/// The share of a master's image whose wall points (a 7×5 grid of pixels, cut with the wall their ray meets)
+/// another camera sees inside its image.
+pub fn overlap(camera: &Camera, master: &Pose, other: &Pose, walls: &[WallPlane]) -> f64 {
+    let (w, h) = (camera.width as f64, camera.height as f64);
+    let (mut seen, mut total) = (0usize, 0usize);
+    for i in 0..7 {
+        for j in 0..5 {
+            let px = [(i as f64 + 0.5) / 7.0 * w, (j as f64 + 0.5) / 5.0 * h];
+            let ray = master.ray_of_pixel(camera, px);
+            let Some(k) = wall_of_ray(walls, &master.center, &ray, 0.0) else { continue };
+            let Some(s) = walls[k].ray_parameter(&master.center, &ray, 0.0) else { continue };
+            let x: Vec3 = master.center + s * ray;
+            total += 1;
+            if walls[k].normal.dot(&(x - other.center)) < 0.0 && other.project(camera, &x).is_some_and(|q| camera.contains(q, 0.0)) {
+                seen += 1;
+            }
+        }
+    }
+    if total == 0 {
+        0.0
+    } else {
+        seen as f64 / total as f64
+    }
+}
+
+/// The slaves of a master: the candidates (frame, pose) overlapping it by at least `min_overlap`, the
+/// `max_slaves` with the largest overlap (ties to the nearer frame number, then the earlier).
+pub fn choose_slaves(camera: &Camera, master: (u64, &Pose), candidates: &[(u64, Pose)], walls: &[WallPlane], max_slaves: usize, min_overlap: f64) -> Vec<u64> {
+    let mut scored: Vec<(u64, f64)> = candidates
+        .iter()
+        .filter(|(f, _)| *f != master.0)
+        .map(|(f, pose)| (*f, overlap(camera, master.1, pose, walls)))
+        .filter(|(_, o)| *o >= min_overlap)
+        .collect();
+    scored.sort_by(|a, b| b.1.total_cmp(&a.1).then(a.0.abs_diff(master.0).cmp(&b.0.abs_diff(master.0))).then(a.0.cmp(&b.0)));
+    scored.into_iter().take(max_slaves).map(|(f, _)| f).collect()
+}

@@ -1,0 +1,405 @@
+//! The depth search of one master line (seed 000 §2.9–2.15): every sampled chain pixel's master ray is cut by
+//! planes parallel to its wall at depths −range…+range; at each depth an object-space lattice along the line is
+//! resampled from the master and every slave, and the single-point (C, L, R, U, B) and linear (C, L, R) windows
+//! are correlated through summed-area tables. Coarse depths on a half-resolution lattice first, then the full
+//! lattice at every fine depth near the coarse peaks.
+use lineflow_photogrammetry::Vec3;
+
+use crate::ncc::{master_is_textured, ncc, PatchSats, Sat};
+use crate::view::View;
+use crate::wall::{wall_of_ray, WallPlane};
+use crate::{MatchParams, Mode};
+
+/// A 2-D segment of the master frame with its pixel chain (measured pixel coordinates).
+#[derive(Debug, Clone, Copy)]
+pub struct SegmentInput<'a> {
+    /// Segment id in the master frame.
+    pub id: u32,
+    /// First endpoint (col, row).
+    pub start_px: [f64; 2],
+    /// Second endpoint.
+    pub end_px: [f64; 2],
+    /// The ordered chain.
+    pub chain: &'a [[u16; 2]],
+}
+
+/// A matched chain pixel.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MatchedPoint {
+    /// The master pixel (col, row).
+    pub pixel: [f64; 2],
+    /// Depth in front of the wall, metres.
+    pub depth_m: f64,
+    /// The master-ray point at that depth (eq. 15).
+    pub xyz: Vec3,
+    /// SNCC of the winning window.
+    pub sncc: f64,
+    /// The winning window.
+    pub mode: Mode,
+}
+
+/// The matched points of one segment.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SegmentMatch {
+    /// Segment id in the master frame.
+    pub segment_id: u32,
+    /// Index of the wall in the list searched.
+    pub wall: usize,
+    /// Images that took part: the master and the slaves that see the wall.
+    pub n_views: u32,
+    /// Matched points in chain order (rejected pixels left out).
+    pub points: Vec<MatchedPoint>,
+}
+
+/// Geometry of one segment shared by every depth.
+struct Line<'w> {
+    wall: &'w WallPlane,
+    center: Vec3,
+    /// Ray of the segment's start (the lattice origin) and of each sampled pixel.
+    start_ray: Vec3,
+    end_ray: Vec3,
+    rays: Vec<Vec3>,
+    along: Vec3,
+    across: Vec3,
+}
+
+impl Line<'_> {
+    fn at(&self, ray: &Vec3, depth: f64) -> Vec3 {
+        let s = self.wall.ray_parameter(&self.center, ray, depth).unwrap_or(f64::NAN);
+        self.center + s * ray
+    }
+}
+
+/// SNCC of every sampled point for each single-point mode, and of the line for each linear mode, at one depth.
+#[derive(Debug, Clone)]
+struct DepthScores {
+    /// `point[k][m]`: point k, single-point mode m (index into the enabled single modes); NaN when invalid.
+    point: Vec<Vec<f64>>,
+    /// One per enabled linear mode; NaN when invalid.
+    linear: Vec<f64>,
+}
+
+/// Reused buffers of one search.
+#[derive(Default)]
+struct Scratch {
+    patches: Vec<Vec<f32>>,
+    sats: Vec<PatchSats>,
+    cross: Vec<Sat>,
+}
+
+/// Matches one master segment against the slaves; `None` when it is too short, belongs to no visible wall or no
+/// slave sees its wall.
+pub fn match_segment(master: &View, slaves: &[View], walls: &[WallPlane], seg: &SegmentInput, p: &MatchParams) -> Option<SegmentMatch> {
+    let len_px = (seg.end_px[0] - seg.start_px[0]).hypot(seg.end_px[1] - seg.start_px[1]);
+    if len_px < p.min_length_px || seg.chain.is_empty() {
+        return None;
+    }
+    let cam = &master.camera;
+    let center = master.pose.center;
+    let ray = |px: [f64; 2]| master.pose.ray_of_pixel(cam, px);
+    let (start_ray, end_ray) = (ray(seg.start_px), ray(seg.end_px));
+    let mid_ray = (start_ray + end_ray).normalize();
+    let wall_index = wall_of_ray(walls, &center, &mid_ray, p.wall_margin_m)?;
+    let wall = &walls[wall_index];
+    // The interpretation plane cuts every wall-parallel plane along the same direction.
+    let mut along = start_ray.cross(&end_ray).cross(&wall.normal).try_normalize(1e-9)?;
+    let probe = Line {
+        wall,
+        center,
+        start_ray,
+        end_ray,
+        rays: Vec::new(),
+        along,
+        across: Vec3::zeros(),
+    };
+    let (a0, b0) = (probe.at(&start_ray, 0.0), probe.at(&end_ray, 0.0));
+    if !(a0.iter().all(|v| v.is_finite()) && b0.iter().all(|v| v.is_finite())) {
+        return None;
+    }
+    if (b0 - a0).dot(&along) < 0.0 {
+        along = -along;
+    }
+    let mid0 = (a0 + b0) / 2.0;
+    let seen: Vec<&View> = slaves
+        .iter()
+        .filter(|s| wall.normal.dot(&(mid0 - s.pose.center)) < 0.0)
+        .filter(|s| s.pose.project(&s.camera, &mid0).is_some_and(|px| s.camera.contains(px, 0.0)))
+        .collect();
+    if seen.len() < p.min_slaves {
+        return None;
+    }
+    let step = (seg.chain.len() as f64 * p.spacing_px / len_px.max(1.0)).max(1.0);
+    let pixels: Vec<[f64; 2]> = (0..)
+        .map(|k| (k as f64 * step) as usize)
+        .take_while(|&i| i < seg.chain.len())
+        .map(|i| [seg.chain[i][0] as f64, seg.chain[i][1] as f64])
+        .collect();
+    let line = Line {
+        rays: pixels.iter().map(|&px| ray(px)).collect(),
+        across: wall.normal.cross(&along),
+        ..probe
+    };
+    // Cells and depth steps grow with the ground sample distance so that a window always spans ~20 pixels.
+    let gsd = cam.gsd_m((mid0 - center).norm());
+    let scale = (p.min_cell_gsd * gsd / p.cell_m).max(1.0);
+    let (cell, depth_step) = (p.cell_m * scale, p.depth_step_m * scale);
+    let n_depths = (p.depth_range_m / depth_step).floor() as i32;
+    let depth = |i: i32| i as f64 * depth_step;
+    let singles: Vec<Mode> = p.modes.iter().copied().filter(|m| !m.is_linear()).collect();
+    let linears: Vec<Mode> = p.modes.iter().copied().filter(|m| m.is_linear()).collect();
+    let mut scratch = Scratch::default();
+    let views: Vec<&View> = std::iter::once(master).chain(seen.iter().copied()).collect();
+    let cf = p.coarse_factor.max(1) as i32;
+    let h = p.half_window as i32;
+    let score = |i: i32, coarse: bool, scratch: &mut Scratch| {
+        let (c, hw) = if coarse { (2.0 * cell, (h / 2).max(1)) } else { (cell, h) };
+        score_depth(&views, &line, depth(i), c, hw, &singles, &linears, p.min_slaves, scratch)
+    };
+
+    // Coarse pass: every cf-th depth on a half-resolution lattice.
+    let coarse_idx: Vec<i32> = (-n_depths..=n_depths).filter(|i| i.rem_euclid(cf) == 0).collect();
+    let coarse: Vec<DepthScores> = coarse_idx.iter().map(|&i| score(i, true, &mut scratch)).collect();
+    let n_pts = pixels.len();
+    let mut votes: Vec<(i32, usize)> = Vec::new();
+    let mut vote = |i: i32, weight: usize| match votes.iter_mut().find(|(d, _)| *d == i) {
+        Some(v) => v.1 += weight,
+        None => votes.push((i, weight)),
+    };
+    for m in 0..linears.len() {
+        if let Some((j, _)) = argmax(curve_linear(&coarse, m)) {
+            vote(coarse_idx[j], n_pts.max(1));
+        }
+    }
+    for k in 0..n_pts {
+        let best = (0..singles.len())
+            .filter_map(|m| argmax(curve_point(&coarse, k, m)))
+            .max_by(|a, b| a.1.total_cmp(&b.1));
+        if let Some((j, _)) = best {
+            vote(coarse_idx[j], 1);
+        }
+    }
+    votes.sort_by(|a, b| b.1.cmp(&a.1).then(a.0.abs().cmp(&b.0.abs())).then(a.0.cmp(&b.0)));
+    let mut fine_idx: Vec<i32> = votes
+        .iter()
+        .take(p.max_candidates.max(1))
+        .flat_map(|&(c, _)| (c - cf..=c + cf).filter(|i| i.abs() <= n_depths))
+        .collect();
+    fine_idx.sort_unstable();
+    fine_idx.dedup();
+    let fine: Vec<DepthScores> = fine_idx.iter().map(|&i| score(i, false, &mut scratch)).collect();
+
+    // Each point takes the best window over its own single-point curves and the line's linear curves.
+    let linear_best: Vec<Option<Peak>> = (0..linears.len())
+        .map(|m| peak(&fine_idx, &fine.iter().map(|s| s.linear[m]).collect::<Vec<_>>(), &coarse_idx, &curve_linear(&coarse, m).collect::<Vec<_>>(), cf, n_depths, p))
+        .collect();
+    let mut points = Vec::new();
+    for k in 0..n_pts {
+        let mut peaks: Vec<(Peak, Mode)> = Vec::new();
+        for (m, &mode) in singles.iter().enumerate() {
+            let f: Vec<f64> = curve_point(&fine, k, m).collect();
+            let c: Vec<f64> = curve_point(&coarse, k, m).collect();
+            peaks.extend(peak(&fine_idx, &f, &coarse_idx, &c, cf, n_depths, p).map(|pk| (pk, mode)));
+        }
+        peaks.extend(linears.iter().zip(&linear_best).filter_map(|(&mode, pk)| pk.map(|pk| (pk, mode))));
+        let best = choose_peak(&peaks, p.front_margin);
+        let Some((pk, mode)) = best else { continue };
+        if !pk.accepted {
+            continue;
+        }
+        let d = pk.index * depth_step;
+        let xyz = line.at(&line.rays[k], d);
+        points.push(MatchedPoint {
+            pixel: pixels[k],
+            depth_m: d,
+            xyz,
+            sncc: pk.value,
+            mode,
+        });
+    }
+    Some(SegmentMatch {
+        segment_id: seg.id,
+        wall: wall_index,
+        n_views: views.len() as u32,
+        points,
+    })
+}
+
+/// Single-point mode `m` of point `k` over depths.
+fn curve_point(scores: &[DepthScores], k: usize, m: usize) -> impl Iterator<Item = f64> + '_ {
+    scores.iter().map(move |s| s.point[k][m])
+}
+
+/// Linear mode `m` over depths.
+fn curve_linear(scores: &[DepthScores], m: usize) -> impl Iterator<Item = f64> + '_ {
+    scores.iter().map(move |s| s.linear[m])
+}
+
+/// The window a point takes: with `front_margin` < 0 the best SNCC over all modes (the thesis); otherwise the
+/// front-most accepted peak within `front_margin` of the best accepted one. An image edge at a depth step belongs
+/// to the nearer surface, while the window with the highest correlation is often the one on the other side, where
+/// more texture lies (the interior of a window opening behind a sill or an outline edge).
+fn choose_peak(peaks: &[(Peak, Mode)], front_margin: f64) -> Option<(Peak, Mode)> {
+    let by_value = |a: &&(Peak, Mode), b: &&(Peak, Mode)| a.0.value.total_cmp(&b.0.value);
+    if front_margin < 0.0 {
+        return peaks.iter().max_by(by_value).copied();
+    }
+    let best = peaks.iter().filter(|(pk, _)| pk.accepted).max_by(by_value)?.0.value;
+    peaks
+        .iter()
+        .filter(|(pk, _)| pk.accepted && pk.value >= best - front_margin)
+        .max_by(|a, b| a.0.index.total_cmp(&b.0.index).then(a.0.value.total_cmp(&b.0.value)))
+        .copied()
+}
+
+/// The best depth of one curve.
+#[derive(Debug, Clone, Copy)]
+struct Peak {
+    /// Depth index with parabolic sub-step refinement.
+    index: f64,
+    value: f64,
+    /// Passes the robust tests (minimum SNCC, not at the range boundary, no rival peak on the coarse curve).
+    accepted: bool,
+}
+
+/// The peak of a fine curve (values at `fine_idx`), refined by a parabola, and the robust tests on it, the rival
+/// peak taken from the coarse curve (values at `coarse_idx`).
+fn peak(fine_idx: &[i32], fine: &[f64], coarse_idx: &[i32], coarse: &[f64], cf: i32, n: i32, p: &MatchParams) -> Option<Peak> {
+    let (j, value) = argmax(fine.iter().copied())?;
+    let i = fine_idx[j];
+    let neighbour = |di: i32| {
+        fine_idx
+            .iter()
+            .position(|&x| x == i + di)
+            .map(|q| fine[q])
+            .filter(|v| v.is_finite())
+    };
+    let mut index = i as f64;
+    if let (Some(a), Some(b)) = (neighbour(-1), neighbour(1)) {
+        let denom = a - 2.0 * value + b;
+        if denom < 0.0 {
+            index += (0.5 * (a - b) / denom).clamp(-0.5, 0.5);
+        }
+    }
+    // A rival: the best coarse value at least two coarse steps from this peak.
+    let rival = coarse_idx
+        .iter()
+        .zip(coarse)
+        .filter(|(&ci, v)| (ci - i).abs() >= 2 * cf && v.is_finite())
+        .map(|(_, &v)| v)
+        .fold(f64::NEG_INFINITY, f64::max);
+    let best_coarse = coarse
+        .iter()
+        .zip(coarse_idx)
+        .filter(|(v, &ci)| (ci - i).abs() < 2 * cf && v.is_finite())
+        .map(|(&v, _)| v)
+        .fold(f64::NEG_INFINITY, f64::max);
+    let accepted = value >= p.min_sncc && i.abs() < n && !(rival > p.max_ambiguity * best_coarse.max(value));
+    Some(Peak { index, value, accepted })
+}
+
+/// Index and value of the largest finite element.
+fn argmax(values: impl Iterator<Item = f64>) -> Option<(usize, f64)> {
+    values
+        .enumerate()
+        .filter(|(_, v)| v.is_finite())
+        .fold(None, |best: Option<(usize, f64)>, (k, v)| match best {
+            Some((_, b)) if b >= v => best,
+            _ => Some((k, v)),
+        })
+}
+
+/// Scores every window at one depth.
+#[allow(clippy::too_many_arguments)]
+fn score_depth(
+    views: &[&View],
+    line: &Line,
+    depth: f64,
+    cell: f64,
+    h: i32,
+    singles: &[Mode],
+    linears: &[Mode],
+    min_slaves: usize,
+    s: &mut Scratch,
+) -> DepthScores {
+    let origin = line.at(&line.start_ray, depth);
+    let end = line.at(&line.end_ray, depth);
+    let pos = |x: &Vec3| {
+        let d = x - origin;
+        [(d.dot(&line.along) / cell).round() as i32, (d.dot(&line.across) / cell).round() as i32]
+    };
+    let spots: Vec<[i32; 2]> = line.rays.iter().map(|r| pos(&line.at(r, depth))).collect();
+    let end_col = pos(&end)[0];
+    let invalid = || DepthScores {
+        point: vec![vec![f64::NAN; singles.len()]; line.rays.len()],
+        linear: vec![f64::NAN; linears.len()],
+    };
+    if !origin.iter().all(|v| v.is_finite()) || spots.is_empty() {
+        return invalid();
+    }
+    let c_lo = spots.iter().map(|q| q[0]).min().unwrap_or(0).min(0) - 2 * h;
+    let c_hi = spots.iter().map(|q| q[0]).max().unwrap_or(0).max(end_col) + 2 * h;
+    let r_lo = spots.iter().map(|q| q[1]).min().unwrap_or(0).min(0) - 2 * h;
+    let r_hi = spots.iter().map(|q| q[1]).max().unwrap_or(0).max(0) + 2 * h;
+    let (width, height) = ((c_hi - c_lo + 1) as usize, (r_hi - r_lo + 1) as usize);
+    // A runaway lattice means the plane is nearly parallel to the rays at this depth: nothing to match.
+    if width * height > 4_000_000 {
+        return invalid();
+    }
+    let (along, across) = (line.along * cell, line.across * cell);
+    s.patches.resize_with(views.len(), Vec::new);
+    s.sats.resize_with(views.len(), PatchSats::default);
+    s.cross.resize_with(views.len(), Sat::default);
+    for (v, view) in views.iter().enumerate() {
+        view.sample_lattice(&origin, &along, &across, (c_lo, c_hi), (r_lo, r_hi), &mut s.patches[v]);
+        s.sats[v].build(width, height, &s.patches[v]);
+    }
+    let m = &s.patches[0];
+    for v in 1..views.len() {
+        let g = &s.patches[v];
+        s.cross[v].build(width, height, |k| {
+            let x = m[k] * g[k];
+            if x.is_nan() {
+                0.0
+            } else {
+                x as f64
+            }
+        });
+    }
+    let at = |c: i32, r: i32| ((c - c_lo) as usize, (r - r_lo) as usize);
+    let sncc = |cols: (i32, i32), rows: (i32, i32)| -> f64 {
+        let (c0, r0) = at(cols.0, rows.0);
+        let (c1, r1) = at(cols.1, rows.1);
+        let (cols, rows) = ((c0, c1), (r0, r1));
+        if !master_is_textured(&s.sats[0], cols, rows) {
+            return f64::NAN;
+        }
+        let (mut total, mut n) = (0.0, 0usize);
+        for v in 1..views.len() {
+            if let Some(r) = ncc(&s.sats[0], &s.sats[v], &s.cross[v], cols, rows) {
+                total += r;
+                n += 1;
+            }
+        }
+        if n >= min_slaves.max(1) {
+            total / n as f64
+        } else {
+            f64::NAN
+        }
+    };
+    let point = spots
+        .iter()
+        .map(|&[c, r]| singles.iter().map(|m| {
+            let (cols, rows) = m.window(c, r, h);
+            sncc(cols, rows)
+        }).collect())
+        .collect();
+    let (first, last) = (0.min(end_col), 0.max(end_col));
+    let linear = linears
+        .iter()
+        .map(|m| {
+            let (_, rows) = m.window(0, 0, h);
+            sncc((first - h, last + h), rows)
+        })
+        .collect();
+    DepthScores { point, linear }
+}

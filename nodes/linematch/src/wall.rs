@@ -1,0 +1,221 @@
+//! Wall planes: the approximate building model the matching searches around (`site.toml`), or a plane fitted to
+//! tie points when there is none.
+use lineflow_photogrammetry::Vec3;
+
+/// A planar wall polygon with its outward normal and an in-plane frame (u horizontal, w up).
+#[derive(Debug, Clone, PartialEq)]
+pub struct WallPlane {
+    /// Name from `site.toml` (or `fitted`).
+    pub name: String,
+    /// Outward unit normal n̂.
+    pub normal: Vec3,
+    /// n̂·X of the plane.
+    pub offset: f64,
+    /// A point of the plane (the polygon's first corner).
+    pub origin: Vec3,
+    /// In-plane horizontal unit axis.
+    pub u: Vec3,
+    /// In-plane unit axis pointing up (w·ẑ ≥ 0).
+    pub w: Vec3,
+    /// The polygon in (u, w) coordinates relative to `origin`; empty means unbounded.
+    pub polygon: Vec<[f64; 2]>,
+}
+
+impl WallPlane {
+    /// The wall of a polygon listed counter-clockwise as seen from outside (`conventions.md`): the right-hand rule
+    /// gives the outward normal. `None` for fewer than three corners or a degenerate polygon.
+    pub fn from_corners(name: &str, corners: &[Vec3]) -> Option<Self> {
+        if corners.len() < 3 {
+            return None;
+        }
+        // Newell's method: robust for non-convex and slightly non-planar polygons.
+        let mut n = Vec3::zeros();
+        for (k, a) in corners.iter().enumerate() {
+            let b = corners[(k + 1) % corners.len()];
+            n += Vec3::new((a.y - b.y) * (a.z + b.z), (a.z - b.z) * (a.x + b.x), (a.x - b.x) * (a.y + b.y));
+        }
+        let normal = n.try_normalize(1e-12)?;
+        let mut wall = Self::from_plane(name, normal, corners[0]);
+        wall.polygon = corners.iter().map(|c| wall.in_plane(c)).collect();
+        Some(wall)
+    }
+
+    /// An unbounded wall through `point` with outward normal `normal` (unit).
+    pub fn from_plane(name: &str, normal: Vec3, point: Vec3) -> Self {
+        let z = Vec3::z();
+        let u = z.cross(&normal).try_normalize(1e-9).unwrap_or_else(|| Vec3::x());
+        let mut w = normal.cross(&u);
+        if w.z < 0.0 {
+            w = -w;
+        }
+        WallPlane {
+            name: name.to_owned(),
+            normal,
+            offset: normal.dot(&point),
+            origin: point,
+            u,
+            w,
+            polygon: Vec::new(),
+        }
+    }
+
+    /// (u, w) coordinates of a point's projection onto the plane.
+    pub fn in_plane(&self, p: &Vec3) -> [f64; 2] {
+        let d = p - self.origin;
+        [d.dot(&self.u), d.dot(&self.w)]
+    }
+
+    /// Signed distance of a point in front of the wall (outward positive).
+    pub fn depth_of(&self, p: &Vec3) -> f64 {
+        self.normal.dot(p) - self.offset
+    }
+
+    /// The ray parameter where `center + s·ray` meets the plane offset by `depth` along the normal (eq. 14).
+    pub fn ray_parameter(&self, center: &Vec3, ray: &Vec3, depth: f64) -> Option<f64> {
+        let denom = self.normal.dot(ray);
+        (denom.abs() > 1e-12).then(|| (self.offset + depth - self.normal.dot(center)) / denom)
+    }
+
+    /// Whether the point's projection lies inside the polygon grown by `margin` metres (always for unbounded walls).
+    pub fn contains(&self, p: &Vec3, margin: f64) -> bool {
+        if self.polygon.is_empty() {
+            return true;
+        }
+        let q = self.in_plane(p);
+        point_in_polygon(q, &self.polygon) || polygon_distance(q, &self.polygon) <= margin
+    }
+}
+
+fn point_in_polygon(q: [f64; 2], poly: &[[f64; 2]]) -> bool {
+    let mut inside = false;
+    for (k, a) in poly.iter().enumerate() {
+        let b = poly[(k + 1) % poly.len()];
+        if (a[1] > q[1]) != (b[1] > q[1]) && q[0] < a[0] + (q[1] - a[1]) * (b[0] - a[0]) / (b[1] - a[1]) {
+            inside = !inside;
+        }
+    }
+    inside
+}
+
+fn polygon_distance(q: [f64; 2], poly: &[[f64; 2]]) -> f64 {
+    let mut best = f64::INFINITY;
+    for (k, a) in poly.iter().enumerate() {
+        let b = poly[(k + 1) % poly.len()];
+        let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
+        let len2 = dx * dx + dy * dy;
+        let t = if len2 > 0.0 { (((q[0] - a[0]) * dx + (q[1] - a[1]) * dy) / len2).clamp(0.0, 1.0) } else { 0.0 };
+        best = best.min((q[0] - a[0] - t * dx).hypot(q[1] - a[1] - t * dy));
+    }
+    best
+}
+
+/// The wall a viewing ray belongs to (the thesis's visibility test, eq. 13, with Mᵀ): among the walls whose front
+/// the ray sees (θ > 90°) and whose polygon, grown by `margin`, it hits, the nearest.
+pub fn wall_of_ray(walls: &[WallPlane], center: &Vec3, ray: &Vec3, margin: f64) -> Option<usize> {
+    walls
+        .iter()
+        .enumerate()
+        .filter(|(_, w)| w.normal.dot(ray) < 0.0)
+        .filter_map(|(k, w)| {
+            let s = w.ray_parameter(center, ray, 0.0)?;
+            (s > 0.0 && w.contains(&(center + s * ray), margin)).then_some((k, s))
+        })
+        .min_by(|a, b| a.1.total_cmp(&b.1))
+        .map(|(k, _)| k)
+}
+
+/// A wall fitted to object points (tie points) by RANSAC and a least-squares refit of the inliers, with its normal
+/// turned towards `viewpoint` (a camera centre). `None` when fewer than `min_inliers` points lie within `tolerance`
+/// metres of any plane.
+pub fn fit_wall(points: &[Vec3], viewpoint: &Vec3, tolerance: f64, min_inliers: usize) -> Option<WallPlane> {
+    if points.len() < 3 || points.len() < min_inliers {
+        return None;
+    }
+    // Deterministic sampling: a fixed linear congruential sequence.
+    let mut state = 0x9E37_79B9_7F4A_7C15u64;
+    let mut next = |n: usize| {
+        state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        ((state >> 33) % n as u64) as usize
+    };
+    let mut best: Option<(usize, Vec3, Vec3)> = None;
+    for _ in 0..500 {
+        let (a, b, c) = (points[next(points.len())], points[next(points.len())], points[next(points.len())]);
+        let Some(n) = (b - a).cross(&(c - a)).try_normalize(1e-9) else { continue };
+        let count = points.iter().filter(|p| n.dot(&(*p - a)).abs() <= tolerance).count();
+        if best.as_ref().is_none_or(|(k, _, _)| count > *k) {
+            best = Some((count, n, a));
+        }
+    }
+    let (count, n, a) = best?;
+    if count < min_inliers {
+        return None;
+    }
+    let inliers: Vec<Vec3> = points.iter().filter(|p| n.dot(&(*p - a)).abs() <= tolerance).copied().collect();
+    let (centroid, normal) = plane_of(&inliers)?;
+    let normal = if normal.dot(&(viewpoint - centroid)) < 0.0 { -normal } else { normal };
+    Some(WallPlane::from_plane("fitted", normal, centroid))
+}
+
+/// Least-squares plane: centroid and the unit normal (smallest principal axis).
+fn plane_of(points: &[Vec3]) -> Option<(Vec3, Vec3)> {
+    let c = points.iter().sum::<Vec3>() / points.len() as f64;
+    let mut cov = lineflow_photogrammetry::Mat3::zeros();
+    for p in points {
+        let d = p - c;
+        cov += d * d.transpose();
+    }
+    let eig = cov.symmetric_eigen();
+    let k = eig.eigenvalues.imin();
+    Some((c, eig.eigenvectors.column(k).into_owned().try_normalize(1e-12)?))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn south() -> WallPlane {
+        // Counter-clockwise seen from outside (from −Y looking +Y): the normal is −Y.
+        let c = [[0.0, 0.0, 0.0], [30.0, 0.0, 0.0], [30.0, 0.0, 20.0], [0.0, 0.0, 20.0]].map(Vec3::from);
+        WallPlane::from_corners("south", &c).unwrap()
+    }
+
+    #[test]
+    fn the_conventions_example_faces_the_street() {
+        let w = south();
+        assert!((w.normal - Vec3::new(0.0, -1.0, 0.0)).norm() < 1e-12);
+        assert!(w.w.z > 0.99 && w.u.z.abs() < 1e-12);
+        assert!((w.depth_of(&Vec3::new(5.0, -2.0, 3.0)) - 2.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn a_ray_meets_the_offset_plane_at_the_requested_depth() {
+        let w = south();
+        let (c, r) = (Vec3::new(3.0, -20.0, 1.6), Vec3::new(0.1, 1.0, 0.05).normalize());
+        for depth in [-1.0, 0.0, 0.37] {
+            let s = w.ray_parameter(&c, &r, depth).unwrap();
+            assert!((w.depth_of(&(c + s * r)) - depth).abs() < 1e-12);
+        }
+        assert_eq!(wall_of_ray(&[w.clone()], &c, &r, 0.0), Some(0));
+        // From behind the wall it is not visible.
+        assert_eq!(wall_of_ray(&[w.clone()], &Vec3::new(3.0, 20.0, 1.6), &-r, 0.0), None);
+        // Outside the polygon (beyond the margin) no wall.
+        assert_eq!(wall_of_ray(&[w], &Vec3::new(-10.0, -20.0, 1.6), &Vec3::y(), 0.5), None);
+    }
+
+    #[test]
+    fn a_plane_is_recovered_from_noisy_points_with_outliers() {
+        let mut pts = Vec::new();
+        for i in 0..20 {
+            for j in 0..10 {
+                let noise = 0.002 * (((i * 7 + j * 13) % 11) as f64 / 10.0 - 0.5);
+                pts.push(Vec3::new(i as f64 * 0.5, noise, j as f64 * 0.4));
+            }
+        }
+        for k in 0..60 {
+            pts.push(Vec3::new(k as f64 * 0.1, -1.0 - (k % 5) as f64, 2.0));
+        }
+        let w = fit_wall(&pts, &Vec3::new(5.0, -20.0, 1.6), 0.01, 50).unwrap();
+        assert!(w.normal.dot(&Vec3::new(0.0, -1.0, 0.0)) > 0.9999, "{:?}", w.normal);
+        assert!(w.depth_of(&Vec3::new(3.0, 0.0, 1.0)).abs() < 0.002);
+    }
+}
