@@ -123,7 +123,7 @@ pub struct Points3DHeader {
 /// The matched object points of one 2-D line.
 #[derive(Debug, Default, Clone, Copy, PartialEq, ZeroCopySend)]
 #[repr(C)]
-#[type_name("lineflow/PointGroup/v1")]
+#[type_name("lineflow/PointGroup/v2")]
 pub struct PointGroup {
     /// Id of the 2-D segment in the master frame (`stamp.frame`).
     pub segment_id: u32,
@@ -131,8 +131,8 @@ pub struct PointGroup {
     pub start: u32,
     /// Number of points.
     pub len: u32,
-    /// Padding, zero.
-    pub reserved: u32,
+    /// Images that took part in the matching: the master and the slaves that see the line's wall.
+    pub n_views: u32,
 }
 
 /// A matched object point.

@@ -25,7 +25,8 @@ pub struct Pose {
     pub frame: u64,
     /// Revision of this frame's pose.
     pub revision: u32,
-    /// Bit 0: oriented; bit 1: settled (the sliding window moved past it); bit 2: final.
+    /// Bit 0: oriented; bit 1: settled (the sliding window moved past it); bit 2: final; bit 3: in the control
+    /// points' frame (georeferenced).
     pub flags: u32,
     /// Perspective centre (XL, YL, ZL) in metres.
     pub center_m: [f64; 3],
@@ -44,6 +45,9 @@ impl Pose {
     pub const SETTLED: u32 = 2;
     /// Bit of `flags`: the end-of-stream adjustment has run.
     pub const FINAL: u32 = 4;
+    /// Bit of `flags`: the pose is in the frame of the control points (before three are seen, the block has the
+    /// arbitrary frame of its first pair).
+    pub const GEOREFERENCED: u32 = 8;
 
     /// The message element of an exterior orientation, without standard deviations.
     pub fn from_exterior(frame: u64, revision: u32, flags: u32, pose: &lineflow_photogrammetry::Pose) -> Self {

@@ -233,7 +233,7 @@ static PIXEL: Layout = Layout {
     ],
 };
 static POINTS3D: Layout = layout!(Points3DHeader, "Points3D" { stamp: Struct(&STAMP), n_groups: S(U32), n_points: S(U32) });
-static POINT_GROUP: Layout = layout!(PointGroup, "PointGroup" { segment_id: S(U32), start: S(U32), len: S(U32), reserved: S(U32) });
+static POINT_GROUP: Layout = layout!(PointGroup, "PointGroup" { segment_id: S(U32), start: S(U32), len: S(U32), n_views: S(U32) });
 static POINT3: Layout = layout!(Point3, "Point3" { xyz: Array(F64, 3), sncc: S(F64) });
 static LINES3D: Layout = layout!(Lines3DHeader, "Lines3D" { stamp: Struct(&STAMP) });
 static LINE3: Layout = layout!(Line3, "Line3" {

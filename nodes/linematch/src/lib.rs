@@ -45,7 +45,16 @@ pub enum Mode {
 
 impl Mode {
     /// Every mode.
-    pub const ALL: [Mode; 8] = [Mode::C, Mode::L, Mode::R, Mode::U, Mode::B, Mode::LinearC, Mode::LinearL, Mode::LinearR];
+    pub const ALL: [Mode; 8] = [
+        Mode::C,
+        Mode::L,
+        Mode::R,
+        Mode::U,
+        Mode::B,
+        Mode::LinearC,
+        Mode::LinearL,
+        Mode::LinearR,
+    ];
 
     /// Whether the window spans the whole segment.
     pub fn is_linear(self) -> bool {
@@ -122,6 +131,8 @@ pub struct MatchParams {
     pub front_margin: f64,
     /// Slaves per master (nearest by overlap).
     pub max_slaves: usize,
+    /// A slave must see at least this share of the master's wall area.
+    pub min_overlap: f64,
     /// Fewest slaves that must see a window.
     pub min_slaves: usize,
     /// Lines are assigned to walls whose polygon, grown by this margin, their ray hits, metres.
@@ -145,6 +156,7 @@ impl Default for MatchParams {
             max_ambiguity: 0.95,
             front_margin: -1.0,
             max_slaves: 6,
+            min_overlap: 0.2,
             min_slaves: 1,
             wall_margin_m: 0.5,
         }
@@ -202,8 +214,12 @@ pub fn overlap(camera: &Camera, master: &Pose, other: &Pose, walls: &[WallPlane]
         for j in 0..5 {
             let px = [(i as f64 + 0.5) / 7.0 * w, (j as f64 + 0.5) / 5.0 * h];
             let ray = master.ray_of_pixel(camera, px);
-            let Some(k) = wall_of_ray(walls, &master.center, &ray, 0.0) else { continue };
-            let Some(s) = walls[k].ray_parameter(&master.center, &ray, 0.0) else { continue };
+            let Some(k) = wall_of_ray(walls, &master.center, &ray, 0.0) else {
+                continue;
+            };
+            let Some(s) = walls[k].ray_parameter(&master.center, &ray, 0.0) else {
+                continue;
+            };
             let x: Vec3 = master.center + s * ray;
             total += 1;
             if walls[k].normal.dot(&(x - other.center)) < 0.0 && other.project(camera, &x).is_some_and(|q| camera.contains(q, 0.0)) {
@@ -220,13 +236,24 @@ pub fn overlap(camera: &Camera, master: &Pose, other: &Pose, walls: &[WallPlane]
 
 /// The slaves of a master: the candidates (frame, pose) overlapping it by at least `min_overlap`, the
 /// `max_slaves` with the largest overlap (ties to the nearer frame number, then the earlier).
-pub fn choose_slaves(camera: &Camera, master: (u64, &Pose), candidates: &[(u64, Pose)], walls: &[WallPlane], max_slaves: usize, min_overlap: f64) -> Vec<u64> {
+pub fn choose_slaves(
+    camera: &Camera,
+    master: (u64, &Pose),
+    candidates: &[(u64, Pose)],
+    walls: &[WallPlane],
+    max_slaves: usize,
+    min_overlap: f64,
+) -> Vec<u64> {
     let mut scored: Vec<(u64, f64)> = candidates
         .iter()
         .filter(|(f, _)| *f != master.0)
         .map(|(f, pose)| (*f, overlap(camera, master.1, pose, walls)))
         .filter(|(_, o)| *o >= min_overlap)
         .collect();
-    scored.sort_by(|a, b| b.1.total_cmp(&a.1).then(a.0.abs_diff(master.0).cmp(&b.0.abs_diff(master.0))).then(a.0.cmp(&b.0)));
+    scored.sort_by(|a, b| {
+        b.1.total_cmp(&a.1)
+            .then(a.0.abs_diff(master.0).cmp(&b.0.abs_diff(master.0)))
+            .then(a.0.cmp(&b.0))
+    });
     scored.into_iter().take(max_slaves).map(|(f, _)| f).collect()
 }

@@ -1,1 +1,357 @@
-fn main() {}
+//! `lineflow-linematch`: the linematch stage. Collects grey images, 2-D lines and poses; matches each master's
+//! lines once the poses of the master and its slaves are settled (or final, at the end of the stream), and
+//! publishes one `Points3D` message per master. When the final adjustment moves the poses, every matched point is
+//! re-computed from its pixel and depth with the final pose and the masters are published again, so that the
+//! lines fitted downstream agree with `poses.csv`.
+use std::collections::BTreeMap;
+
+use anyhow::{bail, Result};
+use lineflow_linematch::{choose_slaves, fit_wall, match_master, DistortionLut, MatchParams, SegmentInput, SegmentMatch, View, WallPlane};
+use lineflow_messages::{kinds, parts, Point3, PointGroup, Points3DHeader, Pose as PoseMsg, Segment2, Stamp, StampFlags};
+use lineflow_photogrammetry::intersect::intersect_rays;
+use lineflow_photogrammetry::{Camera, Pose, Vec3};
+use lineflow_runtime::{Flow, NodeContext, Output};
+
+/// One frame's 2-D lines.
+struct FrameLines {
+    segments: Vec<Segment2>,
+    chain: Vec<[u16; 2]>,
+}
+
+/// The latest pose of a frame with its flags.
+#[derive(Clone, Copy)]
+struct PoseState {
+    pose: Pose,
+    flags: u32,
+}
+
+#[derive(Default)]
+struct State {
+    camera: Option<(Camera, DistortionLut)>,
+    grays: BTreeMap<u64, Vec<u8>>,
+    stamps: BTreeMap<u64, Stamp>,
+    lines: BTreeMap<u64, FrameLines>,
+    poses: BTreeMap<u64, PoseState>,
+    /// Walls from the site model; `None` until it arrives (or it is known not to come).
+    site: Option<Vec<WallPlane>>,
+    /// Tie points (track → observations), for walls fitted when there is no site model.
+    ties: BTreeMap<u64, Vec<(u64, [f64; 2])>>,
+    fitted: Option<Vec<WallPlane>>,
+    /// Matched masters, kept for re-estimation with the final poses.
+    matched: BTreeMap<u64, Vec<SegmentMatch>>,
+    /// Masters that cannot be matched (reported once).
+    skipped: BTreeMap<u64, String>,
+    final_poses: bool,
+    revision: u32,
+}
+
+fn settled(s: &PoseState) -> bool {
+    s.flags & PoseMsg::ORIENTED != 0 && s.flags & (PoseMsg::SETTLED | PoseMsg::FINAL) != 0
+}
+
+impl State {
+    /// Walls to search: the site model's, else planes fitted to the intersected tie points.
+    fn walls(&mut self) -> Option<Vec<WallPlane>> {
+        if let Some(w) = &self.site {
+            return Some(w.clone());
+        }
+        if self.fitted.is_none() {
+            self.fitted = self.fit_walls();
+        }
+        self.fitted.clone()
+    }
+
+    /// Up to four planes, each fitted by RANSAC to the tie points the previous ones left.
+    fn fit_walls(&self) -> Option<Vec<WallPlane>> {
+        let (camera, _) = self.camera.as_ref()?;
+        let mut points: Vec<Vec3> = self
+            .ties
+            .values()
+            .filter_map(|obs| {
+                let rays: Vec<(Vec3, Vec3)> = obs
+                    .iter()
+                    .filter_map(|(f, px)| {
+                        self.poses
+                            .get(f)
+                            .filter(|s| settled(s))
+                            .map(|s| (s.pose.center, s.pose.ray_of_pixel(camera, *px)))
+                    })
+                    .collect();
+                (rays.len() >= 2).then(|| intersect_rays(&rays)).flatten().map(|(x, _)| x)
+            })
+            .collect();
+        let viewpoint = self.poses.values().next()?.pose.center;
+        let mut walls = Vec::new();
+        while walls.len() < 4 {
+            let Some(w) = fit_wall(&points, &viewpoint, 0.05, 50.max(points.len() / 10)) else {
+                break;
+            };
+            points.retain(|p| w.depth_of(p).abs() > 0.05);
+            walls.push(w);
+        }
+        (!walls.is_empty()).then_some(walls)
+    }
+}
+
+fn main() -> std::process::ExitCode {
+    lineflow_runtime::run_node(body)
+}
+
+fn body() -> Result<()> {
+    let ctx = NodeContext::from_env()?;
+    if ctx.implementation("sncc") != "sncc" {
+        bail!(
+            "node '{}': unknown linematch impl '{}' (available: sncc)",
+            ctx.name(),
+            ctx.implementation("sncc")
+        );
+    }
+    let params: MatchParams = ctx.params()?;
+    if let Err(e) = params.validate() {
+        bail!("node '{}': {e}", ctx.name());
+    }
+    let images = ctx.input::<kinds::Image>("images")?;
+    let lines_in = ctx.input::<kinds::Lines2D>("lines2d")?;
+    let poses_in = ctx.input::<kinds::Poses>("poses")?;
+    let camera_in = ctx.input::<kinds::CameraModel>("camera")?;
+    let site_in = ctx.optional_input::<kinds::Site>("site")?;
+    let ties_in = ctx.optional_input::<kinds::TiePoints>("tiepoints")?;
+    let output = ctx.output::<kinds::Points3D>("points3d")?;
+    ctx.connect()?;
+
+    let mut st = State::default();
+    let mut gray = Vec::new();
+    ctx.run(|| {
+        while let Some(m) = camera_in.receive()? {
+            let cam = m.user_header().camera();
+            st.camera = Some((cam, DistortionLut::new(&cam)));
+        }
+        if let Some(input) = &site_in {
+            while let Some(m) = input.receive()? {
+                let walls: Vec<WallPlane> = m
+                    .payload()
+                    .iter()
+                    .filter_map(|w| WallPlane::from_corners(w.name(), &w.corners().iter().map(|&c| Vec3::from(c)).collect::<Vec<_>>()))
+                    .collect();
+                tracing::info!("site model: {} walls", walls.len());
+                st.site = Some(walls);
+            }
+        }
+        if let Some(input) = &ties_in {
+            while let Some(m) = input.receive()? {
+                for t in m.payload() {
+                    st.ties.entry(t.track).or_default().push((t.frame, [t.col, t.row]));
+                }
+            }
+        }
+        lineflow_convert::for_each_gray(&images, &mut gray, |h, g| {
+            st.grays.insert(h.stamp.frame, g.to_vec());
+            st.stamps.insert(h.stamp.frame, h.stamp);
+            Ok(())
+        })?;
+        while let Some(m) = lines_in.receive()? {
+            let h = *m.user_header();
+            let (segs, chain) = parts::split::<Segment2, [u16; 2]>(m.payload(), h.n_segments as usize, h.n_chain as usize)
+                .map_err(|e| anyhow::anyhow!("lines2d of frame {}: {e}", h.stamp.frame))?;
+            st.lines.insert(
+                h.stamp.frame,
+                FrameLines {
+                    segments: segs.to_vec(),
+                    chain: chain.to_vec(),
+                },
+            );
+        }
+        while let Some(m) = poses_in.receive()? {
+            for p in m.payload() {
+                st.poses.insert(
+                    p.frame,
+                    PoseState {
+                        pose: p.exterior(),
+                        flags: p.flags,
+                    },
+                );
+            }
+            if m.user_header().stamp.flags & StampFlags::FINAL != 0 {
+                st.final_poses = true;
+            }
+        }
+        let site_known = site_in.as_ref().is_none_or(|i| st.site.is_some() || i.is_ended());
+        let upstream_done = images.is_ended() && lines_in.is_ended();
+        let poses_done = poses_in.is_ended() || st.final_poses;
+        if poses_done && upstream_done && !st.final_poses {
+            st.final_poses = true;
+        }
+        if st.camera.is_none() || !site_known {
+            return Ok(if upstream_done && poses_in.is_ended() {
+                Flow::Stop
+            } else {
+                Flow::Continue
+            });
+        }
+        // At most one master per wake, so that inputs keep being drained while the matching runs.
+        if let Some(master) = next_master(&mut st, &params, poses_done && upstream_done) {
+            match_and_publish(&mut st, &params, master, &output)?;
+            return Ok(Flow::Continue);
+        }
+        Ok(if poses_done && upstream_done { Flow::Stop } else { Flow::Continue })
+    })?;
+    if st.final_poses {
+        reestimate_and_publish(&mut st, &output)?;
+    }
+    let groups: usize = st.matched.values().map(Vec::len).sum();
+    let points: usize = st.matched.values().flatten().map(|m| m.points.len()).sum();
+    tracing::info!("{} masters matched: {groups} point groups, {points} points", st.matched.len());
+    for (frame, why) in &st.skipped {
+        tracing::warn!("frame {frame} was not matched: {why}");
+    }
+    output.end_of_stream()?;
+    ctx.finish();
+    Ok(())
+}
+
+/// The next master whose slaves are settled: enough of them, or all there will be (`at_end`).
+fn next_master(st: &mut State, params: &MatchParams, at_end: bool) -> Option<(u64, Vec<u64>)> {
+    let walls = st.walls();
+    let (camera, _) = st.camera.as_ref()?;
+    let georeferenced_needed = st.site.is_some();
+    let candidates: Vec<(u64, Pose)> = st
+        .poses
+        .iter()
+        .filter(|(f, s)| settled(s) && st.grays.contains_key(f))
+        .filter(|(_, s)| !georeferenced_needed || s.flags & PoseMsg::GEOREFERENCED != 0)
+        .map(|(&f, s)| (f, s.pose))
+        .collect();
+    let frames: Vec<u64> = st.lines.keys().copied().collect();
+    for frame in frames {
+        if st.matched.contains_key(&frame) || st.skipped.contains_key(&frame) {
+            continue;
+        }
+        let Some(&(_, pose)) = candidates.iter().find(|(f, _)| *f == frame) else {
+            if at_end {
+                st.skipped.insert(frame, "no (georeferenced) pose".into());
+            }
+            continue;
+        };
+        let Some(walls) = &walls else {
+            if at_end {
+                st.skipped
+                    .insert(frame, "no site model and too few tie points for a wall plane".into());
+            }
+            continue;
+        };
+        let slaves = choose_slaves(camera, (frame, &pose), &candidates, walls, params.max_slaves, params.min_overlap);
+        if slaves.len() >= params.max_slaves || (at_end && !slaves.is_empty()) {
+            return Some((frame, slaves));
+        }
+        if at_end {
+            st.skipped.insert(frame, "no neighbour overlaps it".into());
+        }
+    }
+    None
+}
+
+fn match_and_publish(
+    st: &mut State,
+    params: &MatchParams,
+    (master, slaves): (u64, Vec<u64>),
+    output: &Output<kinds::Points3D>,
+) -> Result<()> {
+    let walls = st.walls().unwrap_or_default();
+    let Some((camera, lut)) = &st.camera else { return Ok(()) };
+    let view = |f: u64| View {
+        frame: f,
+        pose: st.poses[&f].pose,
+        camera: *camera,
+        lut,
+        gray: &st.grays[&f],
+    };
+    let lines = &st.lines[&master];
+    let segments: Vec<SegmentInput> = lines
+        .segments
+        .iter()
+        .filter_map(|s| {
+            let chain = lines.chain.get(s.chain_start as usize..(s.chain_start + s.chain_len) as usize)?;
+            Some(SegmentInput {
+                id: s.id,
+                start_px: s.start_px,
+                end_px: s.end_px,
+                chain,
+            })
+        })
+        .collect();
+    let started = std::time::Instant::now();
+    let slave_views: Vec<View> = slaves.iter().map(|&f| view(f)).collect();
+    let matches = match_master(&view(master), &slave_views, &walls, &segments, params);
+    let points: usize = matches.iter().map(|m| m.points.len()).sum();
+    tracing::info!(
+        "frame {master}: {} of {} segments matched, {points} points, slaves {slaves:?}, {:.2} s",
+        matches.len(),
+        segments.len(),
+        started.elapsed().as_secs_f64()
+    );
+    st.revision += 1;
+    publish(
+        output,
+        st.stamps.get(&master).copied().unwrap_or_default(),
+        master,
+        st.revision,
+        &matches,
+    )?;
+    st.matched.insert(master, matches);
+    Ok(())
+}
+
+/// Every matched point again, from its pixel and depth through the final pose.
+fn reestimate_and_publish(st: &mut State, output: &Output<kinds::Points3D>) -> Result<()> {
+    let walls = st.walls().unwrap_or_default();
+    let Some((camera, _)) = &st.camera else { return Ok(()) };
+    for (&master, matches) in st.matched.iter_mut() {
+        let Some(s) = st.poses.get(&master) else { continue };
+        if s.flags & PoseMsg::FINAL == 0 {
+            continue;
+        }
+        for m in matches.iter_mut() {
+            let Some(wall) = walls.get(m.wall) else { continue };
+            for p in &mut m.points {
+                let ray = s.pose.ray_of_pixel(camera, p.pixel);
+                if let Some(t) = wall.ray_parameter(&s.pose.center, &ray, p.depth_m) {
+                    p.xyz = s.pose.center + t * ray;
+                }
+            }
+        }
+        st.revision += 1;
+        let mut stamp = st.stamps.get(&master).copied().unwrap_or_default();
+        stamp.flags |= StampFlags::FINAL;
+        publish(output, stamp, master, st.revision, matches)?;
+    }
+    Ok(())
+}
+
+fn publish(output: &Output<kinds::Points3D>, mut stamp: Stamp, master: u64, revision: u32, matches: &[SegmentMatch]) -> Result<()> {
+    stamp.frame = master;
+    stamp.revision = revision;
+    let mut groups = Vec::with_capacity(matches.len());
+    let mut points = Vec::new();
+    for m in matches {
+        groups.push(PointGroup {
+            segment_id: m.segment_id,
+            start: points.len() as u32,
+            len: m.points.len() as u32,
+            n_views: m.n_views,
+        });
+        points.extend(m.points.iter().map(|p| Point3 {
+            xyz: p.xyz.into(),
+            sncc: p.sncc,
+        }));
+    }
+    let header = Points3DHeader {
+        stamp,
+        n_groups: groups.len() as u32,
+        n_points: points.len() as u32,
+    };
+    output.publish_with(
+        header,
+        parts::two_part_len::<PointGroup, Point3>(groups.len(), points.len()),
+        |buf| parts::write(buf, &groups, &points),
+    )
+}

@@ -94,7 +94,10 @@ mod tests {
 
     fn direct(a: &[f32], b: &[f32]) -> f64 {
         let n = a.len() as f64;
-        let (ma, mb) = (a.iter().map(|&x| x as f64).sum::<f64>() / n, b.iter().map(|&x| x as f64).sum::<f64>() / n);
+        let (ma, mb) = (
+            a.iter().map(|&x| x as f64).sum::<f64>() / n,
+            b.iter().map(|&x| x as f64).sum::<f64>() / n,
+        );
         let cov: f64 = a.iter().zip(b).map(|(&x, &y)| (x as f64 - ma) * (y as f64 - mb)).sum();
         let va: f64 = a.iter().map(|&x| (x as f64 - ma).powi(2)).sum();
         let vb: f64 = b.iter().map(|&y| (y as f64 - mb).powi(2)).sum();
@@ -112,7 +115,10 @@ mod tests {
         cross.build(w, h, |k| m[k] as f64 * s[k] as f64);
         let (cols, rows) = ((2, 10), (1, 7));
         let pick = |g: &[f32]| -> Vec<f32> {
-            (rows.0..=rows.1).flat_map(|r| (cols.0..=cols.1).map(move |c| (r, c))).map(|(r, c)| g[r * w + c]).collect()
+            (rows.0..=rows.1)
+                .flat_map(|r| (cols.0..=cols.1).map(move |c| (r, c)))
+                .map(|(r, c)| g[r * w + c])
+                .collect()
         };
         let expected = direct(&pick(&m), &pick(&s));
         let got = ncc(&pm, &ps, &cross, cols, rows).unwrap();

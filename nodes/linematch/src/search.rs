@@ -190,7 +190,17 @@ pub fn match_segment(master: &View, slaves: &[View], walls: &[WallPlane], seg: &
 
     // Each point takes the best window over its own single-point curves and the line's linear curves.
     let linear_best: Vec<Option<Peak>> = (0..linears.len())
-        .map(|m| peak(&fine_idx, &fine.iter().map(|s| s.linear[m]).collect::<Vec<_>>(), &coarse_idx, &curve_linear(&coarse, m).collect::<Vec<_>>(), cf, n_depths, p))
+        .map(|m| {
+            peak(
+                &fine_idx,
+                &fine.iter().map(|s| s.linear[m]).collect::<Vec<_>>(),
+                &coarse_idx,
+                &curve_linear(&coarse, m).collect::<Vec<_>>(),
+                cf,
+                n_depths,
+                p,
+            )
+        })
         .collect();
     let mut points = Vec::new();
     for k in 0..n_pts {
@@ -325,7 +335,10 @@ fn score_depth(
     let end = line.at(&line.end_ray, depth);
     let pos = |x: &Vec3| {
         let d = x - origin;
-        [(d.dot(&line.along) / cell).round() as i32, (d.dot(&line.across) / cell).round() as i32]
+        [
+            (d.dot(&line.along) / cell).round() as i32,
+            (d.dot(&line.across) / cell).round() as i32,
+        ]
     };
     let spots: Vec<[i32; 2]> = line.rays.iter().map(|r| pos(&line.at(r, depth))).collect();
     let end_col = pos(&end)[0];
@@ -388,10 +401,15 @@ fn score_depth(
     };
     let point = spots
         .iter()
-        .map(|&[c, r]| singles.iter().map(|m| {
-            let (cols, rows) = m.window(c, r, h);
-            sncc(cols, rows)
-        }).collect())
+        .map(|&[c, r]| {
+            singles
+                .iter()
+                .map(|m| {
+                    let (cols, rows) = m.window(c, r, h);
+                    sncc(cols, rows)
+                })
+                .collect()
+        })
         .collect();
     let (first, last) = (0.min(end_col), 0.max(end_col));
     let linear = linears

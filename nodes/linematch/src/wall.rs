@@ -103,7 +103,11 @@ fn polygon_distance(q: [f64; 2], poly: &[[f64; 2]]) -> f64 {
         let b = poly[(k + 1) % poly.len()];
         let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
         let len2 = dx * dx + dy * dy;
-        let t = if len2 > 0.0 { (((q[0] - a[0]) * dx + (q[1] - a[1]) * dy) / len2).clamp(0.0, 1.0) } else { 0.0 };
+        let t = if len2 > 0.0 {
+            (((q[0] - a[0]) * dx + (q[1] - a[1]) * dy) / len2).clamp(0.0, 1.0)
+        } else {
+            0.0
+        };
         best = best.min((q[0] - a[0] - t * dx).hypot(q[1] - a[1] - t * dy));
     }
     best
@@ -140,7 +144,9 @@ pub fn fit_wall(points: &[Vec3], viewpoint: &Vec3, tolerance: f64, min_inliers: 
     let mut best: Option<(usize, Vec3, Vec3)> = None;
     for _ in 0..500 {
         let (a, b, c) = (points[next(points.len())], points[next(points.len())], points[next(points.len())]);
-        let Some(n) = (b - a).cross(&(c - a)).try_normalize(1e-9) else { continue };
+        let Some(n) = (b - a).cross(&(c - a)).try_normalize(1e-9) else {
+            continue;
+        };
         let count = points.iter().filter(|p| n.dot(&(*p - a)).abs() <= tolerance).count();
         if best.as_ref().is_none_or(|(k, _, _)| count > *k) {
             best = Some((count, n, a));
@@ -152,7 +158,11 @@ pub fn fit_wall(points: &[Vec3], viewpoint: &Vec3, tolerance: f64, min_inliers: 
     }
     let inliers: Vec<Vec3> = points.iter().filter(|p| n.dot(&(*p - a)).abs() <= tolerance).copied().collect();
     let (centroid, normal) = plane_of(&inliers)?;
-    let normal = if normal.dot(&(viewpoint - centroid)) < 0.0 { -normal } else { normal };
+    let normal = if normal.dot(&(viewpoint - centroid)) < 0.0 {
+        -normal
+    } else {
+        normal
+    };
     Some(WallPlane::from_plane("fitted", normal, centroid))
 }
 

@@ -21,7 +21,9 @@ fn chain(syn: &Synthetic, frame: usize, a: Vec3, b: Vec3) -> Vec<[u16; 2]> {
     let mut out: Vec<[u16; 2]> = Vec::new();
     for k in 0..=n {
         let p = a + (b - a) * (k as f64 / n as f64);
-        let Some(px) = lineflow_capture::synth::truth::sees(syn.world(), cam, pose, &p) else { continue };
+        let Some(px) = lineflow_capture::synth::truth::sees(syn.world(), cam, pose, &p) else {
+            continue;
+        };
         let q = [px[0].round() as u16, px[1].round() as u16];
         if out.last() != Some(&q) {
             out.push(q);
@@ -48,9 +50,15 @@ fn matched_points_lie_on_the_true_edges() {
     let candidates: Vec<(u64, _)> = syn.poses().iter().enumerate().map(|(k, p)| (k as u64, *p)).collect();
     let slaves = choose_slaves(&cam, (master as u64, &syn.poses()[master]), &candidates, &walls, 6, 0.3);
     assert_eq!(slaves.len(), 6, "{slaves:?}");
-    assert!(slaves.iter().all(|&s| s.abs_diff(master as u64) <= 4), "nearest neighbours: {slaves:?}");
+    assert!(
+        slaves.iter().all(|&s| s.abs_diff(master as u64) <= 4),
+        "nearest neighbours: {slaves:?}"
+    );
     let lut = DistortionLut::new(&cam);
-    let images: Vec<(u64, Vec<u8>)> = std::iter::once(master as u64).chain(slaves.iter().copied()).map(|f| (f, gray(&syn, f as usize))).collect();
+    let images: Vec<(u64, Vec<u8>)> = std::iter::once(master as u64)
+        .chain(slaves.iter().copied())
+        .map(|f| (f, gray(&syn, f as usize)))
+        .collect();
     let views: Vec<View> = images
         .iter()
         .map(|(f, g)| View {
@@ -82,7 +90,12 @@ fn matched_points_lie_on_the_true_edges() {
     let params = MatchParams::default();
     let t = std::time::Instant::now();
     let matches = match_master(master_view, slave_views, &walls, &segments, &params);
-    eprintln!("{} segments -> {} matched in {:.2} s", segments.len(), matches.len(), t.elapsed().as_secs_f64());
+    eprintln!(
+        "{} segments -> {} matched in {:.2} s",
+        segments.len(),
+        matches.len(),
+        t.elapsed().as_secs_f64()
+    );
 
     let gsd = cam.gsd_m(19.3);
     let mut d: Vec<f64> = Vec::new();
@@ -90,7 +103,8 @@ fn matched_points_lie_on_the_true_edges() {
     for s in &segments {
         let e = &edges[s.id as usize].edge;
         let (a, b) = (Vec3::from(e.a), Vec3::from(e.b));
-        let is_h = ((b - a).z / (b - a).norm()).abs() < 0.17 && (s.end_px[0] - s.start_px[0]).hypot(s.end_px[1] - s.start_px[1]) >= params.min_length_px;
+        let is_h = ((b - a).z / (b - a).norm()).abs() < 0.17
+            && (s.end_px[0] - s.start_px[0]).hypot(s.end_px[1] - s.start_px[1]) >= params.min_length_px;
         horizontal += is_h as usize;
         if let Some(m) = matches.iter().find(|m| m.segment_id == s.id) {
             let ds: Vec<f64> = m.points.iter().map(|p| distance_to_line(&p.xyz, &a, &b)).collect();
@@ -112,5 +126,8 @@ fn matched_points_lie_on_the_true_edges() {
     // window opening; the line fit's outlier rejection takes it from here.
     assert!(median < 2.0 * gsd, "median {median}");
     assert!(within > 0.5, "within 2 GSD {within}");
-    assert!(horizontal_matched * 10 >= horizontal * 8, "horizontal {horizontal_matched}/{horizontal}");
+    assert!(
+        horizontal_matched * 10 >= horizontal * 8,
+        "horizontal {horizontal_matched}/{horizontal}"
+    );
 }

@@ -47,6 +47,9 @@ fn pose_elements(block: &Block) -> Vec<Pose> {
             if block.finished {
                 flags |= Pose::FINAL;
             }
+            if block.georeferenced {
+                flags |= Pose::GEOREFERENCED;
+            }
             let mut p = Pose::from_exterior(frame, state.revision, flags, pose);
             if let Some((c, a)) = state.sigmas {
                 p.sigma_center_m = c;

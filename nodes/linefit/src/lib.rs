@@ -1,0 +1,98 @@
+//! The linefit stage: a 3-D segment per matched point group ([`fit`]), and the fragments of one edge merged across
+//! masters ([`merge`]).
+#![warn(missing_docs)]
+
+pub mod fit;
+pub mod merge;
+
+use lineflow_photogrammetry::Vec3;
+use serde::Deserialize;
+
+pub use fit::{fit_thesis, fit_tls, Fitted, Method};
+pub use merge::{merge, Fragment, MergeRule, Merged};
+
+/// Parameters of the `linefit` node.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct FitParams {
+    /// Inlier distance from the line, metres (also the thesis method's smallest outlier limit).
+    pub inlier_m: f64,
+    /// Two-point hypotheses of the robust fit.
+    pub iterations: usize,
+    /// Fewest inliers of a line.
+    pub min_points: usize,
+    /// Smallest share of a group's points that must be inliers.
+    pub min_inlier_share: f64,
+    /// Shortest line kept, metres.
+    pub min_length_m: f64,
+    /// Fragments within this angle, degrees…
+    pub merge_angle_deg: f64,
+    /// …whose endpoints lie this close to each other's line, metres…
+    pub merge_distance_m: f64,
+    /// …and that overlap or leave at most this gap, metres, are one edge.
+    pub merge_gap_m: f64,
+}
+
+impl Default for FitParams {
+    fn default() -> Self {
+        FitParams {
+            inlier_m: 0.03,
+            iterations: 200,
+            min_points: 5,
+            min_inlier_share: 0.5,
+            min_length_m: 0.1,
+            merge_angle_deg: 2.0,
+            merge_distance_m: 0.03,
+            merge_gap_m: 0.05,
+        }
+    }
+}
+
+impl FitParams {
+    /// Checks the ranges; the message names the parameter.
+    pub fn validate(&self) -> Result<(), String> {
+        if !(self.inlier_m > 0.0 && self.merge_distance_m >= 0.0 && self.merge_gap_m >= 0.0 && self.min_length_m >= 0.0) {
+            return Err("inlier_m must be > 0; merge_distance_m, merge_gap_m and min_length_m >= 0".into());
+        }
+        if !(0.0..=1.0).contains(&self.min_inlier_share) {
+            return Err(format!("min_inlier_share must be in [0, 1] (got {})", self.min_inlier_share));
+        }
+        if !(0.0..90.0).contains(&self.merge_angle_deg) {
+            return Err(format!("merge_angle_deg must be in [0, 90) (got {})", self.merge_angle_deg));
+        }
+        if self.min_points < 2 || self.iterations == 0 {
+            return Err("min_points must be >= 2 and iterations >= 1".into());
+        }
+        Ok(())
+    }
+
+    /// The merge rule these parameters describe.
+    pub fn rule(&self) -> MergeRule {
+        MergeRule {
+            angle_deg: self.merge_angle_deg,
+            distance_m: self.merge_distance_m,
+            gap_m: self.merge_gap_m,
+        }
+    }
+}
+
+/// The fragment of one point group, when its fit passes the support tests.
+pub fn fit_group(method: Method, points: &[Vec3], master: u64, segment: u32, n_views: u32, p: &FitParams) -> Option<Fragment> {
+    if points.len() < p.min_points {
+        return None;
+    }
+    let f = match method {
+        Method::Tls => fit_tls(points, p.inlier_m, p.iterations)?,
+        Method::Thesis => fit_thesis(points, p.inlier_m)?,
+    };
+    let enough = f.inliers.len() >= p.min_points && f.inliers.len() as f64 >= p.min_inlier_share * points.len() as f64;
+    (enough && f.length() >= p.min_length_m).then(|| Fragment {
+        master,
+        segment,
+        start: f.start,
+        end: f.end,
+        points: f.inliers.iter().map(|&i| points[i]).collect(),
+        n_views,
+        rms_m: f.rms_m,
+    })
+}

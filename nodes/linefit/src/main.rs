@@ -1,0 +1,112 @@
+//! `lineflow-linefit`: the linefit stage. Fits a 3-D segment to each matched point group (`impl = "tls"`, robust
+//! total least squares, or `impl = "thesis"`, the thesis's RANSAC with the principal piercing plane), merges the
+//! fragments of one edge across masters, publishes the merged set after every master, and at end-of-stream writes
+//! `lines3d.csv` and `lines3d.ply`. A master published again (final poses) replaces its earlier groups.
+use std::collections::BTreeMap;
+
+use anyhow::{bail, Context, Result};
+use lineflow_formats::{write_lines3d, write_lines_ply, Line3Row};
+use lineflow_linefit::{fit_group, merge, FitParams, Fragment, Merged, Method};
+use lineflow_messages::{kinds, parts, Line3, Lines3DHeader, Point3, PointGroup, Stamp, StampFlags};
+use lineflow_photogrammetry::Vec3;
+use lineflow_runtime::{Flow, NodeContext, Output};
+
+fn main() -> std::process::ExitCode {
+    lineflow_runtime::run_node(body)
+}
+
+fn elements(lines: &[Merged]) -> Vec<Line3> {
+    lines
+        .iter()
+        .enumerate()
+        .map(|(k, l)| Line3 {
+            id: k as u64 + 1,
+            start_m: l.start.into(),
+            end_m: l.end.into(),
+            n_points: l.n_points,
+            n_images: l.n_images,
+            rms_m: l.rms_m,
+        })
+        .collect()
+}
+
+fn publish(output: &Output<kinds::Lines3D>, stamp: Stamp, lines: &[Merged]) -> Result<()> {
+    output.publish(Lines3DHeader { stamp }, &elements(lines))
+}
+
+fn body() -> Result<()> {
+    let ctx = NodeContext::from_env()?;
+    let method = match ctx.implementation("tls") {
+        "tls" => Method::Tls,
+        "thesis" => Method::Thesis,
+        other => bail!("node '{}': unknown linefit impl '{other}' (available: tls, thesis)", ctx.name()),
+    };
+    let params: FitParams = ctx.params()?;
+    if let Err(e) = params.validate() {
+        bail!("node '{}': {e}", ctx.name());
+    }
+    let input = ctx.input::<kinds::Points3D>("points3d")?;
+    let output = ctx.output::<kinds::Lines3D>("lines3d")?;
+    ctx.connect()?;
+
+    let mut fragments: BTreeMap<u64, Vec<Fragment>> = BTreeMap::new();
+    let mut merged: Vec<Merged> = Vec::new();
+    let mut last = Stamp::default();
+    ctx.run(|| {
+        let mut changed = false;
+        while let Some(m) = input.receive()? {
+            let h = *m.user_header();
+            let (groups, points) = parts::split::<PointGroup, Point3>(m.payload(), h.n_groups as usize, h.n_points as usize)
+                .map_err(|e| anyhow::anyhow!("points3d of frame {}: {e}", h.stamp.frame))?;
+            let master = h.stamp.frame;
+            let fitted: Vec<Fragment> = groups
+                .iter()
+                .filter_map(|g| {
+                    let pts: Vec<Vec3> = points
+                        .get(g.start as usize..(g.start + g.len) as usize)?
+                        .iter()
+                        .map(|p| Vec3::from(p.xyz))
+                        .collect();
+                    fit_group(method, &pts, master, g.segment_id, g.n_views, &params)
+                })
+                .collect();
+            tracing::debug!(master, groups = groups.len(), lines = fitted.len(), "fitted");
+            fragments.insert(master, fitted);
+            last = h.stamp;
+            changed = true;
+        }
+        if changed {
+            let all: Vec<Fragment> = fragments.values().flatten().cloned().collect();
+            merged = merge(&all, &params.rule());
+            publish(&output, last, &merged)?;
+        }
+        Ok(if input.is_ended() { Flow::Stop } else { Flow::Continue })
+    })?;
+    last.flags |= StampFlags::FINAL;
+    publish(&output, last, &merged)?;
+    output.end_of_stream()?;
+    let rows: Vec<Line3Row> = elements(&merged)
+        .iter()
+        .map(|l| Line3Row {
+            id: format!("L{}", l.id),
+            start: Vec3::from(l.start_m),
+            end: Vec3::from(l.end_m),
+            n_points: Some(l.n_points),
+            n_images: Some(l.n_images),
+            rms_m: Some(l.rms_m),
+        })
+        .collect();
+    let dir = ctx.out_dir();
+    let (csv, ply) = (dir.join("lines3d.csv"), dir.join("lines3d.ply"));
+    write_lines3d(&csv, &rows).with_context(|| format!("writing {}", csv.display()))?;
+    write_lines_ply(&ply, &rows).with_context(|| format!("writing {}", ply.display()))?;
+    let n_fragments: usize = fragments.values().map(Vec::len).sum();
+    tracing::info!(
+        "{} 3-D lines from {n_fragments} fragments of {} masters -> {}",
+        rows.len(),
+        fragments.len(),
+        csv.display()
+    );
+    ctx.finish();
+    Ok(())
+}

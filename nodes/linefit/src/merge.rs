@@ -1,0 +1,218 @@
+//! Fragments of one 3-D edge, seen from different masters (or traced as pieces in one), merged into one segment.
+use std::collections::HashMap;
+
+use lineflow_photogrammetry::Vec3;
+
+use crate::fit::principal_axis;
+
+/// A fitted line of one master's segment.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Fragment {
+    /// Master frame.
+    pub master: u64,
+    /// Segment id in the master.
+    pub segment: u32,
+    /// Endpoints.
+    pub start: Vec3,
+    /// Second endpoint.
+    pub end: Vec3,
+    /// The inlier points.
+    pub points: Vec<Vec3>,
+    /// Images that took part in matching it.
+    pub n_views: u32,
+    /// RMS of its inliers, metres.
+    pub rms_m: f64,
+}
+
+/// A merged 3-D segment.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Merged {
+    /// First endpoint.
+    pub start: Vec3,
+    /// Second endpoint.
+    pub end: Vec3,
+    /// Supporting points.
+    pub n_points: u32,
+    /// Images: the larger of the distinct masters and the views of its best-supported fragment.
+    pub n_images: u32,
+    /// RMS distance of all supporting points from the merged line, metres.
+    pub rms_m: f64,
+    /// The fragments, as (master, segment).
+    pub fragments: Vec<(u64, u32)>,
+}
+
+/// When two fragments are one edge.
+#[derive(Debug, Clone, Copy)]
+pub struct MergeRule {
+    /// Largest angle, degrees.
+    pub angle_deg: f64,
+    /// Largest distance of either fragment's endpoints from the other's line, metres.
+    pub distance_m: f64,
+    /// Largest gap between them along the line, metres.
+    pub gap_m: f64,
+}
+
+fn line_distance(p: &Vec3, a: &Vec3, dir: &Vec3) -> f64 {
+    let v = p - a;
+    (v - dir * v.dot(dir)).norm()
+}
+
+/// Whether two fragments belong to one edge under `rule`.
+fn same_edge(f: &Fragment, g: &Fragment, rule: &MergeRule) -> bool {
+    let (df, dg) = ((f.end - f.start).normalize(), (g.end - g.start).normalize());
+    if df.dot(&dg).abs() < rule.angle_deg.to_radians().cos() {
+        return false;
+    }
+    let close = |a: &Fragment, b: &Fragment, db: &Vec3| {
+        line_distance(&a.start, &b.start, db) <= rule.distance_m && line_distance(&a.end, &b.start, db) <= rule.distance_m
+    };
+    if !(close(f, g, &dg) && close(g, f, &df)) {
+        return false;
+    }
+    // Intervals along f's direction: overlapping or within the gap.
+    let t = |p: &Vec3| (p - f.start).dot(&df);
+    let (g0, g1) = (t(&g.start).min(t(&g.end)), t(&g.start).max(t(&g.end)));
+    let (f0, f1) = (0.0, t(&f.end));
+    g0 <= f1 + rule.gap_m && f0 <= g1 + rule.gap_m
+}
+
+fn find(parent: &mut [usize], mut i: usize) -> usize {
+    while parent[i] != i {
+        parent[i] = parent[parent[i]];
+        i = parent[i];
+    }
+    i
+}
+
+/// Merges fragments that are one edge (transitively), each group refitted by its principal axis over all its
+/// points, endpoints at the extreme projections. Output in the order of each group's first fragment.
+pub fn merge(fragments: &[Fragment], rule: &MergeRule) -> Vec<Merged> {
+    let n = fragments.len();
+    let mut parent: Vec<usize> = (0..n).collect();
+    // Candidate pairs share a cell of a coarse grid over samples along each fragment.
+    let cell = (rule.distance_m + rule.gap_m).max(0.25);
+    let key = |p: &Vec3| {
+        [
+            (p.x / cell).floor() as i64,
+            (p.y / cell).floor() as i64,
+            (p.z / cell).floor() as i64,
+        ]
+    };
+    let mut grid: HashMap<[i64; 3], Vec<usize>> = HashMap::new();
+    for (i, f) in fragments.iter().enumerate() {
+        let steps = ((f.end - f.start).norm() / cell).ceil() as usize + 1;
+        let mut keys: Vec<[i64; 3]> = (0..=steps)
+            .map(|k| key(&(f.start + (f.end - f.start) * (k as f64 / steps as f64))))
+            .collect();
+        keys.sort_unstable();
+        keys.dedup();
+        for k in keys {
+            grid.entry(k).or_default().push(i);
+        }
+    }
+    let mut cells: Vec<(&[i64; 3], &Vec<usize>)> = grid.iter().collect();
+    cells.sort_unstable_by_key(|(k, _)| **k);
+    for (k, members) in cells {
+        let mut near: Vec<usize> = Vec::new();
+        for dx in -1..=1 {
+            for dy in -1..=1 {
+                for dz in -1..=1 {
+                    if let Some(m) = grid.get(&[k[0] + dx, k[1] + dy, k[2] + dz]) {
+                        near.extend(m);
+                    }
+                }
+            }
+        }
+        near.sort_unstable();
+        near.dedup();
+        for &i in members {
+            for &j in near.iter().filter(|&&j| j > i) {
+                let (ri, rj) = (find(&mut parent, i), find(&mut parent, j));
+                if ri != rj && same_edge(&fragments[i], &fragments[j], rule) {
+                    parent[ri.max(rj)] = ri.min(rj);
+                }
+            }
+        }
+    }
+    let mut groups: Vec<Vec<usize>> = Vec::new();
+    let mut index: HashMap<usize, usize> = HashMap::new();
+    for i in 0..n {
+        let r = find(&mut parent, i);
+        let g = *index.entry(r).or_insert_with(|| {
+            groups.push(Vec::new());
+            groups.len() - 1
+        });
+        groups[g].push(i);
+    }
+    groups.iter().filter_map(|g| merged(fragments, g)).collect()
+}
+
+fn merged(fragments: &[Fragment], group: &[usize]) -> Option<Merged> {
+    let points: Vec<Vec3> = group.iter().flat_map(|&i| fragments[i].points.iter().copied()).collect();
+    let (origin, mut dir) = principal_axis(&points)?;
+    let first = &fragments[group[0]];
+    if dir.dot(&(first.end - first.start)) < 0.0 {
+        dir = -dir;
+    }
+    let (lo, hi) = points
+        .iter()
+        .map(|p| (p - origin).dot(&dir))
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), t| (l.min(t), h.max(t)));
+    let rms = (points.iter().map(|p| line_distance(p, &origin, &dir).powi(2)).sum::<f64>() / points.len() as f64).sqrt();
+    let mut masters: Vec<u64> = group.iter().map(|&i| fragments[i].master).collect();
+    masters.sort_unstable();
+    masters.dedup();
+    let best_views = group.iter().map(|&i| fragments[i].n_views).max().unwrap_or(0);
+    Some(Merged {
+        start: origin + dir * lo,
+        end: origin + dir * hi,
+        n_points: points.len() as u32,
+        n_images: best_views.max(masters.len() as u32),
+        rms_m: rms,
+        fragments: group.iter().map(|&i| (fragments[i].master, fragments[i].segment)).collect(),
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn fragment(master: u64, a: [f64; 3], b: [f64; 3]) -> Fragment {
+        let (a, b) = (Vec3::from(a), Vec3::from(b));
+        Fragment {
+            master,
+            segment: 0,
+            start: a,
+            end: b,
+            points: (0..=10).map(|k| a + (b - a) * (k as f64 / 10.0)).collect(),
+            n_views: 5,
+            rms_m: 0.0,
+        }
+    }
+
+    #[test]
+    fn overlapping_collinear_fragments_merge_and_others_stay() {
+        let rule = MergeRule {
+            angle_deg: 2.0,
+            distance_m: 0.02,
+            gap_m: 0.05,
+        };
+        let frags = [
+            fragment(1, [0.0, 0.0, 1.0], [1.0, 0.0, 1.0]),
+            fragment(2, [0.8, 0.005, 1.0], [2.0, 0.005, 1.0]),
+            // A gap of 3 cm: still the same edge.
+            fragment(3, [2.03, 0.0, 1.0], [2.5, 0.0, 1.0]),
+            // Parallel, 10 cm above: another edge.
+            fragment(4, [0.0, 0.0, 1.1], [1.0, 0.0, 1.1]),
+            // Crossing at right angles: another edge.
+            fragment(5, [0.5, 0.0, 0.5], [0.5, 0.0, 1.5]),
+        ];
+        let merged = merge(&frags, &rule);
+        assert_eq!(merged.len(), 3);
+        assert_eq!(merged[0].fragments, vec![(1, 0), (2, 0), (3, 0)]);
+        assert!((merged[0].start - Vec3::new(0.0, 0.0, 1.0)).norm() < 0.01);
+        assert!((merged[0].end - Vec3::new(2.5, 0.0, 1.0)).norm() < 0.01);
+        assert_eq!(merged[0].n_points, 33);
+        assert_eq!(merged[0].n_images, 5);
+    }
+}
