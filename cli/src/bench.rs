@@ -71,6 +71,18 @@ pub enum BenchCmd {
         #[arg(long, default_value_t = 2500)]
         points: usize,
     },
+    /// The linematch stage: one master with all its lines against six slaves, every window mode.
+    Linematch {
+        /// Preset.
+        #[arg(long, default_value = "d2x-strip")]
+        preset: String,
+        /// Image scale (1 = the preset's full size).
+        #[arg(long, default_value_t = 1.0)]
+        scale: f64,
+        /// Repetitions per measurement.
+        #[arg(long, default_value_t = 1)]
+        reps: usize,
+    },
     /// The recorder node: MB/s of raw 12 MP RGB frames written with nothing dropped, against the disk.
     Record {
         /// Frames.
@@ -305,6 +317,7 @@ pub fn bench(cmd: BenchCmd) -> Result<ExitCode> {
         BenchCmd::Render { preset, frames, scale } => crate::synth::bench_render(&preset, frames, scale),
         BenchCmd::Edges { preset, reps, high } => crate::bench_edges::bench_edges(&preset, reps, high),
         BenchCmd::Features { preset, reps, threshold } => crate::bench_features::bench_features(&preset, reps, threshold),
+        BenchCmd::Linematch { preset, scale, reps } => crate::bench_linematch::bench_linematch(&preset, scale, reps),
         BenchCmd::Bundle { cameras, points } => crate::bench_bundle::bench_bundle(cameras, points),
         BenchCmd::Record {
             frames,

@@ -4,6 +4,7 @@ mod bench;
 mod bench_bundle;
 mod bench_edges;
 mod bench_features;
+mod bench_linematch;
 mod bench_record;
 mod bench_util;
 mod doctor;

@@ -53,6 +53,8 @@ pub enum RunEnd {
 
 /// How often a waiting node wakes without input: to publish its status and pick up restarted publishers.
 pub const RUN_TICK: Duration = Duration::from_millis(100);
+/// Longest wait in [`NodeContext::finish`] for the subscribers to leave.
+pub const LINGER: Duration = Duration::from_secs(30);
 
 type Listener = iceoryx2::port::listener::Listener<ipc::Service>;
 
@@ -410,9 +412,20 @@ impl NodeContext {
         self.reporter.snapshot()
     }
 
-    /// Reports the final counters; call after the last end-of-stream is published.
+    /// Reports the final counters; call after the last end-of-stream is published. Then stays until the
+    /// subscribers of every output have left (at most [`LINGER`]): iceoryx2 drops the samples of a publisher that
+    /// exits before its subscribers took them, which would lose the last messages and the end-of-stream of a node
+    /// that finishes quickly.
     pub fn finish(&self) {
         self.reporter.finished();
+        if self.env.is_none() {
+            return;
+        }
+        let connects = self.connects.borrow();
+        let drained = crate::transport::wait_until(LINGER, || self.should_stop() || connects.iter().all(|c| c.drained()));
+        if !drained {
+            tracing::debug!("subscribers still connected after {LINGER:?}; exiting");
+        }
     }
 }
 

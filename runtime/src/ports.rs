@@ -22,6 +22,11 @@ pub(crate) trait Connect {
     fn connect(&self, timeout: Duration, restarted: bool) -> Result<()>;
     /// Picks up publishers that appeared since (a restarted upstream node).
     fn refresh(&self) {}
+    /// Whether nothing this port sent can still be lost by the process exiting: an output whose subscribers have
+    /// all gone (iceoryx2 discards the samples of a publisher that left before the subscriber took them).
+    fn drained(&self) -> bool {
+        true
+    }
 }
 
 /// A subscribed topic.
@@ -38,8 +43,11 @@ pub(crate) struct InputInner<M: Message> {
     slot: usize,
     reporter: Rc<Reporter>,
     ended: Cell<bool>,
-    /// Last (frame, revision) accepted, for duplicate detection.
+    /// Largest (frame, revision) accepted, for duplicate detection.
     last: Cell<Option<(u64, u32)>>,
+    /// Highest revision accepted per frame: an earlier frame republished with a higher revision (a result improved
+    /// later, e.g. after the end-of-stream adjustment) is new, not a duplicate.
+    revisions: RefCell<std::collections::BTreeMap<u64, u32>>,
     /// Frames up to this one were received by an earlier instance: a gap below it is not a miss.
     received_before: Option<u64>,
 }
@@ -71,6 +79,7 @@ impl<M: Message> Input<M> {
                 reporter,
                 ended: Cell::new(false),
                 last: Cell::new(last),
+                revisions: RefCell::new(std::collections::BTreeMap::new()),
                 received_before,
             })),
         })
@@ -113,8 +122,9 @@ impl<M: Message> Input<M> {
                 continue;
             }
             let key = (stamp.frame, stamp.revision);
+            let revised = inner.revisions.borrow().get(&stamp.frame).is_some_and(|&r| stamp.revision > r);
             if let Some(last) = inner.last.get() {
-                if key <= last {
+                if key <= last && !revised {
                     inner.reporter.duplicate();
                     continue;
                 }
@@ -128,7 +138,8 @@ impl<M: Message> Input<M> {
                     inner.reporter.missed(first_unseen, stamp.frame - 1);
                 }
             }
-            inner.last.set(Some(key));
+            inner.last.set(Some(inner.last.get().map_or(key, |l| l.max(key))));
+            inner.revisions.borrow_mut().insert(stamp.frame, stamp.revision);
             inner.reporter.received(inner.slot, stamp.frame);
             return Ok(Some(sample));
         }
@@ -277,6 +288,10 @@ impl<M: Message> Output<M> {
 }
 
 impl<M: Message> Connect for OutputInner<M> {
+    fn drained(&self) -> bool {
+        self.service.dynamic_config().number_of_subscribers() == 0
+    }
+
     fn connect(&self, timeout: Duration, restarted: bool) -> Result<()> {
         // After a restart the subscribers are long connected; at the first start, wait for every one of them so
         // that nothing a source sends is lost before they listen.

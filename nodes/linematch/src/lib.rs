@@ -129,6 +129,9 @@ pub struct MatchParams {
     /// Each point takes the front-most window peak within this much SNCC of the best (edges at depth steps belong
     /// to the nearer surface); a negative value takes the best SNCC over all modes, as the thesis does.
     pub front_margin: f64,
+    /// A line whose depth changes by less than this from end to end is taken as parallel to its wall and its
+    /// points share one depth, metres (0 keeps every point's own depth, as the thesis does).
+    pub parallel_snap_m: f64,
     /// Slaves per master (nearest by overlap).
     pub max_slaves: usize,
     /// A slave must see at least this share of the master's wall area.
@@ -155,6 +158,7 @@ impl Default for MatchParams {
             min_sncc: 0.6,
             max_ambiguity: 0.95,
             front_margin: -1.0,
+            parallel_snap_m: 0.03,
             max_slaves: 6,
             min_overlap: 0.2,
             min_slaves: 1,

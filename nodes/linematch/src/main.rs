@@ -37,10 +37,18 @@ struct State {
     /// Tie points (track → observations), for walls fitted when there is no site model.
     ties: BTreeMap<u64, Vec<(u64, [f64; 2])>>,
     fitted: Option<Vec<WallPlane>>,
+    /// The site topic said there is no site model.
+    site_absent: bool,
     /// Matched masters, kept for re-estimation with the final poses.
     matched: BTreeMap<u64, Vec<SegmentMatch>>,
     /// Masters that cannot be matched (reported once).
     skipped: BTreeMap<u64, String>,
+    /// Pose messages not yet taken, in arrival order.
+    snapshots: std::collections::VecDeque<(Stamp, BTreeMap<u64, PoseState>)>,
+    /// Frame of the snapshot in use.
+    snapshot_frame: u64,
+    /// Highest frame whose tie points have arrived.
+    ties_through: Option<u64>,
     final_poses: bool,
     revision: u32,
 }
@@ -51,14 +59,8 @@ fn settled(s: &PoseState) -> bool {
 
 impl State {
     /// Walls to search: the site model's, else planes fitted to the intersected tie points.
-    fn walls(&mut self) -> Option<Vec<WallPlane>> {
-        if let Some(w) = &self.site {
-            return Some(w.clone());
-        }
-        if self.fitted.is_none() {
-            self.fitted = self.fit_walls();
-        }
-        self.fitted.clone()
+    fn walls(&self) -> Option<Vec<WallPlane>> {
+        self.site.clone().or_else(|| self.fitted.clone())
     }
 
     /// Up to four planes, each fitted by RANSAC to the tie points the previous ones left.
@@ -70,6 +72,7 @@ impl State {
             .filter_map(|obs| {
                 let rays: Vec<(Vec3, Vec3)> = obs
                     .iter()
+                    .filter(|(f, _)| *f <= self.snapshot_frame)
                     .filter_map(|(f, px)| {
                         self.poses
                             .get(f)
@@ -133,12 +136,19 @@ fn body() -> Result<()> {
                     .iter()
                     .filter_map(|w| WallPlane::from_corners(w.name(), &w.corners().iter().map(|&c| Vec3::from(c)).collect::<Vec<_>>()))
                     .collect();
-                tracing::info!("site model: {} walls", walls.len());
-                st.site = Some(walls);
+                if walls.is_empty() {
+                    tracing::info!("no site model: walls will be fitted to the tie points");
+                    st.site = None;
+                    st.site_absent = true;
+                } else {
+                    tracing::info!("site model: {} walls", walls.len());
+                    st.site = Some(walls);
+                }
             }
         }
         if let Some(input) = &ties_in {
             while let Some(m) = input.receive()? {
+                st.ties_through = st.ties_through.max(Some(m.user_header().stamp.frame));
                 for t in m.payload() {
                     st.ties.entry(t.track).or_default().push((t.frame, [t.col, t.row]));
                 }
@@ -162,38 +172,58 @@ fn body() -> Result<()> {
             );
         }
         while let Some(m) = poses_in.receive()? {
-            for p in m.payload() {
-                st.poses.insert(
-                    p.frame,
-                    PoseState {
-                        pose: p.exterior(),
-                        flags: p.flags,
-                    },
-                );
-            }
-            if m.user_header().stamp.flags & StampFlags::FINAL != 0 {
-                st.final_poses = true;
-            }
+            let snapshot = m
+                .payload()
+                .iter()
+                .map(|p| {
+                    (
+                        p.frame,
+                        PoseState {
+                            pose: p.exterior(),
+                            flags: p.flags,
+                        },
+                    )
+                })
+                .collect();
+            st.snapshots.push_back((m.user_header().stamp, snapshot));
         }
-        let site_known = site_in.as_ref().is_none_or(|i| st.site.is_some() || i.is_ended());
-        let upstream_done = images.is_ended() && lines_in.is_ended();
-        let poses_done = poses_in.is_ended() || st.final_poses;
-        if poses_done && upstream_done && !st.final_poses {
-            st.final_poses = true;
-        }
+        let site_known = site_in.as_ref().is_none_or(|i| st.site.is_some() || st.site_absent || i.is_ended());
         if st.camera.is_none() || !site_known {
-            return Ok(if upstream_done && poses_in.is_ended() {
+            return Ok(if images.is_ended() && lines_in.is_ended() && poses_in.is_ended() {
                 Flow::Stop
             } else {
                 Flow::Continue
             });
         }
-        // At most one master per wake, so that inputs keep being drained while the matching runs.
-        if let Some(master) = next_master(&mut st, &params, poses_done && upstream_done) {
-            match_and_publish(&mut st, &params, master, &output)?;
-            return Ok(Flow::Continue);
+        let ended = Ended {
+            images: images.is_ended(),
+            lines: lines_in.is_ended(),
+            ties: ties_in.as_ref().is_none_or(|i| i.is_ended()),
+        };
+        // Pose snapshots are taken one by one, in order, and every master that becomes ready under one is matched
+        // with exactly that snapshot, waiting for its images and lines if need be: the result does not depend on
+        // how messages happened to interleave. At most one master per wake, so that inputs keep being drained.
+        loop {
+            let at_end = poses_in.is_ended() && st.snapshots.is_empty();
+            match step(&mut st, &params, &ended, at_end) {
+                Step::Match(master, slaves) => {
+                    match_and_publish(&mut st, &params, (master, slaves), &output)?;
+                    return Ok(Flow::Continue);
+                }
+                Step::Wait => return Ok(Flow::Continue),
+                Step::NextSnapshot => match st.snapshots.pop_front() {
+                    Some((stamp, snapshot)) => {
+                        st.poses = snapshot;
+                        st.snapshot_frame = stamp.frame;
+                        if stamp.flags & StampFlags::FINAL != 0 {
+                            st.final_poses = true;
+                        }
+                    }
+                    None => return Ok(if poses_in.is_ended() { Flow::Stop } else { Flow::Continue }),
+                },
+                Step::Done => return Ok(Flow::Stop),
+            }
         }
-        Ok(if poses_done && upstream_done { Flow::Stop } else { Flow::Continue })
     })?;
     if st.final_poses {
         reestimate_and_publish(&mut st, &output)?;
@@ -209,45 +239,84 @@ fn body() -> Result<()> {
     Ok(())
 }
 
-/// The next master whose slaves are settled: enough of them, or all there will be (`at_end`).
-fn next_master(st: &mut State, params: &MatchParams, at_end: bool) -> Option<(u64, Vec<u64>)> {
-    let walls = st.walls();
-    let (camera, _) = st.camera.as_ref()?;
+/// Which inputs have ended.
+struct Ended {
+    images: bool,
+    lines: bool,
+    ties: bool,
+}
+
+/// What the scheduler does next.
+enum Step {
+    /// Match this master against these slaves.
+    Match(u64, Vec<u64>),
+    /// A ready master waits for its images or lines (or the tie points for a wall fit).
+    Wait,
+    /// Nothing more is ready under the current snapshot.
+    NextSnapshot,
+    /// The last snapshot has been used up.
+    Done,
+}
+
+/// The next master ready under the current pose snapshot: oriented, settled and (with a site model) georeferenced,
+/// with `max_slaves` such frames overlapping it — or, after the last snapshot (`at_end`), with any.
+fn step(st: &mut State, params: &MatchParams, ended: &Ended, at_end: bool) -> Step {
+    let Some((camera, _)) = st.camera.as_ref() else { return Step::Wait };
     let georeferenced_needed = st.site.is_some();
     let candidates: Vec<(u64, Pose)> = st
         .poses
         .iter()
-        .filter(|(f, s)| settled(s) && st.grays.contains_key(f))
-        .filter(|(_, s)| !georeferenced_needed || s.flags & PoseMsg::GEOREFERENCED != 0)
+        .filter(|(_, s)| settled(s) && (!georeferenced_needed || s.flags & PoseMsg::GEOREFERENCED != 0))
         .map(|(&f, s)| (f, s.pose))
         .collect();
-    let frames: Vec<u64> = st.lines.keys().copied().collect();
-    for frame in frames {
+    if candidates.is_empty() {
+        return if at_end { Step::Done } else { Step::NextSnapshot };
+    }
+    if st.site.is_none() && st.fitted.is_none() {
+        // Walls from the tie points of the frames this snapshot covers, once they have all arrived.
+        if !ended.ties && st.ties_through.is_none_or(|f| f < st.snapshot_frame) {
+            return Step::Wait;
+        }
+        st.fitted = st.fit_walls();
+        if st.fitted.is_none() {
+            tracing::warn!("no site model and no wall plane in the tie points yet");
+        }
+    }
+    let Some(walls) = st.walls() else {
+        return if at_end { Step::Done } else { Step::NextSnapshot };
+    };
+    let camera = *camera;
+    for &(frame, pose) in &candidates {
         if st.matched.contains_key(&frame) || st.skipped.contains_key(&frame) {
             continue;
         }
-        let Some(&(_, pose)) = candidates.iter().find(|(f, _)| *f == frame) else {
+        let slaves = choose_slaves(&camera, (frame, &pose), &candidates, &walls, params.max_slaves, params.min_overlap);
+        if slaves.len() < params.max_slaves && !(at_end && !slaves.is_empty()) {
             if at_end {
-                st.skipped.insert(frame, "no (georeferenced) pose".into());
+                st.skipped.insert(frame, "no neighbour overlaps it".into());
             }
             continue;
-        };
-        let Some(walls) = &walls else {
-            if at_end {
-                st.skipped
-                    .insert(frame, "no site model and too few tie points for a wall plane".into());
-            }
-            continue;
-        };
-        let slaves = choose_slaves(camera, (frame, &pose), &candidates, walls, params.max_slaves, params.min_overlap);
-        if slaves.len() >= params.max_slaves || (at_end && !slaves.is_empty()) {
-            return Some((frame, slaves));
         }
-        if at_end {
-            st.skipped.insert(frame, "no neighbour overlaps it".into());
+        let missing_image = std::iter::once(frame)
+            .chain(slaves.iter().copied())
+            .find(|f| !st.grays.contains_key(f));
+        let missing_lines = !st.lines.contains_key(&frame);
+        match (missing_image, missing_lines) {
+            (None, false) => return Step::Match(frame, slaves),
+            (Some(f), _) if ended.images => {
+                st.skipped.insert(frame, format!("the image of frame {f} never arrived"));
+            }
+            (_, true) if ended.lines => {
+                st.skipped.insert(frame, "its 2-D lines never arrived".into());
+            }
+            _ => return Step::Wait,
         }
     }
-    None
+    if at_end {
+        Step::Done
+    } else {
+        Step::NextSnapshot
+    }
 }
 
 fn match_and_publish(
@@ -313,7 +382,7 @@ fn reestimate_and_publish(st: &mut State, output: &Output<kinds::Points3D>) -> R
         for m in matches.iter_mut() {
             let Some(wall) = walls.get(m.wall) else { continue };
             for p in &mut m.points {
-                let ray = s.pose.ray_of_pixel(camera, p.pixel);
+                let ray = s.pose.ray_of_ideal(camera, p.ideal);
                 if let Some(t) = wall.ray_parameter(&s.pose.center, &ray, p.depth_m) {
                     p.xyz = s.pose.center + t * ray;
                 }

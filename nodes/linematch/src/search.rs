@@ -26,8 +26,10 @@ pub struct SegmentInput<'a> {
 /// A matched chain pixel.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct MatchedPoint {
-    /// The master pixel (col, row).
+    /// The master chain pixel (col, row).
     pub pixel: [f64; 2],
+    /// Its foot on the segment's straight line, in ideal photo coordinates (mm): the point lies on this ray.
+    pub ideal: [f64; 2],
     /// Depth in front of the wall, metres.
     pub depth_m: f64,
     /// The master-ray point at that depth (eq. 15).
@@ -134,8 +136,21 @@ pub fn match_segment(master: &View, slaves: &[View], walls: &[WallPlane], seg: &
         .take_while(|&i| i < seg.chain.len())
         .map(|i| [seg.chain[i][0] as f64, seg.chain[i][1] as f64])
         .collect();
+    // Chain pixels scatter by half a pixel about the line; their feet on the fitted line put every ray in the
+    // line's interpretation plane.
+    let (ia, ib) = (cam.pixel_to_ideal(seg.start_px), cam.pixel_to_ideal(seg.end_px));
+    let (dx, dy) = (ib[0] - ia[0], ib[1] - ia[1]);
+    let len2 = (dx * dx + dy * dy).max(1e-18);
+    let ideals: Vec<[f64; 2]> = pixels
+        .iter()
+        .map(|&px| {
+            let q = cam.pixel_to_ideal(px);
+            let t = ((q[0] - ia[0]) * dx + (q[1] - ia[1]) * dy) / len2;
+            [ia[0] + t * dx, ia[1] + t * dy]
+        })
+        .collect();
     let line = Line {
-        rays: pixels.iter().map(|&px| ray(px)).collect(),
+        rays: ideals.iter().map(|&q| master.pose.ray_of_ideal(cam, q)).collect(),
         across: wall.normal.cross(&along),
         ..probe
     };
@@ -220,18 +235,59 @@ pub fn match_segment(master: &View, slaves: &[View], walls: &[WallPlane], seg: &
         let xyz = line.at(&line.rays[k], d);
         points.push(MatchedPoint {
             pixel: pixels[k],
+            ideal: ideals[k],
             depth_m: d,
             xyz,
             sncc: pk.value,
             mode,
         });
     }
+    let points = snap_parallel(points, &line, depth_step, p.parallel_snap_m);
     Some(SegmentMatch {
         segment_id: seg.id,
         wall: wall_index,
         n_views: views.len() as u32,
         points,
     })
+}
+
+/// A line whose depth changes by less than `tolerance` from end to end (robust straight-line fit of depth against
+/// position) is parallel to its wall, as most façade edges are: its points move to their common depth, so that the
+/// line's direction comes from the 2-D line (sub-pixel) instead of from noisy per-point depths, and points more
+/// than three depth steps off are dropped. Receding lines (reveals) keep their per-point depths.
+fn snap_parallel(points: Vec<MatchedPoint>, line: &Line, depth_step: f64, tolerance: f64) -> Vec<MatchedPoint> {
+    if tolerance <= 0.0 || points.len() < 3 {
+        return points;
+    }
+    let median = |mut v: Vec<f64>| {
+        v.sort_by(f64::total_cmp);
+        v[v.len() / 2]
+    };
+    let mid = median(points.iter().map(|q| q.depth_m).collect());
+    let near: Vec<&MatchedPoint> = points.iter().filter(|q| (q.depth_m - mid).abs() <= 3.0 * depth_step).collect();
+    if near.len() < 3 {
+        return points;
+    }
+    // Position along the line: distance of the point's foot from the first one, in metres.
+    let t: Vec<f64> = near.iter().map(|q| (q.xyz - near[0].xyz).dot(&line.along)).collect();
+    let d: Vec<f64> = near.iter().map(|q| q.depth_m).collect();
+    let n = near.len() as f64;
+    let (mt, md) = (t.iter().sum::<f64>() / n, d.iter().sum::<f64>() / n);
+    let stt: f64 = t.iter().map(|x| (x - mt).powi(2)).sum();
+    let std: f64 = t.iter().zip(&d).map(|(x, y)| (x - mt) * (y - md)).sum();
+    let span = t.iter().fold(f64::NEG_INFINITY, |a, &b| a.max(b)) - t.iter().fold(f64::INFINITY, |a, &b| a.min(b));
+    let slope = if stt > 0.0 { std / stt } else { 0.0 };
+    if (slope * span).abs() > tolerance {
+        return points;
+    }
+    let depth = median(d);
+    near.into_iter()
+        .map(|q| MatchedPoint {
+            depth_m: depth,
+            xyz: line.at(&(q.xyz - line.center).normalize(), depth),
+            ..*q
+        })
+        .collect()
 }
 
 /// Single-point mode `m` of point `k` over depths.

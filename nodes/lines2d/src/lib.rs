@@ -320,3 +320,26 @@ fn merge_collinear(mut fragments: Vec<Fragment>, corrected: &[[f64; 2]], p: &Tra
     }
     fragments.into_iter().zip(alive).filter(|(_, a)| *a).map(|(f, _)| f).collect()
 }
+
+/// A traced segment in measured pixel coordinates: endpoints and chain.
+pub type MeasuredSegment = ([f64; 2], [f64; 2], Vec<[u16; 2]>);
+
+/// Traces edge pixels of an image from `camera` in corrected coordinates (so that long lines near the corners stay
+/// whole) and returns the segments with their endpoints back in measured pixels; segments whose endpoints do not
+/// map back (beyond the correction model's fold) are dropped.
+pub fn trace_measured(camera: &lineflow_photogrammetry::Camera, pixels: &[[u16; 2]], p: &TraceParams) -> Vec<MeasuredSegment> {
+    let ps = camera.pixel_size_mm;
+    let corrected: Vec<[f64; 2]> = pixels
+        .iter()
+        .map(|q| {
+            let i = camera.pixel_to_ideal([q[0] as f64, q[1] as f64]);
+            [i[0] / ps, i[1] / ps]
+        })
+        .collect();
+    let traced = trace(camera.width as usize, camera.height as usize, pixels, &corrected, p);
+    let measured = |c: [f64; 2]| camera.ideal_to_pixel([c[0] * ps, c[1] * ps]);
+    traced
+        .into_iter()
+        .filter_map(|t| Some((measured(t.start)?, measured(t.end)?, t.chain)))
+        .collect()
+}

@@ -3,7 +3,7 @@
 //! `lines2d.csv` into the run's output folder.
 use anyhow::{bail, Context, Result};
 use lineflow_formats::{write_lines2d, Line2Row};
-use lineflow_lines2d::{trace, TraceParams};
+use lineflow_lines2d::TraceParams;
 use lineflow_messages::{kinds, parts, EdgeMapHeader, EdgePixel, Lines2DHeader, Segment2};
 use lineflow_photogrammetry::Camera;
 use lineflow_runtime::{Flow, NodeContext};
@@ -98,23 +98,9 @@ fn segments(cam: &Camera, h: &EdgeMapHeader, px: &[EdgePixel], p: &TraceParams) 
             cam.height
         );
     }
-    let ps = cam.pixel_size_mm;
     let pixels: Vec<[u16; 2]> = px.iter().map(|e| [e.col, e.row]).collect();
-    let corrected: Vec<[f64; 2]> = pixels
-        .iter()
-        .map(|q| {
-            let i = cam.pixel_to_ideal([q[0] as f64, q[1] as f64]);
-            [i[0] / ps, i[1] / ps]
-        })
-        .collect();
-    let traced = trace(h.width as usize, h.height as usize, &pixels, &corrected, p);
-    let measured = |c: [f64; 2]| cam.ideal_to_pixel([c[0] * ps, c[1] * ps]);
-    Ok(assemble(
-        h.name(),
-        traced
-            .iter()
-            .filter_map(|t| Some((measured(t.start)?, measured(t.end)?, t.chain.as_slice()))),
-    ))
+    let traced = lineflow_lines2d::trace_measured(cam, &pixels, p);
+    Ok(assemble(h.name(), traced.iter().map(|(a, b, chain)| (*a, *b, chain.as_slice()))))
 }
 
 fn main() -> std::process::ExitCode {

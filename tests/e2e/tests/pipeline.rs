@@ -480,10 +480,10 @@ to = []
 }
 
 #[test]
-fn the_demo_graph_orients_both_strips_within_a_ground_sample_distance_at_the_check_points() {
+fn the_demo_graph_orients_both_strips_and_extracts_3d_lines_the_same_way_twice() {
     let sb = Sandbox::new();
     let demo = repo_file("launch/demo.toml");
-    let mut poses = Vec::new();
+    let (mut poses, mut lines) = (Vec::new(), Vec::new());
     for k in 0..2 {
         let out = sb.path().join(format!("out{k}"));
         let r = sb.run(&[
@@ -518,6 +518,26 @@ fn the_demo_graph_orients_both_strips_within_a_ground_sample_distance_at_the_che
         let report = std::fs::read_to_string(out.join("eval/report.md")).unwrap();
         assert!(report.contains("| 18 | 0 |"), "the live eval saw missing poses:\n{report}");
         poses.push(text);
+        let lines3d = std::fs::read_to_string(out.join("lines3d.csv")).expect("no lines3d.csv");
+        assert!(lines3d.starts_with("id,X1,Y1,Z1,X2,Y2,Z2,n_points,n_images,rms_m"), "{lines3d}");
+        assert!(out.join("lines3d.ply").is_file());
+        // The live eval's figures for the 3-D lines (thesis, A55 at full size: 53 % success, 13-28 cm endpoints).
+        let success = figure_after(&report, "### all edges", "success rate ");
+        let endpoint_mm = figure_after(&report, "| endpoint perpendicular distance (mm) |", "");
+        assert!(success > 50.0, "success rate {success} %:\n{report}");
+        assert!(endpoint_mm < 2.0 * gsd * 1e3, "endpoint distance {endpoint_mm} mm:\n{report}");
+        lines.push(lines3d);
     }
     assert_eq!(poses[0], poses[1], "two runs oriented differently");
+    assert!(lines[0] == lines[1], "two runs gave different 3-D lines");
+}
+
+/// The first number after `marker` (then `lead`) in `text`.
+fn figure_after(text: &str, marker: &str, lead: &str) -> f64 {
+    let rest = &text[text.find(marker).unwrap_or_else(|| panic!("no '{marker}' in:\n{text}")) + marker.len()..];
+    let rest = &rest[rest.find(lead).unwrap_or_else(|| panic!("no '{lead}' after '{marker}'")) + lead.len()..];
+    let number: String = rest.trim_start().chars().take_while(|c| c.is_ascii_digit() || *c == '.').collect();
+    number
+        .parse()
+        .unwrap_or_else(|_| panic!("no number after '{marker}' '{lead}': {}", &rest[..rest.len().min(40)]))
 }

@@ -1,0 +1,117 @@
+//! `lineflow bench linematch`: one full-size master with all its 2-D lines (Canny + line tracing, the shipped
+//! graph's path and defaults) matched against its six slaves with every window mode, on one thread and on every
+//! core; the reference, measured in the same run, is the thesis's fully automatic mode (the C window alone).
+use std::process::ExitCode;
+
+use anyhow::{bail, Result};
+use lineflow_capture::synth::Synthetic;
+use lineflow_linematch::{choose_slaves, match_master, DistortionLut, MatchParams, Mode, SegmentInput, View, WallPlane};
+use lineflow_lines2d::{trace_measured, TraceParams};
+use lineflow_messages::Encoding;
+use lineflow_photogrammetry::Vec3;
+
+use crate::bench_util::median_time;
+
+/// The target: one 12 MP master against six slaves in at most this many seconds on two cores.
+const TARGET_S: f64 = 2.0;
+
+pub fn bench_linematch(preset: &str, scale: f64, reps: usize) -> Result<ExitCode> {
+    let syn = Synthetic::new(preset, scale, 1)?;
+    let cam = *syn.camera();
+    let (w, h) = (cam.width as usize, cam.height as usize);
+    let walls: Vec<WallPlane> = syn
+        .approximate_walls()
+        .iter()
+        .filter_map(|(name, c)| WallPlane::from_corners(name, &c.iter().map(|&p| Vec3::from(p)).collect::<Vec<_>>()))
+        .collect();
+    let poses = syn.poses();
+    let master = poses.len() / 2;
+    let candidates: Vec<(u64, _)> = poses.iter().enumerate().map(|(k, p)| (k as u64, *p)).collect();
+    let p = MatchParams::default();
+    let slaves = choose_slaves(
+        &cam,
+        (master as u64, &poses[master]),
+        &candidates,
+        &walls,
+        p.max_slaves,
+        p.min_overlap,
+    );
+    if slaves.is_empty() {
+        bail!("frame {master} of {preset} has no slaves");
+    }
+    println!(
+        "linematch benchmark: {preset} at scale {scale} ({w}x{h}, {:.1} MP), master {master}, slaves {slaves:?}; rendering…",
+        (w * h) as f64 / 1e6
+    );
+    let lut = DistortionLut::new(&cam);
+    let grays: Vec<(u64, Vec<u8>)> = std::iter::once(master as u64)
+        .chain(slaves.iter().copied())
+        .map(|f| {
+            let mut g = vec![0u8; w * h];
+            lineflow_convert::gray_into(Encoding::Rgb8, w, h, w * 3, &syn.render(f as usize), &mut g).map(|_| (f, g))
+        })
+        .collect::<Result<_, String>>()
+        .map_err(anyhow::Error::msg)?;
+    let views: Vec<View> = grays
+        .iter()
+        .map(|(f, g)| View {
+            frame: *f,
+            pose: poses[*f as usize],
+            camera: cam,
+            lut: &lut,
+            gray: g,
+        })
+        .collect();
+    let edges = lineflow_edges::canny(&grays[0].1, w, h, 0.4 * 100.0, 100.0);
+    let pixels: Vec<[u16; 2]> = lineflow_edges::pixels(&grays[0].1, w, h, &edges)
+        .iter()
+        .map(|e| [e.col, e.row])
+        .collect();
+    let traced = trace_measured(&cam, &pixels, &TraceParams::default());
+    let segments: Vec<SegmentInput> = traced
+        .iter()
+        .enumerate()
+        .map(|(k, (a, b, chain))| SegmentInput {
+            id: k as u32,
+            start_px: *a,
+            end_px: *b,
+            chain,
+        })
+        .collect();
+    let long = segments
+        .iter()
+        .filter(|s| (s.end_px[0] - s.start_px[0]).hypot(s.end_px[1] - s.start_px[1]) >= p.min_length_px)
+        .count();
+    let matched = match_master(&views[0], &views[1..], &walls, &segments, &p);
+    let points: usize = matched.iter().map(|m| m.points.len()).sum();
+    println!(
+        "{} segments ({long} of at least {} px), {} matched, {points} points",
+        segments.len(),
+        p.min_length_px,
+        matched.len()
+    );
+    let c_only = MatchParams {
+        modes: vec![Mode::C],
+        ..p.clone()
+    };
+    let one = rayon::ThreadPoolBuilder::new().num_threads(1).build()?;
+    let run = |q: &MatchParams| drop(match_master(&views[0], &views[1..], &walls, &segments, q));
+    let all_1 = median_time(reps, || one.install(|| run(&p)));
+    let all_n = median_time(reps, || run(&p));
+    let c_n = median_time(reps, || run(&c_only));
+    let threads = rayon::current_num_threads();
+    println!(
+        "all 8 window modes, 1 thread      {all_1:8.2} s  ({:.2} ms per matched segment)",
+        all_1 * 1e3 / matched.len().max(1) as f64
+    );
+    println!(
+        "all 8 window modes, {threads} threads     {all_n:8.2} s  speed-up {:.2}x  target <= {TARGET_S:.0} s: {}",
+        all_1 / all_n,
+        if all_n <= TARGET_S { "met" } else { "NOT met" }
+    );
+    println!(
+        "reference: C window only, {threads} threads {c_n:6.2} s  all modes / C only: {:.2}x",
+        all_n / c_n
+    );
+    Ok(ExitCode::SUCCESS)
+}
