@@ -291,7 +291,8 @@ fn step(st: &mut State, params: &MatchParams, ended: &Ended, at_end: bool) -> St
             continue;
         }
         let slaves = choose_slaves(&camera, (frame, &pose), &candidates, &walls, params.max_slaves, params.min_overlap);
-        if slaves.len() < params.max_slaves && !(at_end && !slaves.is_empty()) {
+        let ready = slaves.len() >= params.max_slaves || (at_end && !slaves.is_empty());
+        if !ready {
             if at_end {
                 st.skipped.insert(frame, "no neighbour overlaps it".into());
             }

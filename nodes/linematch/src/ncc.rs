@@ -45,12 +45,30 @@ pub struct PatchSats {
 }
 
 impl PatchSats {
-    /// Builds the tables of a lattice patch (NaN = invalid sample).
+    /// Builds the tables of a lattice patch (NaN = invalid sample), all three in one pass.
     pub fn build(&mut self, width: usize, height: usize, g: &[f32]) {
-        let v = |k: usize| if g[k].is_nan() { 0.0 } else { g[k] as f64 };
-        self.sum.build(width, height, v);
-        self.sq.build(width, height, |k| v(k) * v(k));
-        self.valid.build(width, height, |k| if g[k].is_nan() { 0.0 } else { 1.0 });
+        let stride = width + 1;
+        for t in [&mut self.sum, &mut self.sq, &mut self.valid] {
+            t.width = width;
+            t.data.clear();
+            t.data.resize(stride * (height + 1), 0.0);
+        }
+        for r in 0..height {
+            let (mut s, mut q, mut n) = (0.0, 0.0, 0.0);
+            for c in 0..width {
+                let x = g[r * width + c];
+                if !x.is_nan() {
+                    let x = x as f64;
+                    s += x;
+                    q += x * x;
+                    n += 1.0;
+                }
+                let (above, here) = (r * stride + c + 1, (r + 1) * stride + c + 1);
+                self.sum.data[here] = self.sum.data[above] + s;
+                self.sq.data[here] = self.sq.data[above] + q;
+                self.valid.data[here] = self.valid.data[above] + n;
+            }
+        }
     }
 }
 

@@ -121,6 +121,9 @@ pub fn match_segment(master: &View, slaves: &[View], walls: &[WallPlane], seg: &
     if (b0 - a0).dot(&along) < 0.0 {
         along = -along;
     }
+    if (b0 - a0).norm() < p.min_length_m {
+        return None;
+    }
     let mid0 = (a0 + b0) / 2.0;
     let seen: Vec<&View> = slaves
         .iter()
@@ -167,7 +170,7 @@ pub fn match_segment(master: &View, slaves: &[View], walls: &[WallPlane], seg: &
     let cf = p.coarse_factor.max(1) as i32;
     let h = p.half_window as i32;
     let score = |i: i32, coarse: bool, scratch: &mut Scratch| {
-        let (c, hw) = if coarse { (2.0 * cell, (h / 2).max(1)) } else { (cell, h) };
+        let (c, hw) = if coarse { (3.0 * cell, (h / 3).max(1)) } else { (cell, h) };
         score_depth(&views, &line, depth(i), c, hw, &singles, &linears, p.min_slaves, scratch)
     };
 
@@ -197,7 +200,8 @@ pub fn match_segment(master: &View, slaves: &[View], walls: &[WallPlane], seg: &
     let mut fine_idx: Vec<i32> = votes
         .iter()
         .take(p.max_candidates.max(1))
-        .flat_map(|&(c, _)| (c - cf..=c + cf).filter(|i| i.abs() <= n_depths))
+        // The true peak lies within half a coarse step of the coarse one; one more step on each side for the parabola.
+        .flat_map(|&(c, _)| (c - cf / 2 - 1..=c + cf / 2 + 1).filter(|i| i.abs() <= n_depths))
         .collect();
     fine_idx.sort_unstable();
     fine_idx.dedup();
@@ -359,7 +363,8 @@ fn peak(fine_idx: &[i32], fine: &[f64], coarse_idx: &[i32], coarse: &[f64], cf: 
         .filter(|(v, &ci)| (ci - i).abs() < 2 * cf && v.is_finite())
         .map(|(&v, _)| v)
         .fold(f64::NEG_INFINITY, f64::max);
-    let accepted = value >= p.min_sncc && i.abs() < n && !(rival > p.max_ambiguity * best_coarse.max(value));
+    let unique = rival <= p.max_ambiguity * best_coarse.max(value) || rival.is_nan();
+    let accepted = value >= p.min_sncc && i.abs() < n && unique;
     Some(Peak { index, value, accepted })
 }
 

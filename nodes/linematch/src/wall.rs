@@ -43,7 +43,7 @@ impl WallPlane {
     /// An unbounded wall through `point` with outward normal `normal` (unit).
     pub fn from_plane(name: &str, normal: Vec3, point: Vec3) -> Self {
         let z = Vec3::z();
-        let u = z.cross(&normal).try_normalize(1e-9).unwrap_or_else(|| Vec3::x());
+        let u = z.cross(&normal).try_normalize(1e-9).unwrap_or_else(Vec3::x);
         let mut w = normal.cross(&u);
         if w.z < 0.0 {
             w = -w;
@@ -205,9 +205,9 @@ mod tests {
             let s = w.ray_parameter(&c, &r, depth).unwrap();
             assert!((w.depth_of(&(c + s * r)) - depth).abs() < 1e-12);
         }
-        assert_eq!(wall_of_ray(&[w.clone()], &c, &r, 0.0), Some(0));
+        assert_eq!(wall_of_ray(std::slice::from_ref(&w), &c, &r, 0.0), Some(0));
         // From behind the wall it is not visible.
-        assert_eq!(wall_of_ray(&[w.clone()], &Vec3::new(3.0, 20.0, 1.6), &-r, 0.0), None);
+        assert_eq!(wall_of_ray(std::slice::from_ref(&w), &Vec3::new(3.0, 20.0, 1.6), &-r, 0.0), None);
         // Outside the polygon (beyond the margin) no wall.
         assert_eq!(wall_of_ray(&[w], &Vec3::new(-10.0, -20.0, 1.6), &Vec3::y(), 0.5), None);
     }

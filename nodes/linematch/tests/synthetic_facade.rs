@@ -115,6 +115,15 @@ fn matched_points_lie_on_the_true_edges() {
     d.sort_by(f64::total_cmp);
     let median = d[d.len() / 2];
     let within = d.iter().filter(|&&x| x <= 2.0 * gsd).count() as f64 / d.len() as f64;
+    let mean = d.iter().sum::<f64>() / d.len() as f64;
+    let std = (d.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / d.len() as f64).sqrt();
+    eprintln!(
+        "point to true edge: mean {:.1} mm, std {:.1}, min {:.1}, max {:.1}",
+        mean * 1e3,
+        std * 1e3,
+        d[0] * 1e3,
+        d[d.len() - 1] * 1e3
+    );
     eprintln!(
         "{} points, median {:.1} mm ({:.2} GSD), {:.1} % within 2 GSD; horizontal segments matched {horizontal_matched}/{horizontal}",
         d.len(),
