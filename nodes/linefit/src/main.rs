@@ -82,7 +82,9 @@ fn body() -> Result<()> {
         }
         Ok(if input.is_ended() { Flow::Stop } else { Flow::Continue })
     })?;
+    // A revision above the last one, or subscribers would take the final set for a duplicate of it.
     last.flags |= StampFlags::FINAL;
+    last.revision += 1;
     publish(&output, last, &merged)?;
     output.end_of_stream()?;
     let rows: Vec<Line3Row> = elements(&merged)

@@ -1,7 +1,7 @@
 //! The depth search of one master line (seed 000 §2.9–2.15): every sampled chain pixel's master ray is cut by
 //! planes parallel to its wall at depths −range…+range; at each depth an object-space lattice along the line is
 //! resampled from the master and every slave, and the single-point (C, L, R, U, B) and linear (C, L, R) windows
-//! are correlated through summed-area tables. Coarse depths on a half-resolution lattice first, then the full
+//! are correlated through summed-area tables. Coarse depths on a third-resolution lattice first, then the full
 //! lattice at every fine depth near the coarse peaks.
 use lineflow_photogrammetry::Vec3;
 
@@ -410,7 +410,7 @@ fn score_depth(
     if !origin.iter().all(|v| v.is_finite()) || spots.is_empty() {
         return invalid();
     }
-    let c_lo = spots.iter().map(|q| q[0]).min().unwrap_or(0).min(0) - 2 * h;
+    let c_lo = spots.iter().map(|q| q[0]).min().unwrap_or(0).min(0).min(end_col) - 2 * h;
     let c_hi = spots.iter().map(|q| q[0]).max().unwrap_or(0).max(end_col) + 2 * h;
     let r_lo = spots.iter().map(|q| q[1]).min().unwrap_or(0).min(0) - 2 * h;
     let r_hi = spots.iter().map(|q| q[1]).max().unwrap_or(0).max(0) + 2 * h;
@@ -441,6 +441,9 @@ fn score_depth(
     }
     let at = |c: i32, r: i32| ((c - c_lo) as usize, (r - r_lo) as usize);
     let sncc = |cols: (i32, i32), rows: (i32, i32)| -> f64 {
+        if cols.0 < c_lo || cols.1 > c_hi || rows.0 < r_lo || rows.1 > r_hi {
+            return f64::NAN;
+        }
         let (c0, r0) = at(cols.0, rows.0);
         let (c1, r1) = at(cols.1, rows.1);
         let (cols, rows) = ((c0, c1), (r0, r1));

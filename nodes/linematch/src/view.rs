@@ -172,10 +172,10 @@ impl View<'_> {
                     let left = [a[0] + fy * (d[0] - a[0]), a[1] + fy * (d[1] - a[1])];
                     let right = [b[0] + fy * (e[0] - b[0]), b[1] + fy * (e[1] - b[1])];
                     let span = (i1 - i0).max(1) as f32;
-                    let row = &mut out[j * nc..(j + 1) * nc];
-                    for i in i0..(if last_col { i1 + 1 } else { i1 }) {
-                        let fx = (i - i0) as f32 / span;
-                        row[i] = self.sample([left[0] + fx * (right[0] - left[0]), left[1] + fx * (right[1] - left[1])]);
+                    let end = if last_col { i1 + 1 } else { i1 };
+                    for (k, v) in out[j * nc + i0..j * nc + end].iter_mut().enumerate() {
+                        let fx = k as f32 / span;
+                        *v = self.sample([left[0] + fx * (right[0] - left[0]), left[1] + fx * (right[1] - left[1])]);
                     }
                 }
             }
