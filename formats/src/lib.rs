@@ -105,6 +105,20 @@ pub struct Line3Row {
     pub rms_m: Option<f64>,
 }
 
+impl From<&lineflow_messages::Line3> for Line3Row {
+    /// The row of a `Lines3D` element; ids are written `L<id>`.
+    fn from(l: &lineflow_messages::Line3) -> Self {
+        Line3Row {
+            id: format!("L{}", l.id),
+            start: Vec3::from(l.start_m),
+            end: Vec3::from(l.end_m),
+            n_points: Some(l.n_points),
+            n_images: Some(l.n_images),
+            rms_m: Some(l.rms_m),
+        }
+    }
+}
+
 fn opt<T: std::fmt::Display>(v: Option<T>) -> String {
     v.map(|v| v.to_string()).unwrap_or_default()
 }

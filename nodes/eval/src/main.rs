@@ -6,7 +6,6 @@ use lineflow_capture::synth::{self, Synthetic};
 use lineflow_eval::{evaluate, report, Results, Truth};
 use lineflow_formats::{Line2Row, Line3Row, PoseRow};
 use lineflow_messages::{kinds, parts, Segment2};
-use lineflow_photogrammetry::Vec3;
 use lineflow_runtime::{Flow, NodeContext};
 
 fn main() -> std::process::ExitCode {
@@ -49,17 +48,7 @@ fn pose_rows(syn: &Synthetic, poses: &[lineflow_messages::Pose]) -> Vec<PoseRow>
 }
 
 fn line_rows(lines: &[lineflow_messages::Line3]) -> Vec<Line3Row> {
-    lines
-        .iter()
-        .map(|l| Line3Row {
-            id: format!("L{}", l.id),
-            start: Vec3::from(l.start_m),
-            end: Vec3::from(l.end_m),
-            n_points: Some(l.n_points),
-            n_images: Some(l.n_images),
-            rms_m: Some(l.rms_m),
-        })
-        .collect()
+    lines.iter().map(Line3Row::from).collect()
 }
 
 fn body() -> Result<()> {

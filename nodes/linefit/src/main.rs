@@ -87,17 +87,7 @@ fn body() -> Result<()> {
     last.revision += 1;
     publish(&output, last, &merged)?;
     output.end_of_stream()?;
-    let rows: Vec<Line3Row> = elements(&merged)
-        .iter()
-        .map(|l| Line3Row {
-            id: format!("L{}", l.id),
-            start: Vec3::from(l.start_m),
-            end: Vec3::from(l.end_m),
-            n_points: Some(l.n_points),
-            n_images: Some(l.n_images),
-            rms_m: Some(l.rms_m),
-        })
-        .collect();
+    let rows: Vec<Line3Row> = elements(&merged).iter().map(Line3Row::from).collect();
     let dir = ctx.out_dir();
     let (csv, ply) = (dir.join("lines3d.csv"), dir.join("lines3d.ply"));
     write_lines3d(&csv, &rows).with_context(|| format!("writing {}", csv.display()))?;

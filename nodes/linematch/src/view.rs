@@ -199,17 +199,22 @@ pub const NODE_STEP: usize = 8;
 mod tests {
     use super::*;
 
-    #[test]
-    fn interpolated_lattice_samples_equal_exact_projection() {
-        let camera = Camera {
-            width: 600,
-            height: 400,
-            pixel_size_mm: 0.03,
+    /// The A55's strongly distorted corners (about 494 µm of radial correction) on a sensor of the given size.
+    fn distorted(width: u32, height: u32, pixel_size_mm: f64) -> Camera {
+        Camera {
+            width,
+            height,
+            pixel_size_mm,
             focal_mm: 16.5,
             principal_point_mm: [0.05, -0.03],
             radial: [2.2e-4, -4.0e-7, 0.0],
             decentering: [4.0e-6, -3.0e-6],
-        };
+        }
+    }
+
+    #[test]
+    fn interpolated_lattice_samples_equal_exact_projection() {
+        let camera = distorted(600, 400, 0.03);
         let lut = DistortionLut::new(&camera);
         // A smooth ramp image so that sample differences reflect position differences.
         let gray: Vec<u8> = (0..600 * 400).map(|k| ((k % 600) / 3 + (k / 600) / 4) as u8).collect();
@@ -248,16 +253,7 @@ mod tests {
 
     #[test]
     fn the_lookup_table_agrees_with_the_exact_inverse_correction() {
-        // The A55's strongly distorted corners (about 494 µm of radial correction).
-        let camera = Camera {
-            width: 4912,
-            height: 3264,
-            pixel_size_mm: 0.0048,
-            focal_mm: 16.5,
-            principal_point_mm: [0.05, -0.03],
-            radial: [2.2e-4, -4.0e-7, 0.0],
-            decentering: [4.0e-6, -3.0e-6],
-        };
+        let camera = distorted(4912, 3264, 0.0048);
         let lut = DistortionLut::new(&camera);
         let mut worst = 0.0f64;
         for r in (0..camera.height).step_by(97) {
