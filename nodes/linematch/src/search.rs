@@ -197,9 +197,12 @@ pub fn match_segment(master: &View, slaves: &[View], walls: &[WallPlane], seg: &
         }
     }
     votes.sort_by(|a, b| b.1.cmp(&a.1).then(a.0.abs().cmp(&b.0.abs())).then(a.0.cmp(&b.0)));
+    // Further candidates only when a real share of the points backs them: most lines have one depth.
+    let top = votes.first().map_or(0, |v| v.1);
     let mut fine_idx: Vec<i32> = votes
         .iter()
         .take(p.max_candidates.max(1))
+        .filter(|v| 4 * v.1 >= top)
         // The true peak lies within half a coarse step of the coarse one; one more step on each side for the parabola.
         .flat_map(|&(c, _)| (c - cf / 2 - 1..=c + cf / 2 + 1).filter(|i| i.abs() <= n_depths))
         .collect();
