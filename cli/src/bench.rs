@@ -83,6 +83,21 @@ pub enum BenchCmd {
         #[arg(long, default_value_t = 1)]
         reps: usize,
     },
+    /// The model stage on the preset's true edges with noise: vertex RMSE, edge precision and recall, time.
+    Model {
+        /// Preset.
+        #[arg(long, default_value = "d2x-strip")]
+        preset: String,
+        /// Endpoint noise levels, σ per coordinate in ground sample distances. Repeatable.
+        #[arg(long = "sigma-gsd", default_values_t = vec![0.5, 1.0, 2.0])]
+        sigma_gsd: Vec<f64>,
+        /// Repetitions per timing.
+        #[arg(long, default_value_t = 3)]
+        reps: usize,
+        /// Also write, per noise level, the noisy lines, the true lines and the model into this folder.
+        #[arg(long)]
+        out: Option<std::path::PathBuf>,
+    },
     /// The recorder node: MB/s of raw 12 MP RGB frames written with nothing dropped, against the disk.
     Record {
         /// Frames.
@@ -317,6 +332,12 @@ pub fn bench(cmd: BenchCmd) -> Result<ExitCode> {
         BenchCmd::Render { preset, frames, scale } => crate::synth::bench_render(&preset, frames, scale),
         BenchCmd::Edges { preset, reps, high } => crate::bench_edges::bench_edges(&preset, reps, high),
         BenchCmd::Features { preset, reps, threshold } => crate::bench_features::bench_features(&preset, reps, threshold),
+        BenchCmd::Model {
+            preset,
+            sigma_gsd,
+            reps,
+            out,
+        } => crate::model_cmd::bench_model(&preset, &sigma_gsd, reps, out.as_deref()),
         BenchCmd::Linematch { preset, scale, reps } => crate::bench_linematch::bench_linematch(&preset, scale, reps),
         BenchCmd::Bundle { cameras, points } => crate::bench_bundle::bench_bundle(cameras, points),
         BenchCmd::Record {

@@ -8,6 +8,7 @@ mod bench_linematch;
 mod bench_record;
 mod bench_util;
 mod doctor;
+mod model_cmd;
 mod recordings;
 mod run;
 mod seed001;
@@ -183,6 +184,20 @@ enum Cmd {
         #[arg(long)]
         out: Option<PathBuf>,
     },
+    /// Build the wire-frame model (model.obj, model.city.json) from a lines3d.csv, as the model stage does.
+    Model {
+        /// 3-D lines (lines3d.csv).
+        lines: PathBuf,
+        /// Camera poses (poses.csv): faces are oriented towards the cameras.
+        #[arg(long)]
+        poses: Option<PathBuf>,
+        /// Output folder [default: the lines' folder].
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// Override a model parameter: PARAM=VALUE (docs/model.md). Repeatable.
+        #[arg(long = "set", value_name = "PARAM=VALUE")]
+        set: Vec<String>,
+    },
     /// Reproduce a seed document's experiment (seed001: collinearity vs essential-matrix orientation of a
     /// simulated stereo pair, Monte Carlo); prints a Markdown table.
     Experiment {
@@ -253,6 +268,7 @@ fn main() -> ExitCode {
             noise_dn: noise,
         }),
         Cmd::Eval { results, gt, out } => eval(&results, &gt, out),
+        Cmd::Model { lines, poses, out, set } => model_cmd::model(&lines, poses.as_deref(), out, &set),
         Cmd::Experiment { name, trials, seed } => match name.as_str() {
             "seed001" => {
                 print!("{}", seed001::experiment(trials.max(1), seed));

@@ -335,6 +335,45 @@ pub fn read_lines3d(path: &Path) -> Result<Vec<Line3Row>, FormatError> {
         .collect()
 }
 
+/// The wire-frame of a Wavefront OBJ file (`model.obj`): its `v` vertices and the vertex pairs of its `l`
+/// elements (a polyline of k vertices gives k − 1 edges). Faces and other statements are skipped.
+pub fn read_obj_wireframe(path: &Path) -> Result<(Vec<Vec3>, Vec<[usize; 2]>), FormatError> {
+    let text = std::fs::read_to_string(path).map_err(|e| err(path, 0, format!("cannot read: {e}")))?;
+    let mut vertices = Vec::new();
+    let mut edges = Vec::new();
+    for (k, raw) in text.lines().enumerate() {
+        let line = k as u64 + 1;
+        let mut words = raw.split_whitespace();
+        match words.next() {
+            Some("v") => {
+                let xyz: Vec<f64> = words
+                    .take(3)
+                    .map(|w| w.parse::<f64>().map_err(|_| err(path, line, format!("'{w}' is not a number"))))
+                    .collect::<Result<_, _>>()?;
+                if xyz.len() != 3 || xyz.iter().any(|v| !v.is_finite()) {
+                    return Err(err(path, line, "a vertex needs three finite coordinates"));
+                }
+                vertices.push(Vec3::new(xyz[0], xyz[1], xyz[2]));
+            }
+            Some("l") => {
+                let idx: Vec<usize> = words
+                    .map(|w| {
+                        let v = w.split('/').next().unwrap_or(w);
+                        match v.parse::<i64>() {
+                            Ok(i) if i > 0 && (i as usize) <= vertices.len() => Ok(i as usize - 1),
+                            Ok(i) if i < 0 && ((-i) as usize) <= vertices.len() => Ok(vertices.len() - (-i) as usize),
+                            _ => Err(err(path, line, format!("'{w}' is not a vertex defined above"))),
+                        }
+                    })
+                    .collect::<Result<_, _>>()?;
+                edges.extend(idx.windows(2).map(|w| [w[0], w[1]]));
+            }
+            _ => {}
+        }
+    }
+    Ok((vertices, edges))
+}
+
 /// Writes 3-D segments as an ASCII PLY file of vertices and edges, readable by any 3-D viewer.
 pub fn write_lines_ply(path: &Path, rows: &[Line3Row]) -> Result<(), FormatError> {
     let mut out = create(path)?;

@@ -3,6 +3,7 @@
 pub mod geometry;
 pub mod lines2d;
 pub mod lines3d;
+pub mod model;
 pub mod orientation;
 mod plot;
 pub mod report;
@@ -25,6 +26,9 @@ pub struct Truth {
     pub scene: Synthetic,
 }
 
+/// A wire-frame read from `model.obj`: vertices and edges.
+pub type Wireframe = (Vec<lineflow_photogrammetry::Vec3>, Vec<[usize; 2]>);
+
 impl Truth {
     /// Loads `DIR/gt/` and regenerates the scene it describes.
     pub fn load(dir: &Path) -> Result<Truth> {
@@ -43,6 +47,16 @@ impl Truth {
             lines: read_lines3d(&gt.join("lines3d.csv"))?,
             scene,
         })
+    }
+
+    /// The truth of a scene generated in memory (no folder): its poses and seen edges.
+    pub fn from_scene(scene: Synthetic) -> Truth {
+        Truth {
+            dir: PathBuf::new(),
+            poses: lineflow_capture::synth::truth_poses(&scene),
+            lines: lineflow_capture::synth::truth_lines(&scene),
+            scene,
+        }
     }
 
     /// The ground sample distance at the typical object distance (median over the edges of the distance to the
@@ -74,6 +88,7 @@ pub struct Results {
     pub checkpoints: Option<Vec<CheckRow>>,
     pub lines2d: Option<Vec<Line2Row>>,
     pub lines3d: Option<Vec<Line3Row>>,
+    pub model: Option<Wireframe>,
 }
 
 fn optional<T>(path: PathBuf, read: impl Fn(&Path) -> Result<T, lineflow_formats::FormatError>) -> Result<Option<T>> {
@@ -85,7 +100,8 @@ fn optional<T>(path: PathBuf, read: impl Fn(&Path) -> Result<T, lineflow_formats
 }
 
 impl Results {
-    /// Reads `poses.csv`, `checkpoints.csv`, `lines2d.csv` and `lines3d.csv` from `dir`, where present.
+    /// Reads `poses.csv`, `checkpoints.csv`, `lines2d.csv`, `lines3d.csv` and `model.obj` from `dir`, where
+    /// present.
     pub fn load(dir: &Path) -> Result<Results> {
         if !dir.is_dir() {
             bail!("{}: not a folder", dir.display());
@@ -95,6 +111,7 @@ impl Results {
             checkpoints: optional(dir.join("checkpoints.csv"), read_checkpoints)?,
             lines2d: optional(dir.join("lines2d.csv"), read_lines2d)?,
             lines3d: optional(dir.join("lines3d.csv"), read_lines3d)?,
+            model: optional(dir.join("model.obj"), lineflow_formats::read_obj_wireframe)?,
         })
     }
 }
@@ -104,6 +121,7 @@ pub struct Evaluation {
     pub orientation: Option<orientation::OrientationReport>,
     pub lines2d: Option<lines2d::Lines2dReport>,
     pub lines3d: Option<lines3d::Lines3dReport>,
+    pub model: Option<model::ModelReport>,
 }
 
 /// Evaluates whatever `results` holds.
@@ -115,5 +133,9 @@ pub fn evaluate(truth: &Truth, results: &Results) -> Evaluation {
             .map(|p| orientation::evaluate(truth, p, results.checkpoints.as_deref())),
         lines2d: results.lines2d.as_ref().map(|l| lines2d::evaluate(truth, l)),
         lines3d: results.lines3d.as_ref().map(|l| lines3d::evaluate(truth, l)),
+        model: results
+            .model
+            .as_ref()
+            .map(|(v, e)| model::evaluate(&truth.lines, v, e, truth.gsd_m())),
     }
 }

@@ -1,11 +1,12 @@
 //! `lineflow-eval`: the live evaluation sink. Collects the ground truth (`gt/poses`, `gt/lines3d`) and whatever
-//! results the graph produces (`poses`, `lines2d`, `lines3d`), and at end-of-stream writes `eval/report.md` into the run's
+//! results the graph produces (`poses`, `lines2d`, `lines3d`, `wireframe`), and at end-of-stream writes `eval/report.md` into the run's
 //! output folder. The scene is regenerated from the parameters of the graph's `synthetic` capture node.
 use anyhow::{bail, Context, Result};
 use lineflow_capture::synth::{self, Synthetic};
-use lineflow_eval::{evaluate, report, Results, Truth};
+use lineflow_eval::{evaluate, report, Results, Truth, Wireframe};
 use lineflow_formats::{Line2Row, Line3Row, PoseRow};
-use lineflow_messages::{kinds, parts, Segment2};
+use lineflow_messages::{kinds, parts, Segment2, WireEdge};
+use lineflow_photogrammetry::Vec3;
 use lineflow_runtime::{Flow, NodeContext};
 
 fn main() -> std::process::ExitCode {
@@ -58,12 +59,14 @@ fn body() -> Result<()> {
     let poses = ctx.optional_input::<kinds::Poses>("poses")?;
     let lines = ctx.optional_input::<kinds::Lines3D>("lines3d")?;
     let segments = ctx.optional_input::<kinds::Lines2D>("lines2d")?;
+    let wireframe = ctx.optional_input::<kinds::Wireframe>("wireframe")?;
     let syn = scene_of_graph(&ctx)?;
     ctx.connect()?;
 
     // The newest message of each topic is the one that counts (a later revision supersedes an earlier one).
     let (mut truth_poses, mut truth_lines, mut est_poses, mut est_lines) = (Vec::new(), Vec::new(), None, None);
     let mut est_segments: Option<Vec<Line2Row>> = segments.as_ref().map(|_| Vec::new());
+    let mut est_model: Option<Wireframe> = None;
     ctx.run(|| {
         while let Some(m) = gt_poses.receive()? {
             truth_poses = m.payload().to_vec();
@@ -95,7 +98,19 @@ fn body() -> Result<()> {
                 }));
             }
         }
+        if let Some(i) = &wireframe {
+            while let Some(m) = i.receive()? {
+                let h = m.user_header();
+                let (v, e) = parts::split::<[f64; 3], WireEdge>(m.payload(), h.n_vertices as usize, h.n_edges as usize)
+                    .map_err(|e| anyhow::anyhow!("wireframe of frame {}: {e}", h.stamp.frame))?;
+                est_model = Some((
+                    v.iter().map(|p| Vec3::from(*p)).collect(),
+                    e.iter().map(|e| [e.a as usize, e.b as usize]).collect(),
+                ));
+            }
+        }
         let done = segments.as_ref().is_none_or(|i| i.is_ended())
+            && wireframe.as_ref().is_none_or(|i| i.is_ended())
             && gt_poses.is_ended()
             && gt_lines.is_ended()
             && poses.as_ref().is_none_or(|i| i.is_ended())
@@ -119,6 +134,7 @@ fn body() -> Result<()> {
             p if p.exists() => Some(lineflow_formats::read_checkpoints(&p).context("reading checkpoints.csv")?),
             _ => None,
         },
+        model: est_model,
     };
     let evaluation = evaluate(&truth, &results);
     let path = report::write(&truth, &out, &evaluation, &out.join("eval")).context("writing the evaluation report")?;

@@ -180,10 +180,29 @@ pub fn write(truth: &Truth, results: &Path, eval: &Evaluation, out: &Path) -> Re
             );
         }
     }
-    let _ = writeln!(
-        md,
-        "## Model\n\nNo model results: the model stage (CSR, LSMIF) does not exist yet.\n"
-    );
+    let _ = writeln!(md, "## Model\n");
+    match &eval.model {
+        None => {
+            let _ = writeln!(md, "No `model.obj` in the results.\n");
+        }
+        Some(m) => {
+            let _ = writeln!(
+                md,
+                "| true vertices | model vertices | matched (≤ {} mm) | vertex RMSE (mm) | vertex RMSE (GSD) | true edges | model edges | edge precision | edge recall (ends ≤ {} mm) |\n|---|---|---|---|---|---|---|---|---|\n| {} | {} | {} | {} | {:.2} | {} | {} | {} | {} |\n",
+                mm(m.vertex_reach_m),
+                mm(m.edge_tolerance_m),
+                m.true_vertices,
+                m.model_vertices,
+                m.matched_vertices,
+                mm(m.vertex_rmse_m),
+                m.vertex_rmse_m / m.gsd_m,
+                m.true_edges,
+                m.model_edges,
+                pct(m.edge_precision),
+                pct(m.edge_recall)
+            );
+        }
+    }
     let path = out.join("report.md");
     std::fs::write(&path, md).with_context(|| format!("cannot write {}", path.display()))?;
     Ok(path)

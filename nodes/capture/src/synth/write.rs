@@ -24,6 +24,38 @@ pub fn jpeg_bytes(rgb: &[u8], width: u32, height: u32, quality: u8) -> Result<Ve
     Ok(out)
 }
 
+/// The true poses as `poses.csv` rows (standard deviations empty).
+pub fn truth_poses(syn: &Synthetic) -> Vec<PoseRow> {
+    syn
+        .poses()
+        .iter()
+        .enumerate()
+        .map(|(i, p)| PoseRow {
+            image: syn.image_name(i),
+            pose: *p,
+            sigma_center_m: None,
+            sigma_angles_deg: None,
+        })
+        .collect()
+}
+
+/// The structural edges seen in at least two images as `lines3d.csv` rows (statistics empty), ids `G1`...
+pub fn truth_lines(syn: &Synthetic) -> Vec<Line3Row> {
+    syn
+        .seen_edges()
+        .iter()
+        .enumerate()
+        .map(|(i, e)| Line3Row {
+            id: format!("G{}", i + 1),
+            start: Vec3::from(e.edge.a),
+            end: Vec3::from(e.edge.b),
+            n_points: None,
+            n_images: None,
+            rms_m: None,
+        })
+        .collect()
+}
+
 /// Writes `images/`, `camera.toml`, `control_points.csv`, `observations.csv`, `site.toml` and `gt/` into `dir`.
 /// `progress(done, total)` is called after each image.
 pub fn write_project(syn: &Synthetic, dir: &Path, progress: &mut dyn FnMut(usize, usize)) -> Result<(), SynthError> {
@@ -77,31 +109,9 @@ pub fn write_project(syn: &Synthetic, dir: &Path, progress: &mut dyn FnMut(usize
     }
     write(&dir.join("site.toml"), &site)?;
 
-    let poses: Vec<PoseRow> = syn
-        .poses()
-        .iter()
-        .enumerate()
-        .map(|(i, p)| PoseRow {
-            image: syn.image_name(i),
-            pose: *p,
-            sigma_center_m: None,
-            sigma_angles_deg: None,
-        })
-        .collect();
+    let poses = truth_poses(syn);
     write_poses(&gt.join("poses.csv"), &poses).map_err(|e| SynthError::Io(e.to_string()))?;
-    let lines: Vec<Line3Row> = syn
-        .seen_edges()
-        .iter()
-        .enumerate()
-        .map(|(i, e)| Line3Row {
-            id: format!("G{}", i + 1),
-            start: Vec3::from(e.edge.a),
-            end: Vec3::from(e.edge.b),
-            n_points: None,
-            n_images: None,
-            rms_m: None,
-        })
-        .collect();
+    let lines = truth_lines(syn);
     write_lines3d(&gt.join("lines3d.csv"), &lines).map_err(|e| SynthError::Io(e.to_string()))?;
     write(&gt.join("scene.json"), &scene_json(syn))
 }

@@ -1,0 +1,155 @@
+//! `lineflow model` (a wire-frame from a lines3d.csv) and `lineflow bench model` (the model stage on the ground
+//! truth of a preset with noise added: accuracy and time).
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+use std::time::Instant;
+
+use anyhow::{Context, Result};
+use lineflow_capture::synth::{rng::Rng, Synthetic};
+use lineflow_formats::{read_lines3d, read_poses, Line3Row};
+use lineflow_model::{build, export, junction, lines_from_rows, Model, ModelParams, SurfaceKind};
+use lineflow_photogrammetry::Vec3;
+
+use crate::bench_util::median_time;
+
+/// The speed target: a façade with 40 openings built in at most this many seconds.
+const TARGET_S: f64 = 1.0;
+
+/// Applies `PARAM=VALUE` overrides (VALUE as TOML) to the model parameters.
+fn params_with(set: &[String]) -> Result<ModelParams> {
+    let mut table = toml::Table::new();
+    for item in set {
+        let (k, v) = item.split_once('=').with_context(|| format!("--set {item}: expected PARAM=VALUE"))?;
+        let value = toml::from_str::<toml::Table>(&format!("v = {v}"))
+            .ok()
+            .and_then(|mut t| t.remove("v"))
+            .unwrap_or_else(|| toml::Value::String(v.to_string()));
+        table.insert(k.trim().to_string(), value);
+    }
+    let params: ModelParams = toml::Value::Table(table).try_into().context("model parameters")?;
+    params.validate().map_err(anyhow::Error::msg)?;
+    Ok(params)
+}
+
+fn count(model: &Model, kinds: &[SurfaceKind]) -> usize {
+    model.faces.iter().filter(|f| kinds.contains(&f.kind)).count()
+}
+
+fn summary(model: &Model) -> String {
+    let d = &model.diagnostics;
+    format!(
+        "{} of {} lines used, {} objects, {} vertices, {} edges, {} faces ({} walls, {} openings, {} roof), ends resolved by stage 1/2/3: {}/{}/{}, free {}, median sigma0 {}",
+        d.lines_used,
+        d.lines_in,
+        d.objects,
+        model.vertices.len(),
+        model.edges.len(),
+        model.faces.len(),
+        count(model, &[SurfaceKind::Wall]),
+        count(model, &[SurfaceKind::Window, SurfaceKind::Door]),
+        count(model, &[SurfaceKind::Roof]),
+        d.ends_by_stage[0],
+        d.ends_by_stage[1],
+        d.ends_by_stage[2],
+        d.ends_by_stage[3],
+        d.median_sigma0.map_or("-".into(), |s| format!("{s:.2}"))
+    )
+}
+
+/// `lineflow model LINES3D [--poses POSES] [--out DIR] [--set PARAM=VALUE]...`
+pub fn model(lines: &Path, poses: Option<&Path>, out: Option<PathBuf>, set: &[String]) -> Result<ExitCode> {
+    let params = params_with(set)?;
+    let rows = read_lines3d(lines)?;
+    let viewpoint = match poses {
+        Some(p) => {
+            let poses = read_poses(p)?;
+            (!poses.is_empty()).then(|| poses.iter().map(|p| p.pose.center).sum::<Vec3>() / poses.len() as f64)
+        }
+        None => None,
+    };
+    let started = Instant::now();
+    let model = build(&lines_from_rows(&rows, &params), &params, viewpoint);
+    let elapsed = started.elapsed().as_secs_f64();
+    let out = out.unwrap_or_else(|| lines.parent().map(Path::to_path_buf).unwrap_or_default());
+    export::write_obj(&out.join("model.obj"), &model)?;
+    export::write_cityjson(&out.join("model.city.json"), &model)?;
+    println!("{} in {:.0} ms", summary(&model), elapsed * 1000.0);
+    println!("wrote {} and model.city.json", out.join("model.obj").display());
+    if !rows.is_empty() && model.faces.is_empty() {
+        eprintln!("warning: no closed face among the lines: the model is a loose wire-frame");
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+/// The true edges with every endpoint coordinate perturbed by N(0, σ²), deterministic in `seed`.
+pub fn noisy(lines: &[Line3Row], sigma_m: f64, seed: u64) -> Vec<Line3Row> {
+    let mut rng = Rng::new(seed, 77);
+    lines
+        .iter()
+        .map(|l| {
+            let mut jitter = || Vec3::new(rng.normal(), rng.normal(), rng.normal()) * sigma_m;
+            Line3Row {
+                start: l.start + jitter(),
+                end: l.end + jitter(),
+                ..l.clone()
+            }
+        })
+        .collect()
+}
+
+/// `lineflow bench model`: for each noise level, the model of the preset's true edges with noise, scored against
+/// the truth, and its time beside the seed's all-pairs junction search measured on the same lines.
+pub fn bench_model(preset: &str, sigmas_gsd: &[f64], reps: usize, out: Option<&Path>) -> Result<ExitCode> {
+    let truth = lineflow_eval::Truth::from_scene(Synthetic::new(preset, 1.0, 1)?);
+    let gsd = truth.gsd_m();
+    let spec = &truth.scene.building.spec;
+    let true_openings = spec.floors * spec.window_columns;
+    println!(
+        "preset {preset}: {} true edges, {} openings, GSD {:.1} mm, {} reps",
+        truth.lines.len(),
+        true_openings,
+        gsd * 1000.0,
+        reps.max(1)
+    );
+    println!("| noise σ (GSD) | vertex RMSE (mm) | (GSD) | vertices matched | edge precision | edge recall | openings found | build (ms) | all-pairs junctions alone (ms) | ratio to the 1 s target |");
+    println!("|---|---|---|---|---|---|---|---|---|---|");
+    for &k in sigmas_gsd {
+        let sigma = k * gsd;
+        let rows = noisy(&truth.lines, sigma, 1);
+        let params = ModelParams {
+            sigma_m: sigma.max(1e-4),
+            ..ModelParams::default()
+        };
+        let lines = lines_from_rows(&rows, &params);
+        let mut model = Model::default();
+        let t_build = median_time(reps, || model = build(&lines, &params, None));
+        let t_pairs = median_time(reps, || {
+            std::hint::black_box(junction::candidates_all_pairs(&lines, &params));
+        });
+        let vertices: Vec<Vec3> = model.vertices.iter().map(|v| v.point).collect();
+        let edges: Vec<[usize; 2]> = model.edges.iter().map(|e| [e.a, e.b]).collect();
+        let r = lineflow_eval::model::evaluate(&truth.lines, &vertices, &edges, gsd);
+        println!(
+            "| {k} | {:.1} | {:.2} | {}/{} | {:.1} % | {:.1} % | {} | {:.0} | {:.0} | {:.2} |",
+            r.vertex_rmse_m * 1000.0,
+            r.vertex_rmse_m / gsd,
+            r.matched_vertices,
+            r.true_vertices,
+            100.0 * r.edge_precision,
+            100.0 * r.edge_recall,
+            count(&model, &[SurfaceKind::Window, SurfaceKind::Door]),
+            t_build * 1000.0,
+            t_pairs * 1000.0,
+            t_build / TARGET_S
+        );
+        eprintln!("  σ {k} GSD: {}", summary(&model));
+        if let Some(dir) = out {
+            let dir = dir.join(format!("sigma{k}"));
+            lineflow_formats::write_lines3d(&dir.join("lines3d.csv"), &rows)?;
+            lineflow_formats::write_lines3d(&dir.join("truth.csv"), &truth.lines)?;
+            export::write_obj(&dir.join("model.obj"), &model)?;
+            export::write_cityjson(&dir.join("model.city.json"), &model)?;
+        }
+    }
+    Ok(ExitCode::SUCCESS)
+}

@@ -1,0 +1,312 @@
+//! Faces of the wire-frame: planes hypothesised at corners from pairs of their edges, the edges lying in each
+//! plane traced as a planar graph (each bounded cycle a face), a face lying inside another face of its plane made
+//! that face's opening (the seed's "roof inside a roof"), and a semantic kind for each face.
+use std::collections::BTreeMap;
+
+use lineflow_photogrammetry::Vec3;
+
+use crate::{Edge, ModelParams, Vertex};
+
+/// The CityJSON semantic surface of a face.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
+pub enum SurfaceKind {
+    Wall,
+    Roof,
+    Ground,
+    Floor,
+    Window,
+    Door,
+}
+
+impl SurfaceKind {
+    /// The CityJSON 2.0 semantic surface type.
+    pub fn cityjson(self) -> &'static str {
+        match self {
+            SurfaceKind::Wall => "WallSurface",
+            SurfaceKind::Roof => "RoofSurface",
+            SurfaceKind::Ground => "GroundSurface",
+            SurfaceKind::Floor => "OuterFloorSurface",
+            SurfaceKind::Window => "Window",
+            SurfaceKind::Door => "Door",
+        }
+    }
+}
+
+/// A planar face: its outer ring (vertex indices, counter-clockwise seen from outside), the rings of its openings,
+/// its unit outward normal and its kind.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Face {
+    pub ring: Vec<usize>,
+    pub holes: Vec<Vec<usize>>,
+    pub normal: Vec3,
+    pub kind: SurfaceKind,
+}
+
+struct Plane {
+    normal: Vec3,
+    offset: f64,
+}
+
+/// The faces of a wire-frame. `viewpoint` (e.g. the mean camera centre) decides which side is outside; without
+/// one the centroid of the vertices is taken as inside.
+pub fn find(vertices: &[Vertex], edges: &[Edge], params: &ModelParams, viewpoint: Option<Vec3>) -> Vec<Face> {
+    if vertices.is_empty() {
+        return Vec::new();
+    }
+    let tol = plane_tolerance(vertices, params);
+    let mut incident: Vec<Vec<usize>> = vec![Vec::new(); vertices.len()];
+    for (k, e) in edges.iter().enumerate() {
+        incident[e.a].push(k);
+        incident[e.b].push(k);
+    }
+    let dir = |e: &Edge, from: usize| {
+        let (p, q) = if e.a == from { (e.a, e.b) } else { (e.b, e.a) };
+        (vertices[q].point - vertices[p].point).normalize()
+    };
+    // Plane hypotheses at every corner from every pair of its non-parallel edges, merged greedily in a fixed order.
+    let min_sin = 10f64.to_radians().sin();
+    let cos_merge = params.plane_angle_deg.to_radians().cos();
+    let mut planes: Vec<Plane> = Vec::new();
+    for (v, list) in incident.iter().enumerate() {
+        for (x, &e1) in list.iter().enumerate() {
+            for &e2 in &list[x + 1..] {
+                let n = dir(&edges[e1], v).cross(&dir(&edges[e2], v));
+                if n.norm() < min_sin {
+                    continue;
+                }
+                let n = canonical(n.normalize());
+                let p = vertices[v].point;
+                let known = planes.iter().any(|pl| pl.normal.dot(&n) > cos_merge && (pl.normal.dot(&p) - pl.offset).abs() < tol);
+                if !known {
+                    planes.push(Plane {
+                        normal: n,
+                        offset: n.dot(&p),
+                    });
+                }
+            }
+        }
+    }
+    let inside_ref = viewpoint.unwrap_or_else(|| vertices.iter().map(|v| v.point).sum::<Vec3>() / vertices.len() as f64);
+    let outward_from_centroid = viewpoint.is_none();
+    let mut faces = Vec::new();
+    let mut seen_rings = std::collections::HashSet::new();
+    for plane in &planes {
+        let on_plane = |v: usize| (plane.normal.dot(&vertices[v].point) - plane.offset).abs() < tol;
+        let in_plane: Vec<&Edge> = edges.iter().filter(|e| on_plane(e.a) && on_plane(e.b)).collect();
+        for ring in cycles(vertices, &in_plane, plane.normal) {
+            let mut key = ring.clone();
+            key.sort_unstable();
+            if !seen_rings.insert(key) {
+                continue;
+            }
+            let centroid = ring.iter().map(|&v| vertices[v].point).sum::<Vec3>() / ring.len() as f64;
+            let towards = if outward_from_centroid { centroid - inside_ref } else { inside_ref - centroid };
+            let (normal, ring) = if plane.normal.dot(&towards) >= 0.0 {
+                (plane.normal, ring)
+            } else {
+                (-plane.normal, ring.into_iter().rev().collect())
+            };
+            faces.push(Face {
+                ring,
+                holes: Vec::new(),
+                normal,
+                kind: kind_of_plane(normal),
+            });
+        }
+    }
+    nest_openings(vertices, &mut faces, params);
+    faces
+}
+
+/// Three times the median corner σ, at least 5 mm: vertices of one plane scatter by their own precision.
+fn plane_tolerance(vertices: &[Vertex], params: &ModelParams) -> f64 {
+    let mut s: Vec<f64> = vertices.iter().filter_map(|v| v.sigma).map(|s| s.norm() / 3f64.sqrt()).collect();
+    s.sort_by(f64::total_cmp);
+    let typical = s.get(s.len() / 2).copied().unwrap_or(params.sigma_m);
+    (3.0 * typical).max(0.005)
+}
+
+/// A normal's sign fixed by its largest component, so that both sides of a plane give one hypothesis.
+fn canonical(n: Vec3) -> Vec3 {
+    if n[n.iamax()] < 0.0 {
+        -n
+    } else {
+        n
+    }
+}
+
+fn kind_of_plane(normal: Vec3) -> SurfaceKind {
+    if normal.z.abs() < 0.2 {
+        SurfaceKind::Wall
+    } else if normal.z > 0.98 {
+        SurfaceKind::Floor
+    } else if normal.z < -0.98 {
+        SurfaceKind::Ground
+    } else {
+        SurfaceKind::Roof
+    }
+}
+
+/// A 2-D frame in a plane: u, v with u × v = normal.
+fn plane_basis(normal: Vec3) -> (Vec3, Vec3) {
+    let helper = if normal.z.abs() < 0.9 { Vec3::z() } else { Vec3::x() };
+    let u = helper.cross(&normal).normalize();
+    (u, normal.cross(&u))
+}
+
+/// The bounded faces of the planar graph of `edges` (vertices projected into the plane), each as a simple cycle
+/// traced counter-clockwise about `normal`. Dangling edges are pruned first.
+fn cycles(vertices: &[Vertex], edges: &[&Edge], normal: Vec3) -> Vec<Vec<usize>> {
+    let (u, v) = plane_basis(normal);
+    let uv = |k: usize| [vertices[k].point.dot(&u), vertices[k].point.dot(&v)];
+    let mut adj: BTreeMap<usize, Vec<usize>> = BTreeMap::new();
+    for e in edges {
+        adj.entry(e.a).or_default().push(e.b);
+        adj.entry(e.b).or_default().push(e.a);
+    }
+    for list in adj.values_mut() {
+        list.sort_unstable();
+        list.dedup();
+    }
+    // Prune vertices of degree one until none is left.
+    loop {
+        let leaves: Vec<usize> = adj.iter().filter(|(_, l)| l.len() < 2).map(|(&k, _)| k).collect();
+        if leaves.is_empty() {
+            break;
+        }
+        for leaf in leaves {
+            if let Some(list) = adj.remove(&leaf) {
+                for n in list {
+                    if let Some(l) = adj.get_mut(&n) {
+                        l.retain(|&x| x != leaf);
+                    }
+                }
+            }
+        }
+    }
+    // Neighbours in counter-clockwise order of direction.
+    for (&k, list) in adj.iter_mut() {
+        let o = uv(k);
+        list.sort_by(|&a, &b| {
+            let (pa, pb) = (uv(a), uv(b));
+            let aa = (pa[1] - o[1]).atan2(pa[0] - o[0]);
+            let ab = (pb[1] - o[1]).atan2(pb[0] - o[0]);
+            aa.total_cmp(&ab).then(a.cmp(&b))
+        });
+    }
+    let mut used = std::collections::HashSet::new();
+    let mut out = Vec::new();
+    for (&start, list) in &adj {
+        for &next in list {
+            if used.contains(&(start, next)) {
+                continue;
+            }
+            // Walk keeping the face on the left: at each vertex turn to the neighbour just clockwise of the one
+            // we came from.
+            let mut ring = vec![start];
+            let (mut a, mut b) = (start, next);
+            let mut simple = true;
+            loop {
+                used.insert((a, b));
+                let around = &adj[&b];
+                let i = around.iter().position(|&x| x == a).unwrap_or(0);
+                let c = around[(i + around.len() - 1) % around.len()];
+                if b == start {
+                    break;
+                }
+                if ring.contains(&b) {
+                    simple = false;
+                }
+                ring.push(b);
+                (a, b) = (b, c);
+                if ring.len() > edges.len() + 1 {
+                    simple = false;
+                    break;
+                }
+            }
+            let pts: Vec<[f64; 2]> = ring.iter().map(|&k| uv(k)).collect();
+            if simple && ring.len() >= 3 && signed_area(&pts) > 1e-4 {
+                out.push(ring);
+            }
+        }
+    }
+    out
+}
+
+fn signed_area(p: &[[f64; 2]]) -> f64 {
+    let n = p.len();
+    (0..n).map(|i| p[i][0] * p[(i + 1) % n][1] - p[(i + 1) % n][0] * p[i][1]).sum::<f64>() / 2.0
+}
+
+fn point_in_polygon(q: [f64; 2], poly: &[[f64; 2]]) -> bool {
+    let mut inside = false;
+    let n = poly.len();
+    for i in 0..n {
+        let (a, b) = (poly[i], poly[(i + 1) % n]);
+        if (a[1] > q[1]) != (b[1] > q[1]) && q[0] < a[0] + (q[1] - a[1]) / (b[1] - a[1]) * (b[0] - a[0]) {
+            inside = !inside;
+        }
+    }
+    inside
+}
+
+/// A face lying inside a larger face of the same plane, sharing no vertex with it, is that face's opening (the
+/// innermost container wins): a window, or a door when it reaches within 0.3 m of the container's foot. Faces
+/// behind an opening (reveals excepted: frames and glass parallel to it, within 0.5 m) take the opening's kind.
+fn nest_openings(vertices: &[Vertex], faces: &mut [Face], params: &ModelParams) {
+    let cos_par = params.plane_angle_deg.to_radians().cos();
+    let flat = |f: &Face, ring: &[usize]| -> Vec<[f64; 2]> {
+        let (u, v) = plane_basis(f.normal);
+        ring.iter().map(|&k| [vertices[k].point.dot(&u), vertices[k].point.dot(&v)]).collect()
+    };
+    let area = |f: &Face| signed_area(&flat(f, &f.ring)).abs();
+    let offset = |f: &Face| f.normal.dot(&vertices[f.ring[0]].point);
+    let mut parent: Vec<Option<usize>> = vec![None; faces.len()];
+    for (i, f) in faces.iter().enumerate() {
+        if f.kind != SurfaceKind::Wall && f.kind != SurfaceKind::Roof {
+            continue;
+        }
+        let mut best: Option<(f64, usize)> = None;
+        for (j, g) in faces.iter().enumerate() {
+            let coplanar = g.normal.dot(&f.normal) > cos_par && (offset(g) - offset(f)).abs() < 0.01;
+            if i == j || !coplanar || area(g) <= area(f) || g.ring.iter().any(|v| f.ring.contains(v)) {
+                continue;
+            }
+            let poly = flat(g, &g.ring);
+            if flat(f, &f.ring).iter().all(|&q| point_in_polygon(q, &poly)) && best.is_none_or(|(a, _)| area(g) < a) {
+                best = Some((area(g), j));
+            }
+        }
+        parent[i] = best.map(|(_, j)| j);
+    }
+    for i in 0..faces.len() {
+        let Some(p) = parent[i] else { continue };
+        let foot = |f: &Face| f.ring.iter().map(|&k| vertices[k].point.z).fold(f64::INFINITY, f64::min);
+        faces[i].kind = if faces[p].kind == SurfaceKind::Wall && foot(&faces[i]) - foot(&faces[p]) < 0.3 {
+            SurfaceKind::Door
+        } else {
+            SurfaceKind::Window
+        };
+        let ring = faces[i].ring.iter().rev().copied().collect();
+        faces[p].holes.push(ring);
+    }
+    // Frames and glass behind an opening.
+    let openings: Vec<usize> = (0..faces.len()).filter(|&i| parent[i].is_some()).collect();
+    for i in 0..faces.len() {
+        if parent[i].is_some() || faces[i].kind != SurfaceKind::Wall {
+            continue;
+        }
+        let c = faces[i].ring.iter().map(|&k| vertices[k].point).sum::<Vec3>() / faces[i].ring.len() as f64;
+        for &o in &openings {
+            let of = &faces[o];
+            let depth = of.normal.dot(&(vertices[of.ring[0]].point - c));
+            if of.normal.dot(&faces[i].normal) > cos_par && depth > 0.0 && depth < 0.5 {
+                let (u, v) = plane_basis(of.normal);
+                if point_in_polygon([c.dot(&u), c.dot(&v)], &flat(of, &of.ring)) {
+                    faces[i].kind = of.kind;
+                    break;
+                }
+            }
+        }
+    }
+}

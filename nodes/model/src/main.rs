@@ -1,0 +1,118 @@
+//! `lineflow-model`: the model stage (`impl = "csr"`). Rebuilds the wire-frame from every set of 3-D lines it
+//! receives and publishes it (the live model), and at end-of-stream writes `model.obj` and `model.city.json`.
+use anyhow::{bail, Context, Result};
+use lineflow_formats::Line3Row;
+use lineflow_messages::{kinds, parts, Line3, Pose, Stamp, WireEdge, WireframeHeader};
+use lineflow_model::{build, export, lines_from_rows, Model, ModelParams, SurfaceKind};
+use lineflow_photogrammetry::Vec3;
+use lineflow_runtime::{Flow, NodeContext, Output};
+
+fn main() -> std::process::ExitCode {
+    lineflow_runtime::run_node(body)
+}
+
+/// The edge's kind code of `WireEdge` (0 wall, 1 roof, 2 opening, 3 ground) from the first face it bounds.
+fn wire_edges(model: &Model) -> Vec<WireEdge> {
+    model
+        .edges
+        .iter()
+        .map(|e| {
+            let face = model.faces.iter().position(|f| {
+                let n = f.ring.len();
+                (0..n).any(|i| {
+                    let (p, q) = (f.ring[i], f.ring[(i + 1) % n]);
+                    (p, q) == (e.a, e.b) || (q, p) == (e.a, e.b)
+                })
+            });
+            let kind = face.map_or(0, |f| match model.faces[f].kind {
+                SurfaceKind::Wall => 0,
+                SurfaceKind::Roof => 1,
+                SurfaceKind::Window | SurfaceKind::Door => 2,
+                SurfaceKind::Ground | SurfaceKind::Floor => 3,
+            });
+            WireEdge {
+                a: e.a as u32,
+                b: e.b as u32,
+                face: face.map_or(u32::MAX, |f| f as u32),
+                kind,
+            }
+        })
+        .collect()
+}
+
+fn publish(output: &Output<kinds::Wireframe>, stamp: Stamp, model: &Model) -> Result<()> {
+    let vertices: Vec<[f64; 3]> = model.vertices.iter().map(|v| v.point.into()).collect();
+    let edges = wire_edges(model);
+    let header = WireframeHeader {
+        stamp,
+        n_vertices: vertices.len() as u32,
+        n_edges: edges.len() as u32,
+    };
+    output.publish_with(header, parts::two_part_len::<[f64; 3], WireEdge>(vertices.len(), edges.len()), |buf| {
+        parts::write(buf, &vertices, &edges)
+    })
+}
+
+fn body() -> Result<()> {
+    let ctx = NodeContext::from_env()?;
+    match ctx.implementation("csr") {
+        "csr" => {}
+        other => bail!("node '{}': unknown model impl '{other}' (available: csr)", ctx.name()),
+    }
+    let params: ModelParams = ctx.params()?;
+    if let Err(e) = params.validate() {
+        bail!("node '{}': {e}", ctx.name());
+    }
+    let lines_in = ctx.input::<kinds::Lines3D>("lines3d")?;
+    let poses_in = ctx.optional_input::<kinds::Poses>("poses")?;
+    let output = ctx.output::<kinds::Wireframe>("wireframe")?;
+    ctx.connect()?;
+
+    let mut viewpoint: Option<Vec3> = None;
+    let mut model = Model::default();
+    let mut latest: Option<(Stamp, Vec<Line3Row>)> = None;
+    ctx.run(|| {
+        if let Some(poses) = &poses_in {
+            while let Some(m) = poses.receive()? {
+                let oriented: Vec<Vec3> = m.payload().iter().filter(|p: &&Pose| p.flags & 1 != 0).map(|p| Vec3::from(p.center_m)).collect();
+                if !oriented.is_empty() {
+                    viewpoint = Some(oriented.iter().sum::<Vec3>() / oriented.len() as f64);
+                }
+            }
+        }
+        // Only the newest set of lines matters: each one holds every line so far.
+        while let Some(m) = lines_in.receive()? {
+            let rows: Vec<Line3Row> = m.payload().iter().map(|l: &Line3| Line3Row::from(l)).collect();
+            latest = Some((m.user_header().stamp, rows));
+        }
+        if let Some((stamp, rows)) = latest.take() {
+            model = build(&lines_from_rows(&rows, &params), &params, viewpoint);
+            let d = &model.diagnostics;
+            tracing::debug!(frame = stamp.frame, lines = d.lines_in, vertices = model.vertices.len(), faces = model.faces.len(), "model rebuilt");
+            publish(&output, stamp, &model)?;
+        }
+        Ok(if lines_in.is_ended() { Flow::Stop } else { Flow::Continue })
+    })?;
+    output.end_of_stream()?;
+    let dir = ctx.out_dir();
+    let (obj, city) = (dir.join("model.obj"), dir.join("model.city.json"));
+    export::write_obj(&obj, &model).with_context(|| format!("writing {}", obj.display()))?;
+    export::write_cityjson(&city, &model).with_context(|| format!("writing {}", city.display()))?;
+    let d = &model.diagnostics;
+    if d.lines_in > 0 && model.faces.is_empty() {
+        tracing::warn!("no closed face among {} lines: the model is a loose wire-frame", d.lines_in);
+    }
+    tracing::info!(
+        "model: {} of {} lines in {} objects, {} vertices, {} edges, {} faces (median sigma0 {}) -> {}",
+        d.lines_used,
+        d.lines_in,
+        d.objects,
+        model.vertices.len(),
+        model.edges.len(),
+        model.faces.len(),
+        d.median_sigma0.map_or("-".into(), |s| format!("{s:.2}")),
+        obj.display()
+    );
+    ctx.finish();
+    Ok(())
+}
