@@ -38,7 +38,10 @@ pub fn true_wireframe(lines: &[Line3Row]) -> (Vec<Vec3>, Vec<[usize; 2]>) {
             vertices.len() - 1
         }
     };
-    let ends: Vec<[usize; 2]> = lines.iter().map(|l| [index(l.start, &mut vertices), index(l.end, &mut vertices)]).collect();
+    let ends: Vec<[usize; 2]> = lines
+        .iter()
+        .map(|l| [index(l.start, &mut vertices), index(l.end, &mut vertices)])
+        .collect();
     let mut edges = Vec::new();
     for (l, [a, b]) in lines.iter().zip(&ends) {
         let d = l.end - l.start;

@@ -54,7 +54,12 @@ pub fn write_obj(path: &Path, model: &Model) -> Result<()> {
 
 /// CityJSON 2.0 with integer vertices at 0.1 mm and only the vertices that faces use.
 pub fn cityjson(model: &Model) -> serde_json::Value {
-    let mut used: Vec<usize> = model.faces.iter().flat_map(|f| f.ring.iter().chain(f.holes.iter().flatten())).copied().collect();
+    let mut used: Vec<usize> = model
+        .faces
+        .iter()
+        .flat_map(|f| f.ring.iter().chain(f.holes.iter().flatten()))
+        .copied()
+        .collect();
     used.sort_unstable();
     used.dedup();
     let index: BTreeMap<usize, usize> = used.iter().enumerate().map(|(i, &v)| (v, i)).collect();

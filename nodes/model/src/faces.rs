@@ -76,7 +76,9 @@ pub fn find(vertices: &[Vertex], edges: &[Edge], params: &ModelParams, viewpoint
                 }
                 let n = canonical(n.normalize());
                 let p = vertices[v].point;
-                let known = planes.iter().any(|pl| pl.normal.dot(&n) > cos_merge && (pl.normal.dot(&p) - pl.offset).abs() < tol);
+                let known = planes
+                    .iter()
+                    .any(|pl| pl.normal.dot(&n) > cos_merge && (pl.normal.dot(&p) - pl.offset).abs() < tol);
                 if !known {
                     planes.push(Plane {
                         normal: n,
@@ -100,7 +102,11 @@ pub fn find(vertices: &[Vertex], edges: &[Edge], params: &ModelParams, viewpoint
                 continue;
             }
             let centroid = ring.iter().map(|&v| vertices[v].point).sum::<Vec3>() / ring.len() as f64;
-            let towards = if outward_from_centroid { centroid - inside_ref } else { inside_ref - centroid };
+            let towards = if outward_from_centroid {
+                centroid - inside_ref
+            } else {
+                inside_ref - centroid
+            };
             let (normal, ring) = if plane.normal.dot(&towards) >= 0.0 {
                 (plane.normal, ring)
             } else {
@@ -113,6 +119,9 @@ pub fn find(vertices: &[Vertex], edges: &[Edge], params: &ModelParams, viewpoint
                 kind: kind_of_plane(normal),
             });
         }
+    }
+    if viewpoint.is_some() {
+        recessed_openings(vertices, &incident, edges, &mut faces);
     }
     nest_openings(vertices, &mut faces, params);
     faces
@@ -235,7 +244,10 @@ fn cycles(vertices: &[Vertex], edges: &[&Edge], normal: Vec3) -> Vec<Vec<usize>>
 
 fn signed_area(p: &[[f64; 2]]) -> f64 {
     let n = p.len();
-    (0..n).map(|i| p[i][0] * p[(i + 1) % n][1] - p[(i + 1) % n][0] * p[i][1]).sum::<f64>() / 2.0
+    (0..n)
+        .map(|i| p[i][0] * p[(i + 1) % n][1] - p[(i + 1) % n][0] * p[i][1])
+        .sum::<f64>()
+        / 2.0
 }
 
 fn point_in_polygon(q: [f64; 2], poly: &[[f64; 2]]) -> bool {
@@ -250,26 +262,57 @@ fn point_in_polygon(q: [f64; 2], poly: &[[f64; 2]]) -> bool {
     inside
 }
 
-/// A face lying inside a larger face of the same plane, sharing no vertex with it, is that face's opening (the
-/// innermost container wins): a window, or a door when it reaches within 0.3 m of the container's foot. Faces
+/// A vertical face whose corners (three or more) have edges running straight back from it, and none running
+/// forward, is an opening in its own right: a hole with reveals, even where the wall's outline is not closed
+/// (a façade's top edge is often hidden under the eaves). Needs outward normals, i.e. a viewpoint.
+fn recessed_openings(vertices: &[Vertex], incident: &[Vec<usize>], edges: &[Edge], faces: &mut [Face]) {
+    let cos = 20f64.to_radians().cos();
+    for f in faces.iter_mut() {
+        if f.kind != SurfaceKind::Wall {
+            continue;
+        }
+        let (mut back, mut forward) = (0, 0);
+        for &v in &f.ring {
+            let goes = |sign: f64| {
+                incident[v].iter().any(|&e| {
+                    let other = if edges[e].a == v { edges[e].b } else { edges[e].a };
+                    let d = (vertices[other].point - vertices[v].point).normalize();
+                    sign * d.dot(&f.normal) > cos
+                })
+            };
+            back += usize::from(goes(-1.0));
+            forward += usize::from(goes(1.0));
+        }
+        if back >= 3 && forward == 0 {
+            f.kind = SurfaceKind::Window;
+        }
+    }
+}
+
+/// A face lying inside a larger wall or roof face of the same plane, sharing no vertex with it, is that face's
+/// opening (the innermost container wins): a window, or a door when it reaches within 0.3 m of the container's
+/// foot (of the lowest face, for an opening found by its reveals alone). Faces
 /// behind an opening (reveals excepted: frames and glass parallel to it, within 0.5 m) take the opening's kind.
 fn nest_openings(vertices: &[Vertex], faces: &mut [Face], params: &ModelParams) {
     let cos_par = params.plane_angle_deg.to_radians().cos();
     let flat = |f: &Face, ring: &[usize]| -> Vec<[f64; 2]> {
         let (u, v) = plane_basis(f.normal);
-        ring.iter().map(|&k| [vertices[k].point.dot(&u), vertices[k].point.dot(&v)]).collect()
+        ring.iter()
+            .map(|&k| [vertices[k].point.dot(&u), vertices[k].point.dot(&v)])
+            .collect()
     };
     let area = |f: &Face| signed_area(&flat(f, &f.ring)).abs();
     let offset = |f: &Face| f.normal.dot(&vertices[f.ring[0]].point);
     let mut parent: Vec<Option<usize>> = vec![None; faces.len()];
+    let container = |k: SurfaceKind| matches!(k, SurfaceKind::Wall | SurfaceKind::Roof);
     for (i, f) in faces.iter().enumerate() {
-        if f.kind != SurfaceKind::Wall && f.kind != SurfaceKind::Roof {
+        if !container(f.kind) && f.kind != SurfaceKind::Window {
             continue;
         }
         let mut best: Option<(f64, usize)> = None;
         for (j, g) in faces.iter().enumerate() {
             let coplanar = g.normal.dot(&f.normal) > cos_par && (offset(g) - offset(f)).abs() < 0.01;
-            if i == j || !coplanar || area(g) <= area(f) || g.ring.iter().any(|v| f.ring.contains(v)) {
+            if i == j || !container(g.kind) || !coplanar || area(g) <= area(f) || g.ring.iter().any(|v| f.ring.contains(v)) {
                 continue;
             }
             let poly = flat(g, &g.ring);
@@ -279,19 +322,30 @@ fn nest_openings(vertices: &[Vertex], faces: &mut [Face], params: &ModelParams) 
         }
         parent[i] = best.map(|(_, j)| j);
     }
+    let foot = |f: &Face| f.ring.iter().map(|&k| vertices[k].point.z).fold(f64::INFINITY, f64::min);
+    let ground = faces.iter().map(foot).fold(f64::INFINITY, f64::min);
     for i in 0..faces.len() {
-        let Some(p) = parent[i] else { continue };
-        let foot = |f: &Face| f.ring.iter().map(|&k| vertices[k].point.z).fold(f64::INFINITY, f64::min);
-        faces[i].kind = if faces[p].kind == SurfaceKind::Wall && foot(&faces[i]) - foot(&faces[p]) < 0.3 {
+        let door_level = match parent[i] {
+            Some(p) if faces[p].kind == SurfaceKind::Wall => foot(&faces[p]),
+            Some(_) => f64::NEG_INFINITY,
+            // An opening by its reveals alone: a door when it reaches down to the lowest face.
+            None if faces[i].kind == SurfaceKind::Window => ground,
+            None => continue,
+        };
+        faces[i].kind = if foot(&faces[i]) - door_level < 0.3 {
             SurfaceKind::Door
         } else {
             SurfaceKind::Window
         };
-        let ring = faces[i].ring.iter().rev().copied().collect();
-        faces[p].holes.push(ring);
+        if let Some(p) = parent[i] {
+            let ring = faces[i].ring.iter().rev().copied().collect();
+            faces[p].holes.push(ring);
+        }
     }
     // Frames and glass behind an opening.
-    let openings: Vec<usize> = (0..faces.len()).filter(|&i| parent[i].is_some()).collect();
+    let openings: Vec<usize> = (0..faces.len())
+        .filter(|&i| matches!(faces[i].kind, SurfaceKind::Window | SurfaceKind::Door))
+        .collect();
     for i in 0..faces.len() {
         if parent[i].is_some() || faces[i].kind != SurfaceKind::Wall {
             continue;

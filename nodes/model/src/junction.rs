@@ -326,6 +326,10 @@ mod tests {
         let acc = accept(&lines, &j, &params);
         assert_eq!(acc.junctions.len(), 1);
         assert_eq!(acc.ends[1][0], Resolution::Logic);
-        assert_eq!(acc.ends[0], [Resolution::Free, Resolution::Free], "the long line's own ends stay free");
+        assert_eq!(
+            acc.ends[0],
+            [Resolution::Free, Resolution::Free],
+            "the long line's own ends stay free"
+        );
     }
 }

@@ -169,7 +169,9 @@ pub struct Model {
 /// camera centre) when given. Deterministic for a given line order.
 pub fn build(lines: &[ModelLine], params: &ModelParams, viewpoint: Option<Vec3>) -> Model {
     let kept: Vec<usize> = (0..lines.len())
-        .filter(|&k| lines[k].length() >= params.min_length_m.max(1e-6) && lines[k].start.iter().chain(lines[k].end.iter()).all(|v| v.is_finite()))
+        .filter(|&k| {
+            lines[k].length() >= params.min_length_m.max(1e-6) && lines[k].start.iter().chain(lines[k].end.iter()).all(|v| v.is_finite())
+        })
         .collect();
     let used_lines: Vec<ModelLine> = kept.iter().map(|&k| lines[k].clone()).collect();
     let candidates = junction::candidates(&used_lines, params);
@@ -262,7 +264,10 @@ pub fn build(lines: &[ModelLine], params: &ModelParams, viewpoint: Option<Vec3>)
             }
             let tp = t(&p);
             // A line that reached no corner is kept whole: an observed edge, if not part of any face.
-            let (lo, hi) = along.first().zip(along.last()).map_or((f64::INFINITY, f64::NEG_INFINITY), |(a, b)| (a.0, b.0));
+            let (lo, hi) = along
+                .first()
+                .zip(along.last())
+                .map_or((f64::INFINITY, f64::NEG_INFINITY), |(a, b)| (a.0, b.0));
             if tp < lo - gate || tp > hi + gate {
                 vertices.push(Vertex {
                     point: origin + dir * tp,

@@ -48,9 +48,11 @@ fn publish(output: &Output<kinds::Wireframe>, stamp: Stamp, model: &Model) -> Re
         n_vertices: vertices.len() as u32,
         n_edges: edges.len() as u32,
     };
-    output.publish_with(header, parts::two_part_len::<[f64; 3], WireEdge>(vertices.len(), edges.len()), |buf| {
-        parts::write(buf, &vertices, &edges)
-    })
+    output.publish_with(
+        header,
+        parts::two_part_len::<[f64; 3], WireEdge>(vertices.len(), edges.len()),
+        |buf| parts::write(buf, &vertices, &edges),
+    )
 }
 
 fn body() -> Result<()> {
@@ -74,7 +76,12 @@ fn body() -> Result<()> {
     ctx.run(|| {
         if let Some(poses) = &poses_in {
             while let Some(m) = poses.receive()? {
-                let oriented: Vec<Vec3> = m.payload().iter().filter(|p: &&Pose| p.flags & 1 != 0).map(|p| Vec3::from(p.center_m)).collect();
+                let oriented: Vec<Vec3> = m
+                    .payload()
+                    .iter()
+                    .filter(|p: &&Pose| p.flags & 1 != 0)
+                    .map(|p| Vec3::from(p.center_m))
+                    .collect();
                 if !oriented.is_empty() {
                     viewpoint = Some(oriented.iter().sum::<Vec3>() / oriented.len() as f64);
                 }
@@ -88,7 +95,13 @@ fn body() -> Result<()> {
         if let Some((stamp, rows)) = latest.take() {
             model = build(&lines_from_rows(&rows, &params), &params, viewpoint);
             let d = &model.diagnostics;
-            tracing::debug!(frame = stamp.frame, lines = d.lines_in, vertices = model.vertices.len(), faces = model.faces.len(), "model rebuilt");
+            tracing::debug!(
+                frame = stamp.frame,
+                lines = d.lines_in,
+                vertices = model.vertices.len(),
+                faces = model.faces.len(),
+                "model rebuilt"
+            );
             publish(&output, stamp, &model)?;
         }
         Ok(if lines_in.is_ended() { Flow::Stop } else { Flow::Continue })

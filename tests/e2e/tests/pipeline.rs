@@ -480,10 +480,10 @@ to = []
 }
 
 #[test]
-fn the_demo_graph_orients_both_strips_and_extracts_3d_lines_the_same_way_twice() {
+fn the_demo_graph_orients_both_strips_and_extracts_3d_lines_and_a_model_the_same_way_twice() {
     let sb = Sandbox::new();
     let demo = repo_file("launch/demo.toml");
-    let (mut poses, mut lines) = (Vec::new(), Vec::new());
+    let (mut poses, mut lines, mut models) = (Vec::new(), Vec::new(), Vec::new());
     for k in 0..2 {
         let out = sb.path().join(format!("out{k}"));
         let r = sb.run(&[
@@ -527,9 +527,26 @@ fn the_demo_graph_orients_both_strips_and_extracts_3d_lines_the_same_way_twice()
         assert!(success > 50.0, "success rate {success} %:\n{report}");
         assert!(endpoint_mm < 2.0 * gsd * 1e3, "endpoint distance {endpoint_mm} mm:\n{report}");
         lines.push(lines3d);
+        // The model stage closes the graph: a wire-frame from those lines, scored by the live eval.
+        let obj = std::fs::read_to_string(out.join("model.obj")).expect("no model.obj");
+        assert!(
+            obj.lines().any(|l| l.starts_with("v ")) && obj.lines().any(|l| l.starts_with("l ")),
+            "{obj}"
+        );
+        let city = std::fs::read_to_string(out.join("model.city.json")).expect("no model.city.json");
+        assert!(
+            city.contains("\"type\":\"CityJSON\"") && city.contains("\"version\":\"2.0\""),
+            "{city}"
+        );
+        assert!(
+            report.contains("| true vertices | model vertices |"),
+            "the live eval saw no wire-frame:\n{report}"
+        );
+        models.push(obj);
     }
     assert_eq!(poses[0], poses[1], "two runs oriented differently");
     assert!(lines[0] == lines[1], "two runs gave different 3-D lines");
+    assert!(models[0] == models[1], "two runs gave different models");
 }
 
 /// The first number after `marker` (then `lead`) in `text`.

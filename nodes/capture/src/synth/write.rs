@@ -26,8 +26,7 @@ pub fn jpeg_bytes(rgb: &[u8], width: u32, height: u32, quality: u8) -> Result<Ve
 
 /// The true poses as `poses.csv` rows (standard deviations empty).
 pub fn truth_poses(syn: &Synthetic) -> Vec<PoseRow> {
-    syn
-        .poses()
+    syn.poses()
         .iter()
         .enumerate()
         .map(|(i, p)| PoseRow {
@@ -41,8 +40,7 @@ pub fn truth_poses(syn: &Synthetic) -> Vec<PoseRow> {
 
 /// The structural edges seen in at least two images as `lines3d.csv` rows (statistics empty), ids `G1`...
 pub fn truth_lines(syn: &Synthetic) -> Vec<Line3Row> {
-    syn
-        .seen_edges()
+    syn.seen_edges()
         .iter()
         .enumerate()
         .map(|(i, e)| Line3Row {

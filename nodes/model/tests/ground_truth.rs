@@ -1,0 +1,110 @@
+//! The model of a synthetic façade's true edges with noise added, scored against the truth as `lineflow eval`
+//! scores it (targets of issue #8: vertex RMSE ≤ 1 GSD, edge precision and recall ≥ 95 %).
+use lineflow_capture::synth::{rng::Rng, Synthetic};
+use lineflow_eval::{model::evaluate, Truth};
+use lineflow_model::{build, export, Model, ModelLine, ModelParams, SurfaceKind};
+use lineflow_photogrammetry::Vec3;
+
+fn noisy_lines(truth: &Truth, sigma: f64) -> Vec<ModelLine> {
+    let mut rng = Rng::new(7, 3);
+    let mut jitter = move || Vec3::new(rng.normal(), rng.normal(), rng.normal()) * sigma;
+    truth
+        .lines
+        .iter()
+        .map(|l| ModelLine::new(l.start + jitter(), l.end + jitter(), sigma))
+        .collect()
+}
+
+fn score(truth: &Truth, model: &Model) -> lineflow_eval::model::ModelReport {
+    let v: Vec<Vec3> = model.vertices.iter().map(|v| v.point).collect();
+    let e: Vec<[usize; 2]> = model.edges.iter().map(|e| [e.a, e.b]).collect();
+    evaluate(&truth.lines, &v, &e, truth.gsd_m())
+}
+
+#[test]
+fn a55_true_edges_with_half_a_gsd_of_noise_give_the_model_within_one_gsd() {
+    let truth = Truth::from_scene(Synthetic::new("a55-two-strips", 1.0, 1).unwrap());
+    let gsd = truth.gsd_m();
+    let sigma = 0.5 * gsd;
+    let params = ModelParams {
+        sigma_m: sigma,
+        ..ModelParams::default()
+    };
+    let lines = noisy_lines(&truth, sigma);
+    let cameras = truth.poses.iter().map(|p| p.pose.center).sum::<Vec3>() / truth.poses.len() as f64;
+    let model = build(&lines, &params, Some(cameras));
+    let r = score(&truth, &model);
+    assert!(
+        r.vertex_rmse_m < gsd,
+        "vertex RMSE {} mm, GSD {} mm",
+        r.vertex_rmse_m * 1e3,
+        gsd * 1e3
+    );
+    assert!(r.edge_precision > 0.95 && r.edge_recall > 0.95, "{r:?}");
+    // σ̂0 near 1: the adjustment's precision model matches the noise.
+    let s0 = model.diagnostics.median_sigma0.unwrap();
+    assert!((0.7..1.3).contains(&s0), "median sigma0 {s0}");
+    let openings = model
+        .faces
+        .iter()
+        .filter(|f| matches!(f.kind, SurfaceKind::Window | SurfaceKind::Door))
+        .count();
+    // a55: two floors of windows and a door, each an opening with its frame and panes behind it.
+    assert!(openings >= 10, "{openings} openings");
+    assert!(model.faces.iter().any(|f| f.kind == SurfaceKind::Door), "no door");
+
+    // Same lines, same bytes.
+    let again = build(&lines, &params, Some(cameras));
+    assert_eq!(export::obj_text(&model), export::obj_text(&again));
+}
+
+#[test]
+fn noise_free_rectangles_in_any_order_give_the_same_corners() {
+    // A wall with one window: the outline and the opening, then the same lines reversed and rotated in order.
+    let rect = |x0: f64, z0: f64, x1: f64, z1: f64| {
+        let p = [[x0, 0.0, z0], [x1, 0.0, z0], [x1, 0.0, z1], [x0, 0.0, z1]].map(Vec3::from);
+        (0..4).map(move |k| ModelLine::new(p[k], p[(k + 1) % 4], 0.003)).collect::<Vec<_>>()
+    };
+    let mut lines = rect(0.0, 0.0, 10.0, 6.0);
+    lines.extend(rect(2.0, 1.0, 3.5, 2.5));
+    let params = ModelParams::default();
+    let corners = |lines: &[ModelLine]| {
+        let m = build(lines, &params, None);
+        let mut c: Vec<[i64; 3]> = m
+            .vertices
+            .iter()
+            .map(|v| [0, 1, 2].map(|k| (v.point[k] * 1e6).round() as i64))
+            .collect();
+        c.sort_unstable();
+        (c, m)
+    };
+    let (first, model) = corners(&lines);
+    assert_eq!(first.len(), 8);
+    let mut shuffled: Vec<ModelLine> = lines.iter().rev().cloned().collect();
+    shuffled.rotate_left(3);
+    assert_eq!(corners(&shuffled).0, first);
+    let wall = model.faces.iter().find(|f| f.kind == SurfaceKind::Wall).expect("a wall");
+    assert_eq!(wall.holes.len(), 1);
+    assert_eq!(model.faces.iter().filter(|f| f.kind == SurfaceKind::Window).count(), 1);
+}
+
+#[test]
+fn bad_input_gives_an_empty_or_loose_model_without_panicking() {
+    let params = ModelParams::default();
+    assert_eq!(build(&[], &params, None), Model::default());
+    let nan = Vec3::new(f64::NAN, 0.0, 0.0);
+    let degenerate = vec![
+        ModelLine::new(nan, Vec3::new(1.0, 0.0, 0.0), 0.01),
+        ModelLine::new(Vec3::zeros(), Vec3::zeros(), 0.01),
+    ];
+    let m = build(&degenerate, &params, None);
+    assert!(m.vertices.is_empty() && m.faces.is_empty());
+    // Two parallel lines: no corner, no face, both kept as loose edges.
+    let parallel = vec![
+        ModelLine::new(Vec3::zeros(), Vec3::new(1.0, 0.0, 0.0), 0.01),
+        ModelLine::new(Vec3::new(0.0, 0.0, 1.0), Vec3::new(1.0, 0.0, 1.0), 0.01),
+    ];
+    let m = build(&parallel, &params, None);
+    assert_eq!((m.edges.len(), m.faces.len(), m.diagnostics.lines_used), (2, 0, 0));
+    assert!(export::cityjson(&m)["CityObjects"].as_object().unwrap().is_empty());
+}
