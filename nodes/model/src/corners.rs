@@ -48,8 +48,8 @@ pub fn cluster(junctions: &[Junction], accepted: &[usize], radius_k: f64) -> Vec
         }
     }
     let mut groups: std::collections::BTreeMap<usize, Vec<usize>> = Default::default();
-    for a in 0..accepted.len() {
-        groups.entry(sets.find(a)).or_default().push(accepted[a]);
+    for (a, &junction) in accepted.iter().enumerate() {
+        groups.entry(sets.find(a)).or_default().push(junction);
     }
     groups
         .into_values()

@@ -107,7 +107,7 @@ impl ModelParams {
         if !(0.0..45.0).contains(&self.min_angle_deg) {
             return Err(format!("min_angle_deg must be in [0, 45), got {}", self.min_angle_deg));
         }
-        if !(self.min_length_m >= 0.0) {
+        if self.min_length_m.is_nan() || self.min_length_m < 0.0 {
             return Err(format!("min_length_m must be ≥ 0, got {}", self.min_length_m));
         }
         Ok(())
