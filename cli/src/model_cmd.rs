@@ -33,31 +33,6 @@ fn params_with(set: &[String]) -> Result<ModelParams> {
     Ok(params)
 }
 
-fn count(model: &Model, kinds: &[SurfaceKind]) -> usize {
-    model.faces.iter().filter(|f| kinds.contains(&f.kind)).count()
-}
-
-fn summary(model: &Model) -> String {
-    let d = &model.diagnostics;
-    format!(
-        "{} of {} lines used, {} objects, {} vertices, {} edges, {} faces ({} walls, {} openings, {} roof), ends resolved by stage 1/2/3: {}/{}/{}, free {}, median sigma0 {}",
-        d.lines_used,
-        d.lines_in,
-        d.objects,
-        model.vertices.len(),
-        model.edges.len(),
-        model.faces.len(),
-        count(model, &[SurfaceKind::Wall]),
-        count(model, &[SurfaceKind::Window, SurfaceKind::Door]),
-        count(model, &[SurfaceKind::Roof]),
-        d.ends_by_stage[0],
-        d.ends_by_stage[1],
-        d.ends_by_stage[2],
-        d.ends_by_stage[3],
-        d.median_sigma0.map_or("-".into(), |s| format!("{s:.2}"))
-    )
-}
-
 /// `lineflow model LINES3D [--poses POSES] [--out DIR] [--set PARAM=VALUE]...`
 pub fn model(lines: &Path, poses: Option<&Path>, out: Option<PathBuf>, set: &[String]) -> Result<ExitCode> {
     let params = params_with(set)?;
@@ -75,7 +50,7 @@ pub fn model(lines: &Path, poses: Option<&Path>, out: Option<PathBuf>, set: &[St
     let out = out.unwrap_or_else(|| lines.parent().map(Path::to_path_buf).unwrap_or_default());
     export::write_obj(&out.join("model.obj"), &model)?;
     export::write_cityjson(&out.join("model.city.json"), &model)?;
-    println!("{} in {:.0} ms", summary(&model), elapsed * 1000.0);
+    println!("{} in {:.0} ms", model.summary(), elapsed * 1000.0);
     println!("wrote {} and model.city.json", out.join("model.obj").display());
     if !rows.is_empty() && model.faces.is_empty() {
         eprintln!("warning: no closed face among the lines: the model is a loose wire-frame");
@@ -140,12 +115,12 @@ pub fn bench_model(preset: &str, sigmas_gsd: &[f64], reps: usize, out: Option<&P
             r.true_vertices,
             100.0 * r.edge_precision,
             100.0 * r.edge_recall,
-            count(&model, &[SurfaceKind::Window, SurfaceKind::Door]),
+            model.count(&[SurfaceKind::Window, SurfaceKind::Door]),
             t_build * 1000.0,
             t_pairs * 1000.0,
             t_build / TARGET_S
         );
-        eprintln!("  σ {k} GSD: {}", summary(&model));
+        eprintln!("  σ {k} GSD: {}", model.summary());
         if let Some(dir) = out {
             let dir = dir.join(format!("sigma{k}"));
             lineflow_formats::write_lines3d(&dir.join("lines3d.csv"), &rows)?;

@@ -165,6 +165,35 @@ pub struct Model {
     pub diagnostics: Diagnostics,
 }
 
+impl Model {
+    /// The faces of the given kinds.
+    pub fn count(&self, kinds: &[SurfaceKind]) -> usize {
+        self.faces.iter().filter(|f| kinds.contains(&f.kind)).count()
+    }
+
+    /// One line for logs: what was used, what came out, how the line ends were resolved, σ̂0.
+    pub fn summary(&self) -> String {
+        let d = &self.diagnostics;
+        format!(
+            "{} of {} lines used, {} objects, {} vertices, {} edges, {} faces ({} walls, {} window/door, {} roof), ends resolved by stage 1/2/3: {}/{}/{}, free {}, median sigma0 {}",
+            d.lines_used,
+            d.lines_in,
+            d.objects,
+            self.vertices.len(),
+            self.edges.len(),
+            self.faces.len(),
+            self.count(&[SurfaceKind::Wall]),
+            self.count(&[SurfaceKind::Window, SurfaceKind::Door]),
+            self.count(&[SurfaceKind::Roof]),
+            d.ends_by_stage[0],
+            d.ends_by_stage[1],
+            d.ends_by_stage[2],
+            d.ends_by_stage[3],
+            d.median_sigma0.map_or("-".into(), |s| format!("{s:.2}"))
+        )
+    }
+}
+
 /// Construct and Shape: the wire-frame of `lines`, then its faces, oriented towards `viewpoint` (e.g. the mean
 /// camera centre) when given. Deterministic for a given line order.
 pub fn build(lines: &[ModelLine], params: &ModelParams, viewpoint: Option<Vec3>) -> Model {

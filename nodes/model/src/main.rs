@@ -115,17 +115,7 @@ fn body() -> Result<()> {
     if d.lines_in > 0 && model.faces.is_empty() {
         tracing::warn!("no closed face among {} lines: the model is a loose wire-frame", d.lines_in);
     }
-    tracing::info!(
-        "model: {} of {} lines in {} objects, {} vertices, {} edges, {} faces (median sigma0 {}) -> {}",
-        d.lines_used,
-        d.lines_in,
-        d.objects,
-        model.vertices.len(),
-        model.edges.len(),
-        model.faces.len(),
-        d.median_sigma0.map_or("-".into(), |s| format!("{s:.2}")),
-        obj.display()
-    );
+    tracing::info!("model: {} -> {}", model.summary(), obj.display());
     ctx.finish();
     Ok(())
 }
