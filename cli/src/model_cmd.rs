@@ -22,11 +22,7 @@ fn params_with(set: &[String]) -> Result<ModelParams> {
         let (k, v) = item
             .split_once('=')
             .with_context(|| format!("--set {item}: expected PARAM=VALUE"))?;
-        let value = toml::from_str::<toml::Table>(&format!("v = {v}"))
-            .ok()
-            .and_then(|mut t| t.remove("v"))
-            .unwrap_or_else(|| toml::Value::String(v.to_string()));
-        table.insert(k.trim().to_string(), value);
+        table.insert(k.trim().to_string(), lineflow_runtime::launch::override_value(v));
     }
     let params: ModelParams = toml::Value::Table(table).try_into().context("model parameters")?;
     params.validate().map_err(anyhow::Error::msg)?;

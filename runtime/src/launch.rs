@@ -676,13 +676,18 @@ pub fn resolve_param_path(base: &Path, value: &str) -> PathBuf {
     }
 }
 
+/// The value of a `--set` override: TOML (`3`, `true`, `"x"`, `[1, 2]`) where it parses, else the text as a string.
+pub fn override_value(value: &str) -> toml::Value {
+    toml::from_str::<toml::Table>(&format!("v = {value}"))
+        .ok()
+        .and_then(|mut t| t.remove("v"))
+        .unwrap_or_else(|| toml::Value::String(value.to_owned()))
+}
+
 fn apply_override(file: &mut LaunchFile, item: &str) -> Result<(), String> {
     let (key, value) = item.split_once('=').ok_or("expected NODE.PARAM=VALUE")?;
     let (node, param) = key.split_once('.').ok_or("expected NODE.PARAM=VALUE")?;
-    let parsed: toml::Value = toml::from_str::<toml::Table>(&format!("v = {value}"))
-        .ok()
-        .and_then(|mut t| t.remove("v"))
-        .unwrap_or_else(|| toml::Value::String(value.to_owned()));
+    let parsed = override_value(value);
     if node == RECORDER_STAGE && !file.node.iter().any(|n| n.name == node) {
         file.record.insert(param.to_owned(), parsed);
         return Ok(());

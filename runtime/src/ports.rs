@@ -287,6 +287,18 @@ impl<M: Message> Output<M> {
     }
 }
 
+impl<M: Message<Element = u8>> Output<M> {
+    /// Publishes a two-part byte payload (`a`, then `b` at the next 8-byte boundary; `lineflow_messages::parts`),
+    /// written straight into the loaned sample.
+    ///
+    /// # Errors
+    /// As [`publish_with`](Self::publish_with).
+    pub fn publish_parts<A: ZeroCopySend + Copy, B: ZeroCopySend + Copy>(&self, header: M::Header, a: &[A], b: &[B]) -> Result<()> {
+        let len = lineflow_messages::parts::two_part_len::<A, B>(a.len(), b.len());
+        self.publish_with(header, len, |buf| lineflow_messages::parts::write(buf, a, b))
+    }
+}
+
 impl<M: Message> Connect for OutputInner<M> {
     fn drained(&self) -> bool {
         self.service.dynamic_config().number_of_subscribers() == 0

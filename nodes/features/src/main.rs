@@ -2,7 +2,7 @@
 //! float descriptors (two-part payload: `[Keypoint; count]`, then `count × 64` `f32`).
 use anyhow::{bail, Result};
 use lineflow_features::surf::{surf, Feature, SurfParams};
-use lineflow_messages::{fixed_str, kinds, parts, Keypoint, KeypointsHeader};
+use lineflow_messages::{fixed_str, kinds, Keypoint, KeypointsHeader};
 use lineflow_runtime::{Flow, NodeContext};
 
 fn main() -> std::process::ExitCode {
@@ -50,8 +50,7 @@ fn body() -> Result<()> {
                 descriptor_kind: KeypointsHeader::FLOAT,
                 detector: fixed_str("surf"),
             };
-            let len = parts::two_part_len::<Keypoint, f32>(kps.len(), descriptors.len());
-            output.publish_with(header, len, |buf| parts::write(buf, &kps, &descriptors))?;
+            output.publish_parts(header, &kps, &descriptors)?;
             tracing::debug!(frame = h.stamp.frame, keypoints = kps.len(), "described");
             Ok(())
         })?;

@@ -419,9 +419,5 @@ fn publish(output: &Output<kinds::Points3D>, mut stamp: Stamp, master: u64, revi
         n_groups: groups.len() as u32,
         n_points: points.len() as u32,
     };
-    output.publish_with(
-        header,
-        parts::two_part_len::<PointGroup, Point3>(groups.len(), points.len()),
-        |buf| parts::write(buf, &groups, &points),
-    )
+    output.publish_parts(header, &groups, &points)
 }

@@ -4,7 +4,7 @@
 use anyhow::{bail, Context, Result};
 use lineflow_formats::{write_lines2d, Line2Row};
 use lineflow_lines2d::TraceParams;
-use lineflow_messages::{kinds, parts, EdgeMapHeader, EdgePixel, Lines2DHeader, Segment2};
+use lineflow_messages::{kinds, EdgeMapHeader, EdgePixel, Lines2DHeader, Segment2};
 use lineflow_photogrammetry::Camera;
 use lineflow_runtime::{Flow, NodeContext};
 use serde::Deserialize;
@@ -80,9 +80,7 @@ fn publish(
         n_chain: chain.len() as u32,
         name,
     };
-    output.publish_with(header, parts::two_part_len::<Segment2, [u16; 2]>(segs.len(), chain.len()), |buf| {
-        parts::write(buf, segs, chain)
-    })
+    output.publish_parts(header, segs, chain)
 }
 
 /// Segments of one edge map, with their rows for `lines2d.csv`.

@@ -95,8 +95,9 @@ pub fn adjust(lines: &[ModelLine], corners: &[Vec3], incidences: &[(usize, usize
                 pieces.push(None);
                 continue;
             }
+            // A restricted to the corners on this line (3 columns each): the rest of its row is zero.
             let rows = 2 * cs.len();
-            let mut a = DMatrix::zeros(rows, u);
+            let mut a = DMatrix::zeros(rows, 3 * cs.len());
             let mut b = DMatrix::zeros(rows, 4);
             let mut w = DVector::zeros(rows);
             for (r, &c) in cs.iter().enumerate() {
@@ -106,8 +107,8 @@ pub fn adjust(lines: &[ModelLine], corners: &[Vec3], incidences: &[(usize, usize
                     let [ah, bh] = adjusted[l][m];
                     let g = x[c][j] - o.centre[j] - ah - bh * xk;
                     let row = 2 * r + m;
-                    a[(row, 3 * c + j)] = 1.0;
-                    a[(row, 3 * c + o.axis)] = -bh;
+                    a[(row, 3 * r + j)] = 1.0;
+                    a[(row, 3 * r + o.axis)] = -bh;
                     b[(row, 2 * m)] = -1.0;
                     b[(row, 2 * m + 1)] = -xk;
                     // w = −g(l̂, x) − B (l − l̂)
@@ -122,8 +123,16 @@ pub fn adjust(lines: &[ModelLine], corners: &[Vec3], incidences: &[(usize, usize
             let n_bb = &b * &q * b.transpose();
             let n_bb_inv = n_bb.try_inverse()?;
             let at_n = a.transpose() * &n_bb_inv;
-            n_aa += &at_n * &a;
-            rhs += &at_n * &w;
+            let block = &at_n * &a;
+            let part = &at_n * &w;
+            for (r1, &c1) in cs.iter().enumerate() {
+                for (r2, &c2) in cs.iter().enumerate() {
+                    let mut target = n_aa.view_mut((3 * c1, 3 * c2), (3, 3));
+                    target += block.view((3 * r1, 3 * r2), (3, 3));
+                }
+                let mut target = rhs.rows_mut(3 * c1, 3);
+                target += part.rows(3 * r1, 3);
+            }
             pieces.push(Some((a, b, w, q, n_bb_inv)));
         }
         let chol = n_aa.clone().cholesky()?;
@@ -131,7 +140,11 @@ pub fn adjust(lines: &[ModelLine], corners: &[Vec3], incidences: &[(usize, usize
         residual_energy = 0.0;
         for (l, piece) in pieces.iter().enumerate() {
             let Some((a, b, w, q, n_bb_inv)) = piece else { continue };
-            let k = n_bb_inv * (w - a * &xi);
+            let mut xi_here = DVector::zeros(3 * by_line[l].len());
+            for (r, &c) in by_line[l].iter().enumerate() {
+                xi_here.rows_mut(3 * r, 3).copy_from(&xi.rows(3 * c, 3));
+            }
+            let k = n_bb_inv * (w - a * xi_here);
             let e = q * b.transpose() * &k;
             // eᵀ P e with P = Q⁻¹ equals kᵀ B Q Bᵀ k.
             residual_energy += e.dot(&(b.transpose() * &k));

@@ -301,8 +301,10 @@ fn nest_openings(vertices: &[Vertex], faces: &mut [Face], params: &ModelParams) 
             .map(|&k| [vertices[k].point.dot(&u), vertices[k].point.dot(&v)])
             .collect()
     };
-    let area = |f: &Face| signed_area(&flat(f, &f.ring)).abs();
-    let offset = |f: &Face| f.normal.dot(&vertices[f.ring[0]].point);
+    // Each face's polygon in its own plane, area and offset, once.
+    let polys: Vec<Vec<[f64; 2]>> = faces.iter().map(|f| flat(f, &f.ring)).collect();
+    let areas: Vec<f64> = polys.iter().map(|p| signed_area(p).abs()).collect();
+    let offsets: Vec<f64> = faces.iter().map(|f| f.normal.dot(&vertices[f.ring[0]].point)).collect();
     let mut parent: Vec<Option<usize>> = vec![None; faces.len()];
     let container = |k: SurfaceKind| matches!(k, SurfaceKind::Wall | SurfaceKind::Roof);
     for (i, f) in faces.iter().enumerate() {
@@ -311,13 +313,12 @@ fn nest_openings(vertices: &[Vertex], faces: &mut [Face], params: &ModelParams) 
         }
         let mut best: Option<(f64, usize)> = None;
         for (j, g) in faces.iter().enumerate() {
-            let coplanar = g.normal.dot(&f.normal) > cos_par && (offset(g) - offset(f)).abs() < 0.01;
-            if i == j || !container(g.kind) || !coplanar || area(g) <= area(f) || g.ring.iter().any(|v| f.ring.contains(v)) {
+            let coplanar = g.normal.dot(&f.normal) > cos_par && (offsets[j] - offsets[i]).abs() < 0.01;
+            if i == j || !container(g.kind) || !coplanar || areas[j] <= areas[i] || g.ring.iter().any(|v| f.ring.contains(v)) {
                 continue;
             }
-            let poly = flat(g, &g.ring);
-            if flat(f, &f.ring).iter().all(|&q| point_in_polygon(q, &poly)) && best.is_none_or(|(a, _)| area(g) < a) {
-                best = Some((area(g), j));
+            if polys[i].iter().all(|&q| point_in_polygon(q, &polys[j])) && best.is_none_or(|(a, _)| areas[j] < a) {
+                best = Some((areas[j], j));
             }
         }
         parent[i] = best.map(|(_, j)| j);
@@ -356,7 +357,7 @@ fn nest_openings(vertices: &[Vertex], faces: &mut [Face], params: &ModelParams) 
             let depth = of.normal.dot(&(vertices[of.ring[0]].point - c));
             if of.normal.dot(&faces[i].normal) > cos_par && depth > 0.0 && depth < 0.5 {
                 let (u, v) = plane_basis(of.normal);
-                if point_in_polygon([c.dot(&u), c.dot(&v)], &flat(of, &of.ring)) {
+                if point_in_polygon([c.dot(&u), c.dot(&v)], &polys[o]) {
                     faces[i].kind = of.kind;
                     break;
                 }

@@ -230,13 +230,20 @@ pub fn build(lines: &[ModelLine], params: &ModelParams, viewpoint: Option<Vec3>)
     let mut corner_sigma: Vec<Option<Vec3>> = vec![None; corners.len()];
     let mut line_axis: Vec<Option<(Vec3, Vec3)>> = vec![None; used_lines.len()];
     let mut sigma0s = Vec::new();
-    for object in 0..n_objects {
-        let object_corners: Vec<usize> = (0..corners.len()).filter(|&c| object_of[corners[c].lines[0]] == object).collect();
+    // Corners and lines bucketed by object once (ascending within each).
+    let mut corners_of: Vec<Vec<usize>> = vec![Vec::new(); n_objects];
+    for (c, corner) in corners.iter().enumerate() {
+        corners_of[object_of[corner.lines[0]]].push(c);
+    }
+    let mut lines_of: Vec<Vec<usize>> = vec![Vec::new(); n_objects];
+    for (l, &o) in object_of.iter().enumerate() {
+        lines_of[o].push(l);
+    }
+    for (object_corners, object_lines) in corners_of.iter().zip(&lines_of) {
         if object_corners.is_empty() {
             continue;
         }
         diagnostics.objects += 1;
-        let object_lines: Vec<usize> = (0..used_lines.len()).filter(|&l| object_of[l] == object).collect();
         let local_line = |l: usize| object_lines.binary_search(&l).ok();
         let incidences: Vec<(usize, usize)> = object_corners
             .iter()

@@ -1,8 +1,10 @@
 //! `lineflow-model`: the model stage (`impl = "csr"`). Rebuilds the wire-frame from every set of 3-D lines it
 //! receives and publishes it (the live model), and at end-of-stream writes `model.obj` and `model.city.json`.
+use std::collections::HashMap;
+
 use anyhow::{bail, Context, Result};
 use lineflow_formats::Line3Row;
-use lineflow_messages::{kinds, parts, Line3, Pose, Stamp, WireEdge, WireframeHeader};
+use lineflow_messages::{kinds, Line3, Pose, Stamp, WireEdge, WireframeHeader};
 use lineflow_model::{build, export, lines_from_rows, Model, ModelParams, SurfaceKind};
 use lineflow_photogrammetry::Vec3;
 use lineflow_runtime::{Flow, NodeContext, Output};
@@ -13,17 +15,20 @@ fn main() -> std::process::ExitCode {
 
 /// The edge's kind code of `WireEdge` (0 wall, 1 roof, 2 opening, 3 ground) from the first face it bounds.
 fn wire_edges(model: &Model) -> Vec<WireEdge> {
+    // The first face bounding each vertex pair, from one pass over the rings.
+    let mut face_of: HashMap<(usize, usize), usize> = HashMap::new();
+    for (f, face) in model.faces.iter().enumerate() {
+        let n = face.ring.len();
+        for i in 0..n {
+            let (p, q) = (face.ring[i], face.ring[(i + 1) % n]);
+            face_of.entry((p.min(q), p.max(q))).or_insert(f);
+        }
+    }
     model
         .edges
         .iter()
         .map(|e| {
-            let face = model.faces.iter().position(|f| {
-                let n = f.ring.len();
-                (0..n).any(|i| {
-                    let (p, q) = (f.ring[i], f.ring[(i + 1) % n]);
-                    (p, q) == (e.a, e.b) || (q, p) == (e.a, e.b)
-                })
-            });
+            let face = face_of.get(&(e.a.min(e.b), e.a.max(e.b))).copied();
             let kind = face.map_or(0, |f| match model.faces[f].kind {
                 SurfaceKind::Wall => 0,
                 SurfaceKind::Roof => 1,
@@ -48,11 +53,7 @@ fn publish(output: &Output<kinds::Wireframe>, stamp: Stamp, model: &Model) -> Re
         n_vertices: vertices.len() as u32,
         n_edges: edges.len() as u32,
     };
-    output.publish_with(
-        header,
-        parts::two_part_len::<[f64; 3], WireEdge>(vertices.len(), edges.len()),
-        |buf| parts::write(buf, &vertices, &edges),
-    )
+    output.publish_parts(header, &vertices, &edges)
 }
 
 fn body() -> Result<()> {
