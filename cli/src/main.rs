@@ -12,6 +12,7 @@ mod model_cmd;
 mod recordings;
 mod run;
 mod seed001;
+mod seed004;
 mod synth;
 
 use std::path::PathBuf;
@@ -199,13 +200,14 @@ enum Cmd {
         set: Vec<String>,
     },
     /// Reproduce a seed document's experiment (seed001: collinearity vs essential-matrix orientation of a
-    /// simulated stereo pair, Monte Carlo); prints a Markdown table.
+    /// simulated stereo pair, Monte Carlo; seed004: model-image fitting of box buildings in synthetic aerial
+    /// photos); prints Markdown tables.
     Experiment {
-        /// Which experiment: seed001.
+        /// Which experiment: seed001 or seed004.
         name: String,
-        /// Trials per configuration.
-        #[arg(long, default_value_t = 500)]
-        trials: u64,
+        /// Trials per configuration [seed001: 500; seed004: 20 starts per building].
+        #[arg(long)]
+        trials: Option<u64>,
         /// Seed of the simulation.
         #[arg(long, default_value_t = 1)]
         seed: u64,
@@ -271,10 +273,14 @@ fn main() -> ExitCode {
         Cmd::Model { lines, poses, out, set } => model_cmd::model(&lines, poses.as_deref(), out, &set),
         Cmd::Experiment { name, trials, seed } => match name.as_str() {
             "seed001" => {
-                print!("{}", seed001::experiment(trials.max(1), seed));
+                print!("{}", seed001::experiment(trials.unwrap_or(500).max(1), seed));
                 Ok(ExitCode::SUCCESS)
             }
-            other => Err(anyhow::anyhow!("unknown experiment '{other}' (available: seed001)")),
+            "seed004" => {
+                print!("{}", seed004::experiment(trials.unwrap_or(20).max(1) as usize));
+                Ok(ExitCode::SUCCESS)
+            }
+            other => Err(anyhow::anyhow!("unknown experiment '{other}' (available: seed001, seed004)")),
         },
         Cmd::Bench { what } => bench::bench(what),
     };

@@ -134,4 +134,4 @@ pub fn sobel(gray: &[u8], width: usize, height: usize, threshold: f64) -> Vec<u8
     suppress(gray, width, height, t2, t2.saturating_sub(1))
 }
 
-pub use log::log;
+pub use log::{gaussian_blur, log};

@@ -76,3 +76,13 @@ pub fn log(gray: &[u8], w: usize, h: usize, sigma: f64, threshold: f64) -> Vec<u
     }
     map
 }
+
+/// The image smoothed by a Gaussian of `sigma` pixels (rounded back to 8 bits), for detectors that, like
+/// MATLAB's Canny, differentiate a smoothed image.
+pub fn gaussian_blur(gray: &[u8], w: usize, h: usize, sigma: f64) -> Vec<u8> {
+    if w == 0 || h == 0 {
+        return Vec::new();
+    }
+    let src: Vec<f32> = gray.iter().map(|&v| v as f32).collect();
+    blur(&src, w, h, &gaussian_kernel(sigma)).into_iter().map(|v| v.round().clamp(0.0, 255.0) as u8).collect()
+}

@@ -1,0 +1,400 @@
+//! The least-squares model-image fitting loop (seed 004 §2.4–2.5): project, collect the edge pixels in a
+//! shrinking buffer around each visible projected line, weight them, and adjust the parameters by Gauss-Newton
+//! on the perpendicular pixel-to-line distances over every image at once.
+use nalgebra::{DMatrix, DVector};
+use rayon::prelude::*;
+use serde::Deserialize;
+
+use crate::observations::ImageEdges;
+use crate::parametric::Parametric;
+use crate::weights::Weighting;
+use lineflow_photogrammetry::Vec3;
+
+/// Settings of the fitting; the defaults are the seed's.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct FitParams {
+    /// Edge-pixel weighting.
+    pub weighting: Weighting,
+    /// First buffer half-width, mm in the photo.
+    pub buffer_start_mm: f64,
+    /// Shrink per iteration, mm.
+    pub buffer_step_mm: f64,
+    /// Final buffer half-width, mm.
+    pub buffer_min_mm: f64,
+    /// The combined scheme keeps pixels whose gradient is within this angle of the line's normal, degrees.
+    pub angle_gate_deg: f64,
+    /// Iterations at most.
+    pub max_iterations: usize,
+    /// Pseudo-observations keeping each parameter near its start, standard deviation (metres or radians);
+    /// 0 = none. Free vertices need it where an edge has no pixels; a box does not.
+    pub prior_sigma: f64,
+}
+
+impl Default for FitParams {
+    fn default() -> Self {
+        Self {
+            weighting: Weighting::Combined,
+            buffer_start_mm: 0.4,
+            buffer_step_mm: 0.05,
+            buffer_min_mm: 0.05,
+            angle_gate_deg: 30.0,
+            max_iterations: 30,
+            prior_sigma: 0.0,
+        }
+    }
+}
+
+impl FitParams {
+    /// Why these settings cannot run, if they cannot.
+    pub fn validate(&self) -> Result<(), String> {
+        let b = (self.buffer_start_mm, self.buffer_step_mm, self.buffer_min_mm);
+        if !(b.2 > 0.0 && b.0 >= b.2 && b.1 >= 0.0) || [b.0, b.1, b.2].iter().any(|v| !v.is_finite()) {
+            return Err(format!(
+                "buffer schedule needs 0 < buffer_min_mm <= buffer_start_mm and buffer_step_mm >= 0 (got {} / {} / {})",
+                b.0, b.1, b.2
+            ));
+        }
+        if !(0.0..=90.0).contains(&self.angle_gate_deg) {
+            return Err(format!("angle_gate_deg must be in [0, 90] (got {})", self.angle_gate_deg));
+        }
+        if self.max_iterations == 0 {
+            return Err("max_iterations must be at least 1".into());
+        }
+        if !(self.prior_sigma >= 0.0 && self.prior_sigma.is_finite()) {
+            return Err(format!("prior_sigma must be >= 0 (got {})", self.prior_sigma));
+        }
+        Ok(())
+    }
+
+    /// The buffer half-width at iteration `it` (0-based): start, shrinking by the step, then constant (fact C4).
+    pub fn buffer_mm(&self, it: usize) -> f64 {
+        (self.buffer_start_mm - self.buffer_step_mm * it as f64).max(self.buffer_min_mm)
+    }
+
+    /// The first iteration at the final buffer.
+    fn final_buffer_from(&self) -> usize {
+        if self.buffer_step_mm <= 0.0 {
+            return 0;
+        }
+        ((self.buffer_start_mm - self.buffer_min_mm) / self.buffer_step_mm - 1e-9).ceil().max(0.0) as usize
+    }
+}
+
+/// One iteration's record.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Iteration {
+    /// Buffer half-width, mm.
+    pub buffer_mm: f64,
+    /// Edge pixels used (non-zero weight).
+    pub pixels: usize,
+    /// Largest parameter change relative to its tolerance.
+    pub step_ratio: f64,
+}
+
+/// The outcome of one fit.
+#[derive(Debug, Clone)]
+pub struct Fit {
+    /// Adjusted parameters (the start where the fit failed).
+    pub params: Vec<f64>,
+    /// Standard deviation of every parameter, σ̂0²(JᵀΩJ)⁻¹; empty where the fit failed.
+    pub sigmas: Vec<f64>,
+    /// σ̂0 of unit weight, photo mm.
+    pub sigma0_mm: f64,
+    /// Weighted RMS of the final pixel-to-line distances, photo mm.
+    pub residual_rms_mm: f64,
+    /// Whether the changes fell below the tolerances at the final buffer.
+    pub converged: bool,
+    /// Why the fit failed, if it did.
+    pub failure: Option<String>,
+    /// Pixels used per model edge at the end, summed over images.
+    pub edge_pixels: Vec<usize>,
+    /// The iteration log.
+    pub iterations: Vec<Iteration>,
+}
+
+impl Fit {
+    /// Whether the fit ended with a model (converged or at least not failed).
+    pub fn ok(&self) -> bool {
+        self.failure.is_none()
+    }
+}
+
+/// A projected model line in one image.
+struct Projected {
+    edge: usize,
+    p: [f64; 2],
+    q: [f64; 2],
+}
+
+/// One pixel's observation row: the signed distance, its weight and ∂d/∂p as sparse entries.
+struct Row {
+    d: f64,
+    w: f64,
+    edge: usize,
+    grad: Vec<(usize, f64)>,
+}
+
+/// Ideal photo point and its 2×3 Jacobian with respect to the object point.
+fn project_with_jacobian(img: &ImageEdges, x: &Vec3) -> Option<([f64; 2], [[f64; 3]; 2])> {
+    let m = &img.pose.rotation;
+    let uvw = m * (x - img.pose.center);
+    if uvw.z >= -1e-9 {
+        return None;
+    }
+    let f = img.camera.focal_mm;
+    let (u, v, w) = (uvw.x, uvw.y, uvw.z);
+    let mut jac = [[0.0; 3]; 2];
+    for c in 0..3 {
+        jac[0][c] = -f * (m[(0, c)] * w - u * m[(2, c)]) / (w * w);
+        jac[1][c] = -f * (m[(1, c)] * w - v * m[(2, c)]) / (w * w);
+    }
+    Some(([-f * u / w, -f * v / w], jac))
+}
+
+/// Edges visible in `img`: in front of the camera, with a front-facing adjacent face (or no face at all).
+fn visible_edges(model: &dyn Parametric, p: &[f64], vertices: &[Vec3], img: &ImageEdges) -> Vec<bool> {
+    let faces = model.faces(p);
+    let edges = model.edges();
+    let mut on_face = vec![false; edges.len()];
+    let mut seen = vec![false; edges.len()];
+    let index: std::collections::HashMap<(usize, usize), usize> =
+        edges.iter().enumerate().map(|(k, e)| ((e[0].min(e[1]), e[0].max(e[1])), k)).collect();
+    for f in &faces {
+        let front = f.normal.dot(&(img.pose.center - vertices[f.ring[0]])) > 0.0;
+        for i in 0..f.ring.len() {
+            let (a, b) = (f.ring[i], f.ring[(i + 1) % f.ring.len()]);
+            if let Some(&k) = index.get(&(a.min(b), a.max(b))) {
+                on_face[k] = true;
+                seen[k] |= front;
+            }
+        }
+    }
+    (0..edges.len()).map(|k| !on_face[k] || seen[k]).collect()
+}
+
+/// The observation rows of one image at parameters `p`.
+fn rows_of_image(
+    model: &dyn Parametric,
+    p: &[f64],
+    vertices: &[Vec3],
+    jacobians: &[Vec<(usize, Vec3)>],
+    img: &ImageEdges,
+    buffer_mm: f64,
+    params: &FitParams,
+) -> Vec<Row> {
+    let projections: Vec<Option<([f64; 2], [[f64; 3]; 2])>> =
+        vertices.iter().map(|v| project_with_jacobian(img, v)).collect();
+    let visible = visible_edges(model, p, vertices, img);
+    let min_len = 2.0 * img.camera.pixel_size_mm;
+    let lines: Vec<Projected> = model
+        .edges()
+        .iter()
+        .enumerate()
+        .filter(|(k, _)| visible[*k])
+        .filter_map(|(k, e)| {
+            let (p, _) = projections[e[0]]?;
+            let (q, _) = projections[e[1]]?;
+            (((q[0] - p[0]).powi(2) + (q[1] - p[1]).powi(2)).sqrt() >= min_len).then_some(Projected { edge: k, p, q })
+        })
+        .collect();
+    // (observation, |d|, line slot, d, s): the nearest line takes a pixel within several buffers.
+    let mut candidates: Vec<(u32, f64, u32, f64, f64)> = Vec::new();
+    let obs = img.observations();
+    for (slot, l) in lines.iter().enumerate() {
+        let (tx, ty) = (l.q[0] - l.p[0], l.q[1] - l.p[1]);
+        let len = (tx * tx + ty * ty).sqrt();
+        let (ux, uy) = (tx / len, ty / len);
+        img.near_segment(l.p, l.q, buffer_mm, |i| {
+            let e = obs[i].xy;
+            let (ex, ey) = (e[0] - l.p[0], e[1] - l.p[1]);
+            let s = (ex * ux + ey * uy) / len;
+            let d = uy * ex - ux * ey;
+            if (0.0..=1.0).contains(&s) && d.abs() <= buffer_mm {
+                candidates.push((i as u32, d.abs(), slot as u32, d, s));
+            }
+        });
+    }
+    candidates.sort_by(|a, b| a.0.cmp(&b.0).then(a.1.total_cmp(&b.1)).then(a.2.cmp(&b.2)));
+    candidates.dedup_by_key(|c| c.0);
+    let gate = params.angle_gate_deg.to_radians().sin();
+    let mut rows = Vec::new();
+    for (i, _, slot, d, s) in candidates {
+        let l = &lines[slot as usize];
+        let o = &obs[i as usize];
+        let (tx, ty) = (l.q[0] - l.p[0], l.q[1] - l.p[1]);
+        let len = (tx * tx + ty * ty).sqrt();
+        let cos_lambda = (o.gradient[0] * tx + o.gradient[1] * ty) / len;
+        let w = params.weighting.weight(o.relative, cos_lambda, gate);
+        if w <= 0.0 {
+            continue;
+        }
+        // d = n·(e − P1) with n = (ty, −tx)/len: ∂d/∂P1 = −(1 − s)n, ∂d/∂P2 = −s·n.
+        let n = [ty / len, -tx / len];
+        let [a, b] = model.edges()[l.edge];
+        let mut grad: Vec<(usize, f64)> = Vec::with_capacity(14);
+        for (vertex, share) in [(a, 1.0 - s), (b, s)] {
+            let (_, jp) = projections[vertex].expect("visible lines have projected ends");
+            let dd_dv = Vec3::new(
+                -share * (n[0] * jp[0][0] + n[1] * jp[1][0]),
+                -share * (n[0] * jp[0][1] + n[1] * jp[1][1]),
+                -share * (n[0] * jp[0][2] + n[1] * jp[1][2]),
+            );
+            for (k, dv) in &jacobians[vertex] {
+                let g = dd_dv.dot(dv);
+                match grad.iter_mut().find(|(j, _)| j == k) {
+                    Some(entry) => entry.1 += g,
+                    None => grad.push((*k, g)),
+                }
+            }
+        }
+        rows.push(Row { d, w, edge: l.edge, grad });
+    }
+    rows
+}
+
+/// Every image's rows at `p`, in image order (deterministic whatever the thread count).
+fn collect_rows(
+    model: &dyn Parametric,
+    p: &[f64],
+    images: &[ImageEdges],
+    buffer_mm: f64,
+    params: &FitParams,
+) -> Vec<Vec<Row>> {
+    let vertices = model.vertices(p);
+    let jacobians = model.vertex_jacobians(p);
+    images
+        .par_iter()
+        .map(|img| rows_of_image(model, p, &vertices, &jacobians, img, buffer_mm, params))
+        .collect()
+}
+
+/// Normal equations of the rows plus the priors toward `start`.
+fn normal_equations(
+    n: usize,
+    rows: &[Vec<Row>],
+    p: &[f64],
+    start: &[f64],
+    prior_weight: f64,
+) -> (DMatrix<f64>, DVector<f64>) {
+    let mut nn = DMatrix::<f64>::zeros(n, n);
+    let mut b = DVector::<f64>::zeros(n);
+    for r in rows.iter().flatten() {
+        for &(i, gi) in &r.grad {
+            b[i] -= r.w * gi * r.d;
+            for &(j, gj) in &r.grad {
+                nn[(i, j)] += r.w * gi * gj;
+            }
+        }
+    }
+    if prior_weight > 0.0 {
+        for k in 0..n {
+            nn[(k, k)] += prior_weight;
+            b[k] -= prior_weight * (p[k] - start[k]);
+        }
+    }
+    (nn, b)
+}
+
+/// Fits `model` from parameters `start` to the edge pixels of `images`.
+pub fn fit(model: &dyn Parametric, start: &[f64], images: &[ImageEdges], params: &FitParams) -> Fit {
+    let n = model.n_params();
+    assert_eq!(start.len(), n, "start vector of {} for a model of {n} parameters", start.len());
+    let pixel_mm = images.first().map_or(1.0, |i| i.camera.pixel_size_mm);
+    // A pixel of weight 1 stands for a distance of about one pixel: the prior's weight in the same units.
+    let prior_weight = if params.prior_sigma > 0.0 { (pixel_mm / params.prior_sigma).powi(2) } else { 0.0 };
+    let mut p = start.to_vec();
+    let mut log = Vec::new();
+    let final_from = params.final_buffer_from();
+    let failed = |p: Vec<f64>, log: Vec<Iteration>, why: String| Fit {
+        params: p,
+        sigmas: Vec::new(),
+        sigma0_mm: f64::NAN,
+        residual_rms_mm: f64::NAN,
+        converged: false,
+        failure: Some(why),
+        edge_pixels: vec![0; model.edges().len()],
+        iterations: log,
+    };
+    let mut converged = false;
+    for it in 0..params.max_iterations {
+        let buffer = params.buffer_mm(it);
+        let rows = collect_rows(model, &p, images, buffer, params);
+        let used: usize = rows.iter().map(Vec::len).sum();
+        if used < n && prior_weight == 0.0 {
+            return failed(start.to_vec(), log, format!("{used} edge pixels for {n} parameters"));
+        }
+        let (nn, b) = normal_equations(n, &rows, &p, start, prior_weight);
+        let Some(chol) = nn.cholesky() else {
+            return failed(
+                start.to_vec(),
+                log,
+                "the normal equations are singular: some parameters see no edge pixels".into(),
+            );
+        };
+        let dp = chol.solve(&b);
+        let ratio = (0..n).map(|k| dp[k].abs() / model.tolerance(k)).fold(0.0, f64::max);
+        for k in 0..n {
+            p[k] += dp[k];
+        }
+        log.push(Iteration {
+            buffer_mm: buffer,
+            pixels: used,
+            step_ratio: ratio,
+        });
+        if let Some(why) = model.invalid(&p) {
+            return failed(start.to_vec(), log, why);
+        }
+        if it >= final_from && ratio < 1.0 {
+            converged = true;
+            break;
+        }
+    }
+    // Precision and residuals from the pixels at the final parameters and buffer.
+    let rows = collect_rows(model, &p, images, params.buffer_min_mm, params);
+    let (nn, _) = normal_equations(n, &rows, &p, start, prior_weight);
+    let (mut sum_wdd, mut sum_w, mut count) = (0.0, 0.0, 0usize);
+    let mut edge_pixels = vec![0; model.edges().len()];
+    for r in rows.iter().flatten() {
+        sum_wdd += r.w * r.d * r.d;
+        sum_w += r.w;
+        count += 1;
+        edge_pixels[r.edge] += 1;
+    }
+    let redundancy = count.saturating_sub(if prior_weight > 0.0 { 0 } else { n }).max(1);
+    let sigma0_mm = (sum_wdd / redundancy as f64).sqrt();
+    let sigmas = match nn.try_inverse() {
+        Some(q) => (0..n).map(|k| sigma0_mm * q[(k, k)].max(0.0).sqrt()).collect(),
+        None => vec![f64::NAN; n],
+    };
+    Fit {
+        params: p,
+        sigmas,
+        sigma0_mm,
+        residual_rms_mm: if sum_w > 0.0 { (sum_wdd / sum_w).sqrt() } else { f64::NAN },
+        converged,
+        failure: None,
+        edge_pixels,
+        iterations: log,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Seed fact C4: 0.40 → 0.05 mm in steps of 0.05 mm, then constant.
+    #[test]
+    fn buffer_schedule_is_the_seeds() {
+        let p = FitParams::default();
+        let got: Vec<f64> = (0..11).map(|i| (p.buffer_mm(i) * 1000.0).round() / 1000.0).collect();
+        assert_eq!(got, [0.4, 0.35, 0.3, 0.25, 0.2, 0.15, 0.1, 0.05, 0.05, 0.05, 0.05]);
+        assert_eq!(p.final_buffer_from(), 7);
+        assert!(p.validate().is_ok());
+        let bad = FitParams {
+            buffer_min_mm: 0.0,
+            ..FitParams::default()
+        };
+        assert!(bad.validate().is_err());
+    }
+}
