@@ -98,6 +98,28 @@ pub enum BenchCmd {
         #[arg(long)]
         out: Option<std::path::PathBuf>,
     },
+    /// The modelfit stage: a façade model built from the preset's true edges with noise and fitted to the edge
+    /// pixels of every frame; vertex RMSE before and after, time against the 1 s target and a dense reference.
+    Modelfit {
+        /// Preset.
+        #[arg(long, default_value = "d2x-strip")]
+        preset: String,
+        /// Endpoint noise of the lines the model is built from, σ in ground sample distances.
+        #[arg(long = "sigma-gsd", default_value_t = 1.0)]
+        sigma_gsd: f64,
+        /// Use only the first N frames [default: all].
+        #[arg(long)]
+        frames: Option<usize>,
+        /// Edge-pixel weighting: equal, magnitude, angle or combined.
+        #[arg(long, default_value = "combined")]
+        weighting: String,
+        /// Repetitions per timing.
+        #[arg(long, default_value_t = 3)]
+        reps: usize,
+        /// Skip the dense one-system reference (slow).
+        #[arg(long)]
+        no_reference: bool,
+    },
     /// The recorder node: MB/s of raw 12 MP RGB frames written with nothing dropped, against the disk.
     Record {
         /// Frames.
@@ -338,6 +360,21 @@ pub fn bench(cmd: BenchCmd) -> Result<ExitCode> {
             reps,
             out,
         } => crate::model_cmd::bench_model(&preset, &sigma_gsd, reps, out.as_deref()),
+        BenchCmd::Modelfit {
+            preset,
+            sigma_gsd,
+            frames,
+            weighting,
+            reps,
+            no_reference,
+        } => crate::bench_modelfit::bench_modelfit(crate::bench_modelfit::Args {
+            preset: &preset,
+            sigma_gsd,
+            frames,
+            weighting: lineflow_modelfit::Weighting::parse(&weighting).map_err(anyhow::Error::msg)?,
+            reps,
+            reference: !no_reference,
+        }),
         BenchCmd::Linematch { preset, scale, reps } => crate::bench_linematch::bench_linematch(&preset, scale, reps),
         BenchCmd::Bundle { cameras, points } => crate::bench_bundle::bench_bundle(cameras, points),
         BenchCmd::Record {

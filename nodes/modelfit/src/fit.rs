@@ -7,6 +7,7 @@ use serde::Deserialize;
 
 use crate::observations::ImageEdges;
 use crate::parametric::Parametric;
+use crate::sparse::SparseSym;
 use crate::weights::Weighting;
 use lineflow_photogrammetry::Vec3;
 
@@ -29,6 +30,8 @@ pub struct FitParams {
     /// Pseudo-observations keeping each parameter near its start, standard deviation (metres or radians);
     /// 0 = none. Free vertices need it where an edge has no pixels; a box does not.
     pub prior_sigma: f64,
+    /// Free vertices only: σ of the prior along the mean viewing direction, m (0: the same as `prior_sigma`).
+    pub prior_depth_sigma: f64,
 }
 
 impl Default for FitParams {
@@ -41,6 +44,7 @@ impl Default for FitParams {
             angle_gate_deg: 30.0,
             max_iterations: 30,
             prior_sigma: 0.0,
+            prior_depth_sigma: 0.0,
         }
     }
 }
@@ -61,8 +65,10 @@ impl FitParams {
         if self.max_iterations == 0 {
             return Err("max_iterations must be at least 1".into());
         }
-        if !(self.prior_sigma >= 0.0 && self.prior_sigma.is_finite()) {
-            return Err(format!("prior_sigma must be >= 0 (got {})", self.prior_sigma));
+        for (name, v) in [("prior_sigma", self.prior_sigma), ("prior_depth_sigma", self.prior_depth_sigma)] {
+            if !(v >= 0.0 && v.is_finite()) {
+                return Err(format!("{name} must be >= 0 (got {v})"));
+            }
         }
         Ok(())
     }
@@ -269,31 +275,119 @@ fn collect_rows(
         .collect()
 }
 
-/// Normal equations of the rows plus the priors toward `start`.
+/// Models up to this many parameters are solved densely (exact covariance); larger ones sparsely.
+const DENSE_MAX: usize = 96;
+
+/// The normal matrix, dense for primitives and small components, sparse for large wire-frames.
+enum Normal {
+    Dense(DMatrix<f64>),
+    Sparse(SparseSym),
+}
+
+impl Normal {
+    fn new(model: &dyn Parametric, p: &[f64]) -> Self {
+        let n = model.n_params();
+        if n <= DENSE_MAX || n % 3 != 0 {
+            return Normal::Dense(DMatrix::zeros(n, n));
+        }
+        let params_of: Vec<Vec<usize>> =
+            model.vertex_jacobians(p).into_iter().map(|j| j.into_iter().map(|(k, _)| k).collect()).collect();
+        let groups = model.edges().iter().map(|e| {
+            let mut g = params_of[e[0]].clone();
+            g.extend_from_slice(&params_of[e[1]]);
+            g
+        });
+        Normal::Sparse(SparseSym::with_pattern(n, groups))
+    }
+
+    fn add(&mut self, i: usize, j: usize, v: f64) {
+        match self {
+            Normal::Dense(m) => m[(i, j)] += v,
+            Normal::Sparse(m) => m.add(i, j, v),
+        }
+    }
+
+    fn clear(&mut self) {
+        match self {
+            Normal::Dense(m) => m.fill(0.0),
+            Normal::Sparse(m) => m.clear(),
+        }
+    }
+
+    fn solve(&self, b: &DVector<f64>) -> Option<DVector<f64>> {
+        match self {
+            Normal::Dense(m) => m.clone().cholesky().map(|c| c.solve(b)),
+            Normal::Sparse(m) => m.solve(b.as_slice(), 1e-10, 10 * m.n()).map(DVector::from_vec),
+        }
+    }
+
+    /// Diagonal of the inverse: exact when dense, from the 3×3 diagonal blocks (each vertex given its
+    /// neighbours) when sparse.
+    fn inverse_diagonal(&self) -> Vec<f64> {
+        match self {
+            Normal::Dense(m) => match m.clone().try_inverse() {
+                Some(q) => (0..m.nrows()).map(|k| q[(k, k)]).collect(),
+                None => vec![f64::NAN; m.nrows()],
+            },
+            Normal::Sparse(m) => m
+                .block_inverses()
+                .into_iter()
+                .flat_map(|b| match b {
+                    Some(q) => [q[(0, 0)], q[(1, 1)], q[(2, 2)]],
+                    None => [f64::NAN; 3],
+                })
+                .collect(),
+        }
+    }
+}
+
+/// Pseudo-observations toward the start: one weight for every parameter, or a 3×3 precision per vertex block.
+enum Prior {
+    None,
+    Scalar(f64),
+    Blocks(Vec<nalgebra::Matrix3<f64>>),
+}
+
+/// Fills the normal equations of the rows plus the priors toward `start`; the right-hand side.
 fn normal_equations(
-    n: usize,
+    normal: &mut Normal,
     rows: &[Vec<Row>],
     p: &[f64],
     start: &[f64],
-    prior_weight: f64,
-) -> (DMatrix<f64>, DVector<f64>) {
-    let mut nn = DMatrix::<f64>::zeros(n, n);
-    let mut b = DVector::<f64>::zeros(n);
+    prior: &Prior,
+) -> DVector<f64> {
+    normal.clear();
+    let mut b = DVector::<f64>::zeros(p.len());
     for r in rows.iter().flatten() {
         for &(i, gi) in &r.grad {
             b[i] -= r.w * gi * r.d;
             for &(j, gj) in &r.grad {
-                nn[(i, j)] += r.w * gi * gj;
+                normal.add(i, j, r.w * gi * gj);
             }
         }
     }
-    if prior_weight > 0.0 {
-        for k in 0..n {
-            nn[(k, k)] += prior_weight;
-            b[k] -= prior_weight * (p[k] - start[k]);
+    match prior {
+        Prior::None => {}
+        Prior::Scalar(w) => {
+            for k in 0..p.len() {
+                normal.add(k, k, *w);
+                b[k] -= w * (p[k] - start[k]);
+            }
+        }
+        Prior::Blocks(blocks) => {
+            for (v, m) in blocks.iter().enumerate() {
+                let off = nalgebra::Vector3::from_fn(|r, _| p[3 * v + r] - start[3 * v + r]);
+                let g = m * off;
+                for r in 0..3 {
+                    b[3 * v + r] -= g[r];
+                    for c in 0..3 {
+                        normal.add(3 * v + r, 3 * v + c, m[(r, c)]);
+                    }
+                }
+            }
         }
     }
-    (nn, b)
+    b
 }
 
 /// Fits `model` from parameters `start` to the edge pixels of `images`.
@@ -302,7 +396,12 @@ pub fn fit(model: &dyn Parametric, start: &[f64], images: &[ImageEdges], params:
     assert_eq!(start.len(), n, "start vector of {} for a model of {n} parameters", start.len());
     let pixel_mm = images.first().map_or(1.0, |i| i.camera.pixel_size_mm);
     // A pixel of weight 1 stands for a distance of about one pixel: the prior's weight in the same units.
-    let prior_weight = if params.prior_sigma > 0.0 { (pixel_mm / params.prior_sigma).powi(2) } else { 0.0 };
+    let prior = match model.prior_blocks() {
+        Some(blocks) => Prior::Blocks(blocks.into_iter().map(|m| m * pixel_mm * pixel_mm).collect()),
+        None if params.prior_sigma > 0.0 => Prior::Scalar((pixel_mm / params.prior_sigma).powi(2)),
+        None => Prior::None,
+    };
+    let has_prior = !matches!(prior, Prior::None);
     let mut p = start.to_vec();
     let mut log = Vec::new();
     let final_from = params.final_buffer_from();
@@ -317,22 +416,22 @@ pub fn fit(model: &dyn Parametric, start: &[f64], images: &[ImageEdges], params:
         iterations: log,
     };
     let mut converged = false;
+    let mut normal = Normal::new(model, start);
     for it in 0..params.max_iterations {
         let buffer = params.buffer_mm(it);
         let rows = collect_rows(model, &p, images, buffer, params);
         let used: usize = rows.iter().map(Vec::len).sum();
-        if used < n && prior_weight == 0.0 {
+        if used < n && !has_prior {
             return failed(start.to_vec(), log, format!("{used} edge pixels for {n} parameters"));
         }
-        let (nn, b) = normal_equations(n, &rows, &p, start, prior_weight);
-        let Some(chol) = nn.cholesky() else {
+        let b = normal_equations(&mut normal, &rows, &p, start, &prior);
+        let Some(dp) = normal.solve(&b) else {
             return failed(
                 start.to_vec(),
                 log,
                 "the normal equations are singular: some parameters see no edge pixels".into(),
             );
         };
-        let dp = chol.solve(&b);
         let ratio = (0..n).map(|k| dp[k].abs() / model.tolerance(k)).fold(0.0, f64::max);
         for k in 0..n {
             p[k] += dp[k];
@@ -352,7 +451,7 @@ pub fn fit(model: &dyn Parametric, start: &[f64], images: &[ImageEdges], params:
     }
     // Precision and residuals from the pixels at the final parameters and buffer.
     let rows = collect_rows(model, &p, images, params.buffer_min_mm, params);
-    let (nn, _) = normal_equations(n, &rows, &p, start, prior_weight);
+    normal_equations(&mut normal, &rows, &p, start, &prior);
     let (mut sum_wdd, mut sum_w, mut count) = (0.0, 0.0, 0usize);
     let mut edge_pixels = vec![0; model.edges().len()];
     for r in rows.iter().flatten() {
@@ -361,12 +460,9 @@ pub fn fit(model: &dyn Parametric, start: &[f64], images: &[ImageEdges], params:
         count += 1;
         edge_pixels[r.edge] += 1;
     }
-    let redundancy = count.saturating_sub(if prior_weight > 0.0 { 0 } else { n }).max(1);
+    let redundancy = count.saturating_sub(if has_prior { 0 } else { n }).max(1);
     let sigma0_mm = (sum_wdd / redundancy as f64).sqrt();
-    let sigmas = match nn.try_inverse() {
-        Some(q) => (0..n).map(|k| sigma0_mm * q[(k, k)].max(0.0).sqrt()).collect(),
-        None => vec![f64::NAN; n],
-    };
+    let sigmas = normal.inverse_diagonal().into_iter().map(|q| sigma0_mm * q.max(0.0).sqrt()).collect();
     Fit {
         params: p,
         sigmas,

@@ -12,9 +12,12 @@ pub mod experiment;
 pub mod fit;
 pub mod observations;
 pub mod parametric;
+pub mod sparse;
 pub mod weights;
+pub mod wireframe;
 
 pub use fit::{fit, Fit, FitParams};
 pub use observations::{EdgeObservation, ImageEdges};
 pub use parametric::{BoxModel, FacePlane, FreeVertices, Parametric};
 pub use weights::Weighting;
+pub use wireframe::{fit_wireframe, write_obj, WireframeFit};

@@ -30,6 +30,14 @@ impl Weighting {
         }
     }
 
+    /// The scheme of a launch-file or command-line name.
+    pub fn parse(name: &str) -> Result<Self, String> {
+        Self::ALL
+            .into_iter()
+            .find(|w| w.name() == name)
+            .ok_or_else(|| format!("unknown weighting '{name}' (available: equal, magnitude, angle, combined)"))
+    }
+
     /// The weight of a pixel with relative gradient magnitude `relative` (G / G_max) and `cos_lambda`, the cosine
     /// of the angle between its gradient and the projected line; `gate_cos` = sin(gate) (0.5 for ±30°).
     /// Zero means the pixel is not used.
