@@ -116,9 +116,12 @@ pub enum BenchCmd {
         /// Repetitions per timing.
         #[arg(long, default_value_t = 3)]
         reps: usize,
-        /// Skip the dense one-system reference (slow).
+        /// Skip the one-system reference (slow).
         #[arg(long)]
         no_reference: bool,
+        /// Edge pixels at their pixel centres, without the sub-pixel refinement.
+        #[arg(long)]
+        no_subpixel: bool,
     },
     /// The recorder node: MB/s of raw 12 MP RGB frames written with nothing dropped, against the disk.
     Record {
@@ -367,6 +370,7 @@ pub fn bench(cmd: BenchCmd) -> Result<ExitCode> {
             weighting,
             reps,
             no_reference,
+            no_subpixel,
         } => crate::bench_modelfit::bench_modelfit(crate::bench_modelfit::Args {
             preset: &preset,
             sigma_gsd,
@@ -374,6 +378,7 @@ pub fn bench(cmd: BenchCmd) -> Result<ExitCode> {
             weighting: lineflow_modelfit::Weighting::parse(&weighting).map_err(anyhow::Error::msg)?,
             reps,
             reference: !no_reference,
+            subpixel: !no_subpixel,
         }),
         BenchCmd::Linematch { preset, scale, reps } => crate::bench_linematch::bench_linematch(&preset, scale, reps),
         BenchCmd::Bundle { cameras, points } => crate::bench_bundle::bench_bundle(cameras, points),

@@ -41,6 +41,7 @@ pub struct Args<'a> {
     pub weighting: Weighting,
     pub reps: usize,
     pub reference: bool,
+    pub subpixel: bool,
 }
 
 pub fn bench_modelfit(args: Args) -> Result<ExitCode> {
@@ -51,6 +52,7 @@ pub fn bench_modelfit(args: Args) -> Result<ExitCode> {
         weighting,
         reps,
         reference,
+        subpixel,
     } = args;
     let truth = lineflow_eval::Truth::from_scene(Synthetic::new(preset, 1.0, 1)?);
     let gsd = truth.gsd_m();
@@ -73,7 +75,8 @@ pub fn bench_modelfit(args: Args) -> Result<ExitCode> {
             let map = lineflow_edges::canny(&gray, w, h, 40.0, 100.0);
             let pixels = lineflow_edges::pixels(&gray, w, h, &map);
             eprint!("\r  frame {}/{frames} rendered and edge-detected ({:.0} s)", f + 1, t.elapsed().as_secs_f64());
-            Ok(ImageEdges::new(camera, truth.scene.poses()[f], &pixels))
+            let at = subpixel.then(|| lineflow_edges::subpixel_positions(&gray, w, h, &pixels));
+            Ok(ImageEdges::with_positions(camera, truth.scene.poses()[f], &pixels, at.as_deref()))
         })
         .collect::<Result<_>>()?;
     eprintln!();
@@ -115,6 +118,28 @@ pub fn bench_modelfit(args: Args) -> Result<ExitCode> {
         sorted[sorted.len() * 9 / 10],
         sorted[sorted.len() - 1]
     );
+    {
+        let (tv, _) = lineflow_eval::model::true_wireframe(&truth.lines);
+        let per_axis = |vs: &[Vec3]| {
+            let mut acc = [0.0; 3];
+            let mut n = 0;
+            for (i, v) in vs.iter().enumerate() {
+                if !fitted.fitted[i] {
+                    continue;
+                }
+                let t = tv.iter().min_by(|a, b| (*a - v).norm().total_cmp(&(*b - v).norm())).unwrap();
+                if (t - v).norm() > 5.0 * gsd {
+                    continue;
+                }
+                for k in 0..3 {
+                    acc[k] += (v[k] - t[k]).powi(2);
+                }
+                n += 1;
+            }
+            acc.map(|a| (a / n.max(1) as f64).sqrt() / gsd)
+        };
+        eprintln!("fitted vertices, per-axis RMS (GSD) before {:?} after {:?}", per_axis(&vertices), per_axis(&fitted.vertices));
+    }
     println!("| | vertex RMSE (mm) | (GSD) | matched | edge precision | edge recall |");
     println!("|---|---|---|---|---|---|");
     for (name, r) in [("CSR model", &before), ("after LSMIF", &after)] {

@@ -30,6 +30,7 @@ struct Params {
     max_iterations: Option<usize>,
     prior_sigma_m: Option<f64>,
     prior_depth_sigma_m: Option<f64>,
+    max_pixels_per_line: Option<usize>,
     /// Refit while streaming after this many new edge maps (0: only at the end).
     #[serde(default = "default_interval")]
     live_interval_frames: usize,
@@ -51,6 +52,7 @@ impl Params {
             max_iterations: self.max_iterations.unwrap_or(d.max_iterations),
             prior_sigma: self.prior_sigma_m.unwrap_or(d.prior_sigma),
             prior_depth_sigma: self.prior_depth_sigma_m.unwrap_or(d.prior_depth_sigma),
+            max_pixels_per_line: self.max_pixels_per_line.unwrap_or(d.max_pixels_per_line),
         }
     }
 }

@@ -36,13 +36,20 @@ const CELL_PX: f64 = 8.0;
 impl ImageEdges {
     /// The edge pixels of one image, in the order given (row-major from the edges stage).
     pub fn new(camera: Camera, pose: Pose, pixels: &[EdgePixel]) -> Self {
+        Self::with_positions(camera, pose, pixels, None)
+    }
+
+    /// The edge pixels at refined (sub-pixel) positions (col, row), one per pixel, where given.
+    pub fn with_positions(camera: Camera, pose: Pose, pixels: &[EdgePixel], positions: Option<&[[f64; 2]]>) -> Self {
         let g_max = pixels.iter().map(|p| p.magnitude).fold(0.0f32, f32::max).max(f32::MIN_POSITIVE) as f64;
         let observations: Vec<EdgeObservation> = pixels
             .iter()
-            .map(|p| {
+            .enumerate()
+            .map(|(i, p)| {
                 let (s, c) = (p.direction_rad as f64).sin_cos();
+                let at = positions.and_then(|q| q.get(i).copied()).unwrap_or([p.col as f64, p.row as f64]);
                 EdgeObservation {
-                    xy: camera.pixel_to_ideal([p.col as f64, p.row as f64]),
+                    xy: camera.pixel_to_ideal(at),
                     // Pixel rows grow downwards, photo y upwards.
                     gradient: [c, -s],
                     relative: (p.magnitude as f64 / g_max).clamp(0.0, 1.0),

@@ -259,7 +259,8 @@ impl Parametric for FreeVertices {
     }
 
     fn tolerance(&self, _: usize) -> f64 {
-        0.001
+        // Free vertices are façade-scale: half a millimetre is a tenth of a pixel at 10-20 m.
+        5e-4
     }
 
     fn prior_blocks(&self) -> Option<Vec<nalgebra::Matrix3<f64>>> {

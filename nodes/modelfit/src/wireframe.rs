@@ -27,6 +27,7 @@ pub fn facade_params(pixel_mm: f64) -> FitParams {
         buffer_min_mm: 2.0 * pixel_mm,
         prior_sigma: DEFAULT_PRIOR_M,
         prior_depth_sigma: DEFAULT_DEPTH_PRIOR_M,
+        max_pixels_per_line: 100,
         ..FitParams::default()
     }
 }
@@ -38,7 +39,7 @@ pub struct WireframeFit {
     pub vertices: Vec<Vec3>,
     /// Standard deviations of the coordinates of fitted vertices.
     pub sigmas: Vec<Option<Vec3>>,
-    /// Whether every edge at the vertex had enough pixels.
+    /// Whether the images pin the vertex: two of its edges (or its only one) saw enough pixels.
     pub fitted: Vec<bool>,
     /// Connected components, and how many of them failed (left as they were).
     pub components: usize,
@@ -50,17 +51,20 @@ pub struct WireframeFit {
     pub residual_rms_mm: f64,
     /// Failure messages of the failed components.
     pub failures: Vec<String>,
+    /// Iterations summed over the components.
+    pub iterations: usize,
 }
 
 impl WireframeFit {
     /// One line for logs: fitted vertices, components, residual.
     pub fn summary(&self, pixel_mm: f64) -> String {
         format!(
-            "{}/{} vertices fitted in {} components ({} failed), {} edge pixels, residual {:.2} px",
+            "{}/{} vertices fitted in {} components ({} failed, {:.1} iterations each), {} edge pixels, residual {:.2} px",
             self.fitted.iter().filter(|&&f| f).count(),
             self.vertices.len(),
             self.components,
             self.failed,
+            self.iterations as f64 / self.components.max(1) as f64,
             self.pixels,
             self.residual_rms_mm / pixel_mm
         )
@@ -157,19 +161,23 @@ pub fn fit_wireframe(
     };
     let (mut sum_wdd, mut pixels) = (0.0, 0usize);
     for (g, (f, model)) in groups.iter().zip(&results) {
+        out.iterations += f.iterations.len();
         if let Some(why) = &f.failure {
             out.failed += 1;
             out.failures.push(why.clone());
             continue;
         }
-        let mut ok = vec![true; g.len()];
+        // A vertex is pinned by the images when two of its edges (or its only edge) saw enough pixels.
+        let mut seen = vec![0usize; g.len()];
+        let mut degree = vec![0usize; g.len()];
         for (e, &count) in crate::parametric::Parametric::edges(model).iter().zip(&f.edge_pixels) {
-            if count < MIN_EDGE_PIXELS {
-                ok[e[0]] = false;
-                ok[e[1]] = false;
+            for v in [e[0], e[1]] {
+                degree[v] += 1;
+                seen[v] += usize::from(count >= MIN_EDGE_PIXELS);
             }
             pixels += count;
         }
+        let ok: Vec<bool> = seen.iter().zip(&degree).map(|(&s, &d)| s >= d.min(2)).collect();
         let used: usize = f.edge_pixels.iter().sum();
         if used > 0 {
             sum_wdd += f.residual_rms_mm.powi(2) * used as f64;
