@@ -74,7 +74,11 @@ pub fn bench_modelfit(args: Args) -> Result<ExitCode> {
             lineflow_convert::gray_into(Encoding::Rgb8, w, h, w * 3, &rgb, &mut gray).map_err(anyhow::Error::msg)?;
             let map = lineflow_edges::canny(&gray, w, h, 40.0, 100.0);
             let pixels = lineflow_edges::pixels(&gray, w, h, &map);
-            eprint!("\r  frame {}/{frames} rendered and edge-detected ({:.0} s)", f + 1, t.elapsed().as_secs_f64());
+            eprint!(
+                "\r  frame {}/{frames} rendered and edge-detected ({:.0} s)",
+                f + 1,
+                t.elapsed().as_secs_f64()
+            );
             let at = subpixel.then(|| lineflow_edges::subpixel_positions(&gray, w, h, &pixels));
             Ok(ImageEdges::with_positions(camera, truth.scene.poses()[f], &pixels, at.as_deref()))
         })
@@ -138,7 +142,11 @@ pub fn bench_modelfit(args: Args) -> Result<ExitCode> {
             }
             acc.map(|a| (a / n.max(1) as f64).sqrt() / gsd)
         };
-        eprintln!("fitted vertices, per-axis RMS (GSD) before {:?} after {:?}", per_axis(&vertices), per_axis(&fitted.vertices));
+        eprintln!(
+            "fitted vertices, per-axis RMS (GSD) before {:?} after {:?}",
+            per_axis(&vertices),
+            per_axis(&fitted.vertices)
+        );
     }
     println!("| | vertex RMSE (mm) | (GSD) | matched | edge precision | edge recall |");
     println!("|---|---|---|---|---|---|");

@@ -34,7 +34,10 @@ pub fn experiment(trials: usize) -> String {
         "## Experiment 1: detector x weighting (5 buildings, 4 photos, {trials} starts per building within \
          ±{PERTURB_M} m / ±{PERTURB_DEG}°, seed's buffer 0.40 → 0.05 mm)\n"
     );
-    let _ = writeln!(out, "| detector | weighting | correctness rate % | fits succeeded % | final RMS px |");
+    let _ = writeln!(
+        out,
+        "| detector | weighting | correctness rate % | fits succeeded % | final RMS px |"
+    );
     let _ = writeln!(out, "|---|---|---:|---:|---:|");
     for (d, w, s) in detector_weighting_grid(&prepared, &seed, trials, PERTURB_M, PERTURB_DEG) {
         let _ = writeln!(
@@ -54,12 +57,19 @@ pub fn experiment(trials: usize) -> String {
         "\n## Experiment 2: pull-in range (canny + combined, 4 photos; one parameter offset at a time in steps \
          of 0.25 m / 0.5°, mean of both sides over the buildings)\n"
     );
-    let _ = writeln!(out, "| parameter | seed's settings | in the photo (mm) | ours | in the photo (mm) |");
+    let _ = writeln!(
+        out,
+        "| parameter | seed's settings | in the photo (mm) | ours | in the photo (mm) |"
+    );
     let _ = writeln!(out, "|---|---:|---:|---:|---:|");
     // At 1 : 4000, 1 m on the ground is 0.25 mm in the photo.
     let mm_per_m = 152.0 / lineflow_modelfit::aerial::FLYING_HEIGHT_M;
     for k in 0..7 {
-        let (step, max) = if k == box_param::THETA { (0.5f64.to_radians(), 30f64.to_radians()) } else { (0.25, 12.0) };
+        let (step, max) = if k == box_param::THETA {
+            (0.5f64.to_radians(), 30f64.to_radians())
+        } else {
+            (0.25, 12.0)
+        };
         let mean = |p: &FitParams| prepared.iter().map(|b| pull_in(b, k, step, max, 4, p)).sum::<f64>() / 5.0;
         let (a, b) = (mean(&seed), mean(&ours()));
         if k == box_param::THETA {
@@ -78,8 +88,14 @@ pub fn experiment(trials: usize) -> String {
     }
     eprintln!("experiment 2 done at {:.1} s", t0.elapsed().as_secs_f64());
 
-    let _ = writeln!(out, "\n## Experiment 3: number of photos (canny + combined, same starts as experiment 1)\n");
-    let _ = writeln!(out, "| photos | seed's settings: rate % | succeeded % | ours: rate % | succeeded % |");
+    let _ = writeln!(
+        out,
+        "\n## Experiment 3: number of photos (canny + combined, same starts as experiment 1)\n"
+    );
+    let _ = writeln!(
+        out,
+        "| photos | seed's settings: rate % | succeeded % | ours: rate % | succeeded % |"
+    );
     let _ = writeln!(out, "|---:|---:|---:|---:|---:|");
     for n in 2..=4 {
         let a = score_many(&prepared, Detector::Canny, n, &seed, trials, PERTURB_M, PERTURB_DEG);

@@ -155,7 +155,11 @@ pub fn subpixel_positions(gray: &[u8], width: usize, height: usize, pixels: &[Ed
             let (dx, dy) = if dx == 0 && dy == 0 { (1, 0) } else { (dx, dy) };
             let (m0, mp, mm) = (mag(x, y), mag(x + dx, y + dy), mag(x - dx, y - dy));
             let denom = mm - 2.0 * m0 + mp;
-            let t = if denom < 0.0 { (0.5 * (mm - mp) / denom).clamp(-0.5, 0.5) } else { 0.0 };
+            let t = if denom < 0.0 {
+                (0.5 * (mm - mp) / denom).clamp(-0.5, 0.5)
+            } else {
+                0.0
+            };
             [p.col as f64 + t * dx as f64, p.row as f64 + t * dy as f64]
         })
         .collect()

@@ -84,5 +84,8 @@ pub fn gaussian_blur(gray: &[u8], w: usize, h: usize, sigma: f64) -> Vec<u8> {
         return Vec::new();
     }
     let src: Vec<f32> = gray.iter().map(|&v| v as f32).collect();
-    blur(&src, w, h, &gaussian_kernel(sigma)).into_iter().map(|v| v.round().clamp(0.0, 255.0) as u8).collect()
+    blur(&src, w, h, &gaussian_kernel(sigma))
+        .into_iter()
+        .map(|v| v.round().clamp(0.0, 255.0) as u8)
+        .collect()
 }

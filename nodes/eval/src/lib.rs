@@ -89,6 +89,8 @@ pub struct Results {
     pub lines2d: Option<Vec<Line2Row>>,
     pub lines3d: Option<Vec<Line3Row>>,
     pub model: Option<Wireframe>,
+    /// The wire-frame fitted to the images (`model_fitted.obj`).
+    pub model_fitted: Option<Wireframe>,
 }
 
 fn optional<T>(path: PathBuf, read: impl Fn(&Path) -> Result<T, lineflow_formats::FormatError>) -> Result<Option<T>> {
@@ -100,8 +102,8 @@ fn optional<T>(path: PathBuf, read: impl Fn(&Path) -> Result<T, lineflow_formats
 }
 
 impl Results {
-    /// Reads `poses.csv`, `checkpoints.csv`, `lines2d.csv`, `lines3d.csv` and `model.obj` from `dir`, where
-    /// present.
+    /// Reads `poses.csv`, `checkpoints.csv`, `lines2d.csv`, `lines3d.csv`, `model.obj` and `model_fitted.obj`
+    /// from `dir`, where present.
     pub fn load(dir: &Path) -> Result<Results> {
         if !dir.is_dir() {
             bail!("{}: not a folder", dir.display());
@@ -112,6 +114,7 @@ impl Results {
             lines2d: optional(dir.join("lines2d.csv"), read_lines2d)?,
             lines3d: optional(dir.join("lines3d.csv"), read_lines3d)?,
             model: optional(dir.join("model.obj"), lineflow_formats::read_obj_wireframe)?,
+            model_fitted: optional(dir.join("model_fitted.obj"), lineflow_formats::read_obj_wireframe)?,
         })
     }
 }
@@ -122,6 +125,7 @@ pub struct Evaluation {
     pub lines2d: Option<lines2d::Lines2dReport>,
     pub lines3d: Option<lines3d::Lines3dReport>,
     pub model: Option<model::ModelReport>,
+    pub model_fitted: Option<model::ModelReport>,
 }
 
 /// Evaluates whatever `results` holds.
@@ -135,6 +139,10 @@ pub fn evaluate(truth: &Truth, results: &Results) -> Evaluation {
         lines3d: results.lines3d.as_ref().map(|l| lines3d::evaluate(truth, l)),
         model: results
             .model
+            .as_ref()
+            .map(|(v, e)| model::evaluate(&truth.lines, v, e, truth.gsd_m())),
+        model_fitted: results
+            .model_fitted
             .as_ref()
             .map(|(v, e)| model::evaluate(&truth.lines, v, e, truth.gsd_m())),
     }

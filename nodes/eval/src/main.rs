@@ -60,13 +60,14 @@ fn body() -> Result<()> {
     let lines = ctx.optional_input::<kinds::Lines3D>("lines3d")?;
     let segments = ctx.optional_input::<kinds::Lines2D>("lines2d")?;
     let wireframe = ctx.optional_input::<kinds::Wireframe>("wireframe")?;
+    let fitted = ctx.optional_input::<kinds::Wireframe>("wireframe_fitted")?;
     let syn = scene_of_graph(&ctx)?;
     ctx.connect()?;
 
     // The newest message of each topic is the one that counts (a later revision supersedes an earlier one).
     let (mut truth_poses, mut truth_lines, mut est_poses, mut est_lines) = (Vec::new(), Vec::new(), None, None);
     let mut est_segments: Option<Vec<Line2Row>> = segments.as_ref().map(|_| Vec::new());
-    let mut est_model: Option<Wireframe> = None;
+    let (mut est_model, mut est_fitted): (Option<Wireframe>, Option<Wireframe>) = (None, None);
     ctx.run(|| {
         while let Some(m) = gt_poses.receive()? {
             truth_poses = m.payload().to_vec();
@@ -98,19 +99,22 @@ fn body() -> Result<()> {
                 }));
             }
         }
-        if let Some(i) = &wireframe {
-            while let Some(m) = i.receive()? {
-                let h = m.user_header();
-                let (v, e) = parts::split::<[f64; 3], WireEdge>(m.payload(), h.n_vertices as usize, h.n_edges as usize)
-                    .map_err(|e| anyhow::anyhow!("wireframe of frame {}: {e}", h.stamp.frame))?;
-                est_model = Some((
-                    v.iter().map(|p| Vec3::from(*p)).collect(),
-                    e.iter().map(|e| [e.a as usize, e.b as usize]).collect(),
-                ));
+        for (input, slot) in [(&wireframe, &mut est_model), (&fitted, &mut est_fitted)] {
+            if let Some(i) = input {
+                while let Some(m) = i.receive()? {
+                    let h = m.user_header();
+                    let (v, e) = parts::split::<[f64; 3], WireEdge>(m.payload(), h.n_vertices as usize, h.n_edges as usize)
+                        .map_err(|e| anyhow::anyhow!("wireframe of frame {}: {e}", h.stamp.frame))?;
+                    *slot = Some((
+                        v.iter().map(|p| Vec3::from(*p)).collect(),
+                        e.iter().map(|e| [e.a as usize, e.b as usize]).collect(),
+                    ));
+                }
             }
         }
         let done = segments.as_ref().is_none_or(|i| i.is_ended())
             && wireframe.as_ref().is_none_or(|i| i.is_ended())
+            && fitted.as_ref().is_none_or(|i| i.is_ended())
             && gt_poses.is_ended()
             && gt_lines.is_ended()
             && poses.as_ref().is_none_or(|i| i.is_ended())
@@ -135,6 +139,7 @@ fn body() -> Result<()> {
             _ => None,
         },
         model: est_model,
+        model_fitted: est_fitted,
     };
     let evaluation = evaluate(&truth, &results);
     let path = report::write(&truth, &out, &evaluation, &out.join("eval")).context("writing the evaluation report")?;

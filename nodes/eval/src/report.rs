@@ -181,28 +181,38 @@ pub fn write(truth: &Truth, results: &Path, eval: &Evaluation, out: &Path) -> Re
         }
     }
     let _ = writeln!(md, "## Model\n");
-    match &eval.model {
-        None => {
-            let _ = writeln!(md, "No `model.obj` in the results.\n");
-        }
-        Some(m) => {
+    let models = [
+        ("CSR (`model.obj`)", &eval.model),
+        ("fitted to the images (`model_fitted.obj`)", &eval.model_fitted),
+    ];
+    if models.iter().all(|(_, m)| m.is_none()) {
+        let _ = writeln!(md, "No `model.obj` in the results.\n");
+    }
+    for (i, m) in models.iter().filter_map(|(name, m)| m.as_ref().map(|m| (name, m))).enumerate() {
+        let (name, m) = m;
+        if i == 0 {
             let _ = writeln!(
                 md,
-                "| true vertices | model vertices | matched (≤ {} mm) | vertex RMSE (mm) | vertex RMSE (GSD) | true edges | model edges | edge precision | edge recall (ends ≤ {} mm) |\n|---|---|---|---|---|---|---|---|---|\n| {} | {} | {} | {} | {:.2} | {} | {} | {} | {} |\n",
+                "| model | true vertices | model vertices | matched (≤ {} mm) | vertex RMSE (mm) | vertex RMSE (GSD) | true edges | model edges | edge precision | edge recall (ends ≤ {} mm) |\n|---|---|---|---|---|---|---|---|---|---|",
                 mm(m.vertex_reach_m),
-                mm(m.edge_tolerance_m),
-                m.true_vertices,
-                m.model_vertices,
-                m.matched_vertices,
-                mm(m.vertex_rmse_m),
-                m.vertex_rmse_m / m.gsd_m,
-                m.true_edges,
-                m.model_edges,
-                pct(m.edge_precision),
-                pct(m.edge_recall)
+                mm(m.edge_tolerance_m)
             );
         }
+        let _ = writeln!(
+            md,
+            "| {name} | {} | {} | {} | {} | {:.2} | {} | {} | {} | {} |",
+            m.true_vertices,
+            m.model_vertices,
+            m.matched_vertices,
+            mm(m.vertex_rmse_m),
+            m.vertex_rmse_m / m.gsd_m,
+            m.true_edges,
+            m.model_edges,
+            pct(m.edge_precision),
+            pct(m.edge_recall)
+        );
     }
+    let _ = writeln!(md);
     let path = out.join("report.md");
     std::fs::write(&path, md).with_context(|| format!("cannot write {}", path.display()))?;
     Ok(path)

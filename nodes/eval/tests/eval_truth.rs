@@ -51,11 +51,13 @@ fn the_truth_scores_perfectly_and_known_shifts_score_as_expected() {
             lines2d: Some(true_lines2d(&truth, 0.0)),
             lines3d: Some(lines.clone()),
             model: Some(lineflow_eval::model::true_wireframe(&lines)),
+            model_fitted: Some(lineflow_eval::model::true_wireframe(&lines)),
         },
     );
-    let m = perfect.model.as_ref().unwrap();
-    assert_eq!((m.edge_precision, m.edge_recall, m.vertex_rmse_m), (1.0, 1.0, 0.0), "{m:?}");
-    assert_eq!(m.matched_vertices, m.true_vertices);
+    for m in [perfect.model.as_ref().unwrap(), perfect.model_fitted.as_ref().unwrap()] {
+        assert_eq!((m.edge_precision, m.edge_recall, m.vertex_rmse_m), (1.0, 1.0, 0.0), "{m:?}");
+        assert_eq!(m.matched_vertices, m.true_vertices);
+    }
     let o = perfect.orientation.as_ref().unwrap();
     assert!(o.rms_center_m < 1e-5 && o.rms_rotation_deg < 1e-5 && o.missing.is_empty());
     let l2 = perfect.lines2d.as_ref().unwrap();

@@ -30,20 +30,20 @@ impl Block {
         }
     }
 
-    fn to_local(&self, x: &Vec3) -> Vec3 {
+    fn local_of(&self, x: &Vec3) -> Vec3 {
         let (s, c) = self.theta.sin_cos();
         let d = x - self.origin;
         Vec3::new(c * d.x + s * d.y, -s * d.x + c * d.y, d.z)
     }
 
-    fn to_world_dir(&self, v: &Vec3) -> Vec3 {
+    fn world_dir(&self, v: &Vec3) -> Vec3 {
         let (s, c) = self.theta.sin_cos();
         Vec3::new(c * v.x - s * v.y, s * v.x + c * v.y, v.z)
     }
 
     /// The nearest hit of the ray beyond `t_min`: distance, local hit point, world normal.
     fn hit(&self, origin: &Vec3, dir: &Vec3, t_min: f64) -> Option<(f64, Vec3, Vec3)> {
-        let o = self.to_local(origin);
+        let o = self.local_of(origin);
         let (s, c) = self.theta.sin_cos();
         let d = Vec3::new(c * dir.x + s * dir.y, -s * dir.x + c * dir.y, dir.z);
         let (mut t0, mut t1, mut axis) = (t_min, f64::INFINITY, None);
@@ -72,7 +72,7 @@ impl Block {
         let (k, sign) = axis?;
         let mut n = Vec3::zeros();
         n[k] = sign;
-        Some((t0, o + d * t0, self.to_world_dir(&n)))
+        Some((t0, o + d * t0, self.world_dir(&n)))
     }
 }
 
@@ -181,10 +181,7 @@ impl BuildingScene {
                 let mut albedo = b.albedo[usize::from(top)];
                 let inset = self.parapet_inset_m;
                 if i == 0 && top && inset > 0.0 {
-                    let inner = local.x > inset
-                        && local.x < b.size.x - inset
-                        && local.y > inset
-                        && local.y < b.size.y - inset;
+                    let inner = local.x > inset && local.x < b.size.x - inset && local.y > inset && local.y < b.size.y - inset;
                     if inner {
                         albedo *= 0.72;
                     }

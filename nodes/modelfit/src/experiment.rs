@@ -80,9 +80,7 @@ impl Prepared {
                 photos
                     .iter()
                     .zip(&images)
-                    .map(|((c, p), img)| {
-                        ImageEdges::new(*c, *p, &d.detect(img, c.width as usize, c.height as usize))
-                    })
+                    .map(|((c, p), img)| ImageEdges::new(*c, *p, &d.detect(img, c.width as usize, c.height as usize)))
                     .collect()
             })
             .collect();
@@ -117,8 +115,12 @@ pub fn correct_lines(scene: &BuildingScene, photos: &[(Camera, Pose)], fitted: &
             }
             visible += 1;
             let px = |v: &Vec3| pose.project(camera, v);
-            let (Some(t0), Some(t1)) = (px(&truth_v[e[0]]), px(&truth_v[e[1]])) else { continue };
-            let (Some(f0), Some(f1)) = (px(&fit_v[e[0]]), px(&fit_v[e[1]])) else { continue };
+            let (Some(t0), Some(t1)) = (px(&truth_v[e[0]]), px(&truth_v[e[1]])) else {
+                continue;
+            };
+            let (Some(f0), Some(f1)) = (px(&fit_v[e[0]]), px(&fit_v[e[1]])) else {
+                continue;
+            };
             let _ = k;
             if point_segment_distance(f0, t0, t1) <= 1.0 && point_segment_distance(f1, t0, t1) <= 1.0 {
                 good += 1;

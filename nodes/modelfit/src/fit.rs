@@ -1,6 +1,8 @@
 //! The least-squares model-image fitting loop (seed 004 §2.4–2.5): project, collect the edge pixels in a
 //! shrinking buffer around each visible projected line, weight them, and adjust the parameters by Gauss-Newton
 //! on the perpendicular pixel-to-line distances over every image at once.
+use std::borrow::Borrow;
+
 use nalgebra::{DMatrix, DVector};
 use rayon::prelude::*;
 use serde::Deserialize;
@@ -87,7 +89,9 @@ impl FitParams {
         if self.buffer_step_mm <= 0.0 {
             return 0;
         }
-        ((self.buffer_start_mm - self.buffer_min_mm) / self.buffer_step_mm - 1e-9).ceil().max(0.0) as usize
+        ((self.buffer_start_mm - self.buffer_min_mm) / self.buffer_step_mm - 1e-9)
+            .ceil()
+            .max(0.0) as usize
     }
 }
 
@@ -145,8 +149,11 @@ struct Row {
     grad: Vec<(usize, f64)>,
 }
 
-/// Ideal photo point and its 2×3 Jacobian with respect to the object point.
-fn project_with_jacobian(img: &ImageEdges, x: &Vec3) -> Option<([f64; 2], [[f64; 3]; 2])> {
+/// An ideal photo point and its 2×3 Jacobian with respect to the object point.
+type Projection = ([f64; 2], [[f64; 3]; 2]);
+
+/// The projection of `x` into `img`, if it is in front of the camera.
+fn project_with_jacobian(img: &ImageEdges, x: &Vec3) -> Option<Projection> {
     let m = &img.pose.rotation;
     let uvw = m * (x - img.pose.center);
     if uvw.z >= -1e-9 {
@@ -168,8 +175,11 @@ fn visible_edges(model: &dyn Parametric, p: &[f64], vertices: &[Vec3], img: &Ima
     let edges = model.edges();
     let mut on_face = vec![false; edges.len()];
     let mut seen = vec![false; edges.len()];
-    let index: std::collections::HashMap<(usize, usize), usize> =
-        edges.iter().enumerate().map(|(k, e)| ((e[0].min(e[1]), e[0].max(e[1])), k)).collect();
+    let index: std::collections::HashMap<(usize, usize), usize> = edges
+        .iter()
+        .enumerate()
+        .map(|(k, e)| ((e[0].min(e[1]), e[0].max(e[1])), k))
+        .collect();
     for f in &faces {
         let front = f.normal.dot(&(img.pose.center - vertices[f.ring[0]])) > 0.0;
         for i in 0..f.ring.len() {
@@ -227,8 +237,7 @@ fn rows_of_image(
     buffer_mm: f64,
     params: &FitParams,
 ) -> Vec<Row> {
-    let projections: Vec<Option<([f64; 2], [[f64; 3]; 2])>> =
-        vertices.iter().map(|v| project_with_jacobian(img, v)).collect();
+    let projections: Vec<Option<Projection>> = vertices.iter().map(|v| project_with_jacobian(img, v)).collect();
     let visible = visible_edges(model, p, vertices, img);
     let min_len = 2.0 * img.camera.pixel_size_mm;
     let lines: Vec<Projected> = model
@@ -273,7 +282,7 @@ fn rows_of_image(
         candidates.retain(|c| {
             let slot = c.2 as usize;
             seen[slot] += 1;
-            (seen[slot] - 1) % stride[slot] == 0
+            (seen[slot] - 1).is_multiple_of(stride[slot])
         });
     }
     let gate = params.angle_gate_deg.to_radians().sin();
@@ -313,10 +322,10 @@ fn rows_of_image(
 }
 
 /// Every image's rows at `p`, in image order (deterministic whatever the thread count).
-fn collect_rows(
+fn collect_rows<I: Borrow<ImageEdges> + Sync>(
     model: &dyn Parametric,
     p: &[f64],
-    images: &[ImageEdges],
+    images: &[I],
     buffer_mm: f64,
     params: &FitParams,
 ) -> Vec<Vec<Row>> {
@@ -324,7 +333,7 @@ fn collect_rows(
     let jacobians = model.vertex_jacobians(p);
     images
         .par_iter()
-        .map(|img| rows_of_image(model, p, &vertices, &jacobians, img, buffer_mm, params))
+        .map(|img| rows_of_image(model, p, &vertices, &jacobians, img.borrow(), buffer_mm, params))
         .collect()
 }
 
@@ -340,11 +349,14 @@ enum Normal {
 impl Normal {
     fn new(model: &dyn Parametric, p: &[f64]) -> Self {
         let n = model.n_params();
-        if n <= DENSE_MAX || n % 3 != 0 {
+        if n <= DENSE_MAX || !n.is_multiple_of(3) {
             return Normal::Dense(DMatrix::zeros(n, n));
         }
-        let params_of: Vec<Vec<usize>> =
-            model.vertex_jacobians(p).into_iter().map(|j| j.into_iter().map(|(k, _)| k).collect()).collect();
+        let params_of: Vec<Vec<usize>> = model
+            .vertex_jacobians(p)
+            .into_iter()
+            .map(|j| j.into_iter().map(|(k, _)| k).collect())
+            .collect();
         let groups = model.edges().iter().map(|e| {
             let mut g = params_of[e[0]].clone();
             g.extend_from_slice(&params_of[e[1]]);
@@ -402,13 +414,7 @@ enum Prior {
 }
 
 /// Fills the normal equations of the rows plus the priors toward `start`; the right-hand side.
-fn normal_equations(
-    normal: &mut Normal,
-    rows: &[Vec<Row>],
-    p: &[f64],
-    start: &[f64],
-    prior: &Prior,
-) -> DVector<f64> {
+fn normal_equations(normal: &mut Normal, rows: &[Vec<Row>], p: &[f64], start: &[f64], prior: &Prior) -> DVector<f64> {
     normal.clear();
     let mut b = DVector::<f64>::zeros(p.len());
     for r in rows.iter().flatten() {
@@ -444,10 +450,10 @@ fn normal_equations(
 }
 
 /// Fits `model` from parameters `start` to the edge pixels of `images`.
-pub fn fit(model: &dyn Parametric, start: &[f64], images: &[ImageEdges], params: &FitParams) -> Fit {
+pub fn fit<I: Borrow<ImageEdges> + Sync>(model: &dyn Parametric, start: &[f64], images: &[I], params: &FitParams) -> Fit {
     let n = model.n_params();
     assert_eq!(start.len(), n, "start vector of {} for a model of {n} parameters", start.len());
-    let pixel_mm = images.first().map_or(1.0, |i| i.camera.pixel_size_mm);
+    let pixel_mm = images.first().map_or(1.0, |i| i.borrow().camera.pixel_size_mm);
     // A pixel of weight 1 stands for a distance of about one pixel: the prior's weight in the same units.
     let prior = match model.prior_blocks() {
         Some(blocks) => Prior::Blocks(blocks.into_iter().map(|m| m * pixel_mm * pixel_mm).collect()),
@@ -515,7 +521,11 @@ pub fn fit(model: &dyn Parametric, start: &[f64], images: &[ImageEdges], params:
     }
     let redundancy = count.saturating_sub(if has_prior { 0 } else { n }).max(1);
     let sigma0_mm = (sum_wdd / redundancy as f64).sqrt();
-    let sigmas = normal.inverse_diagonal().into_iter().map(|q| sigma0_mm * q.max(0.0).sqrt()).collect();
+    let sigmas = normal
+        .inverse_diagonal()
+        .into_iter()
+        .map(|q| sigma0_mm * q.max(0.0).sqrt())
+        .collect();
     Fit {
         params: p,
         sigmas,

@@ -1,8 +1,9 @@
 //! `lineflow-modelfit`: the modelfit stage (`impl = "lsmif"`). Keeps every frame's edge pixels and the newest
-//! poses, fits the newest wire-frame to them as the stream goes (every `live_interval_frames` new edge maps) and
-//! publishes the fitted wire-frame; at end-of-stream fits the final wire-frame with the final poses and writes
-//! `model_fitted.obj`.
+//! poses; at end-of-stream fits the final wire-frame with the final poses, publishes it and writes
+//! `model_fitted.obj`. With `live_interval_frames` > 0 it also fits the newest wire-frame on a worker thread
+//! every so many new edge maps and publishes each fit.
 use std::collections::BTreeMap;
+use std::sync::Arc;
 
 use anyhow::{bail, Context, Result};
 use lineflow_messages::{kinds, parts, EdgePixel, Stamp, WireEdge, WireframeHeader};
@@ -31,13 +32,15 @@ struct Params {
     prior_sigma_m: Option<f64>,
     prior_depth_sigma_m: Option<f64>,
     max_pixels_per_line: Option<usize>,
-    /// Refit while streaming after this many new edge maps (0: only at the end).
+    /// Refit while streaming after this many new edge maps (0: only at the end). Live fits run as the data
+    /// happen to arrive, so a re-run of a recording may publish different intermediate fits; the final fit,
+    /// after every input has ended, is always the same.
     #[serde(default = "default_interval")]
     live_interval_frames: usize,
 }
 
 fn default_interval() -> usize {
-    5
+    0
 }
 
 impl Params {
@@ -57,38 +60,59 @@ impl Params {
     }
 }
 
+/// A wire-frame to fit: its stamp, vertices and edges.
+type Wire = (Stamp, Vec<Vec3>, Vec<WireEdge>);
+
 #[derive(Default)]
 struct State {
     camera: Option<Camera>,
-    edges: BTreeMap<u64, Vec<EdgePixel>>,
+    edges: BTreeMap<u64, Arc<Vec<EdgePixel>>>,
     poses: BTreeMap<u64, Pose>,
-    wireframe: Option<(Stamp, Vec<Vec3>, Vec<WireEdge>)>,
+    /// Edge images built for the pose they were built with.
+    images: BTreeMap<u64, (Pose, Arc<ImageEdges>)>,
+    wireframe: Option<Wire>,
     edges_since_fit: usize,
-    fitted: Option<Vec<Vec3>>,
 }
 
 impl State {
-    /// Fits the newest wire-frame to every frame that has both edges and a pose.
-    fn fit(&mut self, params: &Params) -> Option<Vec<Vec3>> {
-        let camera = self.camera?;
-        let (_, vertices, edges) = self.wireframe.as_ref()?;
-        let images: Vec<ImageEdges> = self
-            .edges
-            .iter()
-            .filter_map(|(f, px)| Some(ImageEdges::new(camera, *self.poses.get(f)?, px)))
-            .collect();
-        if images.is_empty() || vertices.is_empty() {
+    /// The edge images of every frame that has both edges and a pose, rebuilt where the pose changed.
+    fn images(&mut self) -> Vec<Arc<ImageEdges>> {
+        let Some(camera) = self.camera else { return Vec::new() };
+        let mut out = Vec::new();
+        for (f, px) in &self.edges {
+            let Some(pose) = self.poses.get(f) else { continue };
+            let fresh = self.images.get(f).is_none_or(|(p, _)| p != pose);
+            if fresh {
+                self.images.insert(*f, (*pose, Arc::new(ImageEdges::new(camera, *pose, px))));
+            }
+            out.push(self.images[f].1.clone());
+        }
+        out
+    }
+
+    /// The newest wire-frame and the images to fit it to, if there is something to fit.
+    fn job(&mut self) -> Option<(Wire, Vec<Arc<ImageEdges>>)> {
+        let wire = self.wireframe.clone()?;
+        let images = self.images();
+        if images.is_empty() || wire.1.is_empty() {
             return None;
         }
-        let pairs: Vec<[usize; 2]> = edges.iter().map(|e| [e.a as usize, e.b as usize]).collect();
-        let fit = fit_wireframe(vertices, &pairs, &[], &images, &params.fit_params(&camera));
-        tracing::info!("fitted to {} images: {}", images.len(), fit.summary(camera.pixel_size_mm));
-        for why in fit.failures.iter().take(3) {
-            tracing::warn!("a part of the model was left unfitted: {why}");
-        }
         self.edges_since_fit = 0;
-        Some(fit.vertices)
+        Some((wire, images))
     }
+}
+
+/// Fits `wire` to `images`; the fitted vertices.
+fn fit_job(wire: &Wire, images: &[Arc<ImageEdges>], params: &FitParams) -> Vec<Vec3> {
+    let (_, vertices, edges) = wire;
+    let pairs: Vec<[usize; 2]> = edges.iter().map(|e| [e.a as usize, e.b as usize]).collect();
+    let fit = fit_wireframe(vertices, &pairs, &[], images, params);
+    let pixel_mm = images.first().map_or(1.0, |i| i.camera.pixel_size_mm);
+    tracing::info!("fitted to {} images: {}", images.len(), fit.summary(pixel_mm));
+    for why in fit.failures.iter().take(3) {
+        tracing::warn!("a part of the model was left unfitted: {why}");
+    }
+    fit.vertices
 }
 
 fn publish(output: &Output<kinds::Wireframe>, stamp: Stamp, vertices: &[Vec3], edges: &[WireEdge]) -> Result<()> {
@@ -116,20 +140,31 @@ fn body() -> Result<()> {
     ctx.connect()?;
 
     let mut st = State::default();
-    let mut checked = false;
+    let mut fit_params: Option<FitParams> = None;
+    // Live fits run on a worker so that the edge maps keep flowing in while one is under way.
+    let (jobs_tx, jobs_rx) = crossbeam::channel::bounded::<(Wire, Vec<Arc<ImageEdges>>, FitParams)>(1);
+    let (done_tx, done_rx) = crossbeam::channel::bounded::<(Wire, Vec<Vec3>)>(1);
+    let worker = std::thread::Builder::new().name("modelfit-live".into()).spawn(move || {
+        for (wire, images, params) in jobs_rx {
+            let fitted = fit_job(&wire, &images, &params);
+            if done_tx.send((wire, fitted)).is_err() {
+                break;
+            }
+        }
+    })?;
+    let mut busy = false;
     ctx.run(|| {
         while let Some(m) = camera_in.receive()? {
             let camera = m.user_header().camera();
-            if !checked {
-                if let Err(e) = params.fit_params(&camera).validate() {
-                    bail!("node '{}': {e}", ctx.name());
-                }
-                checked = true;
+            let p = params.fit_params(&camera);
+            if let Err(e) = p.validate() {
+                bail!("node '{}': {e}", ctx.name());
             }
+            fit_params = Some(p);
             st.camera = Some(camera);
         }
         while let Some(m) = edges_in.receive()? {
-            st.edges.insert(m.user_header().stamp.frame, m.payload().to_vec());
+            st.edges.insert(m.user_header().stamp.frame, Arc::new(m.payload().to_vec()));
             st.edges_since_fit += 1;
         }
         while let Some(m) = poses_in.receive()? {
@@ -137,42 +172,55 @@ fn body() -> Result<()> {
                 st.poses.insert(p.frame, p.exterior());
             }
         }
-        let mut fresh = false;
         while let Some(m) = wire_in.receive()? {
             let h = *m.user_header();
             let (v, e) = parts::split::<[f64; 3], WireEdge>(m.payload(), h.n_vertices as usize, h.n_edges as usize)
                 .map_err(|e| anyhow::anyhow!("wireframe of frame {}: {e}", h.stamp.frame))?;
             let n = v.len() as u32;
             if let Some(bad) = e.iter().find(|x| x.a >= n || x.b >= n) {
-                bail!("wireframe of frame {}: edge ({}, {}) names a vertex beyond {n}", h.stamp.frame, bad.a, bad.b);
+                bail!(
+                    "wireframe of frame {}: edge ({}, {}) names a vertex beyond {n}",
+                    h.stamp.frame,
+                    bad.a,
+                    bad.b
+                );
             }
             st.wireframe = Some((h.stamp, v.iter().map(|&p| Vec3::from(p)).collect(), e.to_vec()));
-            fresh = true;
+        }
+        if let Ok(((stamp, _, edges), fitted)) = done_rx.try_recv() {
+            publish(&output, stamp, &fitted, &edges)?;
+            busy = false;
         }
         let ended = wire_in.is_ended() && edges_in.is_ended() && poses_in.is_ended();
         let due = params.live_interval_frames > 0 && st.edges_since_fit >= params.live_interval_frames;
-        if !ended && fresh && due {
-            if let Some(v) = st.fit(&params) {
-                let (stamp, _, edges) = st.wireframe.as_ref().expect("fit needs a wire-frame");
-                publish(&output, *stamp, &v, edges)?;
-                st.fitted = Some(v);
+        if !ended && due && !busy {
+            if let (Some(p), Some((wire, images))) = (fit_params.clone(), st.job()) {
+                busy = jobs_tx.try_send((wire, images, p)).is_ok();
             }
         }
         Ok(if ended { Flow::Stop } else { Flow::Continue })
     })?;
+    drop(jobs_tx);
+    if let Ok(((stamp, _, edges), fitted)) = done_rx.recv() {
+        publish(&output, stamp, &fitted, &edges)?;
+    }
+    let _ = worker.join();
     // The end: the final wire-frame against the final poses.
-    if let Some(v) = st.fit(&params) {
-        let (stamp, _, edges) = st.wireframe.as_ref().expect("fit needs a wire-frame");
-        publish(&output, *stamp, &v, edges)?;
-        st.fitted = Some(v);
-    } else if st.wireframe.is_some() {
-        tracing::warn!("no frame has both edges and a pose: the model was not fitted");
+    let mut fitted = None;
+    match (fit_params, st.job()) {
+        (Some(p), Some((wire, images))) => {
+            let v = fit_job(&wire, &images, &p);
+            publish(&output, wire.0, &v, &wire.2)?;
+            fitted = Some((v, wire.2));
+        }
+        _ if st.wireframe.is_some() => tracing::warn!("no frame has both edges and a pose: the model was not fitted"),
+        _ => tracing::warn!("no wire-frame arrived: nothing to fit"),
     }
     output.end_of_stream()?;
-    if let (Some(v), Some((_, _, edges))) = (&st.fitted, &st.wireframe) {
+    if let Some((v, edges)) = fitted {
         let path = ctx.out_dir().join("model_fitted.obj");
         let pairs: Vec<[usize; 2]> = edges.iter().map(|e| [e.a as usize, e.b as usize]).collect();
-        write_obj(&path, v, &pairs).with_context(|| format!("writing {}", path.display()))?;
+        write_obj(&path, &v, &pairs).with_context(|| format!("writing {}", path.display()))?;
         tracing::info!("fitted model -> {}", path.display());
     }
     ctx.finish();

@@ -127,10 +127,7 @@ impl ImageEdges {
         let reach = radius_mm + cell * std::f64::consts::FRAC_1_SQRT_2;
         for r in r0..=r1 {
             for c in c0..=c1 {
-                let centre = [
-                    self.origin[0] + (c as f64 + 0.5) * cell,
-                    self.origin[1] + (r as f64 + 0.5) * cell,
-                ];
+                let centre = [self.origin[0] + (c as f64 + 0.5) * cell, self.origin[1] + (r as f64 + 0.5) * cell];
                 if point_segment_distance(centre, p, q) > reach {
                     continue;
                 }

@@ -156,7 +156,7 @@ impl Parametric for BoxModel {
         use box_param::*;
         [L, W, H]
             .into_iter()
-            .find(|&k| !(p[k] > 0.0))
+            .find(|&k| p[k].is_nan() || p[k] <= 0.0)
             .map(|k| format!("{} became {:.3} m", NAMES[k], p[k]))
     }
 
@@ -201,11 +201,7 @@ impl DepthPrior {
 impl FreeVertices {
     /// The wire-frame of `edges` over vertices packed as parameters (x, y, z per vertex); `faces` for culling.
     pub fn new(edges: Vec<[usize; 2]>, faces: Vec<FacePlane>) -> Self {
-        Self {
-            edges,
-            faces,
-            prior: None,
-        }
+        Self { edges, faces, prior: None }
     }
 
     /// The same wire-frame with an anisotropic prior on every vertex.

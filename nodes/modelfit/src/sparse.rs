@@ -79,7 +79,7 @@ impl SparseSym {
     /// is singular or the iteration breaks down (A not positive definite).
     pub fn solve(&self, b: &[f64], tol: f64, max_iter: usize) -> Option<Vec<f64>> {
         let n = self.n;
-        if n % 3 != 0 {
+        if !n.is_multiple_of(3) {
             return None;
         }
         let inv: Vec<Matrix3<f64>> = self.block_inverses().into_iter().collect::<Option<_>>()?;
@@ -104,7 +104,7 @@ impl SparseSym {
         for _ in 0..max_iter {
             self.mul(&p, &mut ap);
             let pap = dot(&p, &ap);
-            if !(pap > 0.0) {
+            if pap.is_nan() || pap <= 0.0 {
                 return None;
             }
             let alpha = rz / pap;

@@ -94,9 +94,7 @@ mod tests {
             let deg = k as f64 * 0.1;
             let kept = Weighting::Combined.weight(0.7, deg.to_radians().cos(), gate) > 0.0;
             let inside = (60.0 + 1e-9..=120.0 - 1e-9).contains(&deg) || (240.0 + 1e-9..=300.0 - 1e-9).contains(&deg);
-            let outside = deg < 60.0 - 1e-9
-                || (120.0 + 1e-9..240.0 - 1e-9).contains(&deg)
-                || deg > 300.0 + 1e-9;
+            let outside = deg < 60.0 - 1e-9 || (120.0 + 1e-9..240.0 - 1e-9).contains(&deg) || deg > 300.0 + 1e-9;
             if inside {
                 assert!(kept, "{deg}");
             }

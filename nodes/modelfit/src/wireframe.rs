@@ -1,6 +1,8 @@
 //! Fitting a whole wire-frame by its free vertices. The vertices of different connected components share no
 //! observation (a pixel lies on one edge), so each component is an independent adjustment: a façade's wall
 //! outline and each opening are solved as small dense systems instead of one large one.
+use std::borrow::Borrow;
+
 use rayon::prelude::*;
 
 use crate::fit::{fit, FitParams};
@@ -101,16 +103,24 @@ fn components(n: usize, edges: &[[usize; 2]]) -> Vec<Vec<usize>> {
 
 /// Fits the free vertices of a wire-frame to the edge pixels of `images`. Faces are used for self-occlusion;
 /// edges must name existing vertices (checked by the callers that read user files).
-pub fn fit_wireframe(
+pub fn fit_wireframe<I: Borrow<ImageEdges> + Sync>(
     vertices: &[Vec3],
     edges: &[[usize; 2]],
     faces: &[FacePlane],
-    images: &[ImageEdges],
+    images: &[I],
     params: &FitParams,
 ) -> WireframeFit {
-    let lateral = if params.prior_sigma > 0.0 { params.prior_sigma } else { DEFAULT_PRIOR_M };
-    let depth = if params.prior_depth_sigma > 0.0 { params.prior_depth_sigma } else { DEFAULT_DEPTH_PRIOR_M };
-    let axis = images.iter().map(|i| i.pose.axis()).sum::<Vec3>();
+    let lateral = if params.prior_sigma > 0.0 {
+        params.prior_sigma
+    } else {
+        DEFAULT_PRIOR_M
+    };
+    let depth = if params.prior_depth_sigma > 0.0 {
+        params.prior_depth_sigma
+    } else {
+        DEFAULT_DEPTH_PRIOR_M
+    };
+    let axis = images.iter().map(|i| i.borrow().pose.axis()).sum::<Vec3>();
     let prior = DepthPrior {
         axis: if axis.norm() > 0.0 { axis.normalize() } else { Vec3::z() },
         lateral_m: lateral,
@@ -195,17 +205,6 @@ pub fn fit_wireframe(
     out
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn components_split_at_disconnected_parts() {
-        let g = components(7, &[[0, 1], [1, 2], [4, 5], [6, 5]]);
-        assert_eq!(g, vec![vec![0, 1, 2], vec![3], vec![4, 5, 6]]);
-    }
-}
-
 /// A wire-frame as Wavefront OBJ: `v` vertices and one `l` element per edge.
 pub fn obj_text(vertices: &[Vec3], edges: &[[usize; 2]]) -> String {
     use std::fmt::Write;
@@ -222,4 +221,15 @@ pub fn obj_text(vertices: &[Vec3], edges: &[[usize; 2]]) -> String {
 /// Writes [`obj_text`] to `path`.
 pub fn write_obj(path: &std::path::Path, vertices: &[Vec3], edges: &[[usize; 2]]) -> std::io::Result<()> {
     std::fs::write(path, obj_text(vertices, edges))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn components_split_at_disconnected_parts() {
+        let g = components(7, &[[0, 1], [1, 2], [4, 5], [6, 5]]);
+        assert_eq!(g, vec![vec![0, 1, 2], vec![3], vec![4, 5, 6]]);
+    }
 }

@@ -101,5 +101,9 @@ fn in_plane_errors_are_removed_and_depth_is_held() {
     }
     let rms = (sq / truth.len() as f64).sqrt();
     assert!(rms < 0.6e-3, "in-plane RMS {rms} m from 8.5 mm");
-    assert!(fit.residual_rms_mm / camera().pixel_size_mm < 0.1, "{}", fit.summary(camera().pixel_size_mm));
+    assert!(
+        fit.residual_rms_mm / camera().pixel_size_mm < 0.1,
+        "{}",
+        fit.summary(camera().pixel_size_mm)
+    );
 }

@@ -57,7 +57,15 @@ fn perfect_edges_give_the_truth_for_every_weighting() {
     start[box_param::L] -= 1.0;
     start[box_param::H] += 1.5;
     for w in Weighting::ALL {
-        let f = fit(&BoxModel, &start, &images, &FitParams { weighting: w, ..FitParams::default() });
+        let f = fit(
+            &BoxModel,
+            &start,
+            &images,
+            &FitParams {
+                weighting: w,
+                ..FitParams::default()
+            },
+        );
         assert!(f.ok() && f.converged, "{w:?}: {:?}", f.failure);
         for k in 0..7 {
             let err = (f.params[k] - scene.truth[k]).abs();
@@ -75,8 +83,7 @@ fn perfect_edges_give_the_truth_for_every_weighting() {
 #[test]
 fn rendered_building_fits_and_sobel_is_noisiest() {
     let b = Prepared::new(buildings().swap_remove(1));
-    let counts: Vec<usize> =
-        Detector::ALL.iter().map(|&d| b.images(d, 1)[0].observations().len()).collect();
+    let counts: Vec<usize> = Detector::ALL.iter().map(|&d| b.images(d, 1)[0].observations().len()).collect();
     assert!(counts[0] > counts[1] && counts[0] > counts[2], "sobel, canny, log: {counts:?}");
     let start = perturbed(&b.scene.truth, 1.0, 2.0, 42);
     let params = FitParams::default();
@@ -84,7 +91,10 @@ fn rendered_building_fits_and_sobel_is_noisiest() {
     assert!(succeeded(&b.scene, &b.photos, &f), "{:?} -> {:?}", f.failure, f.params);
     let (good, visible) = correct_lines(&b.scene, &b.photos, &f.params);
     assert_eq!(good, visible);
-    assert!(visible >= 4 * 6 && visible <= 4 * 9, "at most 9 of 12 edges per photo (fact C5): {visible}");
+    assert!(
+        (4 * 6..=4 * 9).contains(&visible),
+        "at most 9 of 12 edges per photo (fact C5): {visible}"
+    );
     let rms_px = f.residual_rms_mm / b.photos[0].0.pixel_size_mm;
     assert!(rms_px < 0.7, "{rms_px}");
     let again = fit(&BoxModel, &start, b.images(Detector::Canny, 4), &params);
@@ -101,6 +111,7 @@ fn a_model_outside_the_photos_fails_cleanly() {
     assert!(!f.ok());
     assert!(f.failure.as_deref().unwrap().contains("edge pixels"), "{:?}", f.failure);
     assert_eq!(f.params, start);
-    let f = fit(&BoxModel, &b.scene.truth, &[], &FitParams::default());
+    let none: [ImageEdges; 0] = [];
+    let f = fit(&BoxModel, &b.scene.truth, &none, &FitParams::default());
     assert!(!f.ok(), "no images");
 }

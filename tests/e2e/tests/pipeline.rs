@@ -483,7 +483,7 @@ to = []
 fn the_demo_graph_orients_both_strips_and_extracts_3d_lines_and_a_model_the_same_way_twice() {
     let sb = Sandbox::new();
     let demo = repo_file("launch/demo.toml");
-    let (mut poses, mut lines, mut models) = (Vec::new(), Vec::new(), Vec::new());
+    let (mut poses, mut lines, mut models, mut fits) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
     for k in 0..2 {
         let out = sb.path().join(format!("out{k}"));
         let r = sb.run(&[
@@ -542,11 +542,21 @@ fn the_demo_graph_orients_both_strips_and_extracts_3d_lines_and_a_model_the_same
             report.contains("| true vertices | model vertices |"),
             "the live eval saw no wire-frame:\n{report}"
         );
+        // The modelfit stage fits that wire-frame to every image's edge pixels (seed 004), scored too.
+        let fitted = std::fs::read_to_string(out.join("model_fitted.obj")).expect("no model_fitted.obj");
+        assert_eq!(
+            fitted.lines().filter(|l| l.starts_with("v ")).count(),
+            obj.lines().filter(|l| l.starts_with("v ")).count(),
+            "the fitted model keeps the model's vertices"
+        );
+        assert!(report.contains("| fitted to the images (`model_fitted.obj`) |"), "{report}");
         models.push(obj);
+        fits.push(fitted);
     }
     assert_eq!(poses[0], poses[1], "two runs oriented differently");
     assert!(lines[0] == lines[1], "two runs gave different 3-D lines");
     assert!(models[0] == models[1], "two runs gave different models");
+    assert!(fits[0] == fits[1], "two runs gave different fitted models");
 }
 
 /// The first number after `marker` (then `lead`) in `text`.
