@@ -37,6 +37,8 @@ pub struct FitParams {
     /// At most this many pixels per projected line and image, evenly spread (0: all). A façade edge of 2,000
     /// pixels seen in ten images says little more with all of them than with a tenth.
     pub max_pixels_per_line: usize,
+    /// Keep the pixels' assignment to lines once the buffer is final (the seed re-selects every iteration).
+    pub freeze_at_final: bool,
 }
 
 impl Default for FitParams {
@@ -51,6 +53,7 @@ impl Default for FitParams {
             prior_sigma: 0.0,
             prior_depth_sigma: 0.0,
             max_pixels_per_line: 0,
+            freeze_at_final: false,
         }
     }
 }
@@ -146,6 +149,8 @@ struct Row {
     d: f64,
     w: f64,
     edge: usize,
+    /// The pixel's index in its image.
+    obs: u32,
     grad: Vec<(usize, f64)>,
 }
 
@@ -286,39 +291,83 @@ fn rows_of_image(
         });
     }
     let gate = params.angle_gate_deg.to_radians().sin();
-    let mut rows = Vec::new();
-    for (i, _, slot, d, s) in candidates {
-        let l = &lines[slot as usize];
-        let o = &obs[i as usize];
-        let (tx, ty) = (l.q[0] - l.p[0], l.q[1] - l.p[1]);
-        let len = (tx * tx + ty * ty).sqrt();
-        let cos_lambda = (o.gradient[0] * tx + o.gradient[1] * ty) / len;
-        let w = params.weighting.weight(o.relative, cos_lambda, gate);
-        if w <= 0.0 {
-            continue;
-        }
-        // d = n·(e − P1) with n = (ty, −tx)/len: ∂d/∂P1 = −(1 − s)n, ∂d/∂P2 = −s·n.
-        let n = [ty / len, -tx / len];
-        let [a, b] = model.edges()[l.edge];
-        let mut grad: Vec<(usize, f64)> = Vec::with_capacity(14);
-        for (vertex, share) in [(a, 1.0 - s), (b, s)] {
-            let (_, jp) = projections[vertex].expect("visible lines have projected ends");
-            let dd_dv = Vec3::new(
-                -share * (n[0] * jp[0][0] + n[1] * jp[1][0]),
-                -share * (n[0] * jp[0][1] + n[1] * jp[1][1]),
-                -share * (n[0] * jp[0][2] + n[1] * jp[1][2]),
-            );
-            for (k, dv) in &jacobians[vertex] {
-                let g = dd_dv.dot(dv);
-                match grad.iter_mut().find(|(j, _)| j == k) {
-                    Some(entry) => entry.1 += g,
-                    None => grad.push((*k, g)),
-                }
+    candidates
+        .into_iter()
+        .filter_map(|(i, _, slot, _, _)| row_for(model, &projections, jacobians, img, i, lines[slot as usize].edge, gate, params))
+        .collect()
+}
+
+/// The observation row of pixel `i` of `img` on model edge `edge`, if both ends project and its weight is not 0.
+#[allow(clippy::too_many_arguments)]
+fn row_for(
+    model: &dyn Parametric,
+    projections: &[Option<Projection>],
+    jacobians: &[Vec<(usize, Vec3)>],
+    img: &ImageEdges,
+    i: u32,
+    edge: usize,
+    gate: f64,
+    params: &FitParams,
+) -> Option<Row> {
+    let [a, b] = model.edges()[edge];
+    let ((p1, ja), (p2, jb)) = (projections[a]?, projections[b]?);
+    let o = &img.observations()[i as usize];
+    let (tx, ty) = (p2[0] - p1[0], p2[1] - p1[1]);
+    let len = (tx * tx + ty * ty).sqrt();
+    if len <= 0.0 {
+        return None;
+    }
+    let cos_lambda = (o.gradient[0] * tx + o.gradient[1] * ty) / len;
+    let w = params.weighting.weight(o.relative, cos_lambda, gate);
+    if w <= 0.0 {
+        return None;
+    }
+    // d = n·(e − P1) with n = (ty, −tx)/len: ∂d/∂P1 = −(1 − s)n, ∂d/∂P2 = −s·n.
+    let n = [ty / len, -tx / len];
+    let (ex, ey) = (o.xy[0] - p1[0], o.xy[1] - p1[1]);
+    let d = n[0] * ex + n[1] * ey;
+    let s = (ex * tx + ey * ty) / (len * len);
+    let mut grad: Vec<(usize, f64)> = Vec::with_capacity(14);
+    for (vertex, share, jp) in [(a, 1.0 - s, ja), (b, s, jb)] {
+        let dd_dv = Vec3::new(
+            -share * (n[0] * jp[0][0] + n[1] * jp[1][0]),
+            -share * (n[0] * jp[0][1] + n[1] * jp[1][1]),
+            -share * (n[0] * jp[0][2] + n[1] * jp[1][2]),
+        );
+        for (k, dv) in &jacobians[vertex] {
+            let g = dd_dv.dot(dv);
+            match grad.iter_mut().find(|(j, _)| j == k) {
+                Some(entry) => entry.1 += g,
+                None => grad.push((*k, g)),
             }
         }
-        rows.push(Row { d, w, edge: l.edge, grad });
     }
-    rows
+    Some(Row { d, w, edge, obs: i, grad })
+}
+
+/// The rows of pixels already assigned to edges, at parameters `p`, in image order.
+fn rows_of_selection<I: Borrow<ImageEdges> + Sync>(
+    model: &dyn Parametric,
+    p: &[f64],
+    images: &[I],
+    selection: &[Vec<(u32, usize)>],
+    params: &FitParams,
+) -> Vec<Vec<Row>> {
+    let vertices = model.vertices(p);
+    let jacobians = model.vertex_jacobians(p);
+    let gate = params.angle_gate_deg.to_radians().sin();
+    images
+        .par_iter()
+        .zip(selection)
+        .map(|(img, sel)| {
+            let img = img.borrow();
+            let projections: Vec<Option<Projection>> =
+                vertices.iter().map(|v| project_with_jacobian(img, v)).collect();
+            sel.iter()
+                .filter_map(|&(i, edge)| row_for(model, &projections, &jacobians, img, i, edge, gate, params))
+                .collect()
+        })
+        .collect()
 }
 
 /// Every image's rows at `p`, in image order (deterministic whatever the thread count).
@@ -476,9 +525,18 @@ pub fn fit<I: Borrow<ImageEdges> + Sync>(model: &dyn Parametric, start: &[f64], 
     };
     let mut converged = false;
     let mut normal = Normal::new(model, start);
+    // From the first iteration at the final buffer on, the pixels keep their lines: re-selecting them every
+    // step lets a component hop between neighbouring parallel edges without ever settling.
+    let mut frozen: Option<Vec<Vec<(u32, usize)>>> = None;
     for it in 0..params.max_iterations {
         let buffer = params.buffer_mm(it);
-        let rows = collect_rows(model, &p, images, buffer, params);
+        let rows = match &frozen {
+            Some(selection) => rows_of_selection(model, &p, images, selection, params),
+            None => collect_rows(model, &p, images, buffer, params),
+        };
+        if it >= final_from && params.freeze_at_final && frozen.is_none() {
+            frozen = Some(rows.iter().map(|r| r.iter().map(|r| (r.obs, r.edge)).collect()).collect());
+        }
         let used: usize = rows.iter().map(Vec::len).sum();
         if used < n && !has_prior {
             return failed(start.to_vec(), log, format!("{used} edge pixels for {n} parameters"));

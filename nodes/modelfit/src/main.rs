@@ -32,6 +32,7 @@ struct Params {
     prior_sigma_m: Option<f64>,
     prior_depth_sigma_m: Option<f64>,
     max_pixels_per_line: Option<usize>,
+    freeze_at_final: Option<bool>,
     /// Refit while streaming after this many new edge maps (0: only at the end). Live fits run as the data
     /// happen to arrive, so a re-run of a recording may publish different intermediate fits; the final fit,
     /// after every input has ended, is always the same.
@@ -56,6 +57,7 @@ impl Params {
             prior_sigma: self.prior_sigma_m.unwrap_or(d.prior_sigma),
             prior_depth_sigma: self.prior_depth_sigma_m.unwrap_or(d.prior_depth_sigma),
             max_pixels_per_line: self.max_pixels_per_line.unwrap_or(d.max_pixels_per_line),
+            freeze_at_final: self.freeze_at_final.unwrap_or(d.freeze_at_final),
         }
     }
 }

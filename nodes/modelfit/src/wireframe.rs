@@ -30,6 +30,7 @@ pub fn facade_params(pixel_mm: f64) -> FitParams {
         prior_sigma: DEFAULT_PRIOR_M,
         prior_depth_sigma: DEFAULT_DEPTH_PRIOR_M,
         max_pixels_per_line: 100,
+        freeze_at_final: true,
         ..FitParams::default()
     }
 }
