@@ -39,6 +39,20 @@ pub struct FitParams {
     pub max_pixels_per_line: usize,
     /// Keep the pixels' assignment to lines once the buffer is final (the seed re-selects every iteration).
     pub freeze_at_final: bool,
+    /// Parameters known from another source (seed §2.6: a height from a map when the bottom edges are hidden).
+    pub constraints: Vec<Constraint>,
+}
+
+/// A weighted pseudo-observation p_k = value.
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Constraint {
+    /// Parameter index.
+    pub param: usize,
+    /// Known value.
+    pub value: f64,
+    /// Its standard deviation (metres or radians).
+    pub sigma: f64,
 }
 
 impl Default for FitParams {
@@ -54,6 +68,7 @@ impl Default for FitParams {
             prior_depth_sigma: 0.0,
             max_pixels_per_line: 0,
             freeze_at_final: false,
+            constraints: Vec::new(),
         }
     }
 }
@@ -67,6 +82,9 @@ impl FitParams {
                 "buffer schedule needs 0 < buffer_min_mm <= buffer_start_mm and buffer_step_mm >= 0 (got {} / {} / {})",
                 b.0, b.1, b.2
             ));
+        }
+        if let Some(c) = self.constraints.iter().find(|c| !(c.sigma > 0.0 && c.value.is_finite())) {
+            return Err(format!("constraint on parameter {} needs a finite value and sigma > 0", c.param));
         }
         if !(0.0..=90.0).contains(&self.angle_gate_deg) {
             return Err(format!("angle_gate_deg must be in [0, 90] (got {})", self.angle_gate_deg));
@@ -361,8 +379,7 @@ fn rows_of_selection<I: Borrow<ImageEdges> + Sync>(
         .zip(selection)
         .map(|(img, sel)| {
             let img = img.borrow();
-            let projections: Vec<Option<Projection>> =
-                vertices.iter().map(|v| project_with_jacobian(img, v)).collect();
+            let projections: Vec<Option<Projection>> = vertices.iter().map(|v| project_with_jacobian(img, v)).collect();
             sel.iter()
                 .filter_map(|&(i, edge)| row_for(model, &projections, &jacobians, img, i, edge, gate, params))
                 .collect()
@@ -463,7 +480,14 @@ enum Prior {
 }
 
 /// Fills the normal equations of the rows plus the priors toward `start`; the right-hand side.
-fn normal_equations(normal: &mut Normal, rows: &[Vec<Row>], p: &[f64], start: &[f64], prior: &Prior) -> DVector<f64> {
+fn normal_equations(
+    normal: &mut Normal,
+    rows: &[Vec<Row>],
+    p: &[f64],
+    start: &[f64],
+    prior: &Prior,
+    constraints: &[(usize, f64, f64)],
+) -> DVector<f64> {
     normal.clear();
     let mut b = DVector::<f64>::zeros(p.len());
     for r in rows.iter().flatten() {
@@ -473,6 +497,10 @@ fn normal_equations(normal: &mut Normal, rows: &[Vec<Row>], p: &[f64], start: &[
                 normal.add(i, j, r.w * gi * gj);
             }
         }
+    }
+    for &(k, value, w) in constraints {
+        normal.add(k, k, w);
+        b[k] -= w * (p[k] - value);
     }
     match prior {
         Prior::None => {}
@@ -509,7 +537,13 @@ pub fn fit<I: Borrow<ImageEdges> + Sync>(model: &dyn Parametric, start: &[f64], 
         None if params.prior_sigma > 0.0 => Prior::Scalar((pixel_mm / params.prior_sigma).powi(2)),
         None => Prior::None,
     };
-    let has_prior = !matches!(prior, Prior::None);
+    let constraints: Vec<(usize, f64, f64)> = params
+        .constraints
+        .iter()
+        .filter(|c| c.param < n)
+        .map(|c| (c.param, c.value, (pixel_mm / c.sigma).powi(2)))
+        .collect();
+    let has_prior = !matches!(prior, Prior::None) || !constraints.is_empty();
     let mut p = start.to_vec();
     let mut log = Vec::new();
     let final_from = params.final_buffer_from();
@@ -541,7 +575,7 @@ pub fn fit<I: Borrow<ImageEdges> + Sync>(model: &dyn Parametric, start: &[f64], 
         if used < n && !has_prior {
             return failed(start.to_vec(), log, format!("{used} edge pixels for {n} parameters"));
         }
-        let b = normal_equations(&mut normal, &rows, &p, start, &prior);
+        let b = normal_equations(&mut normal, &rows, &p, start, &prior, &constraints);
         let Some(dp) = normal.solve(&b) else {
             return failed(
                 start.to_vec(),
@@ -568,7 +602,7 @@ pub fn fit<I: Borrow<ImageEdges> + Sync>(model: &dyn Parametric, start: &[f64], 
     }
     // Precision and residuals from the pixels at the final parameters and buffer.
     let rows = collect_rows(model, &p, images, params.buffer_min_mm, params);
-    normal_equations(&mut normal, &rows, &p, start, &prior);
+    normal_equations(&mut normal, &rows, &p, start, &prior, &constraints);
     let (mut sum_wdd, mut sum_w, mut count) = (0.0, 0.0, 0usize);
     let mut edge_pixels = vec![0; model.edges().len()];
     for r in rows.iter().flatten() {
@@ -577,7 +611,11 @@ pub fn fit<I: Borrow<ImageEdges> + Sync>(model: &dyn Parametric, start: &[f64], 
         count += 1;
         edge_pixels[r.edge] += 1;
     }
-    let redundancy = count.saturating_sub(if has_prior { 0 } else { n }).max(1);
+    let redundancy = match prior {
+        Prior::None => (count + constraints.len()).saturating_sub(n),
+        _ => count,
+    }
+    .max(1);
     let sigma0_mm = (sum_wdd / redundancy as f64).sqrt();
     let sigmas = normal
         .inverse_diagonal()

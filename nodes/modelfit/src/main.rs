@@ -58,6 +58,7 @@ impl Params {
             prior_depth_sigma: self.prior_depth_sigma_m.unwrap_or(d.prior_depth_sigma),
             max_pixels_per_line: self.max_pixels_per_line.unwrap_or(d.max_pixels_per_line),
             freeze_at_final: self.freeze_at_final.unwrap_or(d.freeze_at_final),
+            constraints: d.constraints,
         }
     }
 }

@@ -6,6 +6,15 @@ use lineflow_modelfit::{fit, BoxModel, EdgeObservation, FitParams, ImageEdges, P
 
 /// Edge pixels every half pixel along the visible projected edges of the true box, gradients perpendicular.
 fn perfect_edges(truth: &[f64; 7], photos: &[(lineflow_photogrammetry::Camera, lineflow_photogrammetry::Pose)]) -> Vec<ImageEdges> {
+    edges_above(truth, photos, f64::NEG_INFINITY)
+}
+
+/// As [`perfect_edges`], without the parts below height `hidden_below` (trees around the building's foot).
+fn edges_above(
+    truth: &[f64; 7],
+    photos: &[(lineflow_photogrammetry::Camera, lineflow_photogrammetry::Pose)],
+    hidden_below: f64,
+) -> Vec<ImageEdges> {
     let model = BoxModel;
     let v = model.vertices(truth);
     let faces = model.faces(truth);
@@ -30,9 +39,12 @@ fn perfect_edges(truth: &[f64; 7], photos: &[(lineflow_photogrammetry::Camera, l
                 let n = [(q[1] - p[1]) / len, -(q[0] - p[0]) / len];
                 let steps = (len / (0.5 * camera.pixel_size_mm)) as usize;
                 for i in 1..steps {
-                    let s = i as f64 / steps as f64;
+                    let x = v[e[0]] + (v[e[1]] - v[e[0]]) * (i as f64 / steps as f64);
+                    if x.z < hidden_below {
+                        continue;
+                    }
                     obs.push(EdgeObservation {
-                        xy: [p[0] + s * (q[0] - p[0]), p[1] + s * (q[1] - p[1])],
+                        xy: pose.project_ideal(camera, &x).unwrap(),
                         gradient: n,
                         relative: 1.0,
                     });
@@ -114,4 +126,41 @@ fn a_model_outside_the_photos_fails_cleanly() {
     let none: [ImageEdges; 0] = [];
     let f = fit(&BoxModel, &b.scene.truth, &none, &FitParams::default());
     assert!(!f.ok(), "no images");
+}
+
+/// Fact C10: with the building's foot hidden (no bottom edges, the walls seen only above 60 % of the height) the
+/// base elevation has nothing to hold it; a height from another source (σ 0.05 m) restores the fit.
+#[test]
+fn a_height_constraint_restores_a_fit_whose_foot_is_hidden() {
+    use lineflow_modelfit::fit::Constraint;
+    let scene = &buildings()[0];
+    let photos = scene.photos(4);
+    let t = &scene.truth;
+    let images = edges_above(t, &photos, t[box_param::DZ] + 0.6 * t[box_param::H]);
+    let mut start = t.to_vec();
+    start[box_param::DZ] -= 2.0;
+    start[box_param::H] += 2.0;
+    let free = fit(&BoxModel, &start, &images, &FitParams::default());
+    let wrong = !free.ok() || (free.params[box_param::DZ] - t[box_param::DZ]).abs() > 0.1;
+    assert!(wrong, "the foot is hidden, yet dZ was found: {:?}", free.params);
+    let constrained = FitParams {
+        constraints: vec![Constraint {
+            param: box_param::H,
+            value: t[box_param::H],
+            sigma: 0.05,
+        }],
+        ..FitParams::default()
+    };
+    let f = fit(&BoxModel, &start, &images, &constrained);
+    assert!(f.ok(), "{:?}", f.failure);
+    for k in 0..7 {
+        let tol = if k == box_param::THETA { 0.01f64.to_radians() } else { 0.01 };
+        assert!(
+            (f.params[k] - t[k]).abs() < tol,
+            "{}: {} vs {}",
+            box_param::NAMES[k],
+            f.params[k],
+            t[k]
+        );
+    }
 }
