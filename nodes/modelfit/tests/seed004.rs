@@ -153,14 +153,8 @@ fn a_height_constraint_restores_a_fit_whose_foot_is_hidden() {
     };
     let f = fit(&BoxModel, &start, &images, &constrained);
     assert!(f.ok(), "{:?}", f.failure);
-    for k in 0..7 {
+    for (k, (got, want)) in f.params.iter().zip(t).enumerate() {
         let tol = if k == box_param::THETA { 0.01f64.to_radians() } else { 0.01 };
-        assert!(
-            (f.params[k] - t[k]).abs() < tol,
-            "{}: {} vs {}",
-            box_param::NAMES[k],
-            f.params[k],
-            t[k]
-        );
+        assert!((got - want).abs() < tol, "{}: {got} vs {want}", box_param::NAMES[k]);
     }
 }
