@@ -122,6 +122,9 @@ pub enum BenchCmd {
         /// Edge pixels at their pixel centres, without the sub-pixel refinement.
         #[arg(long)]
         no_subpixel: bool,
+        /// Render the façade with untextured materials, so that only geometry and shading make edges.
+        #[arg(long)]
+        flat_textures: bool,
     },
     /// The recorder node: MB/s of raw 12 MP RGB frames written with nothing dropped, against the disk.
     Record {
@@ -371,6 +374,7 @@ pub fn bench(cmd: BenchCmd) -> Result<ExitCode> {
             reps,
             no_reference,
             no_subpixel,
+            flat_textures,
         } => crate::bench_modelfit::bench_modelfit(crate::bench_modelfit::Args {
             preset: &preset,
             sigma_gsd,
@@ -379,6 +383,7 @@ pub fn bench(cmd: BenchCmd) -> Result<ExitCode> {
             reps,
             reference: !no_reference,
             subpixel: !no_subpixel,
+            flat_textures,
         }),
         BenchCmd::Linematch { preset, scale, reps } => crate::bench_linematch::bench_linematch(&preset, scale, reps),
         BenchCmd::Bundle { cameras, points } => crate::bench_bundle::bench_bundle(cameras, points),

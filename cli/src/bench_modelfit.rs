@@ -42,6 +42,7 @@ pub struct Args<'a> {
     pub reps: usize,
     pub reference: bool,
     pub subpixel: bool,
+    pub flat_textures: bool,
 }
 
 pub fn bench_modelfit(args: Args) -> Result<ExitCode> {
@@ -53,8 +54,11 @@ pub fn bench_modelfit(args: Args) -> Result<ExitCode> {
         reps,
         reference,
         subpixel,
+        flat_textures,
     } = args;
-    let truth = lineflow_eval::Truth::from_scene(Synthetic::new(preset, 1.0, 1)?);
+    let mut scene = Synthetic::new(preset, 1.0, 1)?;
+    scene.set_flat_textures(flat_textures);
+    let truth = lineflow_eval::Truth::from_scene(scene);
     let gsd = truth.gsd_m();
     let spec = &truth.scene.building.spec;
     let camera = *truth.scene.camera();
