@@ -107,3 +107,22 @@ fn in_plane_errors_are_removed_and_depth_is_held() {
         fit.summary(camera().pixel_size_mm)
     );
 }
+
+/// A part of the model outside every image keeps its start and is reported unpinned; the rest is fitted.
+#[test]
+fn a_part_outside_the_images_is_left_as_it_was_and_the_rest_fitted() {
+    let (truth, mut edges) = facade();
+    let images: Vec<ImageEdges> = strip().iter().map(|p| perfect(&truth, &edges, p)).collect();
+    let mut start: Vec<Vec3> = truth.iter().map(|v| v + Vec3::new(0.004, 0.0, -0.004)).collect();
+    // A stray rectangle 200 m to the side.
+    let b = start.len();
+    start.extend([[200.0, 0.0, 1.0], [201.0, 0.0, 1.0], [201.0, 0.0, 2.0], [200.0, 0.0, 2.0]].map(Vec3::from));
+    edges.extend((0..4).map(|k| [b + k, b + (k + 1) % 4]));
+    let fit = fit_wireframe(&start, &edges, &[], &images, &facade_params(camera().pixel_size_mm));
+    for v in b..b + 4 {
+        assert_eq!(fit.vertices[v], start[v], "the stray part moved");
+        assert!(!fit.fitted[v]);
+    }
+    let worst = (0..b).map(|v| (fit.vertices[v] - truth[v]).xz().norm()).fold(0.0, f64::max);
+    assert!(worst < 1.5e-3, "the façade was not fitted: worst in-plane error {worst} m");
+}
