@@ -7,7 +7,7 @@ use rayon::prelude::*;
 use crate::aerial::BuildingScene;
 use crate::fit::{fit, Fit, FitParams};
 use crate::observations::{point_segment_distance, ImageEdges};
-use crate::parametric::{box_param, BoxModel, Parametric};
+use crate::parametric::{box_param, visible_edges, BoxModel, Parametric};
 use crate::weights::Weighting;
 
 /// The seed's three detectors with its settings (§2.2), mapped onto our 8-bit Sobel-magnitude scale.
@@ -99,18 +99,11 @@ impl Prepared {
 pub fn correct_lines(scene: &BuildingScene, photos: &[(Camera, Pose)], fitted: &[f64]) -> (usize, usize) {
     let model = BoxModel;
     let (truth_v, fit_v) = (model.vertices(&scene.truth), model.vertices(fitted));
-    let faces = model.faces(&scene.truth);
     let (mut good, mut visible) = (0, 0);
     for (camera, pose) in photos {
+        let seen = visible_edges(&model, &scene.truth, &truth_v, &pose.center);
         for (k, e) in model.edges().iter().enumerate() {
-            let seen = faces.iter().any(|f| {
-                let on = (0..4).any(|i| {
-                    let (a, b) = (f.ring[i], f.ring[(i + 1) % 4]);
-                    (a, b) == (e[0], e[1]) || (b, a) == (e[0], e[1])
-                });
-                on && f.normal.dot(&(pose.center - truth_v[f.ring[0]])) > 0.0
-            });
-            if !seen {
+            if !seen[k] {
                 continue;
             }
             visible += 1;
@@ -121,7 +114,6 @@ pub fn correct_lines(scene: &BuildingScene, photos: &[(Camera, Pose)], fitted: &
             let (Some(f0), Some(f1)) = (px(&fit_v[e[0]]), px(&fit_v[e[1]])) else {
                 continue;
             };
-            let _ = k;
             if point_segment_distance(f0, t0, t1) <= 1.0 && point_segment_distance(f1, t0, t1) <= 1.0 {
                 good += 1;
             }

@@ -8,7 +8,7 @@ use rayon::prelude::*;
 use serde::Deserialize;
 
 use crate::observations::ImageEdges;
-use crate::parametric::Parametric;
+use crate::parametric::{visible_edges, Parametric};
 use crate::sparse::SparseSym;
 use crate::weights::Weighting;
 use lineflow_photogrammetry::Vec3;
@@ -192,30 +192,6 @@ fn project_with_jacobian(img: &ImageEdges, x: &Vec3) -> Option<Projection> {
     Some(([-f * u / w, -f * v / w], jac))
 }
 
-/// Edges visible in `img`: in front of the camera, with a front-facing adjacent face (or no face at all).
-fn visible_edges(model: &dyn Parametric, p: &[f64], vertices: &[Vec3], img: &ImageEdges) -> Vec<bool> {
-    let faces = model.faces(p);
-    let edges = model.edges();
-    let mut on_face = vec![false; edges.len()];
-    let mut seen = vec![false; edges.len()];
-    let index: std::collections::HashMap<(usize, usize), usize> = edges
-        .iter()
-        .enumerate()
-        .map(|(k, e)| ((e[0].min(e[1]), e[0].max(e[1])), k))
-        .collect();
-    for f in &faces {
-        let front = f.normal.dot(&(img.pose.center - vertices[f.ring[0]])) > 0.0;
-        for i in 0..f.ring.len() {
-            let (a, b) = (f.ring[i], f.ring[(i + 1) % f.ring.len()]);
-            if let Some(&k) = index.get(&(a.min(b), a.max(b))) {
-                on_face[k] = true;
-                seen[k] |= front;
-            }
-        }
-    }
-    (0..edges.len()).map(|k| !on_face[k] || seen[k]).collect()
-}
-
 /// Lines that another line overlaps, parallel (within 5°) and nearer than `separation_mm`: no pixel can tell
 /// them apart (an opening's edge and the frame recessed behind it, seen at a grazing angle), so neither is used
 /// in this image; other images, where parallax separates them, fit them.
@@ -261,7 +237,7 @@ fn rows_of_image(
     params: &FitParams,
 ) -> Vec<Row> {
     let projections: Vec<Option<Projection>> = vertices.iter().map(|v| project_with_jacobian(img, v)).collect();
-    let visible = visible_edges(model, p, vertices, img);
+    let visible = visible_edges(model, p, vertices, &img.pose.center);
     let min_len = 2.0 * img.camera.pixel_size_mm;
     let lines: Vec<Projected> = model
         .edges()

@@ -35,6 +35,30 @@ pub trait Parametric: Sync {
     }
 }
 
+/// Which edges of `model` at parameters `p` (vertices `vertices`) are seen from `eye`: those with a front-facing
+/// adjacent face, or on no face at all (self-occlusion only, as the seed models it).
+pub fn visible_edges(model: &dyn Parametric, p: &[f64], vertices: &[Vec3], eye: &Vec3) -> Vec<bool> {
+    let edges = model.edges();
+    let mut on_face = vec![false; edges.len()];
+    let mut seen = vec![false; edges.len()];
+    let index: std::collections::HashMap<(usize, usize), usize> = edges
+        .iter()
+        .enumerate()
+        .map(|(k, e)| ((e[0].min(e[1]), e[0].max(e[1])), k))
+        .collect();
+    for f in &model.faces(p) {
+        let front = f.normal.dot(&(eye - vertices[f.ring[0]])) > 0.0;
+        for i in 0..f.ring.len() {
+            let (a, b) = (f.ring[i], f.ring[(i + 1) % f.ring.len()]);
+            if let Some(&k) = index.get(&(a.min(b), a.max(b))) {
+                on_face[k] = true;
+                seen[k] |= front;
+            }
+        }
+    }
+    (0..edges.len()).map(|k| !on_face[k] || seen[k]).collect()
+}
+
 /// The seed's box: pose (dX, dY, dZ, θ) and shape (L, W, h). Model space has its origin at a base corner:
 /// V = R_z(θ)·V_m + (dX, dY, dZ), V_m ∈ {0, L} × {0, W} × {0, h}; vertex i has x = bit 0, y = bit 1, z = bit 2.
 #[derive(Debug, Clone, Copy, Default)]

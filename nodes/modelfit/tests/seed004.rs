@@ -1,7 +1,7 @@
 //! Seed 004's acceptance facts on synthetic box buildings.
 use lineflow_modelfit::aerial::buildings;
 use lineflow_modelfit::experiment::{correct_lines, perturbed, succeeded, Detector, Prepared};
-use lineflow_modelfit::parametric::box_param;
+use lineflow_modelfit::parametric::{box_param, visible_edges};
 use lineflow_modelfit::{fit, BoxModel, EdgeObservation, FitParams, ImageEdges, Parametric, Weighting};
 
 /// Edge pixels every half pixel along the visible projected edges of the true box, gradients perpendicular.
@@ -17,20 +17,13 @@ fn edges_above(
 ) -> Vec<ImageEdges> {
     let model = BoxModel;
     let v = model.vertices(truth);
-    let faces = model.faces(truth);
     photos
         .iter()
         .map(|(camera, pose)| {
             let mut obs = Vec::new();
-            for e in model.edges() {
-                let seen = faces.iter().any(|f| {
-                    let on = (0..4).any(|i| {
-                        let (a, b) = (f.ring[i], f.ring[(i + 1) % 4]);
-                        (a, b) == (e[0], e[1]) || (b, a) == (e[0], e[1])
-                    });
-                    on && f.normal.dot(&(pose.center - v[f.ring[0]])) > 0.0
-                });
-                if !seen {
+            let seen = visible_edges(&model, truth, &v, &pose.center);
+            for (k, e) in model.edges().iter().enumerate() {
+                if !seen[k] {
                     continue;
                 }
                 let p = pose.project_ideal(camera, &v[e[0]]).unwrap();
