@@ -29,7 +29,7 @@ pub fn facade_params(pixel_mm: f64) -> FitParams {
         buffer_min_mm: 2.0 * pixel_mm,
         prior_sigma: DEFAULT_PRIOR_M,
         prior_depth_sigma: DEFAULT_DEPTH_PRIOR_M,
-        max_pixels_per_line: 100,
+        max_pixels_per_line: 25,
         freeze_at_final: true,
         ..FitParams::default()
     }
