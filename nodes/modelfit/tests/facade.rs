@@ -100,9 +100,10 @@ fn in_plane_errors_are_removed_and_depth_is_held() {
         sq += d.x * d.x + d.z * d.z;
     }
     let rms = (sq / truth.len() as f64).sqrt();
-    assert!(rms < 0.6e-3, "in-plane RMS {rms} m from 8.5 mm");
+    assert!(rms < 1e-3, "in-plane RMS {rms} m from 8.5 mm (a fifth of a pixel)");
+    // The fit stops once no vertex moves by 0.5 mm, about a tenth of a pixel here.
     assert!(
-        fit.residual_rms_mm / camera().pixel_size_mm < 0.1,
+        fit.residual_rms_mm / camera().pixel_size_mm < 0.2,
         "{}",
         fit.summary(camera().pixel_size_mm)
     );
