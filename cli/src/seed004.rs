@@ -7,7 +7,7 @@ use std::time::Instant;
 use lineflow_modelfit::aerial::buildings;
 use lineflow_modelfit::experiment::{detector_weighting_grid, pull_in, score_many, Detector, Prepared};
 use lineflow_modelfit::parametric::box_param;
-use lineflow_modelfit::{FitParams, Weighting};
+use lineflow_modelfit::FitParams;
 
 /// Start perturbation of experiments 1 and 3: uniform within ±1.5 m and ±3°, inside the seed's pull-in range.
 const PERTURB_M: f64 = 1.5;
@@ -109,7 +109,6 @@ pub fn experiment(trials: usize) -> String {
             b.success()
         );
     }
-    let _ = Weighting::Combined;
     eprintln!("done in {:.1} s", t0.elapsed().as_secs_f64());
     out
 }

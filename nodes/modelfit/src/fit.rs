@@ -8,7 +8,7 @@ use rayon::prelude::*;
 use serde::Deserialize;
 
 use crate::observations::ImageEdges;
-use crate::parametric::{visible_edges, Parametric};
+use crate::parametric::{FaceEdges, Parametric};
 use crate::sparse::SparseSym;
 use crate::weights::Weighting;
 use lineflow_photogrammetry::Vec3;
@@ -198,15 +198,18 @@ fn project_with_jacobian(img: &ImageEdges, x: &Vec3) -> Option<Projection> {
 fn unresolvable(lines: &[Projected], separation_mm: f64) -> Vec<bool> {
     let sin_tol = 5f64.to_radians().sin();
     let mut out = vec![false; lines.len()];
-    let unit = |l: &Projected| {
-        let (tx, ty) = (l.q[0] - l.p[0], l.q[1] - l.p[1]);
-        let len = (tx * tx + ty * ty).sqrt();
-        ([tx / len, ty / len], len)
-    };
+    let units: Vec<([f64; 2], f64)> = lines
+        .iter()
+        .map(|l| {
+            let (tx, ty) = (l.q[0] - l.p[0], l.q[1] - l.p[1]);
+            let len = (tx * tx + ty * ty).sqrt();
+            ([tx / len, ty / len], len)
+        })
+        .collect();
     for i in 0..lines.len() {
-        let (ui, li) = unit(&lines[i]);
+        let (ui, li) = units[i];
         for j in i + 1..lines.len() {
-            let (uj, _) = unit(&lines[j]);
+            let (uj, _) = units[j];
             if (ui[0] * uj[1] - ui[1] * uj[0]).abs() > sin_tol {
                 continue;
             }
@@ -229,7 +232,7 @@ fn unresolvable(lines: &[Projected], separation_mm: f64) -> Vec<bool> {
 /// The observation rows of one image at parameters `p`.
 fn rows_of_image(
     model: &dyn Parametric,
-    p: &[f64],
+    faces: &FaceEdges,
     vertices: &[Vec3],
     jacobians: &[Vec<(usize, Vec3)>],
     img: &ImageEdges,
@@ -237,7 +240,7 @@ fn rows_of_image(
     params: &FitParams,
 ) -> Vec<Row> {
     let projections: Vec<Option<Projection>> = vertices.iter().map(|v| project_with_jacobian(img, v)).collect();
-    let visible = visible_edges(model, p, vertices, &img.pose.center);
+    let visible = faces.visible(vertices, &img.pose.center);
     let min_len = 2.0 * img.camera.pixel_size_mm;
     let lines: Vec<Projected> = model
         .edges()
@@ -252,8 +255,8 @@ fn rows_of_image(
         .collect();
     let ambiguous = unresolvable(&lines, params.buffer_min_mm);
     let lines: Vec<Projected> = lines.into_iter().zip(ambiguous).filter(|(_, a)| !a).map(|(l, _)| l).collect();
-    // (observation, |d|, line slot, d, s): the nearest line takes a pixel within several buffers.
-    let mut candidates: Vec<(u32, f64, u32, f64, f64)> = Vec::new();
+    // (observation, |d|, line slot): the nearest line takes a pixel within several buffers.
+    let mut candidates: Vec<(u32, f64, u32)> = Vec::new();
     let obs = img.observations();
     for (slot, l) in lines.iter().enumerate() {
         let (tx, ty) = (l.q[0] - l.p[0], l.q[1] - l.p[1]);
@@ -265,7 +268,7 @@ fn rows_of_image(
             let s = (ex * ux + ey * uy) / len;
             let d = uy * ex - ux * ey;
             if (0.0..=1.0).contains(&s) && d.abs() <= buffer_mm {
-                candidates.push((i as u32, d.abs(), slot as u32, d, s));
+                candidates.push((i as u32, d.abs(), slot as u32));
             }
         });
     }
@@ -287,7 +290,7 @@ fn rows_of_image(
     let gate = params.angle_gate_deg.to_radians().sin();
     candidates
         .into_iter()
-        .filter_map(|(i, _, slot, _, _)| row_for(model, &projections, jacobians, img, i, lines[slot as usize].edge, gate, params))
+        .filter_map(|(i, _, slot)| row_for(model, &projections, jacobians, img, i, lines[slot as usize].edge, gate, params))
         .collect()
 }
 
@@ -373,9 +376,10 @@ fn collect_rows<I: Borrow<ImageEdges> + Sync>(
 ) -> Vec<Vec<Row>> {
     let vertices = model.vertices(p);
     let jacobians = model.vertex_jacobians(p);
+    let faces = FaceEdges::new(model, p);
     images
         .par_iter()
-        .map(|img| rows_of_image(model, p, &vertices, &jacobians, img.borrow(), buffer_mm, params))
+        .map(|img| rows_of_image(model, &faces, &vertices, &jacobians, img.borrow(), buffer_mm, params))
         .collect()
 }
 

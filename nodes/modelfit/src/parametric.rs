@@ -35,28 +35,60 @@ pub trait Parametric: Sync {
     }
 }
 
-/// Which edges of `model` at parameters `p` (vertices `vertices`) are seen from `eye`: those with a front-facing
-/// adjacent face, or on no face at all (self-occlusion only, as the seed models it).
-pub fn visible_edges(model: &dyn Parametric, p: &[f64], vertices: &[Vec3], eye: &Vec3) -> Vec<bool> {
-    let edges = model.edges();
-    let mut on_face = vec![false; edges.len()];
-    let mut seen = vec![false; edges.len()];
-    let index: std::collections::HashMap<(usize, usize), usize> = edges
-        .iter()
-        .enumerate()
-        .map(|(k, e)| ((e[0].min(e[1]), e[0].max(e[1])), k))
-        .collect();
-    for f in &model.faces(p) {
-        let front = f.normal.dot(&(eye - vertices[f.ring[0]])) > 0.0;
-        for i in 0..f.ring.len() {
-            let (a, b) = (f.ring[i], f.ring[(i + 1) % f.ring.len()]);
-            if let Some(&k) = index.get(&(a.min(b), a.max(b))) {
-                on_face[k] = true;
-                seen[k] |= front;
+/// The faces of a model at some parameters with the edges around each, for self-occlusion tests from many
+/// viewpoints: built once per set of parameters, not once per image.
+pub struct FaceEdges {
+    faces: Vec<FacePlane>,
+    /// Edge indices around each face.
+    edges_of: Vec<Vec<usize>>,
+    on_face: Vec<bool>,
+}
+
+impl FaceEdges {
+    /// The faces of `model` at `p` and their edges.
+    pub fn new(model: &dyn Parametric, p: &[f64]) -> Self {
+        let edges = model.edges();
+        let index: std::collections::HashMap<(usize, usize), usize> = edges
+            .iter()
+            .enumerate()
+            .map(|(k, e)| ((e[0].min(e[1]), e[0].max(e[1])), k))
+            .collect();
+        let faces = model.faces(p);
+        let mut on_face = vec![false; edges.len()];
+        let edges_of = faces
+            .iter()
+            .map(|f| {
+                let n = f.ring.len();
+                (0..n)
+                    .filter_map(|i| {
+                        let (a, b) = (f.ring[i], f.ring[(i + 1) % n]);
+                        index.get(&(a.min(b), a.max(b))).copied()
+                    })
+                    .inspect(|&k| on_face[k] = true)
+                    .collect()
+            })
+            .collect();
+        Self { faces, edges_of, on_face }
+    }
+
+    /// Which edges are seen from `eye` (vertices at `vertices`): those with a front-facing adjacent face, or on
+    /// no face at all (self-occlusion only, as the seed models it).
+    pub fn visible(&self, vertices: &[Vec3], eye: &Vec3) -> Vec<bool> {
+        let mut seen: Vec<bool> = self.on_face.iter().map(|&on| !on).collect();
+        for (f, edges) in self.faces.iter().zip(&self.edges_of) {
+            if f.normal.dot(&(eye - vertices[f.ring[0]])) > 0.0 {
+                for &k in edges {
+                    seen[k] = true;
+                }
             }
         }
+        seen
     }
-    (0..edges.len()).map(|k| !on_face[k] || seen[k]).collect()
+}
+
+/// [`FaceEdges::visible`] for one viewpoint.
+pub fn visible_edges(model: &dyn Parametric, p: &[f64], vertices: &[Vec3], eye: &Vec3) -> Vec<bool> {
+    FaceEdges::new(model, p).visible(vertices, eye)
 }
 
 /// The seed's box: pose (dX, dY, dZ, θ) and shape (L, W, h). Model space has its origin at a base corner:

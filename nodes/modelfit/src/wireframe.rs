@@ -50,7 +50,8 @@ pub struct WireframeFit {
     pub failed: usize,
     /// Pixels used at the end, all images.
     pub pixels: usize,
-    /// Weighted RMS of the final pixel-to-line distances, photo mm.
+    /// RMS of the final pixel-to-line distances, photo mm: each component's weighted RMS, pooled by its pixel
+    /// count.
     pub residual_rms_mm: f64,
     /// Failure messages of the failed components.
     pub failures: Vec<String>,
