@@ -216,8 +216,10 @@ fn body() -> Result<()> {
             publish(&output, wire.0, &v, &wire.2)?;
             fitted = Some((v, wire.2));
         }
-        _ if st.wireframe.is_some() => tracing::warn!("no frame has both edges and a pose: the model was not fitted"),
-        _ => tracing::warn!("no wire-frame arrived: nothing to fit"),
+        _ if st.wireframe.is_none() => tracing::warn!("no wire-frame arrived: nothing to fit"),
+        _ if st.camera.is_none() => tracing::warn!("no camera model arrived: the model was not fitted"),
+        _ if st.wireframe.as_ref().is_some_and(|w| w.1.is_empty()) => tracing::warn!("the wire-frame is empty"),
+        _ => tracing::warn!("no frame has both edges and a pose: the model was not fitted"),
     }
     output.end_of_stream()?;
     if let Some((v, edges)) = fitted {
