@@ -5,9 +5,9 @@ use std::process::ExitCode;
 
 use anyhow::{bail, Result};
 use lineflow_capture::synth::Synthetic;
-use lineflow_linematch::{choose_slaves, match_master, DistortionLut, MatchParams, Mode, SegmentInput, View, WallPlane};
-use lineflow_lines2d::{trace_measured, TraceParams};
-use lineflow_messages::Encoding;
+use lineflow_linematch::{choose_slaves, match_master, DistortionLut, FrameSegments, MatchParams, Mode, SegmentInput, View, WallPlane};
+use lineflow_lines2d::{trace_measured_at, MeasuredSegment, TraceParams};
+use lineflow_messages::{Encoding, Segment2};
 use lineflow_photogrammetry::Vec3;
 
 use crate::bench_util::median_time;
@@ -52,23 +52,47 @@ pub fn bench_linematch(preset: &str, scale: f64, reps: usize) -> Result<ExitCode
         })
         .collect::<Result<_, String>>()
         .map_err(anyhow::Error::msg)?;
+    // Every image's lines, as the shipped graph has them: the master's to match, the slaves' to refine depths.
+    let traced: Vec<Vec<MeasuredSegment>> = grays
+        .iter()
+        .map(|(_, g)| {
+            let edges = lineflow_edges::canny(g, w, h, 0.4 * 100.0, 100.0);
+            let found = lineflow_edges::pixels(g, w, h, &edges);
+            let pixels: Vec<[u16; 2]> = found.iter().map(|e| [e.col, e.row]).collect();
+            let positions = lineflow_edges::subpixel_positions(g, w, h, &found);
+            trace_measured_at(&cam, &pixels, &positions, &TraceParams::default())
+        })
+        .collect();
+    let frame_segments: Vec<Option<FrameSegments>> = traced
+        .iter()
+        .enumerate()
+        .map(|(k, lines)| {
+            let segs: Vec<Segment2> = lines
+                .iter()
+                .enumerate()
+                .map(|(id, (a, b, _))| Segment2 {
+                    id: id as u32,
+                    start_px: *a,
+                    end_px: *b,
+                    ..Default::default()
+                })
+                .collect();
+            (k > 0 && p.line_depth).then(|| FrameSegments::new(&cam, &segs, p.line_min_length_px))
+        })
+        .collect();
     let views: Vec<View> = grays
         .iter()
-        .map(|(f, g)| View {
+        .zip(&frame_segments)
+        .map(|((f, g), segments)| View {
             frame: *f,
             pose: poses[*f as usize],
             camera: cam,
             lut: &lut,
             gray: g,
+            segments: segments.as_ref(),
         })
         .collect();
-    let edges = lineflow_edges::canny(&grays[0].1, w, h, 0.4 * 100.0, 100.0);
-    let pixels: Vec<[u16; 2]> = lineflow_edges::pixels(&grays[0].1, w, h, &edges)
-        .iter()
-        .map(|e| [e.col, e.row])
-        .collect();
-    let traced = trace_measured(&cam, &pixels, &TraceParams::default());
-    let segments: Vec<SegmentInput> = traced
+    let segments: Vec<SegmentInput> = traced[0]
         .iter()
         .enumerate()
         .map(|(k, (a, b, chain))| SegmentInput {
@@ -84,8 +108,9 @@ pub fn bench_linematch(preset: &str, scale: f64, reps: usize) -> Result<ExitCode
         .count();
     let matched = match_master(&views[0], &views[1..], &walls, &segments, &p);
     let points: usize = matched.iter().map(|m| m.points.len()).sum();
+    let line_depths: usize = matched.iter().map(|m| m.n_line_depths).sum();
     println!(
-        "{} segments ({long} of at least {} px), {} matched, {points} points",
+        "{} segments ({long} of at least {} px), {} matched, {points} points ({line_depths} placed by the slaves' lines)",
         segments.len(),
         p.min_length_px,
         matched.len()

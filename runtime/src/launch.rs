@@ -10,6 +10,11 @@ use std::path::{Path, PathBuf};
 use lineflow_messages::MessageKind;
 use serde::{Deserialize, Serialize};
 
+/// How long a lossless publisher waits for a full subscriber before dropping the sample, by default. Generous:
+/// stages working on 12-MP frames take seconds each and back-pressure adds up along a chain, while a crashed
+/// subscriber does not need it (the supervisor reaps dead nodes before restarting one, which frees the publisher).
+pub const DEFAULT_TIMEOUT_MS: u64 = 60_000;
+
 /// What may go wrong with a launch file.
 #[derive(Debug, thiserror::Error)]
 pub enum LaunchError {
@@ -460,7 +465,7 @@ pub fn parse(path: &Path, text: &str, overrides: &[String], resolver: &Resolver)
             max_payload_bytes,
             depth: depth.max(history),
             history,
-            timeout_ms: e.timeout_ms.unwrap_or(10_000),
+            timeout_ms: e.timeout_ms.unwrap_or(DEFAULT_TIMEOUT_MS),
         });
     }
 

@@ -50,7 +50,13 @@ pub(crate) struct InputInner<M: Message> {
     revisions: RefCell<std::collections::BTreeMap<u64, u32>>,
     /// Frames up to this one were received by an earlier instance: a gap below it is not a miss.
     received_before: Option<u64>,
+    /// Since when the topic has had no publisher while the input has not ended.
+    orphaned_since: Cell<Option<std::time::Instant>>,
 }
+
+/// An input whose publisher has been gone this long without an end-of-stream is ended: longer than a restart's
+/// back-off, so a restarting upstream node is waited for.
+pub const ORPHAN_GRACE: Duration = Duration::from_secs(10);
 
 impl<M: Message> Input<M> {
     pub(crate) fn open(
@@ -81,6 +87,7 @@ impl<M: Message> Input<M> {
                 last: Cell::new(last),
                 revisions: RefCell::new(std::collections::BTreeMap::new()),
                 received_before,
+                orphaned_since: Cell::new(None),
             })),
         })
     }
@@ -147,6 +154,30 @@ impl<M: Message> Input<M> {
 }
 
 impl<M: Message> Connect for InputInner<M> {
+    /// Ends an input whose publisher left without end-of-stream (its end-of-stream was dropped, or it exited
+    /// abnormally and will not be restarted): otherwise the node, and everything downstream, would wait forever.
+    fn refresh(&self) {
+        if self.ended.get() {
+            return;
+        }
+        let pending = self.subscriber.has_samples().unwrap_or(true);
+        if self.service.dynamic_config().number_of_publishers() > 0 || pending {
+            self.orphaned_since.set(None);
+            return;
+        }
+        let since = *self.orphaned_since.get().get_or_insert_with(std::time::Instant::now);
+        self.orphaned_since.set(Some(since));
+        if since.elapsed() >= ORPHAN_GRACE {
+            tracing::warn!(
+                "the publisher of '{}' left without end-of-stream {:?} ago; the input is taken as ended",
+                self.topic,
+                ORPHAN_GRACE
+            );
+            self.ended.set(true);
+            self.reporter.input_ended();
+        }
+    }
+
     fn connect(&self, timeout: Duration, _restarted: bool) -> Result<()> {
         if !transport::wait_until(timeout, || self.service.dynamic_config().number_of_publishers() > 0) {
             bail!(

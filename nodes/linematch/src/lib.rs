@@ -7,6 +7,7 @@
 
 pub mod ncc;
 pub mod search;
+pub mod slave_lines;
 pub mod view;
 pub mod wall;
 
@@ -15,6 +16,7 @@ use rayon::prelude::*;
 use serde::Deserialize;
 
 pub use search::{match_segment, MatchedPoint, SegmentInput, SegmentMatch};
+pub use slave_lines::{FrameSegments, SlaveSegments};
 pub use view::{DistortionLut, View};
 pub use wall::{fit_wall, wall_of_ray, WallPlane};
 
@@ -143,6 +145,20 @@ pub struct MatchParams {
     pub min_slaves: usize,
     /// Lines are assigned to walls whose polygon, grown by this margin, their ray hits, metres.
     pub wall_margin_m: f64,
+    /// Refine SNCC depths with the slaves' own 2-D lines ([`slave_lines`]).
+    pub line_depth: bool,
+    /// A slave segment is a candidate when its direction is within this angle of the master line's projection,
+    /// degrees.
+    pub line_max_angle_deg: f64,
+    /// Largest change of a point's SNCC depth by the slaves' lines, metres.
+    pub line_max_shift_m: f64,
+    /// A slave's line is used only where one pixel across it moves the depth by less than this, metres (the line
+    /// runs nearly along the baseline otherwise).
+    pub line_max_depth_per_px_m: f64,
+    /// Slaves whose lines agree on a depth needed to move a point.
+    pub line_min_slaves: usize,
+    /// Slave segments shorter than this are not used, pixels.
+    pub line_min_length_px: f64,
 }
 
 impl Default for MatchParams {
@@ -167,6 +183,12 @@ impl Default for MatchParams {
             min_overlap: 0.2,
             min_slaves: 1,
             wall_margin_m: 0.5,
+            line_depth: true,
+            line_max_angle_deg: 3.0,
+            line_max_shift_m: 0.15,
+            line_max_depth_per_px_m: 0.25,
+            line_min_slaves: 2,
+            line_min_length_px: 20.0,
         }
     }
 }
@@ -179,6 +201,9 @@ impl MatchParams {
             ("depth_range_m", self.depth_range_m),
             ("depth_step_m", self.depth_step_m),
             ("cell_m", self.cell_m),
+            ("line_max_angle_deg", self.line_max_angle_deg),
+            ("line_max_shift_m", self.line_max_shift_m),
+            ("line_max_depth_per_px_m", self.line_max_depth_per_px_m),
         ];
         for (name, v) in positive {
             if !(v.is_finite() && v > 0.0) {
@@ -187,6 +212,9 @@ impl MatchParams {
         }
         if !(self.min_length_px >= 0.0 && self.min_length_m >= 0.0 && self.min_cell_gsd >= 0.0 && self.wall_margin_m >= 0.0) {
             return Err("min_length_px, min_cell_gsd and wall_margin_m must be >= 0".into());
+        }
+        if self.line_min_slaves == 0 || self.line_min_length_px.is_nan() || self.line_min_length_px < 0.0 {
+            return Err("line_min_slaves must be >= 1 and line_min_length_px >= 0".into());
         }
         if self.half_window == 0 || self.half_window > 50 {
             return Err(format!("half_window must be in 1..=50 (got {})", self.half_window));

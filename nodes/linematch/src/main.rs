@@ -6,7 +6,9 @@
 use std::collections::BTreeMap;
 
 use anyhow::{bail, Result};
-use lineflow_linematch::{choose_slaves, fit_wall, match_master, DistortionLut, MatchParams, SegmentInput, SegmentMatch, View, WallPlane};
+use lineflow_linematch::{
+    choose_slaves, fit_wall, match_master, DistortionLut, FrameSegments, MatchParams, SegmentInput, SegmentMatch, View, WallPlane,
+};
 use lineflow_messages::{kinds, parts, Point3, PointGroup, Points3DHeader, Pose as PoseMsg, Segment2, Stamp, StampFlags};
 use lineflow_photogrammetry::intersect::intersect_rays;
 use lineflow_photogrammetry::{Camera, Pose, Vec3};
@@ -31,6 +33,8 @@ struct State {
     grays: BTreeMap<u64, Vec<u8>>,
     stamps: BTreeMap<u64, Stamp>,
     lines: BTreeMap<u64, FrameLines>,
+    /// Frames' segments in ideal coordinates, built when a frame first serves as a slave.
+    frame_segments: BTreeMap<u64, FrameSegments>,
     poses: BTreeMap<u64, PoseState>,
     /// Walls from the site model; `None` until it arrives (or it is known not to come).
     site: Option<Vec<WallPlane>>,
@@ -301,13 +305,15 @@ fn step(st: &mut State, params: &MatchParams, ended: &Ended, at_end: bool) -> St
         let missing_image = std::iter::once(frame)
             .chain(slaves.iter().copied())
             .find(|f| !st.grays.contains_key(f));
-        let missing_lines = !st.lines.contains_key(&frame);
-        match (missing_image, missing_lines) {
-            (None, false) => return Step::Match(frame, slaves),
-            (Some(f), _) if ended.images => {
+        let master_lines = st.lines.contains_key(&frame);
+        // The slaves' lines refine the depths: waiting for them keeps the result independent of message timing.
+        let slave_lines_pending = params.line_depth && !ended.lines && slaves.iter().any(|f| !st.lines.contains_key(f));
+        match (missing_image, master_lines, slave_lines_pending) {
+            (None, true, false) => return Step::Match(frame, slaves),
+            (Some(f), _, _) if ended.images => {
                 st.skipped.insert(frame, format!("the image of frame {f} never arrived"));
             }
-            (_, true) if ended.lines => {
+            (_, false, _) if ended.lines => {
                 st.skipped.insert(frame, "its 2-D lines never arrived".into());
             }
             _ => return Step::Wait,
@@ -328,12 +334,21 @@ fn match_and_publish(
 ) -> Result<()> {
     let walls = st.walls().unwrap_or_default();
     let Some((camera, lut)) = &st.camera else { return Ok(()) };
+    if params.line_depth {
+        for f in &slaves {
+            if let (false, Some(lines)) = (st.frame_segments.contains_key(f), st.lines.get(f)) {
+                let segments = FrameSegments::new(camera, &lines.segments, params.line_min_length_px);
+                st.frame_segments.insert(*f, segments);
+            }
+        }
+    }
     let view = |f: u64| View {
         frame: f,
         pose: st.poses[&f].pose,
         camera: *camera,
         lut,
         gray: &st.grays[&f],
+        segments: st.frame_segments.get(&f),
     };
     let lines = &st.lines[&master];
     let segments: Vec<SegmentInput> = lines
@@ -353,8 +368,9 @@ fn match_and_publish(
     let slave_views: Vec<View> = slaves.iter().map(|&f| view(f)).collect();
     let matches = match_master(&view(master), &slave_views, &walls, &segments, params);
     let points: usize = matches.iter().map(|m| m.points.len()).sum();
+    let line_depths: usize = matches.iter().map(|m| m.n_line_depths).sum();
     tracing::info!(
-        "frame {master}: {} of {} segments matched, {points} points, slaves {slaves:?}, {:.2} s",
+        "frame {master}: {} of {} segments matched, {points} points ({line_depths} placed by the slaves' lines), slaves {slaves:?}, {:.2} s",
         matches.len(),
         segments.len(),
         started.elapsed().as_secs_f64()

@@ -6,6 +6,7 @@
 use lineflow_photogrammetry::Vec3;
 
 use crate::ncc::{master_is_textured, ncc, PatchSats, Sat};
+use crate::slave_lines::{refine_depths, SlaveSegments};
 use crate::view::View;
 use crate::wall::{wall_of_ray, WallPlane};
 use crate::{MatchParams, Mode};
@@ -51,6 +52,8 @@ pub struct SegmentMatch {
     pub n_views: u32,
     /// Matched points in chain order (rejected pixels left out).
     pub points: Vec<MatchedPoint>,
+    /// Points whose depth the slaves' 2-D lines fixed.
+    pub n_line_depths: usize,
 }
 
 /// Geometry of one segment shared by every depth.
@@ -249,12 +252,19 @@ pub fn match_segment(master: &View, slaves: &[View], walls: &[WallPlane], seg: &
             mode,
         });
     }
+    let slave_segments: Vec<SlaveSegments> = seen
+        .iter()
+        .filter_map(|v| v.segments.map(|segments| SlaveSegments { pose: v.pose, segments }))
+        .collect();
+    let rays: Vec<Vec3> = points.iter().map(|q| master.pose.ray_of_ideal(cam, q.ideal)).collect();
+    let n_line_depths = refine_depths(cam, &center, wall, &mut points, &rays, &slave_segments, p);
     let points = snap_parallel(points, &line, depth_step, p.parallel_snap_m);
     Some(SegmentMatch {
         segment_id: seg.id,
         wall: wall_index,
         n_views: views.len() as u32,
         points,
+        n_line_depths,
     })
 }
 

@@ -1,6 +1,8 @@
 //! An oriented grey image: pose, camera, a lookup table for the inverse correction, and bilinear sampling.
 use lineflow_photogrammetry::{Camera, Pose, Vec3};
 
+use crate::slave_lines::FrameSegments;
+
 /// Measured pixel positions of ideal photo points on a regular grid, interpolated bilinearly: the inverse correction
 /// (`Camera::distort`, Newton iterations) is far too slow for millions of grid samples, and the correction is smooth
 /// enough that a 16-pixel grid reproduces it within a few thousandths of a pixel.
@@ -94,6 +96,8 @@ pub struct View<'a> {
     pub lut: &'a DistortionLut,
     /// 8-bit grey pixels, row-major, `camera.width × camera.height`.
     pub gray: &'a [u8],
+    /// The frame's own 2-D segments, when it serves as a slave whose lines refine the depths.
+    pub segments: Option<&'a FrameSegments>,
 }
 
 impl View<'_> {
@@ -228,6 +232,7 @@ mod tests {
             camera,
             lut: &lut,
             gray: &gray,
+            segments: None,
         };
         let (origin, along, across) = (Vec3::new(1.0, 0.0, 1.0), Vec3::new(0.01, 0.0, 0.0), Vec3::new(0.0, 0.0, 0.01));
         let mut fast = Vec::new();

@@ -67,6 +67,7 @@ fn matched_points_lie_on_the_true_edges() {
             camera: cam,
             lut: &lut,
             gray: g,
+            segments: None,
         })
         .collect();
     let (master_view, slave_views) = (&views[0], &views[1..]);

@@ -328,11 +328,25 @@ pub type MeasuredSegment = ([f64; 2], [f64; 2], Vec<[u16; 2]>);
 /// whole) and returns the segments with their endpoints back in measured pixels; segments whose endpoints do not
 /// map back (beyond the correction model's fold) are dropped.
 pub fn trace_measured(camera: &lineflow_photogrammetry::Camera, pixels: &[[u16; 2]], p: &TraceParams) -> Vec<MeasuredSegment> {
+    let positions: Vec<[f64; 2]> = pixels.iter().map(|q| [q[0] as f64, q[1] as f64]).collect();
+    trace_measured_at(camera, pixels, &positions, p)
+}
+
+/// [`trace_measured`] with each pixel's sub-pixel position (measured col, row; e.g. the gradient peaks of
+/// `lineflow_edges::subpixel_positions`): the lines are fitted to the positions, the chains keep the pixels. Edge
+/// pixels sit on the integer grid, which biases a nearly vertical or horizontal line by up to half a pixel; line
+/// intersection across images needs better than that.
+pub fn trace_measured_at(
+    camera: &lineflow_photogrammetry::Camera,
+    pixels: &[[u16; 2]],
+    positions: &[[f64; 2]],
+    p: &TraceParams,
+) -> Vec<MeasuredSegment> {
     let ps = camera.pixel_size_mm;
-    let corrected: Vec<[f64; 2]> = pixels
+    let corrected: Vec<[f64; 2]> = positions
         .iter()
-        .map(|q| {
-            let i = camera.pixel_to_ideal([q[0] as f64, q[1] as f64]);
+        .map(|&q| {
+            let i = camera.pixel_to_ideal(q);
             [i[0] / ps, i[1] / ps]
         })
         .collect();

@@ -83,8 +83,9 @@ fn publish(
     output.publish_parts(header, segs, chain)
 }
 
-/// Segments of one edge map, with their rows for `lines2d.csv`.
-fn segments(cam: &Camera, h: &EdgeMapHeader, px: &[EdgePixel], p: &TraceParams) -> Result<FrameLines> {
+/// Segments of one edge map, with their rows for `lines2d.csv`; with the frame's grey image the lines are fitted to
+/// the edges' sub-pixel positions.
+fn segments(cam: &Camera, h: &EdgeMapHeader, px: &[EdgePixel], gray: Option<&[u8]>, p: &TraceParams) -> Result<FrameLines> {
     if (h.width, h.height) != (cam.width, cam.height) {
         bail!(
             "frame {} ({}): edge map is {}x{} but the camera is {}x{}",
@@ -97,7 +98,13 @@ fn segments(cam: &Camera, h: &EdgeMapHeader, px: &[EdgePixel], p: &TraceParams) 
         );
     }
     let pixels: Vec<[u16; 2]> = px.iter().map(|e| [e.col, e.row]).collect();
-    let traced = lineflow_lines2d::trace_measured(cam, &pixels, p);
+    let traced = match gray {
+        Some(g) if g.len() == cam.width as usize * cam.height as usize => {
+            let positions = lineflow_edges::subpixel_positions(g, cam.width as usize, cam.height as usize, px);
+            lineflow_lines2d::trace_measured_at(cam, &pixels, &positions, p)
+        }
+        _ => lineflow_lines2d::trace_measured(cam, &pixels, p),
+    };
     Ok(assemble(h.name(), traced.iter().map(|(a, b, chain)| (*a, *b, chain.as_slice()))))
 }
 
@@ -179,29 +186,43 @@ fn run_trace(ctx: NodeContext) -> Result<()> {
     };
     let edges = ctx.input::<kinds::EdgeMap>("edges")?;
     let camera_in = ctx.input::<kinds::CameraModel>("camera")?;
-    // Wired so that `impl = "lsd"` can be swapped in without touching the graph; tracing does not need them.
-    let unused_images = ctx.optional_input::<kinds::Image>("images")?;
+    // With the images wired, lines are fitted to sub-pixel edge positions; without them, to the edge pixels.
+    let images = ctx.optional_input::<kinds::Image>("images")?;
     let output = ctx.output::<kinds::Lines2D>("lines2d")?;
     ctx.connect()?;
     let path = ctx.out_dir().join("lines2d.csv");
     let mut cam: Option<Camera> = None;
-    // Edge maps that arrive before the camera wait for it, in order.
-    let mut waiting: Vec<(EdgeMapHeader, Vec<EdgePixel>)> = Vec::new();
+    // Edge maps that arrive before the camera (or their image) wait for it, in order.
+    let mut waiting: std::collections::VecDeque<(EdgeMapHeader, Vec<EdgePixel>)> = Default::default();
+    let mut grays: std::collections::BTreeMap<u64, Vec<u8>> = Default::default();
+    let mut buffer = Vec::new();
     let mut rows = Vec::new();
     ctx.run(|| {
-        drain(&unused_images)?;
+        if let Some(i) = &images {
+            lineflow_convert::for_each_gray(i, &mut buffer, |h, g| {
+                grays.insert(h.stamp.frame, g.to_vec());
+                Ok(())
+            })?;
+        }
         while let Some(m) = camera_in.receive()? {
             cam = Some(m.user_header().camera());
         }
         while let Some(m) = edges.receive()? {
-            waiting.push((*m.user_header(), m.payload().to_vec()));
+            waiting.push_back((*m.user_header(), m.payload().to_vec()));
         }
         if let Some(c) = &cam {
-            for (h, px) in waiting.drain(..) {
-                let (segs, chain, r) = segments(c, &h, &px, &params)?;
+            let images_done = images.as_ref().is_none_or(|i| i.is_ended());
+            while let Some((h, _)) = waiting.front() {
+                let frame = h.stamp.frame;
+                if !grays.contains_key(&frame) && !images_done {
+                    break;
+                }
+                let Some((h, px)) = waiting.pop_front() else { break };
+                let (segs, chain, r) = segments(c, &h, &px, grays.get(&frame).map(Vec::as_slice), &params)?;
                 publish(&output, h.stamp, h.name, &segs, &chain)?;
                 rows.extend(r);
-                drain(&unused_images)?;
+                // Images of frames without an edge map are not kept either.
+                grays.retain(|&f, _| f > frame);
             }
         }
         let done = edges.is_ended() && waiting.is_empty();

@@ -94,3 +94,45 @@ fn collinear_fragments_are_joined_across_a_small_gap_only() {
     );
     assert_eq!(thesis.len(), 3);
 }
+
+/// A blurred step edge between columns: `x` is where the intensity crosses half-way.
+fn vertical_step(width: usize, height: usize, x: f64) -> Vec<u8> {
+    let mut g = vec![0u8; width * height];
+    for r in 0..height {
+        for c in 0..width {
+            // A linear ramp two pixels wide, centred on x (pixel centres at integers).
+            let t = ((c as f64 - x) / 2.0 + 0.5).clamp(0.0, 1.0);
+            g[r * width + c] = (40.0 + 160.0 * t).round() as u8;
+        }
+    }
+    g
+}
+
+#[test]
+fn sub_pixel_positions_put_an_axis_aligned_line_where_the_edge_is() {
+    let (w, h) = (80usize, 60usize);
+    let camera = lineflow_photogrammetry::Camera {
+        width: w as u32,
+        height: h as u32,
+        pixel_size_mm: 0.01,
+        focal_mm: 10.0,
+        principal_point_mm: [0.0, 0.0],
+        radial: [0.0; 3],
+        decentering: [0.0; 2],
+    };
+    for x in [30.0, 30.25, 30.5, 30.75] {
+        let gray = vertical_step(w, h, x);
+        let found = lineflow_edges::pixels(&gray, w, h, &lineflow_edges::canny(&gray, w, h, 20.0, 50.0));
+        let pixels: Vec<[u16; 2]> = found.iter().map(|e| [e.col, e.row]).collect();
+        let positions = lineflow_edges::subpixel_positions(&gray, w, h, &found);
+        let at = lineflow_lines2d::trace_measured_at(&camera, &pixels, &positions, &TraceParams::default());
+        let whole = lineflow_lines2d::trace_measured(&camera, &pixels, &TraceParams::default());
+        let col = |s: &[lineflow_lines2d::MeasuredSegment]| {
+            let l = s.iter().max_by_key(|l| l.2.len()).expect("one line");
+            (l.0[0] + l.1[0]) / 2.0
+        };
+        assert!((col(&at) - x).abs() < 0.1, "edge at {x}: sub-pixel line at {}", col(&at));
+        // The pixel grid alone cannot tell 30.25 from 30.
+        assert!((col(&whole) - col(&whole).round()).abs() < 1e-9);
+    }
+}

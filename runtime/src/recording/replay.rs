@@ -93,7 +93,7 @@ pub fn playback_graph(rec: &Recording, topics: &[String], resolver: &Resolver, p
             max_payload_bytes: (*bytes).max(1),
             depth: 4,
             history: usize::from(kind.latched()),
-            timeout_ms: 10_000,
+            timeout_ms: crate::launch::DEFAULT_TIMEOUT_MS,
         })
         .collect();
     Ok(Graph {

@@ -1,0 +1,418 @@
+//! Depths from the slaves' own 2-D lines (the thesis's future work: multi-image forward intersection of lines).
+//!
+//! SNCC finds the depth of a master line to about a depth step, and at a depth discontinuity (a reveal, a sill) its
+//! window sees two surfaces and follows the one with more texture. A slave that saw the same edge as a 2-D segment
+//! fixes the depth far better: every master ray of the line cut with that segment's interpretation plane gives the
+//! depth at which the slave sees the edge, to the sub-pixel precision of the 2-D line. SNCC's depth only has to be
+//! close enough to pick the right slave segment. Lines parallel to the baseline (the horizontal edges of a strip)
+//! have interpretation planes that contain the master rays; they keep their SNCC depth.
+use lineflow_messages::Segment2;
+use lineflow_photogrammetry::{Camera, Pose, Vec3};
+
+use crate::search::MatchedPoint;
+use crate::wall::WallPlane;
+use crate::MatchParams;
+
+/// One frame's 2-D segments in ideal photo coordinates (mm), bucketed by a coarse grid for window queries.
+#[derive(Debug, Clone, Default)]
+pub struct FrameSegments {
+    /// Endpoints of each kept segment, ideal mm.
+    ends: Vec<[[f64; 2]; 2]>,
+    /// Grid origin (ideal mm), cell size (mm) and size in cells.
+    origin: [f64; 2],
+    cell_mm: f64,
+    cols: usize,
+    rows: usize,
+    /// Segment indices per cell, row-major.
+    cells: Vec<Vec<u32>>,
+    /// One pixel, mm.
+    pixel_mm: f64,
+}
+
+/// Grid cell, pixels: a segment lands in the cells its bounding box covers.
+const CELL_PX: f64 = 64.0;
+
+impl FrameSegments {
+    /// The segments of at least `min_length_px`, endpoints corrected to ideal photo coordinates (where 2-D lines
+    /// are straight).
+    pub fn new(camera: &Camera, segments: &[Segment2], min_length_px: f64) -> Self {
+        let ends: Vec<[[f64; 2]; 2]> = segments
+            .iter()
+            .filter(|s| (s.end_px[0] - s.start_px[0]).hypot(s.end_px[1] - s.start_px[1]) >= min_length_px)
+            .map(|s| [camera.pixel_to_ideal(s.start_px), camera.pixel_to_ideal(s.end_px)])
+            .filter(|e| e.iter().flatten().all(|v| v.is_finite()))
+            .collect();
+        let pixel_mm = camera.pixel_size_mm;
+        let cell_mm = CELL_PX * pixel_mm;
+        let corner = |px: [f64; 2]| camera.pixel_to_ideal(px);
+        let bounds = [
+            corner([0.0, 0.0]),
+            corner([camera.width as f64, 0.0]),
+            corner([0.0, camera.height as f64]),
+            corner([camera.width as f64, camera.height as f64]),
+        ];
+        let lo = |k: usize| bounds.iter().map(|b| b[k]).fold(f64::INFINITY, f64::min);
+        let hi = |k: usize| bounds.iter().map(|b| b[k]).fold(f64::NEG_INFINITY, f64::max);
+        let origin = [lo(0), lo(1)];
+        let size = |k: usize| (((hi(k) - lo(k)) / cell_mm).ceil() as usize).clamp(1, 4096);
+        let (cols, rows) = (size(0), size(1));
+        let mut frame = FrameSegments {
+            ends: Vec::new(),
+            origin,
+            cell_mm,
+            cols,
+            rows,
+            cells: vec![Vec::new(); cols * rows],
+            pixel_mm,
+        };
+        for (k, e) in ends.iter().enumerate() {
+            let (c0, r0, c1, r1) = frame.cell_range(e[0], e[1], 0.0);
+            for r in r0..=r1 {
+                for c in c0..=c1 {
+                    frame.cells[r * cols + c].push(k as u32);
+                }
+            }
+        }
+        frame.ends = ends;
+        frame
+    }
+
+    /// Number of segments kept.
+    pub fn len(&self) -> usize {
+        self.ends.len()
+    }
+
+    /// Whether no segment was kept.
+    pub fn is_empty(&self) -> bool {
+        self.ends.is_empty()
+    }
+
+    /// Inclusive cell range (c0, r0, c1, r1) of the box around two points grown by `margin` mm, clamped to the grid.
+    fn cell_range(&self, a: [f64; 2], b: [f64; 2], margin: f64) -> (usize, usize, usize, usize) {
+        let cell = |v: f64, o: f64, n: usize| (((v - o) / self.cell_mm).floor().max(0.0) as usize).min(n - 1);
+        let (x0, x1) = (a[0].min(b[0]) - margin, a[0].max(b[0]) + margin);
+        let (y0, y1) = (a[1].min(b[1]) - margin, a[1].max(b[1]) + margin);
+        (
+            cell(x0, self.origin[0], self.cols),
+            cell(y0, self.origin[1], self.rows),
+            cell(x1, self.origin[0], self.cols),
+            cell(y1, self.origin[1], self.rows),
+        )
+    }
+
+    /// Segments within `max_angle` (radians) of the direction a→b whose bounding boxes come within `margin` mm of
+    /// the box of a and b, each once, in index order.
+    fn near(&self, a: [f64; 2], b: [f64; 2], margin: f64, max_angle: f64) -> Vec<usize> {
+        let dir = unit([b[0] - a[0], b[1] - a[1]]);
+        let cos_max = max_angle.cos();
+        let (c0, r0, c1, r1) = self.cell_range(a, b, margin);
+        let mut out: Vec<usize> = (r0..=r1)
+            .flat_map(|r| (c0..=c1).flat_map(move |c| self.cells[r * self.cols + c].iter().map(|&k| k as usize)))
+            .collect();
+        out.sort_unstable();
+        out.dedup();
+        out.retain(|&k| {
+            let [p, q] = self.ends[k];
+            let d = unit([q[0] - p[0], q[1] - p[1]]);
+            (d[0] * dir[0] + d[1] * dir[1]).abs() >= cos_max
+        });
+        out
+    }
+}
+
+fn unit(v: [f64; 2]) -> [f64; 2] {
+    let n = v[0].hypot(v[1]).max(1e-300);
+    [v[0] / n, v[1] / n]
+}
+
+/// A slave with its segments.
+#[derive(Debug, Clone, Copy)]
+pub struct SlaveSegments<'a> {
+    /// The slave's exterior orientation.
+    pub pose: Pose,
+    /// Its segments.
+    pub segments: &'a FrameSegments,
+}
+
+/// One slave segment, as seen from the master line: its interpretation plane and its extent in the slave image.
+struct Candidate {
+    /// Ideal endpoints in the slave (mm).
+    ends: [[f64; 2]; 2],
+    /// Unit normal of the interpretation plane through the slave's centre.
+    normal: Vec3,
+    /// The same plane with the line moved one pixel across, for the depth's sensitivity.
+    shifted_normal: Vec3,
+}
+
+/// Moves each point to the depth at which the slaves' 2-D lines put its edge, where enough slaves agree; points
+/// without such support keep their SNCC depth. `master_center` and `rays[k]` are point k's master ray, `wall` the
+/// plane its depths are measured from.
+pub fn refine_depths(
+    camera: &Camera,
+    master_center: &Vec3,
+    wall: &WallPlane,
+    points: &mut [MatchedPoint],
+    rays: &[Vec3],
+    slaves: &[SlaveSegments],
+    p: &MatchParams,
+) -> usize {
+    if !p.line_depth || points.len() < 2 || slaves.is_empty() {
+        return 0;
+    }
+    let (first, last) = (points[0].xyz, points[points.len() - 1].xyz);
+    let max_angle = p.line_max_angle_deg.to_radians();
+    // Per slave: the candidates near the master line's projection.
+    let candidates: Vec<(&SlaveSegments, Vec<Candidate>)> = slaves
+        .iter()
+        .filter_map(|s| {
+            let (a, b) = (s.pose.project_ideal(camera, &first)?, s.pose.project_ideal(camera, &last)?);
+            // A depth change of max_shift_m moves the projection by at most this much (generously: the parallax
+            // of the whole shift at the nearer end, plus a few pixels of slack).
+            let margin = parallax_mm(camera, &s.pose, &first, &wall.normal, p.line_max_shift_m).max(parallax_mm(
+                camera,
+                &s.pose,
+                &last,
+                &wall.normal,
+                p.line_max_shift_m,
+            )) + 3.0 * s.segments.pixel_mm;
+            let found: Vec<Candidate> = s
+                .segments
+                .near(a, b, margin, max_angle)
+                .into_iter()
+                .filter_map(|k| candidate(camera, &s.pose, s.segments.ends[k], s.segments.pixel_mm))
+                .collect();
+            (!found.is_empty()).then_some((s, found))
+        })
+        .collect();
+    if candidates.is_empty() {
+        return 0;
+    }
+    let mut moved = 0;
+    let mut depths: Vec<(f64, f64)> = Vec::new();
+    for (pt, ray) in points.iter_mut().zip(rays) {
+        depths.clear();
+        for (slave, found) in &candidates {
+            let best = found
+                .iter()
+                .filter_map(|c| slave_depth(camera, (master_center, ray), wall, pt, slave, c, p))
+                .min_by(|a, b| (a.0 - pt.depth_m).abs().total_cmp(&(b.0 - pt.depth_m).abs()));
+            depths.extend(best);
+        }
+        if let Some(d) = consensus(&depths, p.line_min_slaves) {
+            if let Some(s) = wall.ray_parameter(master_center, ray, d) {
+                pt.depth_m = d;
+                pt.xyz = master_center + s * ray;
+                moved += 1;
+            }
+        }
+    }
+    moved
+}
+
+/// How far (mm, ideal) the projection of `x` moves in the slave when `x` moves `shift` metres along `normal`.
+fn parallax_mm(camera: &Camera, pose: &Pose, x: &Vec3, normal: &Vec3, shift: f64) -> f64 {
+    match (
+        pose.project_ideal(camera, &(x + normal * shift)),
+        pose.project_ideal(camera, &(x - normal * shift)),
+    ) {
+        (Some(a), Some(b)) => (a[0] - b[0]).hypot(a[1] - b[1]) / 2.0,
+        _ => f64::INFINITY,
+    }
+}
+
+/// The interpretation plane of a slave segment and that of the segment moved one pixel across.
+fn candidate(camera: &Camera, pose: &Pose, ends: [[f64; 2]; 2], pixel_mm: f64) -> Option<Candidate> {
+    let plane = |e: [[f64; 2]; 2]| {
+        pose.ray_of_ideal(camera, e[0])
+            .cross(&pose.ray_of_ideal(camera, e[1]))
+            .try_normalize(1e-12)
+    };
+    let d = unit([ends[1][0] - ends[0][0], ends[1][1] - ends[0][1]]);
+    let off = [-d[1] * pixel_mm, d[0] * pixel_mm];
+    let shifted = [
+        [ends[0][0] + off[0], ends[0][1] + off[1]],
+        [ends[1][0] + off[0], ends[1][1] + off[1]],
+    ];
+    Some(Candidate {
+        ends,
+        normal: plane(ends)?,
+        shifted_normal: plane(shifted)?,
+    })
+}
+
+/// The depth (in front of `wall`) where the master ray meets the candidate's plane, with its change per pixel
+/// across the slave line, if the slave sees the point on (or within a few pixels of) the segment, the geometry is
+/// not degenerate and the depth is within `max_shift_m` of the SNCC depth.
+fn slave_depth(
+    camera: &Camera,
+    (master_center, ray): (&Vec3, &Vec3),
+    wall: &WallPlane,
+    pt: &MatchedPoint,
+    slave: &SlaveSegments,
+    c: &Candidate,
+    p: &MatchParams,
+) -> Option<(f64, f64)> {
+    let slave_center = slave.pose.center;
+    let cut = |n: &Vec3| {
+        let denom = n.dot(ray);
+        (denom.abs() > 1e-12).then(|| n.dot(&(slave_center - master_center)) / denom)
+    };
+    let (s, s1) = (cut(&c.normal)?, cut(&c.shifted_normal)?);
+    if s <= 0.0 {
+        return None;
+    }
+    let x = master_center + s * ray;
+    let depth = wall.depth_of(&x);
+    let per_px = (wall.depth_of(&(master_center + s1 * ray)) - depth).abs();
+    if per_px.is_nan() || per_px >= p.line_max_depth_per_px_m || (depth - pt.depth_m).abs() > p.line_max_shift_m {
+        return None;
+    }
+    // The slave must see the point on the segment, not on its extension.
+    let q = slave.pose.project_ideal(camera, &x)?;
+    let [a, b] = c.ends;
+    let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
+    let len = dx.hypot(dy);
+    let t = ((q[0] - a[0]) * dx + (q[1] - a[1]) * dy) / len;
+    let slack = 2.0 * slave.segments.pixel_mm;
+    (t >= -slack && t <= len + slack).then_some((depth, per_px))
+}
+
+/// Slaves agree when their depths differ by less than this many pixels of the less certain one.
+const AGREE_PX: f64 = 1.0;
+
+/// The agreed depth of the slaves' candidates `(depth, metres per pixel)`: the largest group within [`AGREE_PX`]
+/// of one another, at least `min_slaves` strong, averaged with weights 1/σ².
+fn consensus(depths: &[(f64, f64)], min_slaves: usize) -> Option<f64> {
+    if depths.len() < min_slaves {
+        return None;
+    }
+    let mut best: Option<(usize, f64, f64)> = None;
+    for &(d0, s0) in depths {
+        let group: Vec<&(f64, f64)> = depths.iter().filter(|(d, s)| (d - d0).abs() <= AGREE_PX * s.max(s0)).collect();
+        let w: f64 = group.iter().map(|(_, s)| 1.0 / (s * s).max(1e-12)).sum();
+        let mean = group.iter().map(|(d, s)| d / (s * s).max(1e-12)).sum::<f64>() / w;
+        let better = match best {
+            None => true,
+            Some((n, _, wb)) => group.len() > n || (group.len() == n && w > wb),
+        };
+        if better {
+            best = Some((group.len(), mean, w));
+        }
+    }
+    best.filter(|(n, _, _)| *n >= min_slaves).map(|(_, d, _)| d)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::Mode;
+    use lineflow_photogrammetry::rotation_from_opk;
+
+    fn camera() -> Camera {
+        Camera {
+            width: 4000,
+            height: 3000,
+            pixel_size_mm: 0.005,
+            focal_mm: 20.0,
+            principal_point_mm: [0.0, 0.0],
+            radial: [0.0; 3],
+            decentering: [0.0; 2],
+        }
+    }
+
+    /// A camera 12 m in front of the wall y = 0 (outward normal −y), looking at it.
+    fn pose(x: f64) -> Pose {
+        Pose {
+            center: Vec3::new(x, -12.0, 1.5),
+            rotation: rotation_from_opk(std::f64::consts::FRAC_PI_2, 0.0, 0.0),
+        }
+    }
+
+    fn segment(cam: &Camera, pose: &Pose, a: Vec3, b: Vec3, id: u32) -> Segment2 {
+        Segment2 {
+            id,
+            start_px: pose.project(cam, &a).unwrap(),
+            end_px: pose.project(cam, &b).unwrap(),
+            ..Default::default()
+        }
+    }
+
+    /// Points of the master's view of the edge a–b, all placed at a wrong SNCC depth.
+    fn points(cam: &Camera, master: &Pose, wall: &WallPlane, a: Vec3, b: Vec3, sncc_depth: f64) -> (Vec<MatchedPoint>, Vec<Vec3>) {
+        (0..=10)
+            .map(|k| {
+                let x = a + (b - a) * (k as f64 / 10.0);
+                let ideal = master.project_ideal(cam, &x).unwrap();
+                let ray = master.ray_of_ideal(cam, ideal);
+                let s = wall.ray_parameter(&master.center, &ray, sncc_depth).unwrap();
+                let pt = MatchedPoint {
+                    pixel: cam.ideal_to_pixel(ideal).unwrap(),
+                    ideal,
+                    depth_m: sncc_depth,
+                    xyz: master.center + s * ray,
+                    sncc: 0.9,
+                    mode: Mode::C,
+                };
+                (pt, ray)
+            })
+            .unzip()
+    }
+
+    fn refine(a: Vec3, b: Vec3, sncc_depth: f64) -> (Vec<MatchedPoint>, usize) {
+        let cam = camera();
+        let wall = WallPlane::from_plane("w", Vec3::new(0.0, -1.0, 0.0), Vec3::zeros());
+        let master = pose(0.0);
+        // Each slave also sees a parallel joint 25 cm to the side and the edge itself.
+        let side = Vec3::new(0.25, 0.0, 0.0);
+        let frames: Vec<(Pose, FrameSegments)> = [-1.5, 1.5, 3.0]
+            .iter()
+            .map(|&x| {
+                let p = pose(x);
+                let segs = [segment(&cam, &p, a + side, b + side, 0), segment(&cam, &p, a, b, 1)];
+                (p, FrameSegments::new(&cam, &segs, 10.0))
+            })
+            .collect();
+        let slaves: Vec<SlaveSegments> = frames
+            .iter()
+            .map(|(pose, segments)| SlaveSegments { pose: *pose, segments })
+            .collect();
+        let (mut pts, rays) = points(&cam, &master, &wall, a, b, sncc_depth);
+        let moved = refine_depths(&cam, &master.center, &wall, &mut pts, &rays, &slaves, &MatchParams::default());
+        (pts, moved)
+    }
+
+    #[test]
+    fn slave_lines_put_a_vertical_edge_at_its_true_depth() {
+        let (a, b) = (Vec3::new(0.5, -0.08, 0.5), Vec3::new(0.5, -0.08, 2.5));
+        let (pts, moved) = refine(a, b, 0.12);
+        assert_eq!(moved, pts.len());
+        for p in &pts {
+            assert!((p.depth_m - 0.08).abs() < 1e-6, "depth {}", p.depth_m);
+            assert!((p.xyz.x - 0.5).abs() < 1e-6 && (p.xyz.y + 0.08).abs() < 1e-6, "{:?}", p.xyz);
+        }
+    }
+
+    #[test]
+    fn a_line_along_the_baseline_keeps_its_sncc_depth() {
+        let (a, b) = (Vec3::new(-1.0, -0.08, 1.0), Vec3::new(2.0, -0.08, 1.0));
+        let (pts, moved) = refine(a, b, 0.12);
+        assert_eq!(moved, 0);
+        assert!(pts.iter().all(|p| p.depth_m == 0.12));
+    }
+
+    #[test]
+    fn a_depth_beyond_the_allowed_shift_is_left_alone() {
+        let (a, b) = (Vec3::new(0.5, -0.08, 0.5), Vec3::new(0.5, -0.08, 2.5));
+        let (pts, moved) = refine(a, b, 0.08 + 0.3);
+        assert_eq!(moved, 0);
+        assert!(pts.iter().all(|p| p.depth_m == 0.38));
+    }
+
+    #[test]
+    fn consensus_needs_agreeing_slaves() {
+        assert_eq!(consensus(&[(0.1, 0.01)], 2), None);
+        assert_eq!(consensus(&[(0.1, 0.01), (0.3, 0.01)], 2), None);
+        let d = consensus(&[(0.1, 0.01), (0.104, 0.01), (0.3, 0.01)], 2).unwrap();
+        assert!((d - 0.102).abs() < 1e-12);
+    }
+}
