@@ -39,6 +39,8 @@ pub struct MatchedPoint {
     pub sncc: f64,
     /// The winning window.
     pub mode: Mode,
+    /// The depth comes from the slaves' 2-D lines, not from SNCC.
+    pub from_lines: bool,
 }
 
 /// The matched points of one segment.
@@ -250,6 +252,7 @@ pub fn match_segment(master: &View, slaves: &[View], walls: &[WallPlane], seg: &
             xyz,
             sncc: pk.value,
             mode,
+            from_lines: false,
         });
     }
     let slave_segments: Vec<SlaveSegments> = seen
@@ -258,7 +261,7 @@ pub fn match_segment(master: &View, slaves: &[View], walls: &[WallPlane], seg: &
         .collect();
     let rays: Vec<Vec3> = points.iter().map(|q| master.pose.ray_of_ideal(cam, q.ideal)).collect();
     let n_line_depths = refine_depths(cam, &center, wall, &mut points, &rays, &slave_segments, p);
-    let points = snap_parallel(points, &line, depth_step, p.parallel_snap_m);
+    let points = snap_parallel(points, &line, depth_step, p.parallel_snap_m, p.line_max_shift_m);
     Some(SegmentMatch {
         segment_id: seg.id,
         wall: wall_index,
@@ -270,9 +273,11 @@ pub fn match_segment(master: &View, slaves: &[View], walls: &[WallPlane], seg: &
 
 /// A line whose depth changes by less than `tolerance` from end to end (robust straight-line fit of depth against
 /// position) is parallel to its wall, as most façade edges are: its points move to their common depth, so that the
-/// line's direction comes from the 2-D line (sub-pixel) instead of from noisy per-point depths, and points more
-/// than three depth steps off are dropped. Receding lines (reveals) keep their per-point depths.
-fn snap_parallel(points: Vec<MatchedPoint>, line: &Line, depth_step: f64, tolerance: f64) -> Vec<MatchedPoint> {
+/// line's direction comes from the 2-D line (sub-pixel) instead of from noisy per-point depths. Where at least three
+/// points have their depth from the slaves' lines, those alone decide the depth (SNCC follows the more textured
+/// surface at a depth step) and SNCC-only points within `max_shift` of it follow; otherwise points more than three
+/// depth steps off are dropped. Receding lines (reveals) keep their per-point depths.
+fn snap_parallel(points: Vec<MatchedPoint>, line: &Line, depth_step: f64, tolerance: f64, max_shift: f64) -> Vec<MatchedPoint> {
     if tolerance <= 0.0 || points.len() < 3 {
         return points;
     }
@@ -280,8 +285,13 @@ fn snap_parallel(points: Vec<MatchedPoint>, line: &Line, depth_step: f64, tolera
         v.sort_by(f64::total_cmp);
         v[v.len() / 2]
     };
-    let mid = median(points.iter().map(|q| q.depth_m).collect());
-    let near: Vec<&MatchedPoint> = points.iter().filter(|q| (q.depth_m - mid).abs() <= 3.0 * depth_step).collect();
+    let from_lines = points.iter().filter(|q| q.from_lines).count() >= 3;
+    let reference: Vec<&MatchedPoint> = points.iter().filter(|q| q.from_lines || !from_lines).collect();
+    let mid = median(reference.iter().map(|q| q.depth_m).collect());
+    let near: Vec<&MatchedPoint> = reference
+        .into_iter()
+        .filter(|q| (q.depth_m - mid).abs() <= 3.0 * depth_step)
+        .collect();
     if near.len() < 3 {
         return points;
     }
@@ -298,7 +308,17 @@ fn snap_parallel(points: Vec<MatchedPoint>, line: &Line, depth_step: f64, tolera
         return points;
     }
     let depth = median(d);
-    near.into_iter()
+    let keep = |q: &MatchedPoint| {
+        let off = (q.depth_m - depth).abs();
+        if from_lines {
+            (q.from_lines && off <= 3.0 * depth_step) || (!q.from_lines && off <= max_shift)
+        } else {
+            off <= 3.0 * depth_step
+        }
+    };
+    points
+        .iter()
+        .filter(|q| keep(q))
         .map(|q| MatchedPoint {
             depth_m: depth,
             xyz: line.at(&(q.xyz - line.center).normalize(), depth),
@@ -497,4 +517,71 @@ fn score_depth(
         })
         .collect();
     DepthScores { point, linear }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Points of the vertical edge x = 0.5 seen from (0, −12, 1.5) in front of the wall y = 0, at the given depths.
+    fn points(depths: &[(f64, bool)]) -> (Vec<MatchedPoint>, WallPlane) {
+        let wall = WallPlane::from_plane("w", Vec3::new(0.0, -1.0, 0.0), Vec3::zeros());
+        let center = Vec3::new(0.0, -12.0, 1.5);
+        let pts = depths
+            .iter()
+            .enumerate()
+            .map(|(k, &(depth, from_lines))| {
+                let ray = (Vec3::new(0.5, 0.0, 0.5 + 0.1 * k as f64) - center).normalize();
+                let s = wall.ray_parameter(&center, &ray, depth).unwrap();
+                MatchedPoint {
+                    pixel: [0.0; 2],
+                    ideal: [0.0; 2],
+                    depth_m: depth,
+                    xyz: center + s * ray,
+                    sncc: 0.9,
+                    mode: Mode::C,
+                    from_lines,
+                }
+            })
+            .collect();
+        (pts, wall)
+    }
+
+    fn snap(depths: &[(f64, bool)]) -> Vec<MatchedPoint> {
+        let (pts, wall) = points(depths);
+        let line = Line {
+            wall: &wall,
+            center: Vec3::new(0.0, -12.0, 1.5),
+            start_ray: Vec3::zeros(),
+            end_ray: Vec3::zeros(),
+            rays: Vec::new(),
+            along: Vec3::z(),
+            across: Vec3::x(),
+        };
+        snap_parallel(pts, &line, 0.01, 0.03, 0.15)
+    }
+
+    #[test]
+    fn a_parallel_line_takes_the_median_depth_and_drops_stray_points() {
+        let out = snap(&[(0.10, false), (0.11, false), (0.10, false), (0.50, false), (0.09, false)]);
+        assert_eq!(out.len(), 4);
+        assert!(out.iter().all(|q| q.depth_m == 0.10));
+    }
+
+    #[test]
+    fn the_slaves_lines_decide_the_depth_and_sncc_points_follow() {
+        // SNCC put half the line on the textured surface 12 cm behind the edge the slaves' lines see.
+        let out = snap(&[
+            (0.20, false),
+            (0.08, true),
+            (0.20, false),
+            (0.081, true),
+            (0.20, false),
+            (0.079, true),
+            (0.5, false),
+        ]);
+        assert_eq!(out.len(), 6, "the point 42 cm off is dropped");
+        assert!(out.iter().all(|q| q.depth_m == 0.08));
+        assert!(out.iter().all(|q| (q.xyz.y + 0.08).abs() < 1e-9));
+    }
 }

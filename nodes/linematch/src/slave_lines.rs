@@ -202,6 +202,7 @@ pub fn refine_depths(
             if let Some(s) = wall.ray_parameter(master_center, ray, d) {
                 pt.depth_m = d;
                 pt.xyz = master_center + s * ray;
+                pt.from_lines = true;
                 moved += 1;
             }
         }
@@ -278,7 +279,7 @@ fn slave_depth(
 }
 
 /// Slaves agree when their depths differ by less than this many pixels of the less certain one.
-const AGREE_PX: f64 = 1.0;
+const AGREE_PX: f64 = 0.5;
 
 /// The agreed depth of the slaves' candidates `(depth, metres per pixel)`: the largest group within [`AGREE_PX`]
 /// of one another, at least `min_slaves` strong, averaged with weights 1/σ².
@@ -352,6 +353,7 @@ mod tests {
                     xyz: master.center + s * ray,
                     sncc: 0.9,
                     mode: Mode::C,
+                    from_lines: false,
                 };
                 (pt, ray)
             })
