@@ -124,6 +124,11 @@ pub fn bench_linematch(preset: &str, scale: f64, reps: usize) -> Result<ExitCode
     let all_1 = median_time(reps, || one.install(|| run(&p)));
     let all_n = median_time(reps, || run(&p));
     let c_n = median_time(reps, || run(&c_only));
+    let sncc_only = MatchParams {
+        line_depth: false,
+        ..p.clone()
+    };
+    let s_n = median_time(reps, || run(&sncc_only));
     let threads = rayon::current_num_threads();
     println!(
         "all 8 window modes, 1 thread      {all_1:8.2} s  ({:.2} ms per matched segment)",
@@ -137,6 +142,10 @@ pub fn bench_linematch(preset: &str, scale: f64, reps: usize) -> Result<ExitCode
     println!(
         "reference: C window only, {threads} threads {c_n:6.2} s  all modes / C only: {:.2}x",
         all_n / c_n
+    );
+    println!(
+        "without the slaves' lines, {threads} threads {s_n:5.2} s  depths from the slaves' lines cost {:.2} s",
+        all_n - s_n
     );
     Ok(ExitCode::SUCCESS)
 }

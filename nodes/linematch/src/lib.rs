@@ -185,7 +185,7 @@ impl Default for MatchParams {
             wall_margin_m: 0.5,
             line_depth: true,
             line_max_angle_deg: 3.0,
-            line_max_shift_m: 0.15,
+            line_max_shift_m: 0.3,
             line_max_depth_per_px_m: 0.25,
             line_min_slaves: 2,
             line_min_length_px: 20.0,

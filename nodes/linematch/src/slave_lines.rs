@@ -188,17 +188,18 @@ pub fn refine_depths(
         return 0;
     }
     let mut moved = 0;
-    let mut depths: Vec<(f64, f64)> = Vec::new();
+    let mut cuts: Vec<Cut> = Vec::new();
     for (pt, ray) in points.iter_mut().zip(rays) {
-        depths.clear();
-        for (slave, found) in &candidates {
-            let best = found
-                .iter()
-                .filter_map(|c| slave_depth(camera, (master_center, ray), wall, pt, slave, c, p))
-                .min_by(|a, b| (a.0 - pt.depth_m).abs().total_cmp(&(b.0 - pt.depth_m).abs()));
-            depths.extend(best);
+        cuts.clear();
+        for (k, (slave, found)) in candidates.iter().enumerate() {
+            cuts.extend(
+                found
+                    .iter()
+                    .filter_map(|c| slave_depth(camera, (master_center, ray), wall, pt, slave, c, p))
+                    .map(|(depth, per_px)| Cut { depth, per_px, slave: k }),
+            );
         }
-        if let Some(d) = consensus(&depths, p.line_min_slaves) {
+        if let Some(d) = consensus(&cuts, pt.depth_m, p.line_min_slaves) {
             if let Some(s) = wall.ray_parameter(master_center, ray, d) {
                 pt.depth_m = d;
                 pt.xyz = master_center + s * ray;
@@ -281,20 +282,41 @@ fn slave_depth(
 /// Slaves agree when their depths differ by less than this many pixels of the less certain one.
 const AGREE_PX: f64 = 0.5;
 
-/// The agreed depth of the slaves' candidates `(depth, metres per pixel)`: the largest group within [`AGREE_PX`]
-/// of one another, at least `min_slaves` strong, averaged with weights 1/σ².
-fn consensus(depths: &[(f64, f64)], min_slaves: usize) -> Option<f64> {
-    if depths.len() < min_slaves {
-        return None;
-    }
+/// One master ray cut with one slave segment's interpretation plane.
+#[derive(Debug, Clone, Copy)]
+struct Cut {
+    /// Depth in front of the wall, metres.
+    depth: f64,
+    /// Depth change for one pixel across the slave line, metres.
+    per_px: f64,
+    /// Which slave.
+    slave: usize,
+}
+
+/// The agreed depth of the cuts: each cut seeds a group of the cuts within [`AGREE_PX`] of it, at most one per slave
+/// (the nearest); the group with the most slaves wins, ties going to the one nearest the SNCC depth `prior`; its
+/// depths are averaged with weights 1/σ². Several parallel edges near one another (the outer and inner edges of a
+/// reveal, a frame's profile) each give a cut per slave, but only the true one gives the same depth in every slave.
+fn consensus(cuts: &[Cut], prior: f64, min_slaves: usize) -> Option<f64> {
     let mut best: Option<(usize, f64, f64)> = None;
-    for &(d0, s0) in depths {
-        let group: Vec<&(f64, f64)> = depths.iter().filter(|(d, s)| (d - d0).abs() <= AGREE_PX * s.max(s0)).collect();
-        let w: f64 = group.iter().map(|(_, s)| 1.0 / (s * s).max(1e-12)).sum();
-        let mean = group.iter().map(|(d, s)| d / (s * s).max(1e-12)).sum::<f64>() / w;
+    let mut group: Vec<Cut> = Vec::new();
+    for seed in cuts {
+        group.clear();
+        for c in cuts {
+            if (c.depth - seed.depth).abs() > AGREE_PX * c.per_px.max(seed.per_px) {
+                continue;
+            }
+            match group.iter_mut().find(|g| g.slave == c.slave) {
+                Some(g) if (c.depth - seed.depth).abs() < (g.depth - seed.depth).abs() => *g = *c,
+                Some(_) => {}
+                None => group.push(*c),
+            }
+        }
+        let w: f64 = group.iter().map(|c| 1.0 / (c.per_px * c.per_px).max(1e-12)).sum();
+        let mean = group.iter().map(|c| c.depth / (c.per_px * c.per_px).max(1e-12)).sum::<f64>() / w;
         let better = match best {
             None => true,
-            Some((n, _, wb)) => group.len() > n || (group.len() == n && w > wb),
+            Some((n, m, _)) => group.len() > n || (group.len() == n && (mean - prior).abs() < (m - prior).abs()),
         };
         if better {
             best = Some((group.len(), mean, w));
@@ -405,16 +427,44 @@ mod tests {
     #[test]
     fn a_depth_beyond_the_allowed_shift_is_left_alone() {
         let (a, b) = (Vec3::new(0.5, -0.08, 0.5), Vec3::new(0.5, -0.08, 2.5));
-        let (pts, moved) = refine(a, b, 0.08 + 0.3);
+        let sncc = 0.08 + MatchParams::default().line_max_shift_m + 0.05;
+        let (pts, moved) = refine(a, b, sncc);
         assert_eq!(moved, 0);
-        assert!(pts.iter().all(|p| p.depth_m == 0.38));
+        assert!(pts.iter().all(|p| p.depth_m == sncc));
     }
 
     #[test]
     fn consensus_needs_agreeing_slaves() {
-        assert_eq!(consensus(&[(0.1, 0.01)], 2), None);
-        assert_eq!(consensus(&[(0.1, 0.01), (0.3, 0.01)], 2), None);
-        let d = consensus(&[(0.1, 0.01), (0.104, 0.01), (0.3, 0.01)], 2).unwrap();
+        let cut = |depth, slave| Cut {
+            depth,
+            per_px: 0.01,
+            slave,
+        };
+        assert_eq!(consensus(&[cut(0.1, 0)], 0.1, 2), None);
+        assert_eq!(consensus(&[cut(0.1, 0), cut(0.3, 1)], 0.1, 2), None);
+        // Two cuts of one slave are one vote.
+        assert_eq!(consensus(&[cut(0.1, 0), cut(0.102, 0)], 0.1, 2), None);
+        let d = consensus(&[cut(0.1, 0), cut(0.104, 1), cut(0.3, 2)], 0.1, 2).unwrap();
         assert!((d - 0.102).abs() < 1e-12);
+    }
+
+    #[test]
+    fn the_edge_every_slave_agrees_on_wins_over_the_one_nearest_sncc() {
+        let cut = |depth, slave| Cut {
+            depth,
+            per_px: 0.02,
+            slave,
+        };
+        // Each slave also sees the reveal's outer edge; its cuts scatter (different parallax), the inner edge's agree.
+        let cuts = [
+            cut(0.02, 0),
+            cut(0.21, 0),
+            cut(0.06, 1),
+            cut(0.212, 1),
+            cut(-0.03, 2),
+            cut(0.208, 2),
+        ];
+        let d = consensus(&cuts, 0.03, 2).unwrap();
+        assert!((d - 0.21).abs() < 0.003, "{d}");
     }
 }
