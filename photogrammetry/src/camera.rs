@@ -119,6 +119,19 @@ impl Camera {
         distance_m * self.pixel_size_mm / self.focal_mm
     }
 
+    /// A distortion-free camera with the principal point at the image centre (synthetic scenes, tests).
+    pub fn pinhole(width: u32, height: u32, pixel_size_mm: f64, focal_mm: f64) -> Camera {
+        Camera {
+            width,
+            height,
+            pixel_size_mm,
+            focal_mm,
+            principal_point_mm: [0.0; 2],
+            radial: [0.0; 3],
+            decentering: [0.0; 2],
+        }
+    }
+
     /// The camera of a resampled sensor: `scale` times the pixels in each direction over the same field of view.
     pub fn scaled(&self, scale: f64) -> Camera {
         let width = ((self.width as f64 * scale).round() as u32).max(2);

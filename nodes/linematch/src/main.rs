@@ -295,7 +295,12 @@ fn step(st: &mut State, params: &MatchParams, ended: &Ended, at_end: bool) -> St
             continue;
         }
         let slaves = choose_slaves(&camera, (frame, &pose), &candidates, &walls, params.max_slaves, params.min_overlap);
-        let ready = slaves.len() >= params.max_slaves || (at_end && !slaves.is_empty());
+        // Frames settle in order, so the first six to overlap a master are all behind it: waiting until half as
+        // many frames past it are settled lets the slaves lie on both sides, as the thesis's triplets did. Seen
+        // from one side only, an inner edge of a reveal is hidden behind the outer one in every slave, and they all
+        // agree on the wrong edge.
+        let ahead = candidates.iter().any(|(f, _)| *f >= frame + (params.max_slaves / 2) as u64);
+        let ready = (slaves.len() >= params.max_slaves && ahead) || (at_end && !slaves.is_empty());
         if !ready {
             if at_end {
                 st.skipped.insert(frame, "no neighbour overlaps it".into());

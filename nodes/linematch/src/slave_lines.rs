@@ -168,13 +168,8 @@ pub fn refine_depths(
             let (a, b) = (s.pose.project_ideal(camera, &first)?, s.pose.project_ideal(camera, &last)?);
             // A depth change of max_shift_m moves the projection by at most this much (generously: the parallax
             // of the whole shift at the nearer end, plus a few pixels of slack).
-            let margin = parallax_mm(camera, &s.pose, &first, &wall.normal, p.line_max_shift_m).max(parallax_mm(
-                camera,
-                &s.pose,
-                &last,
-                &wall.normal,
-                p.line_max_shift_m,
-            )) + 3.0 * s.segments.pixel_mm;
+            let parallax = |x: &Vec3| parallax_mm(camera, &s.pose, x, &wall.normal, p.line_max_shift_m);
+            let margin = parallax(&first).max(parallax(&last)) + 3.0 * s.segments.pixel_mm;
             let found: Vec<Candidate> = s
                 .segments
                 .near(a, b, margin, max_angle)
@@ -332,15 +327,7 @@ mod tests {
     use lineflow_photogrammetry::rotation_from_opk;
 
     fn camera() -> Camera {
-        Camera {
-            width: 4000,
-            height: 3000,
-            pixel_size_mm: 0.005,
-            focal_mm: 20.0,
-            principal_point_mm: [0.0, 0.0],
-            radial: [0.0; 3],
-            decentering: [0.0; 2],
-        }
+        Camera::pinhole(4000, 3000, 0.005, 20.0)
     }
 
     /// A camera 12 m in front of the wall y = 0 (outward normal −y), looking at it.

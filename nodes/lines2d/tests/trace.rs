@@ -111,15 +111,7 @@ fn vertical_step(width: usize, height: usize, x: f64) -> Vec<u8> {
 #[test]
 fn sub_pixel_positions_put_an_axis_aligned_line_where_the_edge_is() {
     let (w, h) = (80usize, 60usize);
-    let camera = lineflow_photogrammetry::Camera {
-        width: w as u32,
-        height: h as u32,
-        pixel_size_mm: 0.01,
-        focal_mm: 10.0,
-        principal_point_mm: [0.0, 0.0],
-        radial: [0.0; 3],
-        decentering: [0.0; 2],
-    };
+    let camera = lineflow_photogrammetry::Camera::pinhole(w as u32, h as u32, 0.01, 10.0);
     for x in [30.0, 30.25, 30.5, 30.75] {
         let gray = vertical_step(w, h, x);
         let found = lineflow_edges::pixels(&gray, w, h, &lineflow_edges::canny(&gray, w, h, 20.0, 50.0));

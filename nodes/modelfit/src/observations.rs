@@ -159,15 +159,7 @@ mod tests {
 
     #[test]
     fn segment_query_is_a_superset_of_the_buffer() {
-        let camera = Camera {
-            width: 400,
-            height: 300,
-            pixel_size_mm: 0.01,
-            focal_mm: 20.0,
-            principal_point_mm: [0.0; 2],
-            radial: [0.0; 3],
-            decentering: [0.0; 2],
-        };
+        let camera = Camera::pinhole(400, 300, 0.01, 20.0);
         let pose = Pose {
             center: Vec3::zeros(),
             rotation: rotation_from_opk(0.0, 0.0, 0.0),

@@ -5,15 +5,7 @@ use lineflow_modelfit::{fit_wireframe, EdgeObservation, ImageEdges};
 use lineflow_photogrammetry::{rotation_from_opk, Camera, Pose, Vec3};
 
 fn camera() -> Camera {
-    Camera {
-        width: 2000,
-        height: 1400,
-        pixel_size_mm: 0.0055,
-        focal_mm: 17.6,
-        principal_point_mm: [0.0; 2],
-        radial: [0.0; 3],
-        decentering: [0.0; 2],
-    }
+    Camera::pinhole(2000, 1400, 0.0055, 17.6)
 }
 
 /// A 12 × 6 m wall at Y = 0 with three 1.2 × 1.5 m windows recessed by 0.15 m: outline, opening and frame.

@@ -182,15 +182,7 @@ mod tests {
     #[test]
     fn a_projected_point_lands_where_colmap_would_put_it() {
         // COLMAP: x_cam = R X + t, then pixel = f · x/z + c. Without distortion this must equal our projection.
-        let camera = Camera {
-            width: 1000,
-            height: 800,
-            pixel_size_mm: 0.01,
-            focal_mm: 20.0,
-            principal_point_mm: [0.0, 0.0],
-            radial: [0.0; 3],
-            decentering: [0.0; 2],
-        };
+        let camera = Camera::pinhole(1000, 800, 0.01, 20.0);
         let pose = Pose {
             center: Vec3::new(1.0, -10.0, 2.0),
             rotation: lineflow_photogrammetry::look_at(&Vec3::new(1.0, -10.0, 2.0), &Vec3::new(1.5, 0.0, 2.5), &Vec3::z()),
