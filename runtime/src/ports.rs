@@ -157,7 +157,8 @@ impl<M: Message> Connect for InputInner<M> {
     /// Ends an input whose publisher left without end-of-stream (its end-of-stream was dropped, or it exited
     /// abnormally and will not be restarted): otherwise the node, and everything downstream, would wait forever.
     fn refresh(&self) {
-        if self.ended.get() {
+        // Latched topics carry one message and never an end-of-stream: their publisher leaving is normal.
+        if self.ended.get() || M::KIND.latched() {
             return;
         }
         let pending = self.subscriber.has_samples().unwrap_or(true);
