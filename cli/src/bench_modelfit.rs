@@ -7,13 +7,13 @@ use std::time::Instant;
 use anyhow::Result;
 use lineflow_capture::synth::Synthetic;
 use lineflow_messages::Encoding;
-use lineflow_model::{build, lines_from_rows, Model, ModelParams, SurfaceKind};
+use lineflow_model::{build, Model, SurfaceKind};
 use lineflow_modelfit::parametric::DepthPrior;
 use lineflow_modelfit::{fit, fit_wireframe, FacePlane, FitParams, FreeVertices, ImageEdges, Weighting};
 use lineflow_photogrammetry::Vec3;
 
 use crate::bench_util::median_time;
-use crate::model_cmd::noisy;
+use crate::model_cmd::noisy_input;
 
 const TARGET_S: f64 = 1.0;
 
@@ -90,15 +90,9 @@ pub fn bench_modelfit(args: Args) -> Result<ExitCode> {
     eprintln!();
 
     let sigma = sigma_gsd * gsd;
-    let rows = noisy(&truth.lines, sigma, 1);
-    let model_params = ModelParams {
-        sigma_m: sigma.max(1e-4),
-        ..ModelParams::default()
-    };
-    let lines = lines_from_rows(&rows, &model_params);
-    let viewpoint = truth.poses.iter().map(|p| p.pose.center).sum::<Vec3>() / truth.poses.len() as f64;
+    let input = noisy_input(&truth, sigma);
     let mut model = Model::default();
-    let t_build = median_time(reps, || model = build(&lines, &model_params, Some(viewpoint)));
+    let t_build = median_time(reps, || model = build(&input.lines, &input.params, Some(input.viewpoint)));
     let vertices: Vec<Vec3> = model.vertices.iter().map(|v| v.point).collect();
     let edges: Vec<[usize; 2]> = model.edges.iter().map(|e| [e.a, e.b]).collect();
     let faces = face_planes(&model);

@@ -7,7 +7,7 @@ use std::time::Instant;
 use anyhow::{Context, Result};
 use lineflow_capture::synth::{rng::Rng, Synthetic};
 use lineflow_formats::{read_lines3d, read_poses, Line3Row};
-use lineflow_model::{build, export, junction, lines_from_rows, Model, ModelParams, SurfaceKind};
+use lineflow_model::{build, export, junction, lines_from_rows, Model, ModelLine, ModelParams, SurfaceKind};
 use lineflow_photogrammetry::Vec3;
 
 use crate::bench_util::median_time;
@@ -54,6 +54,31 @@ pub fn model(lines: &Path, poses: Option<&Path>, out: Option<PathBuf>, set: &[St
     Ok(ExitCode::SUCCESS)
 }
 
+/// The model stage's input from a preset's true edges with noise σ (seed 1): the noisy rows, the lines and
+/// parameters built from them, and the mean camera centre (the side the walls face).
+pub struct NoisyInput {
+    pub rows: Vec<Line3Row>,
+    pub lines: Vec<ModelLine>,
+    pub params: ModelParams,
+    pub viewpoint: Vec3,
+}
+
+pub fn noisy_input(truth: &lineflow_eval::Truth, sigma_m: f64) -> NoisyInput {
+    let rows = noisy(&truth.lines, sigma_m, 1);
+    let params = ModelParams {
+        sigma_m: sigma_m.max(1e-4),
+        ..ModelParams::default()
+    };
+    let lines = lines_from_rows(&rows, &params);
+    let viewpoint = truth.poses.iter().map(|p| p.pose.center).sum::<Vec3>() / truth.poses.len() as f64;
+    NoisyInput {
+        rows,
+        lines,
+        params,
+        viewpoint,
+    }
+}
+
 /// The true edges with every endpoint coordinate perturbed by N(0, σ²), deterministic in `seed`.
 pub fn noisy(lines: &[Line3Row], sigma_m: f64, seed: u64) -> Vec<Line3Row> {
     let mut rng = Rng::new(seed, 77);
@@ -88,15 +113,14 @@ pub fn bench_model(preset: &str, sigmas_gsd: &[f64], reps: usize, out: Option<&P
     println!("|---|---|---|---|---|---|---|---|---|---|");
     for &k in sigmas_gsd {
         let sigma = k * gsd;
-        let rows = noisy(&truth.lines, sigma, 1);
-        let params = ModelParams {
-            sigma_m: sigma.max(1e-4),
-            ..ModelParams::default()
-        };
-        let lines = lines_from_rows(&rows, &params);
-        let cameras = truth.poses.iter().map(|p| p.pose.center).sum::<Vec3>() / truth.poses.len() as f64;
+        let NoisyInput {
+            rows,
+            lines,
+            params,
+            viewpoint,
+        } = noisy_input(&truth, sigma);
         let mut model = Model::default();
-        let t_build = median_time(reps, || model = build(&lines, &params, Some(cameras)));
+        let t_build = median_time(reps, || model = build(&lines, &params, Some(viewpoint)));
         let t_pairs = median_time(reps, || {
             std::hint::black_box(junction::candidates_all_pairs(&lines, &params));
         });

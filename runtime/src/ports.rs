@@ -166,7 +166,7 @@ impl<M: Message> Connect for InputInner<M> {
             self.orphaned_since.set(None);
             return;
         }
-        let since = *self.orphaned_since.get().get_or_insert_with(std::time::Instant::now);
+        let since = self.orphaned_since.get().unwrap_or_else(std::time::Instant::now);
         self.orphaned_since.set(Some(since));
         if since.elapsed() >= ORPHAN_GRACE {
             tracing::warn!(

@@ -44,13 +44,8 @@ impl FrameSegments {
             .collect();
         let pixel_mm = camera.pixel_size_mm;
         let cell_mm = CELL_PX * pixel_mm;
-        let corner = |px: [f64; 2]| camera.pixel_to_ideal(px);
-        let bounds = [
-            corner([0.0, 0.0]),
-            corner([camera.width as f64, 0.0]),
-            corner([0.0, camera.height as f64]),
-            corner([camera.width as f64, camera.height as f64]),
-        ];
+        let (w, h) = (camera.width as f64, camera.height as f64);
+        let bounds = [[0.0, 0.0], [w, 0.0], [0.0, h], [w, h]].map(|px| camera.pixel_to_ideal(px));
         let lo = |k: usize| bounds.iter().map(|b| b[k]).fold(f64::INFINITY, f64::min);
         let hi = |k: usize| bounds.iter().map(|b| b[k]).fold(f64::NEG_INFINITY, f64::max);
         let origin = [lo(0), lo(1)];
@@ -75,16 +70,6 @@ impl FrameSegments {
         }
         frame.ends = ends;
         frame
-    }
-
-    /// Number of segments kept.
-    pub fn len(&self) -> usize {
-        self.ends.len()
-    }
-
-    /// Whether no segment was kept.
-    pub fn is_empty(&self) -> bool {
-        self.ends.is_empty()
     }
 
     /// Inclusive cell range (c0, r0, c1, r1) of the box around two points grown by `margin` mm, clamped to the grid.

@@ -36,12 +36,8 @@ struct Params {
     /// Refit while streaming after this many new edge maps (0: only at the end). Live fits run as the data
     /// happen to arrive, so a re-run of a recording may publish different intermediate fits; the final fit,
     /// after every input has ended, is always the same.
-    #[serde(default = "default_interval")]
+    #[serde(default)]
     live_interval_frames: usize,
-}
-
-fn default_interval() -> usize {
-    0
 }
 
 impl Params {
@@ -108,14 +104,18 @@ impl State {
 /// Fits `wire` to `images`; the fitted vertices.
 fn fit_job(wire: &Wire, images: &[Arc<ImageEdges>], params: &FitParams) -> Vec<Vec3> {
     let (_, vertices, edges) = wire;
-    let pairs: Vec<[usize; 2]> = edges.iter().map(|e| [e.a as usize, e.b as usize]).collect();
-    let fit = fit_wireframe(vertices, &pairs, &[], images, params);
+    let fit = fit_wireframe(vertices, &pairs(edges), &[], images, params);
     let pixel_mm = images.first().map_or(1.0, |i| i.camera.pixel_size_mm);
     tracing::info!("fitted to {} images: {}", images.len(), fit.summary(pixel_mm));
     for why in fit.failures.iter().take(3) {
         tracing::warn!("a part of the model was left unfitted: {why}");
     }
     fit.vertices
+}
+
+/// The edges as vertex-index pairs.
+fn pairs(edges: &[WireEdge]) -> Vec<[usize; 2]> {
+    edges.iter().map(|e| [e.a as usize, e.b as usize]).collect()
 }
 
 fn publish(output: &Output<kinds::Wireframe>, stamp: Stamp, vertices: &[Vec3], edges: &[WireEdge]) -> Result<()> {
@@ -224,8 +224,7 @@ fn body() -> Result<()> {
     output.end_of_stream()?;
     if let Some((v, edges)) = fitted {
         let path = ctx.out_dir().join("model_fitted.obj");
-        let pairs: Vec<[usize; 2]> = edges.iter().map(|e| [e.a as usize, e.b as usize]).collect();
-        write_obj(&path, &v, &pairs).with_context(|| format!("writing {}", path.display()))?;
+        write_obj(&path, &v, &pairs(&edges)).with_context(|| format!("writing {}", path.display()))?;
         tracing::info!("fitted model -> {}", path.display());
     }
     ctx.finish();
