@@ -50,6 +50,19 @@ pub enum BenchCmd {
         #[arg(long, default_value_t = 100.0)]
         high: f64,
     },
+    /// The default 2-D stage (Canny + line tracing) on a full-size synthetic frame: time per step, recall and
+    /// precision against the ground truth, beside our LSD and OpenCV's LSD (needs opencv-python-headless).
+    Lines2d {
+        /// Preset.
+        #[arg(long, default_value = "d2x-strip")]
+        preset: String,
+        /// Repetitions per measurement.
+        #[arg(long, default_value_t = 3)]
+        reps: usize,
+        /// Canny high threshold (low = 0.4 × high), as the edges node's default.
+        #[arg(long, default_value_t = 100.0)]
+        high: f64,
+    },
     /// SURF on a full-size synthetic frame against OpenCV's SIFT and ORB (needs opencv-python-headless).
     Features {
         /// Preset.
@@ -359,6 +372,7 @@ pub fn bench(cmd: BenchCmd) -> Result<ExitCode> {
         BenchCmd::Transport { paced, flat_scale } => transport_bench(paced, flat_scale),
         BenchCmd::Render { preset, frames, scale } => crate::synth::bench_render(&preset, frames, scale),
         BenchCmd::Edges { preset, reps, high } => crate::bench_edges::bench_edges(&preset, reps, high),
+        BenchCmd::Lines2d { preset, reps, high } => crate::bench_lines2d::bench_lines2d(&preset, reps, high),
         BenchCmd::Features { preset, reps, threshold } => crate::bench_features::bench_features(&preset, reps, threshold),
         BenchCmd::Model {
             preset,

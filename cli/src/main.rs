@@ -5,6 +5,7 @@ mod bench_bundle;
 mod bench_edges;
 mod bench_features;
 mod bench_linematch;
+mod bench_lines2d;
 mod bench_modelfit;
 mod bench_record;
 mod bench_util;

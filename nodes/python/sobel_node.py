@@ -114,12 +114,15 @@ def gray_of(h, payload):
     """8-bit grey as lineflow-convert computes it (integer BT.601 luma)."""
     w, ht, step = h.width, h.height, h.step
     raw = np.frombuffer(payload, dtype=np.uint8, count=step * ht).reshape(ht, step)
-    if h.encoding == MONO8:
+    if h.encoding not in (MONO8, RGB8, MONO16, RGB16):
+        raise ValueError(f"frame {h.stamp.frame}: encoding {h.encoding} is not supported by the Python sobel node")
+    if h.encoding in (MONO16, RGB16):
+        # 16-bit samples in native byte order; their high byte, as lineflow-convert takes it.
+        raw = (raw.view(np.uint16) >> 8).astype(np.uint8)
+    if h.encoding in (MONO8, MONO16):
         return raw[:, :w].copy()
-    if h.encoding == RGB8:
-        rgb = raw[:, : 3 * w].reshape(ht, w, 3).astype(np.uint32)
-        return ((rgb[..., 0] * 77 + rgb[..., 1] * 150 + rgb[..., 2] * 29 + 128) >> 8).astype(np.uint8)
-    raise ValueError(f"frame {h.stamp.frame}: encoding {h.encoding} is not supported by the Python sobel node")
+    rgb = raw[:, : 3 * w].reshape(ht, w, 3).astype(np.uint32)
+    return ((rgb[..., 0] * 77 + rgb[..., 1] * 150 + rgb[..., 2] * 29 + 128) >> 8).astype(np.uint8)
 
 
 def sobel_edges(gray, threshold):

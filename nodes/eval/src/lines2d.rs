@@ -109,42 +109,43 @@ fn grid_of(set: &[Seg]) -> Grid {
     g
 }
 
-pub fn evaluate(truth: &Truth, rows: &[Line2Row]) -> Lines2dReport {
+/// The scores of frame `frame` from the rows of its image among `rows`.
+pub fn score_image(truth: &Truth, frame: usize, rows: &[Line2Row]) -> ImageScores {
     let cam = truth.scene.camera();
     let ps = cam.pixel_size_mm;
-    let images: Vec<ImageScores> = (0..truth.poses.len())
-        .map(|frame| {
-            let name = &truth.poses[frame].image;
-            let gt = visible_truth(truth, frame);
-            let est: Vec<Seg> = rows
-                .iter()
-                .filter(|r| &r.image == name)
-                .map(|r| {
-                    let (a, b) = (cam.pixel_to_ideal(r.start_px), cam.pixel_to_ideal(r.end_px));
-                    Seg::new(Vec3::new(a[0] / ps, a[1] / ps, 0.0), Vec3::new(b[0] / ps, b[1] / ps, 0.0))
-                })
-                .filter(|s| s.length() > 0.0)
-                .collect();
-            let (gt_len, gt_ok) = if est.is_empty() {
-                (gt.iter().map(Seg::length).sum(), 0.0)
-            } else {
-                covered(&gt, &est, &grid_of(&est))
-            };
-            let (est_len, est_ok) = if gt.is_empty() {
-                (est.iter().map(Seg::length).sum(), 0.0)
-            } else {
-                covered(&est, &gt, &grid_of(&gt))
-            };
-            ImageScores {
-                image: name.clone(),
-                n_true: gt.len(),
-                n_estimated: est.len(),
-                recall: if gt_len > 0.0 { gt_ok / gt_len } else { f64::NAN },
-                precision: if est_len > 0.0 { est_ok / est_len } else { f64::NAN },
-                lengths: [gt_len, gt_ok, est_len, est_ok],
-            }
+    let name = &truth.poses[frame].image;
+    let gt = visible_truth(truth, frame);
+    let est: Vec<Seg> = rows
+        .iter()
+        .filter(|r| &r.image == name)
+        .map(|r| {
+            let (a, b) = (cam.pixel_to_ideal(r.start_px), cam.pixel_to_ideal(r.end_px));
+            Seg::new(Vec3::new(a[0] / ps, a[1] / ps, 0.0), Vec3::new(b[0] / ps, b[1] / ps, 0.0))
         })
+        .filter(|s| s.length() > 0.0)
         .collect();
+    let (gt_len, gt_ok) = if est.is_empty() {
+        (gt.iter().map(Seg::length).sum(), 0.0)
+    } else {
+        covered(&gt, &est, &grid_of(&est))
+    };
+    let (est_len, est_ok) = if gt.is_empty() {
+        (est.iter().map(Seg::length).sum(), 0.0)
+    } else {
+        covered(&est, &gt, &grid_of(&gt))
+    };
+    ImageScores {
+        image: name.clone(),
+        n_true: gt.len(),
+        n_estimated: est.len(),
+        recall: if gt_len > 0.0 { gt_ok / gt_len } else { f64::NAN },
+        precision: if est_len > 0.0 { est_ok / est_len } else { f64::NAN },
+        lengths: [gt_len, gt_ok, est_len, est_ok],
+    }
+}
+
+pub fn evaluate(truth: &Truth, rows: &[Line2Row]) -> Lines2dReport {
+    let images: Vec<ImageScores> = (0..truth.poses.len()).map(|frame| score_image(truth, frame, rows)).collect();
     let sum = |k: usize| images.iter().map(|i| i.lengths[k]).sum::<f64>();
     Lines2dReport {
         recall: sum(1) / sum(0).max(1e-12),

@@ -9,13 +9,16 @@
 //! plane are verified with the essential matrix instead. Verified matches join tracks; a track keeps its id for
 //! good.
 pub mod descriptors;
+pub mod lsm;
 
 use std::collections::HashMap;
 
 use descriptors::{guided_match, match_features, FrameFeatures};
 use lineflow_photogrammetry::epipolar::{dominant_plane, homography, verify, Ransac, Ray};
 use lineflow_photogrammetry::Camera;
+use lsm::{Gray, LsmParams};
 use nalgebra::Matrix3;
+use rayon::prelude::*;
 
 /// Matcher settings.
 #[derive(Debug, Clone, serde::Deserialize)]
@@ -55,6 +58,15 @@ pub struct MatcherParams {
     pub plane_hypotheses: usize,
     /// Longest chain of consecutive frames through which two frames' plane transfer is composed for the loop check.
     pub loop_chain: usize,
+    /// Refine every observation by least-squares matching against its track's first observation (needs the
+    /// frames' grey images).
+    pub refine: bool,
+    /// Half the side of the least-squares matching template, pixels.
+    pub refine_half_window: usize,
+    /// Smallest correlation of a refined observation; an observation that fails is dropped.
+    pub refine_min_correlation: f64,
+    /// Grey images kept for refinement (the most recent frames); older anchors are not refined against.
+    pub refine_keep_frames: usize,
 }
 
 impl Default for MatcherParams {
@@ -76,6 +88,10 @@ impl Default for MatcherParams {
             guided_max_distance: 0.5,
             plane_hypotheses: 3,
             loop_chain: 40,
+            refine: true,
+            refine_half_window: 8,
+            refine_min_correlation: 0.8,
+            refine_keep_frames: 60,
         }
     }
 }
@@ -98,6 +114,9 @@ pub struct FrameResult {
     pub partners: Vec<(u64, usize, usize)>,
     /// New observations, of this frame and of partners' keypoints that started tracks.
     pub observations: Vec<Observation>,
+    /// Observations refined by least-squares matching, and those dropped because their refinement failed.
+    pub refined: usize,
+    pub unrefined: usize,
 }
 
 /// Which matches move like their neighbours. The epipolar constraint cannot see a match shifted along its
@@ -147,6 +166,7 @@ struct Frame {
     features: FrameFeatures,
     rays: Vec<Ray>,
     sample: FrameFeatures,
+    image: Option<Gray>,
 }
 
 /// The streaming matcher: frames in, tie-point observations out.
@@ -161,6 +181,8 @@ pub struct Matcher {
     next_track: u64,
     /// Accepted pairs' plane homographies, (later, earlier) frame index → later to earlier.
     planes: HashMap<(usize, usize), Matrix3<f64>>,
+    /// track → its first observation (frame index, pixel), which the others are refined against.
+    anchors: HashMap<u64, (usize, [f64; 2])>,
 }
 
 impl Matcher {
@@ -174,7 +196,13 @@ impl Matcher {
             frames_of: HashMap::new(),
             next_track: 1,
             planes: HashMap::new(),
+            anchors: HashMap::new(),
         }
+    }
+
+    /// The camera the matcher was made for.
+    pub fn camera(&self) -> &Camera {
+        &self.camera
     }
 
     fn ray(&self, px: [f64; 2]) -> Ray {
@@ -197,8 +225,9 @@ impl Matcher {
         chosen
     }
 
-    /// Matches a new frame against its partners and extends the tracks.
-    pub fn add_frame(&mut self, number: u64, features: FrameFeatures) -> FrameResult {
+    /// Matches a new frame against its partners and extends the tracks. With the frame's grey `image` (and
+    /// `refine` on), the new observations are refined by least-squares matching.
+    pub fn add_frame(&mut self, number: u64, features: FrameFeatures, image: Option<Gray>) -> FrameResult {
         let rays: Vec<Ray> = features.px.iter().map(|&p| self.ray(p)).collect();
         let sample = features.strongest(self.params.retrieval_keypoints);
         let new = self.frames.len();
@@ -211,6 +240,8 @@ impl Matcher {
         // Partners in order of preference (the window first): each pair's hypotheses are judged against the
         // pairs already accepted for this frame.
         let mut accepted: Vec<(usize, Matrix3<f64>)> = Vec::new();
+        // The new observations with the index of their frame.
+        let mut linked: Vec<(Observation, usize)> = Vec::new();
         for p in self.partners(&sample) {
             let mutual = match_features(&features, &self.frames[p].features, self.params.ratio);
             let predicted = accepted.iter().find_map(|&(a, h_ka)| Some(self.plane_between(a, p)? * h_ka));
@@ -225,7 +256,7 @@ impl Matcher {
                 accepted.push((p, h));
             }
             for (i, j) in chosen.matches {
-                self.link((new, i), (p, j), &features, &mut result.observations, number);
+                self.link((new, i), (p, j), &features, &mut linked, number);
             }
         }
         self.frames.push(Frame {
@@ -233,8 +264,70 @@ impl Matcher {
             features,
             rays,
             sample,
+            image: image.filter(|_| self.params.refine),
         });
+        if let Some(old) = self.frames.len().checked_sub(self.params.refine_keep_frames + 1) {
+            self.frames[old].image = None;
+        }
+        self.refine_observations(&mut linked, &mut result);
+        result.observations = linked.into_iter().map(|(o, _)| o).collect();
         result
+    }
+
+    /// Refines each new observation that is not its track's anchor against the anchor, by least-squares matching
+    /// through the local affine transfer of the plane between the two frames. An observation whose refinement
+    /// fails (low texture or correlation, a move beyond the pull-in range) is dropped: left at its keypoint
+    /// position it would be several times less precise than the rest and dominate the adjustment. Observations
+    /// that cannot be tried (no image, no plane between the frames) keep their keypoint position.
+    fn refine_observations(&self, linked: &mut Vec<(Observation, usize)>, result: &mut FrameResult) {
+        if !self.params.refine {
+            return;
+        }
+        let lsm = LsmParams {
+            half_window: self.params.refine_half_window,
+            min_correlation: self.params.refine_min_correlation,
+            ..LsmParams::default()
+        };
+        let outcomes: Vec<Option<Option<[f64; 2]>>> = linked
+            .par_iter()
+            .map(|&(o, at)| {
+                let &(anchor, anchor_px) = self.anchors.get(&o.track).filter(|(a, _)| *a != at)?;
+                let (a, b) = (self.frames[anchor].image.as_ref()?, self.frames[at].image.as_ref()?);
+                let h = self.plane_between(anchor, at)?;
+                let affine = self.local_affine(&h, anchor_px)?;
+                Some(lsm::refine(a, anchor_px, b, o.px, affine, &lsm).map(|r| r.px))
+            })
+            .collect();
+        let mut outcome = outcomes.into_iter();
+        linked.retain_mut(|(o, _)| match outcome.next().flatten() {
+            Some(Some(px)) => {
+                o.px = px;
+                result.refined += 1;
+                true
+            }
+            Some(None) => {
+                result.unrefined += 1;
+                false
+            }
+            None => true,
+        });
+    }
+
+    /// Where the plane transfer `h` (normalised image coordinates) takes a measured pixel position.
+    fn transfer_pixel(&self, h: &Matrix3<f64>, px: [f64; 2]) -> Option<[f64; 2]> {
+        let [u, v] = transfer_point(h, &self.ray(px))?;
+        let f = self.camera.focal_mm;
+        self.camera.ideal_to_pixel([-u * f, -v * f])
+    }
+
+    /// The Jacobian of the transfer `h` at `px`, pixels to pixels, by central differences.
+    fn local_affine(&self, h: &Matrix3<f64>, px: [f64; 2]) -> Option<[[f64; 2]; 2]> {
+        let at = |dx: f64, dy: f64| self.transfer_pixel(h, [px[0] + dx, px[1] + dy]);
+        let (xp, xm, yp, ym) = (at(1.0, 0.0)?, at(-1.0, 0.0)?, at(0.0, 1.0)?, at(0.0, -1.0)?);
+        Some([
+            [(xp[0] - xm[0]) / 2.0, (yp[0] - ym[0]) / 2.0],
+            [(xp[1] - xm[1]) / 2.0, (yp[1] - ym[1]) / 2.0],
+        ])
     }
 
     /// The candidate verified match sets between the new frame and partner `p`, none when the pair is refused.
@@ -414,20 +507,31 @@ impl Matcher {
 
     /// Joins a verified match (`new` keypoint in the new frame, `old` in a partner) to the tracks. Tracks are never
     /// merged: two existing tracks stay apart, so every id published stays valid.
-    fn link(&mut self, new: (usize, usize), old: (usize, usize), features: &FrameFeatures, out: &mut Vec<Observation>, number: u64) {
+    fn link(
+        &mut self,
+        new: (usize, usize),
+        old: (usize, usize),
+        features: &FrameFeatures,
+        out: &mut Vec<(Observation, usize)>,
+        number: u64,
+    ) {
         let has = |s: &Self, t: u64, f: usize| s.frames_of.get(&t).is_some_and(|v| v.contains(&f));
         let of_old = |s: &Self, track: u64| {
             let o = &s.frames[old.0];
-            Observation {
+            let observation = Observation {
                 track,
                 frame: o.number,
                 px: o.features.px[old.1],
-            }
+            };
+            (observation, old.0)
         };
-        let of_new = |track: u64| Observation {
-            track,
-            frame: number,
-            px: features.px[new.1],
+        let of_new = |track: u64| {
+            let observation = Observation {
+                track,
+                frame: number,
+                px: features.px[new.1],
+            };
+            (observation, new.0)
         };
         match (self.track_of.get(&new).copied(), self.track_of.get(&old).copied()) {
             (None, Some(t)) if !has(self, t, new.0) => {
@@ -439,7 +543,9 @@ impl Matcher {
                 self.next_track += 1;
                 self.observe(t, old);
                 self.observe(t, new);
-                out.extend([of_old(self, t), of_new(t)]);
+                let anchor = of_old(self, t);
+                self.anchors.insert(t, (old.0, anchor.0.px));
+                out.extend([anchor, of_new(t)]);
             }
             (Some(t), None) if !has(self, t, old.0) => {
                 self.observe(t, old);

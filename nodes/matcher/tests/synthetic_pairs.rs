@@ -3,11 +3,12 @@
 use lineflow_capture::synth::Synthetic;
 use lineflow_features::surf::{surf, SurfParams};
 use lineflow_matcher::descriptors::FrameFeatures;
+use lineflow_matcher::lsm::Gray;
 use lineflow_matcher::{Matcher, MatcherParams, Observation};
 use lineflow_messages::Encoding;
 use lineflow_photogrammetry::Vec3;
 
-fn features(syn: &Synthetic, frame: usize) -> FrameFeatures {
+fn features(syn: &Synthetic, frame: usize) -> (FrameFeatures, Gray) {
     let cam = syn.camera();
     let (w, h) = (cam.width as usize, cam.height as usize);
     let mut gray = vec![0u8; w * h];
@@ -21,12 +22,18 @@ fn features(syn: &Synthetic, frame: usize) -> FrameFeatures {
             ..Default::default()
         },
     );
-    FrameFeatures {
+    let features = FrameFeatures {
         px: f.iter().map(|f| [f.at.col as f64, f.at.row as f64]).collect(),
         signs: f.iter().map(|f| f.at.laplacian_sign).collect(),
         descriptors: f.iter().flat_map(|f| f.descriptor).collect(),
         len: 64,
-    }
+    };
+    let gray = Gray {
+        width: w,
+        height: h,
+        data: gray,
+    };
+    (features, gray)
 }
 
 /// Reprojection error (pixels) of the midpoint of two observations' rays, in the worse of the two images.
@@ -59,8 +66,17 @@ fn match_preset(preset: &str) -> (Partners, Vec<f64>) {
     let mut all: Vec<Observation> = Vec::new();
     let mut partners = Vec::new();
     for k in 0..n {
-        let r = m.add_frame(k as u64, features(&syn, k));
-        eprintln!("frame {k}: partners {:?}, {} observations", r.partners, r.observations.len());
+        let r = {
+            let (f, g) = features(&syn, k);
+            m.add_frame(k as u64, f, Some(g))
+        };
+        eprintln!(
+            "frame {k}: partners {:?}, {} observations, {} refined, {} not",
+            r.partners,
+            r.observations.len(),
+            r.refined,
+            r.unrefined
+        );
         partners.push(r.partners);
         all.extend(r.observations);
     }

@@ -568,3 +568,69 @@ fn figure_after(text: &str, marker: &str, lead: &str) -> f64 {
         .parse()
         .unwrap_or_else(|_| panic!("no number after '{marker}' '{lead}': {}", &rest[..rest.len().min(40)]))
 }
+
+/// A node in another language that forgets its end-of-stream: it exits cleanly, its topic is left without a
+/// publisher and without an end, and the node downstream must not wait for it forever (the orphan rule of
+/// `docs/nodes.md`). The Python `sobel` node with its end-of-stream removed plays that node.
+#[test]
+fn an_input_whose_publisher_leaves_without_end_of_stream_is_ended_and_the_run_finishes() {
+    let sb = Sandbox::new();
+    let folder = sb.project(6, 48, 32);
+    let script = std::fs::read_to_string(repo_file("nodes/python/sobel_node.py")).unwrap();
+    let eos = "    publish(eos, np.zeros(0, dtype=pixel_dtype))\n";
+    assert!(script.contains(eos), "the sobel node's end-of-stream line moved");
+    let forgetful = sb.path().join("forgetful_sobel.py");
+    std::fs::write(&forgetful, script.replace(eos, "")).unwrap();
+    std::fs::set_permissions(&forgetful, std::os::unix::fs::PermissionsExt::from_mode(0o755)).unwrap();
+    let graph = sb.graph(
+        "g.toml",
+        &format!(
+            r#"
+[[node]]
+name = "capture"
+stage = "capture"
+impl = "folder"
+params = {{ folder = "{}" }}
+
+[[node]]
+name = "edges"
+executable = "{}"
+params = {{ threshold = 100.0 }}
+
+[[node]]
+name = "stats"
+stage = "stats"
+
+[[edge]]
+topic = "images"
+type = "Image"
+from = "capture"
+to = ["edges", "stats"]
+
+[[edge]]
+topic = "edges"
+type = "EdgeMap"
+from = "edges"
+to = ["stats"]
+"#,
+            folder.display(),
+            forgetful.display()
+        ),
+    );
+    let out = sb.path().join("out");
+    let r = sb.run(&["run", graph.to_str().unwrap(), "--out", out.to_str().unwrap()]);
+    let stderr = String::from_utf8_lossy(&r.stderr);
+    eprintln!("{stderr}");
+    assert!(
+        r.status.success(),
+        "the Python node failed or the run hung (CI installs numpy and iceoryx2 for Python)"
+    );
+    assert!(
+        stderr.contains("left without end-of-stream"),
+        "the orphaned input is named in the log"
+    );
+    // Nothing already received is lost: stats wrote every frame's edge map.
+    let edges = std::fs::read_to_string(out.join("edges.csv")).unwrap();
+    assert_eq!(edges.lines().count(), 1 + 6, "{edges}");
+    assert_nothing_left(&sb, &out);
+}
