@@ -5,6 +5,8 @@
 pub mod fit;
 pub mod merge;
 
+use lineflow_linematch::multiview::{refine_line, MultiviewLine, MultiviewParams};
+use lineflow_linematch::SlaveSegments;
 use lineflow_photogrammetry::Vec3;
 use serde::Deserialize;
 
@@ -31,6 +33,12 @@ pub struct FitParams {
     pub merge_distance_m: f64,
     /// …and that overlap or leave at most this gap, metres, are one edge.
     pub merge_gap_m: f64,
+    /// Re-estimate the final lines from every image's 2-D segments (needs `lines2d`, `poses` and `camera`).
+    pub multiview: bool,
+    /// Largest distance, pixels, of an image's 2-D segment from a line's projection to count as its view.
+    pub multiview_max_distance_px: f64,
+    /// Images a line needs to be re-estimated.
+    pub multiview_min_views: usize,
 }
 
 impl Default for FitParams {
@@ -44,6 +52,9 @@ impl Default for FitParams {
             merge_angle_deg: 2.0,
             merge_distance_m: 0.03,
             merge_gap_m: 0.05,
+            multiview: true,
+            multiview_max_distance_px: 2.5,
+            multiview_min_views: 3,
         }
     }
 }
@@ -60,6 +71,9 @@ impl FitParams {
         if !(0.0..90.0).contains(&self.merge_angle_deg) {
             return Err(format!("merge_angle_deg must be in [0, 90) (got {})", self.merge_angle_deg));
         }
+        if !(self.multiview_max_distance_px > 0.0 && self.multiview_min_views >= 2) {
+            return Err("multiview_max_distance_px must be > 0 and multiview_min_views >= 2".into());
+        }
         if self.min_points < 2 || self.iterations == 0 {
             return Err("min_points must be >= 2 and iterations >= 1".into());
         }
@@ -74,6 +88,34 @@ impl FitParams {
             gap_m: self.merge_gap_m,
         }
     }
+}
+
+/// Shortest 2-D segment, pixels, that counts as an image's view of a line in [`refine_multiview`].
+pub const MULTIVIEW_MIN_SEGMENT_PX: f64 = 20.0;
+
+/// Re-estimates each merged line from the 2-D segments of every image in `views` (multi-view line intersection,
+/// [`lineflow_linematch::multiview`]); lines that too few images show keep their place. Returns how many moved.
+pub fn refine_multiview(camera: &lineflow_photogrammetry::Camera, lines: &mut [Merged], views: &[SlaveSegments], p: &FitParams) -> usize {
+    use rayon::prelude::*;
+    let params = MultiviewParams {
+        max_distance_px: p.multiview_max_distance_px,
+        min_views: p.multiview_min_views,
+        ..MultiviewParams::default()
+    };
+    let refined: Vec<Option<MultiviewLine>> = lines
+        .par_iter()
+        .map(|l| refine_line(camera, l.start, l.end, views, &params))
+        .collect();
+    let mut moved = 0;
+    for (l, r) in lines.iter_mut().zip(refined) {
+        if let Some(r) = r {
+            l.start = r.start;
+            l.end = r.end;
+            l.n_images = l.n_images.max(r.views as u32);
+            moved += 1;
+        }
+    }
+    moved
 }
 
 /// The fragment of one point group, when its fit passes the support tests.

@@ -1,14 +1,17 @@
 //! `lineflow-linefit`: the linefit stage. Fits a 3-D segment to each matched point group (`impl = "tls"`, robust
 //! total least squares, or `impl = "thesis"`, the thesis's RANSAC with the principal piercing plane), merges the
 //! fragments of one edge across masters, publishes the merged set after every master, and at end-of-stream writes
-//! `lines3d.csv` and `lines3d.ply`. A master published again (final poses) replaces its earlier groups.
+//! `lines3d.csv` and `lines3d.ply`. A master published again (final poses) replaces its earlier groups. With
+//! `lines2d`, `poses` and `camera` wired (and `multiview` on), the final set is re-estimated from every image's 2-D
+//! segments once all of them and the final poses are in (docs/lines3d.md).
 use std::collections::BTreeMap;
 
 use anyhow::{bail, Context, Result};
 use lineflow_formats::{write_lines3d, write_lines_ply, Line3Row};
-use lineflow_linefit::{fit_group, merge, FitParams, Fragment, Merged, Method};
-use lineflow_messages::{kinds, parts, Line3, Lines3DHeader, Point3, PointGroup, Stamp, StampFlags};
-use lineflow_photogrammetry::Vec3;
+use lineflow_linefit::{fit_group, merge, refine_multiview, FitParams, MULTIVIEW_MIN_SEGMENT_PX, Fragment, Merged, Method};
+use lineflow_linematch::{FrameSegments, SlaveSegments};
+use lineflow_messages::{kinds, parts, Line3, Lines3DHeader, Point3, PointGroup, Segment2, Stamp, StampFlags};
+use lineflow_photogrammetry::{Camera, Pose, Vec3};
 use lineflow_runtime::{Flow, NodeContext, Output};
 
 fn main() -> std::process::ExitCode {
@@ -46,13 +49,39 @@ fn body() -> Result<()> {
         bail!("node '{}': {e}", ctx.name());
     }
     let input = ctx.input::<kinds::Points3D>("points3d")?;
+    let lines_in = ctx.optional_input::<kinds::Lines2D>("lines2d")?;
+    let poses_in = ctx.optional_input::<kinds::Poses>("poses")?;
+    let camera_in = ctx.optional_input::<kinds::CameraModel>("camera")?;
     let output = ctx.output::<kinds::Lines3D>("lines3d")?;
     ctx.connect()?;
+    let multiview = params.multiview && lines_in.is_some() && poses_in.is_some() && camera_in.is_some();
+    let mut segments: BTreeMap<u64, Vec<Segment2>> = BTreeMap::new();
+    let mut poses: BTreeMap<u64, Pose> = BTreeMap::new();
+    let mut camera: Option<Camera> = None;
 
     let mut fragments: BTreeMap<u64, Vec<Fragment>> = BTreeMap::new();
     let mut merged: Vec<Merged> = Vec::new();
     let mut last = Stamp::default();
     ctx.run(|| {
+        if let Some(i) = &camera_in {
+            while let Some(m) = i.receive()? {
+                camera = Some(m.user_header().camera());
+            }
+        }
+        if let Some(i) = &lines_in {
+            while let Some(m) = i.receive()? {
+                let h = *m.user_header();
+                let (segs, _) = parts::split::<Segment2, [u16; 2]>(m.payload(), h.n_segments as usize, h.n_chain as usize)
+                    .map_err(|e| anyhow::anyhow!("lines2d of frame {}: {e}", h.stamp.frame))?;
+                segments.insert(h.stamp.frame, segs.to_vec());
+            }
+        }
+        if let Some(i) = &poses_in {
+            // Every Poses message holds every oriented frame; the last one is the final adjustment.
+            while let Some(m) = i.receive()? {
+                poses = m.payload().iter().map(|p| (p.frame, p.exterior())).collect();
+            }
+        }
         let mut changed = false;
         while let Some(m) = input.receive()? {
             let h = *m.user_header();
@@ -80,8 +109,35 @@ fn body() -> Result<()> {
             merged = merge(&all, &params.rule());
             publish(&output, last, &merged)?;
         }
-        Ok(if input.is_ended() { Flow::Stop } else { Flow::Continue })
+        // The final set waits for every image's lines and the final poses too.
+        let others_ended = [lines_in.as_ref().map(|i| i.is_ended()), poses_in.as_ref().map(|i| i.is_ended())]
+            .iter()
+            .all(|e| e.unwrap_or(true));
+        Ok(if input.is_ended() && (!multiview || others_ended) {
+            Flow::Stop
+        } else {
+            Flow::Continue
+        })
     })?;
+    match (&camera, multiview) {
+        (Some(cam), true) => {
+            let start = std::time::Instant::now();
+            let frames: Vec<(Pose, FrameSegments)> = segments
+                .iter()
+                .filter_map(|(f, s)| Some((*poses.get(f)?, FrameSegments::new(cam, s, MULTIVIEW_MIN_SEGMENT_PX))))
+                .collect();
+            let views: Vec<SlaveSegments> = frames.iter().map(|(pose, segments)| SlaveSegments { pose: *pose, segments }).collect();
+            let moved = refine_multiview(cam, &mut merged, &views, &params);
+            tracing::info!(
+                "{moved} of {} lines re-estimated from the 2-D segments of {} images in {:.2} s",
+                merged.len(),
+                views.len(),
+                start.elapsed().as_secs_f64()
+            );
+        }
+        (None, true) => tracing::warn!("no camera model arrived: the lines are not re-estimated from every image"),
+        _ => {}
+    }
     // A revision above the last one, or subscribers would take the final set for a duplicate of it.
     last.flags |= StampFlags::FINAL;
     last.revision += 1;

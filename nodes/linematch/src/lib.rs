@@ -5,6 +5,7 @@
 //! object-space lattice ([`view`]) and compared by SNCC over several window modes ([`ncc`], [`search`]).
 #![warn(missing_docs)]
 
+pub mod multiview;
 pub mod ncc;
 pub mod search;
 pub mod slave_lines;

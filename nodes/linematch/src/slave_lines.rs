@@ -17,7 +17,7 @@ use crate::MatchParams;
 #[derive(Debug, Clone, Default)]
 pub struct FrameSegments {
     /// Endpoints of each kept segment, ideal mm.
-    ends: Vec<[[f64; 2]; 2]>,
+    pub(crate) ends: Vec<[[f64; 2]; 2]>,
     /// Grid origin (ideal mm), cell size (mm) and size in cells.
     origin: [f64; 2],
     cell_mm: f64,
@@ -26,7 +26,7 @@ pub struct FrameSegments {
     /// Segment indices per cell, row-major.
     cells: Vec<Vec<u32>>,
     /// One pixel, mm.
-    pixel_mm: f64,
+    pub(crate) pixel_mm: f64,
 }
 
 /// Grid cell, pixels: a segment lands in the cells its bounding box covers.
@@ -87,7 +87,7 @@ impl FrameSegments {
 
     /// Segments within `max_angle` (radians) of the direction a→b whose bounding boxes come within `margin` mm of
     /// the box of a and b, each once, in index order.
-    fn near(&self, a: [f64; 2], b: [f64; 2], margin: f64, max_angle: f64) -> Vec<usize> {
+    pub(crate) fn near(&self, a: [f64; 2], b: [f64; 2], margin: f64, max_angle: f64) -> Vec<usize> {
         let dir = unit([b[0] - a[0], b[1] - a[1]]);
         let cos_max = max_angle.cos();
         let (c0, r0, c1, r1) = self.cell_range(a, b, margin);

@@ -1,0 +1,270 @@
+//! One multi-view estimate per 3-D edge: the line through the interpretation planes of every image's 2-D segment
+//! of it.
+//!
+//! Object-space matching places a line from one master and the slaves around it, a few frames of baseline at most;
+//! along a strip the depth error per pixel of 2-D error shrinks with the baseline. Once the whole stream is in,
+//! every image that sees the edge can take part: the merged 3-D line is projected into each image, the 2-D segment
+//! lying along its projection (within a few pixels and degrees, overlapping it) is taken as that image's view of
+//! the edge, and the line is moved to where its endpoints best lie on all those segments' interpretation planes
+//! (the planes through each camera centre and its segment), in pixels of each image; directions the planes do not
+//! determine (the depth of a horizontal edge seen along a horizontal strip) keep the current position. Views whose
+//! plane disagrees by more than a pixel are dropped and the line solved again.
+use lineflow_photogrammetry::{Camera, Vec3};
+use nalgebra::{Matrix2, Vector2};
+
+use crate::slave_lines::SlaveSegments;
+
+/// Settings of the multi-view line estimate.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MultiviewParams {
+    /// Largest distance, pixels, of a 2-D segment's endpoints from the line's projection.
+    pub max_distance_px: f64,
+    /// Largest angle between a 2-D segment and the line's projection, degrees.
+    pub max_angle_deg: f64,
+    /// A-priori standard deviation of a 2-D line across itself, pixels.
+    pub sigma_px: f64,
+    /// Directions across the line that the planes determine worse than this (standard deviation, metres) keep
+    /// the current position.
+    pub max_sigma_m: f64,
+    /// Views whose residual exceeds this many pixels are dropped.
+    pub max_residual_px: f64,
+    /// Views needed to move a line.
+    pub min_views: usize,
+}
+
+impl Default for MultiviewParams {
+    fn default() -> Self {
+        Self {
+            max_distance_px: 2.5,
+            max_angle_deg: 2.0,
+            sigma_px: 0.3,
+            max_sigma_m: 0.005,
+            max_residual_px: 1.0,
+            min_views: 3,
+        }
+    }
+}
+
+/// A re-estimated line.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MultiviewLine {
+    /// First endpoint.
+    pub start: Vec3,
+    /// Second endpoint.
+    pub end: Vec3,
+    /// Images whose segments it rests on.
+    pub views: usize,
+    /// RMS of their residuals, pixels.
+    pub rms_px: f64,
+}
+
+/// One image's view of the edge: its camera centre, the unit normal of its segment's interpretation plane, and
+/// the size of a pixel at each endpoint's distance (metres per pixel across the line).
+struct PlaneView {
+    center: Vec3,
+    normal: Vec3,
+    metres_per_px: [f64; 2],
+}
+
+/// The line `start`–`end` re-estimated from the 2-D segments of `views` (every image with a pose), or none when
+/// fewer than `min_views` images show it. The views are collected again around the moved line once: images far
+/// along the strip see the first estimate's depth error as a larger shift and join only when it is smaller.
+pub fn refine_line(camera: &Camera, start: Vec3, end: Vec3, views: &[SlaveSegments], p: &MultiviewParams) -> Option<MultiviewLine> {
+    let first = solve_line(camera, [start, end], views, p)?;
+    Some(solve_line(camera, [first.start, first.end], views, p).unwrap_or(first))
+}
+
+/// One estimate from the views whose segments lie along the projection of `ends`.
+fn solve_line(camera: &Camera, ends: [Vec3; 2], views: &[SlaveSegments], p: &MultiviewParams) -> Option<MultiviewLine> {
+    let dir = (ends[1] - ends[0]).try_normalize(1e-12)?;
+    let mut planes: Vec<PlaneView> = views.iter().filter_map(|v| plane_view(camera, &ends[0], &ends[1], v, p)).collect();
+    if planes.len() < p.min_views {
+        return None;
+    }
+    // Two directions across the line; each endpoint moves in their plane.
+    let u = dir.cross(&if dir.z.abs() < 0.9 { Vec3::z() } else { Vec3::x() }).normalize();
+    let v = dir.cross(&u);
+    for _ in 0..3 {
+        let moved = [0, 1].map(|i| solve_endpoint(&ends[i], &u, &v, &planes, i, p));
+        let residual = |pv: &PlaneView, i: usize| pv.normal.dot(&(moved[i] - pv.center)) / pv.metres_per_px[i];
+        let before = planes.len();
+        planes.retain(|pv| residual(pv, 0).abs().max(residual(pv, 1).abs()) <= p.max_residual_px);
+        if planes.len() < p.min_views {
+            return None;
+        }
+        if planes.len() == before {
+            let sum: f64 = planes.iter().map(|pv| residual(pv, 0).powi(2) + residual(pv, 1).powi(2)).sum();
+            return Some(MultiviewLine {
+                start: moved[0],
+                end: moved[1],
+                views: planes.len(),
+                rms_px: (sum / (2 * planes.len()) as f64).sqrt(),
+            });
+        }
+    }
+    None
+}
+
+/// The endpoint `x` moved across the line (offsets along `u` and `v`) to lie best on the views' planes, weighted
+/// in pixels. Only directions the planes determine to `max_sigma_m` move: a horizontal edge seen along a
+/// horizontal strip has planes that all contain the cameras' line, its depth is barely observed, and letting the
+/// noise move each endpoint's depth on its own would tilt the line.
+fn solve_endpoint(x: &Vec3, u: &Vec3, v: &Vec3, planes: &[PlaneView], i: usize, p: &MultiviewParams) -> Vec3 {
+    let mut n = Matrix2::zeros();
+    let mut b = Vector2::zeros();
+    for pv in planes {
+        // Residual in pixels: (normal · (x + a u + b v − C)) / metres_per_px, linear in (a, b).
+        let w = 1.0 / (pv.metres_per_px[i] * p.sigma_px).powi(2);
+        let row = Vector2::new(pv.normal.dot(u), pv.normal.dot(v));
+        let r0 = pv.normal.dot(&(x - pv.center));
+        n += row * row.transpose() * w;
+        b -= row * (r0 * w);
+    }
+    let eigen = n.symmetric_eigen();
+    let min_information = 1.0 / (p.max_sigma_m * p.max_sigma_m);
+    let mut d = Vector2::zeros();
+    for k in 0..2 {
+        let (lambda, e) = (eigen.eigenvalues[k], eigen.eigenvectors.column(k));
+        if lambda >= min_information {
+            d += e * (e.dot(&b) / lambda);
+        }
+    }
+    x + u * d[0] + v * d[1]
+}
+
+/// The interpretation plane of the 2-D segment of view `view` that lies along the projection of `start`–`end`,
+/// if there is exactly one best such segment.
+fn plane_view(camera: &Camera, start: &Vec3, end: &Vec3, view: &SlaveSegments, p: &MultiviewParams) -> Option<PlaneView> {
+    let pose = &view.pose;
+    let (a, b) = (pose.project_ideal(camera, start)?, pose.project_ideal(camera, end)?);
+    let segments = view.segments;
+    let pixel = segments.pixel_mm;
+    let len = (b[0] - a[0]).hypot(b[1] - a[1]);
+    if len < 10.0 * pixel {
+        return None;
+    }
+    let dir = [(b[0] - a[0]) / len, (b[1] - a[1]) / len];
+    let across = |q: [f64; 2]| ((q[0] - a[0]) * -dir[1] + (q[1] - a[1]) * dir[0]).abs();
+    let along = |q: [f64; 2]| (q[0] - a[0]) * dir[0] + (q[1] - a[1]) * dir[1];
+    let tolerance = p.max_distance_px * pixel;
+    let best = segments
+        .near(a, b, tolerance, p.max_angle_deg.to_radians())
+        .into_iter()
+        .filter_map(|k| {
+            let [s, e] = segments.ends[k];
+            let distance = across(s).max(across(e));
+            let (t0, t1) = (along(s).min(along(e)), along(s).max(along(e)));
+            let overlap = t1.min(len) - t0.max(0.0);
+            (distance <= tolerance && overlap >= 0.5 * (t1 - t0).min(len)).then_some((distance, k))
+        })
+        .min_by(|x, y| x.0.total_cmp(&y.0).then(x.1.cmp(&y.1)))?;
+    let [s, e] = segments.ends[best.1];
+    let normal = pose.ray_of_ideal(camera, s).cross(&pose.ray_of_ideal(camera, e)).try_normalize(1e-12)?;
+    let angle = pixel / camera.focal_mm;
+    Some(PlaneView {
+        center: pose.center,
+        normal,
+        metres_per_px: [(start - pose.center).norm() * angle, (end - pose.center).norm() * angle],
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::slave_lines::FrameSegments;
+    use lineflow_messages::Segment2;
+    use lineflow_photogrammetry::{rotation_from_opk, Pose};
+
+    fn camera() -> Camera {
+        Camera::pinhole(4000, 3000, 0.005, 20.0)
+    }
+
+    /// A strip of cameras 12 m in front of the wall y = 0, looking at it, every metre along x.
+    fn strip(n: usize) -> Vec<Pose> {
+        (0..n)
+            .map(|k| Pose {
+                center: Vec3::new(k as f64 - (n as f64 - 1.0) / 2.0, -12.0, 1.5),
+                rotation: rotation_from_opk(std::f64::consts::FRAC_PI_2, 0.0, 0.0),
+            })
+            .collect()
+    }
+
+    /// Each pose's 2-D segment of the true line a–b, moved across itself by `noise(k)` pixels.
+    fn frames(cam: &Camera, poses: &[Pose], a: Vec3, b: Vec3, noise: impl Fn(usize) -> f64) -> Vec<FrameSegments> {
+        poses
+            .iter()
+            .enumerate()
+            .map(|(k, pose)| {
+                let (pa, pb) = (pose.project(cam, &a).unwrap(), pose.project(cam, &b).unwrap());
+                let len = (pb[0] - pa[0]).hypot(pb[1] - pa[1]);
+                let off = [-(pb[1] - pa[1]) / len * noise(k), (pb[0] - pa[0]) / len * noise(k)];
+                let seg = Segment2 {
+                    id: 1,
+                    start_px: [pa[0] + off[0], pa[1] + off[1]],
+                    end_px: [pb[0] + off[0], pb[1] + off[1]],
+                    ..Default::default()
+                };
+                FrameSegments::new(cam, &[seg], 10.0)
+            })
+            .collect()
+    }
+
+    fn views<'a>(poses: &[Pose], frames: &'a [FrameSegments]) -> Vec<SlaveSegments<'a>> {
+        poses
+            .iter()
+            .zip(frames)
+            .map(|(&pose, segments)| SlaveSegments { pose, segments })
+            .collect()
+    }
+
+    fn distance(p: &Vec3, a: &Vec3, b: &Vec3) -> f64 {
+        let d = (b - a).normalize();
+        let v = p - a;
+        (v - d * v.dot(&d)).norm()
+    }
+
+    #[test]
+    fn a_vertical_edge_placed_2_cm_off_comes_back_to_within_a_millimetre() {
+        let cam = camera();
+        let poses = strip(9);
+        let (a, b) = (Vec3::new(0.3, 0.0, 0.5), Vec3::new(0.3, 0.0, 2.5));
+        // Sub-pixel noise of ±0.2 px across the segments.
+        let frames = frames(&cam, &poses, a, b, |k| if k % 2 == 0 { 0.2 } else { -0.2 });
+        let off = Vec3::new(0.004, -0.02, 0.0);
+        let r = refine_line(&cam, a + off, b + off, &views(&poses, &frames), &MultiviewParams::default()).expect("refined");
+        assert_eq!(r.views, 9);
+        assert!(distance(&r.start, &a, &b) < 1e-3 && distance(&r.end, &a, &b) < 1e-3, "{r:?}");
+        assert!(r.rms_px < 0.3, "{r:?}");
+    }
+
+    #[test]
+    fn a_horizontal_edge_along_the_strip_keeps_its_depth_but_is_lifted_onto_the_planes() {
+        let cam = camera();
+        let poses = strip(9);
+        let (a, b) = (Vec3::new(-1.0, 0.0, 2.0), Vec3::new(1.0, 0.0, 2.0));
+        let frames = frames(&cam, &poses, a, b, |_| 0.0);
+        // 5 mm too low and 3 cm too deep: the planes fix the height; the depth along the cameras' line of sight is
+        // what they cannot see, and it stays (on both endpoints alike, so the line does not tilt).
+        let off = Vec3::new(0.0, -0.03, -0.005);
+        let r = refine_line(&cam, a + off, b + off, &views(&poses, &frames), &MultiviewParams::default()).expect("refined");
+        let dz = (r.start.z - 2.0).abs().max((r.end.z - 2.0).abs());
+        assert!(dz < 0.003, "height not restored: {r:?}");
+        assert!(
+            (r.start.y - (a.y + off.y)).abs() < 0.002 && (r.end.y - (a.y + off.y)).abs() < 0.002,
+            "the depth cannot be observed and must not move: {r:?}"
+        );
+    }
+
+    #[test]
+    fn a_line_seen_in_too_few_images_or_with_a_wrong_segment_is_left_alone() {
+        let cam = camera();
+        let poses = strip(2);
+        let (a, b) = (Vec3::new(0.3, 0.0, 0.5), Vec3::new(0.3, 0.0, 2.5));
+        let frames = frames(&cam, &poses, a, b, |_| 0.0);
+        assert!(refine_line(&cam, a, b, &views(&poses, &frames), &MultiviewParams::default()).is_none());
+        // A segment 5 px away in every image is not the edge.
+        let poses = strip(9);
+        let frames = self::frames(&cam, &poses, a, b, |_| 5.0);
+        assert!(refine_line(&cam, a, b, &views(&poses, &frames), &MultiviewParams::default()).is_none());
+    }
+}
