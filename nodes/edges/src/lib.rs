@@ -18,20 +18,31 @@ pub const DEFAULT_LOW_RATIO: f64 = 0.4;
 /// The marked pixels of `map` as a row-major list, with the gradient at each (recomputed: cheaper than keeping
 /// full-size gradient images for the few per cent of pixels that are edges).
 pub fn pixels(gray: &[u8], width: usize, height: usize, map: &[u8]) -> Vec<EdgePixel> {
-    let mut out = Vec::new();
-    for (i, &k) in map.iter().enumerate() {
-        if k == EDGE {
-            let (x, y) = (i % width, i / width);
-            let (gx, gy) = gradient_at(gray, width, height, x, y);
-            out.push(EdgePixel {
-                col: x as u16,
-                row: y as u16,
-                magnitude: ((gx * gx + gy * gy) as f32).sqrt(),
-                direction_rad: (gy as f32).atan2(gx as f32),
-            });
-        }
+    if width == 0 {
+        return Vec::new();
     }
-    out
+    // Bands of rows in parallel, concatenated in order: the same list as one row-major scan.
+    let bands: Vec<Vec<EdgePixel>> = map
+        .par_chunks(width * BAND)
+        .enumerate()
+        .map(|(band, rows)| {
+            let mut out = Vec::new();
+            for (i, &k) in rows.iter().enumerate() {
+                if k == EDGE {
+                    let (x, y) = (i % width, band * BAND + i / width);
+                    let (gx, gy) = gradient_at(gray, width, height, x, y);
+                    out.push(EdgePixel {
+                        col: x as u16,
+                        row: y as u16,
+                        magnitude: ((gx * gx + gy * gy) as f32).sqrt(),
+                        direction_rad: (gy as f32).atan2(gx as f32),
+                    });
+                }
+            }
+            out
+        })
+        .collect();
+    bands.concat()
 }
 
 const EDGE: u8 = 2;
@@ -146,7 +157,7 @@ pub fn subpixel_positions(gray: &[u8], width: usize, height: usize, pixels: &[Ed
         ((gx * gx + gy * gy) as f64).sqrt()
     };
     pixels
-        .iter()
+        .par_iter()
         .map(|p| {
             let (x, y) = (p.col as isize, p.row as isize);
             let (s, c) = (p.direction_rad as f64).sin_cos();

@@ -8,7 +8,7 @@ use std::collections::BTreeMap;
 
 use anyhow::{bail, Context, Result};
 use lineflow_formats::{write_lines3d, write_lines_ply, Line3Row};
-use lineflow_linefit::{fit_group, merge, refine_multiview, FitParams, MULTIVIEW_MIN_SEGMENT_PX, Fragment, Merged, Method};
+use lineflow_linefit::{fit_group, merge, refine_multiview, FitParams, Fragment, Merged, Method, MULTIVIEW_MIN_SEGMENT_PX};
 use lineflow_linematch::{FrameSegments, SlaveSegments};
 use lineflow_messages::{kinds, parts, Line3, Lines3DHeader, Point3, PointGroup, Segment2, Stamp, StampFlags};
 use lineflow_photogrammetry::{Camera, Pose, Vec3};
@@ -126,7 +126,10 @@ fn body() -> Result<()> {
                 .iter()
                 .filter_map(|(f, s)| Some((*poses.get(f)?, FrameSegments::new(cam, s, MULTIVIEW_MIN_SEGMENT_PX))))
                 .collect();
-            let views: Vec<SlaveSegments> = frames.iter().map(|(pose, segments)| SlaveSegments { pose: *pose, segments }).collect();
+            let views: Vec<SlaveSegments> = frames
+                .iter()
+                .map(|(pose, segments)| SlaveSegments { pose: *pose, segments })
+                .collect();
             let moved = refine_multiview(cam, &mut merged, &views, &params);
             tracing::info!(
                 "{moved} of {} lines re-estimated from the 2-D segments of {} images in {:.2} s",

@@ -159,7 +159,10 @@ fn plane_view(camera: &Camera, start: &Vec3, end: &Vec3, view: &SlaveSegments, p
         })
         .min_by(|x, y| x.0.total_cmp(&y.0).then(x.1.cmp(&y.1)))?;
     let [s, e] = segments.ends[best.1];
-    let normal = pose.ray_of_ideal(camera, s).cross(&pose.ray_of_ideal(camera, e)).try_normalize(1e-12)?;
+    let normal = pose
+        .ray_of_ideal(camera, s)
+        .cross(&pose.ray_of_ideal(camera, e))
+        .try_normalize(1e-12)?;
     let angle = pixel / camera.focal_mm;
     Some(PlaneView {
         center: pose.center,

@@ -7,6 +7,8 @@
 
 pub mod lsd;
 
+use rayon::prelude::*;
+
 /// Tracing parameters.
 #[derive(Debug, Clone, Copy)]
 pub struct TraceParams {
@@ -70,19 +72,28 @@ impl Fit {
         let a = self.sxx / self.n - c[0] * c[0];
         let b = self.sxy / self.n - c[0] * c[1];
         let d = self.syy / self.n - c[1] * c[1];
-        let theta = 0.5 * (2.0 * b).atan2(a - d);
-        (c, [theta.cos(), theta.sin()])
+        // The major eigenvector of [[a, b], [b, d]] without trigonometry (this runs once per traced pixel):
+        // (b, λ − a) or (λ − d, b), whichever is better conditioned.
+        let lambda = 0.5 * (a + d) + (0.25 * (a - d) * (a - d) + b * b).sqrt();
+        let (u, v) = if a >= d { (lambda - d, b) } else { (b, lambda - a) };
+        let n = (u * u + v * v).sqrt();
+        if n > 0.0 {
+            (c, [u / n, v / n])
+        } else {
+            (c, [1.0, 0.0])
+        }
     }
 }
 
-/// The current constraint line: through the first two pixels until more than three are stacked, then the fit.
-fn constraint(points: &[[f64; 2]], fit: &Fit) -> Option<([f64; 2], [f64; 2])> {
-    match points.len() {
+/// The current constraint line: through the first two stacked pixels until more than three are stacked, then
+/// the fit.
+fn constraint(first_two: &[[f64; 2]; 2], fit: &Fit) -> Option<([f64; 2], [f64; 2])> {
+    match fit.n as usize {
         0 | 1 => None,
         2..=3 => {
-            let (a, b) = (points[0], points[1]);
+            let (a, b) = (first_two[0], first_two[1]);
             let d = [b[0] - a[0], b[1] - a[1]];
-            let n = d[0].hypot(d[1]);
+            let n = (d[0] * d[0] + d[1] * d[1]).sqrt();
             (n > 0.0).then(|| (a, [d[0] / n, d[1] / n]))
         }
         _ => Some(fit.line()),
@@ -91,28 +102,148 @@ fn constraint(points: &[[f64; 2]], fit: &Fit) -> Option<([f64; 2], [f64; 2])> {
 
 const NEIGHBOURS: [(i32, i32); 8] = [(1, 0), (1, 1), (0, 1), (-1, 1), (-1, 0), (-1, -1), (0, -1), (1, -1)];
 
+/// Horizontal bands of rows traced in parallel; fixed, so that the result does not depend on the thread count.
+const BANDS: usize = 8;
+
 /// Traces the edge pixels (`pixels`, in raster order) of a `width × height` image. `corrected[i]` holds the
 /// corrected coordinates of `pixels[i]`.
+///
+/// The image is traced in [`BANDS`] bands of rows in parallel; a chain that crosses from one band into the next is
+/// traced as two fragments, joined again where they continue each other across the boundary.
 pub fn trace(width: usize, height: usize, pixels: &[[u16; 2]], corrected: &[[f64; 2]], p: &TraceParams) -> Vec<Traced> {
-    const NONE: u32 = u32::MAX;
-    let mut index = vec![NONE; width * height];
-    for (i, px) in pixels.iter().enumerate() {
-        let (c, r) = (px[0] as usize, px[1] as usize);
-        if c < width && r < height {
-            index[r * width + c] = i as u32;
+    let sorted = pixels.windows(2).all(|w| (w[0][1], w[0][0]) <= (w[1][1], w[1][0]));
+    let bands = if sorted { BANDS.min(height.max(1)) } else { 1 };
+    let edges: Vec<usize> = (0..=bands).map(|b| b * height / bands).collect();
+    // Pixels are in raster order, so each band's pixels are one range of them.
+    let ranges: Vec<std::ops::Range<usize>> = edges
+        .windows(2)
+        .map(|e| {
+            if !sorted {
+                return 0..pixels.len();
+            }
+            pixels.partition_point(|q| (q[1] as usize) < e[0])..pixels.partition_point(|q| (q[1] as usize) < e[1])
+        })
+        .collect();
+    let per_band: Vec<Vec<Fragment>> = (0..bands)
+        .into_par_iter()
+        .map(|b| trace_band(width, edges[b]..edges[b + 1], pixels, ranges[b].clone(), corrected, p))
+        .collect();
+    let fragments = join_across_bands(per_band, &edges, pixels, corrected, p);
+    let fragments = if p.max_gap_px > 0.0 {
+        merge_collinear(fragments, corrected, p)
+    } else {
+        fragments
+    };
+    fragments
+        .into_par_iter()
+        .filter(|f| f.t1 - f.t0 >= p.min_length_px)
+        .map(|f| f.ordered(corrected))
+        .map(|f| Traced {
+            start: f.at(f.t0),
+            end: f.at(f.t1),
+            chain: f.chain.iter().map(|&i| pixels[i as usize]).collect(),
+        })
+        .collect()
+}
+
+/// Joins the fragments of one band that end on its last row with those of the next band that continue them from
+/// its first row (nearly parallel, each on the other's line, at most two pixels apart). The result keeps the order
+/// of the fragments' seeds.
+fn join_across_bands(
+    per_band: Vec<Vec<Fragment>>,
+    edges: &[usize],
+    pixels: &[[u16; 2]],
+    corrected: &[[f64; 2]],
+    p: &TraceParams,
+) -> Vec<Fragment> {
+    let starts: Vec<usize> = per_band
+        .iter()
+        .scan(0, |n, band| {
+            let s = *n;
+            *n += band.len();
+            Some(s)
+        })
+        .collect();
+    let mut fragments: Vec<Fragment> = per_band.into_iter().flatten().collect();
+    if starts.len() < 2 {
+        return fragments;
+    }
+    let across = TraceParams { max_gap_px: 2.0, ..*p };
+    let mut parent: Vec<usize> = (0..fragments.len()).collect();
+    fn root(parent: &mut [usize], mut i: usize) -> usize {
+        while parent[i] != i {
+            parent[i] = parent[parent[i]];
+            i = parent[i];
+        }
+        i
+    }
+    let on_row = |f: &Fragment, row: usize| f.chain.iter().any(|&i| pixels[i as usize][1] as usize == row);
+    for b in 0..starts.len() - 1 {
+        let boundary = edges[b + 1];
+        let upper = starts[b]..starts[b + 1];
+        let lower = starts[b + 1]..starts.get(b + 2).copied().unwrap_or(fragments.len());
+        let below: Vec<usize> = lower.filter(|&j| on_row(&fragments[j], boundary)).collect();
+        let mut taken = vec![false; below.len()];
+        for i in upper.filter(|&i| boundary > 0 && on_row(&fragments[i], boundary - 1)) {
+            if let Some(k) = (0..below.len()).find(|&k| !taken[k] && fragments[i].continued_by(&fragments[below[k]], &across)) {
+                taken[k] = true;
+                let (ri, rj) = (root(&mut parent, i), root(&mut parent, below[k]));
+                parent[ri.max(rj)] = ri.min(rj);
+            }
         }
     }
-    let mut visited = vec![false; pixels.len()];
+    // A group's root is its earliest fragment: the chains of the others move into it, in order.
+    let mut grown = vec![false; fragments.len()];
+    for i in 0..fragments.len() {
+        let r = root(&mut parent, i);
+        if r != i {
+            let chain = std::mem::take(&mut fragments[i].chain);
+            fragments[r].chain.extend(chain);
+            grown[r] = true;
+        }
+    }
+    fragments
+        .into_iter()
+        .zip(grown)
+        .filter(|(f, _)| !f.chain.is_empty())
+        .map(|(f, grown)| if grown { Fragment::new(f.chain, corrected) } else { f })
+        .collect()
+}
+
+/// Traces the pixels `range` of `pixels`, all within `rows`, as if the image held only those rows.
+fn trace_band(
+    width: usize,
+    rows: std::ops::Range<usize>,
+    pixels: &[[u16; 2]],
+    range: std::ops::Range<usize>,
+    corrected: &[[f64; 2]],
+    p: &TraceParams,
+) -> Vec<Fragment> {
+    const NONE: u32 = u32::MAX;
+    let (row0, height) = (rows.start, rows.len());
+    let mut index = vec![NONE; width * height];
+    let local = |q: [u16; 2]| {
+        let (c, r) = (q[0] as usize, q[1] as usize);
+        (c < width && r >= row0 && r < row0 + height).then(|| (r - row0) * width + c)
+    };
+    for i in range.clone() {
+        if let Some(k) = local(pixels[i]) {
+            index[k] = i as u32;
+        }
+    }
+    // Indexed from the band's first pixel.
+    let first = range.start;
+    let mut visited = vec![false; range.len()];
     let mut fragments = Vec::new();
-    for seed in 0..pixels.len() {
-        if visited[seed] || index[pixels[seed][1] as usize * width + pixels[seed][0] as usize] != seed as u32 {
+    for seed in range {
+        if visited[seed - first] || local(pixels[seed]).is_none_or(|k| index[k] != seed as u32) {
             continue;
         }
-        visited[seed] = true;
+        visited[seed - first] = true;
         let mut fit = Fit::default();
         fit.add(corrected[seed]);
-        // Points in the order they were stacked (for the first-two-points constraint) and the two arms.
-        let mut stacked = vec![corrected[seed]];
+        // The first two points stacked (for the first-two-points constraint) and the two arms.
+        let mut first_two = [corrected[seed]; 2];
         let mut arms: [Vec<u32>; 2] = [Vec::new(), Vec::new()];
         // Direction of travel of the first arm's first step; the second arm leaves the seed the opposite way.
         let mut first_step: Option<[f64; 2]> = None;
@@ -121,16 +252,16 @@ pub fn trace(width: usize, height: usize, pixels: &[[u16; 2]], corrected: &[[f64
             let mut heading: Option<[f64; 2]> = if arm == 1 { first_step.map(|h| [-h[0], -h[1]]) } else { None };
             loop {
                 let (ec, er) = (pixels[end as usize][0] as i32, pixels[end as usize][1] as i32);
-                let line = constraint(&stacked, &fit);
+                let line = constraint(&first_two, &fit);
                 let here = corrected[end as usize];
                 let mut best: Option<(f64, u32)> = None;
                 for (dc, dr) in NEIGHBOURS {
-                    let (c, r) = (ec + dc, er + dr);
+                    let (c, r) = (ec + dc, er + dr - row0 as i32);
                     if c < 0 || r < 0 || c >= width as i32 || r >= height as i32 {
                         continue;
                     }
                     let j = index[r as usize * width + c as usize];
-                    if j == NONE || visited[j as usize] {
+                    if j == NONE || visited[j as usize - first] {
                         continue;
                     }
                     let q = corrected[j as usize];
@@ -165,9 +296,11 @@ pub fn trace(width: usize, height: usize, pixels: &[[u16; 2]], corrected: &[[f64
                 if arm == 0 && first_step.is_none() {
                     first_step = Some(step);
                 }
-                visited[j as usize] = true;
+                visited[j as usize - first] = true;
+                if fit.n < 2.0 {
+                    first_two[1] = corrected[j as usize];
+                }
                 fit.add(corrected[j as usize]);
-                stacked.push(corrected[j as usize]);
                 arm_pixels.push(j);
                 end = j;
             }
@@ -175,24 +308,12 @@ pub fn trace(width: usize, height: usize, pixels: &[[u16; 2]], corrected: &[[f64
         let mut chain: Vec<u32> = arms[1].iter().rev().copied().collect();
         chain.push(seed as u32);
         chain.extend(&arms[0]);
-        if chain.len() >= MIN_FRAGMENT_PIXELS {
-            fragments.push(Fragment::new(chain, corrected));
-        }
+        fragments.push(chain);
     }
-    let fragments = if p.max_gap_px > 0.0 {
-        merge_collinear(fragments, corrected, p)
-    } else {
-        fragments
-    };
     fragments
         .into_iter()
-        .filter(|f| f.t1 - f.t0 >= p.min_length_px)
-        .map(|f| f.ordered(corrected))
-        .map(|f| Traced {
-            start: f.at(f.t0),
-            end: f.at(f.t1),
-            chain: f.chain.iter().map(|&i| pixels[i as usize]).collect(),
-        })
+        .filter(|chain| chain.len() >= MIN_FRAGMENT_PIXELS)
+        .map(|chain| Fragment::new(chain, corrected))
         .collect()
 }
 
@@ -344,7 +465,7 @@ pub fn trace_measured_at(
 ) -> Vec<MeasuredSegment> {
     let ps = camera.pixel_size_mm;
     let corrected: Vec<[f64; 2]> = positions
-        .iter()
+        .par_iter()
         .map(|&q| {
             let i = camera.pixel_to_ideal(q);
             [i[0] / ps, i[1] / ps]

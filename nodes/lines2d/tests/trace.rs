@@ -128,3 +128,18 @@ fn sub_pixel_positions_put_an_axis_aligned_line_where_the_edge_is() {
         assert!((col(&whole) - col(&whole).round()).abs() < 1e-9);
     }
 }
+
+#[test]
+fn steep_lines_cross_every_band_of_the_parallel_tracing_whole_and_apart() {
+    // Two nearly vertical lines 3 px apart through all rows: the tracing works in bands of rows and must join each
+    // line's pieces across the band boundaries without joining the two lines.
+    let line = |x0: f64| (0..100u16).map(move |r| [(x0 + 0.02 * r as f64).round() as u16, r]);
+    let px = raster(line(20.0).chain(line(23.0)).collect());
+    let lines = trace(40, 100, &px, &identity(&px), &TraceParams::default());
+    assert_eq!(lines.len(), 2, "{lines:?}");
+    for l in &lines {
+        assert_eq!(l.chain.len(), 100, "{l:?}");
+        assert!((l.end[1] - l.start[1]).abs() > 98.0, "{l:?}");
+    }
+    assert_eq!(lines, trace(40, 100, &px, &identity(&px), &TraceParams::default()), "deterministic");
+}
