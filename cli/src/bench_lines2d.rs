@@ -80,14 +80,7 @@ pub fn bench_lines2d(preset: &str, reps: usize, high: f64) -> Result<ExitCode> {
     });
     let total = t_canny + t_pixels + t_subpixel + t_trace;
     // The tracing alone, on coordinates corrected beforehand: what the step costs beyond the correction model.
-    let ps = cam.pixel_size_mm;
-    let corrected: Vec<[f64; 2]> = positions
-        .iter()
-        .map(|&q| {
-            let i = cam.pixel_to_ideal(q);
-            [i[0] / ps, i[1] / ps]
-        })
-        .collect();
+    let corrected = lineflow_lines2d::corrected_pixels(&cam, &positions);
     let t_trace_only = median_time(reps, || drop(lineflow_lines2d::trace(w, h, &pixels, &corrected, &params)));
     let ours = score_image(&truth, frame, &rows(&image, traced.iter().map(|t| (t.0, t.1)), 0.0));
 

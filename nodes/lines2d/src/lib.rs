@@ -453,6 +453,18 @@ pub fn trace_measured(camera: &lineflow_photogrammetry::Camera, pixels: &[[u16; 
     trace_measured_at(camera, pixels, &positions, p)
 }
 
+/// Measured pixel positions corrected by `camera`'s correction model, in pixels: where [`trace`] fits its lines.
+pub fn corrected_pixels(camera: &lineflow_photogrammetry::Camera, positions: &[[f64; 2]]) -> Vec<[f64; 2]> {
+    let ps = camera.pixel_size_mm;
+    positions
+        .par_iter()
+        .map(|&q| {
+            let i = camera.pixel_to_ideal(q);
+            [i[0] / ps, i[1] / ps]
+        })
+        .collect()
+}
+
 /// [`trace_measured`] with each pixel's sub-pixel position (measured col, row; e.g. the gradient peaks of
 /// `lineflow_edges::subpixel_positions`): the lines are fitted to the positions, the chains keep the pixels. Edge
 /// pixels sit on the integer grid, which biases a nearly vertical or horizontal line by up to half a pixel; line
@@ -464,13 +476,7 @@ pub fn trace_measured_at(
     p: &TraceParams,
 ) -> Vec<MeasuredSegment> {
     let ps = camera.pixel_size_mm;
-    let corrected: Vec<[f64; 2]> = positions
-        .par_iter()
-        .map(|&q| {
-            let i = camera.pixel_to_ideal(q);
-            [i[0] / ps, i[1] / ps]
-        })
-        .collect();
+    let corrected = corrected_pixels(camera, positions);
     let traced = trace(camera.width as usize, camera.height as usize, pixels, &corrected, p);
     let measured = |c: [f64; 2]| camera.ideal_to_pixel([c[0] * ps, c[1] * ps]);
     traced
