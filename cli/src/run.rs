@@ -75,14 +75,17 @@ pub fn process(folder: &Path, out: Option<PathBuf>, graph: Option<PathBuf>, set:
     }
     let folder = std::fs::canonicalize(folder).with_context(|| format!("{}", folder.display()))?;
     let out = out.unwrap_or_else(|| folder.join("out"));
+    let quoted = |p: &Path| format!("\"{}\"", p.display().to_string().replace('\\', "\\\\").replace('"', "\\\""));
     let mut set = set.to_vec();
-    set.insert(
-        0,
-        format!(
-            "capture.folder=\"{}\"",
-            folder.display().to_string().replace('\\', "\\\\").replace('"', "\\\"")
-        ),
-    );
+    set.insert(0, format!("capture.folder={}", quoted(&folder)));
+    // Poses supplied with the project (e.g. from another photogrammetry package) replace the orientation stage,
+    // unless the caller chose the orientation's implementation.
+    let supplied = folder.join("poses.csv");
+    if supplied.is_file() && !set.iter().any(|s| s.starts_with("orientation.impl=")) {
+        eprintln!("using the poses in {} in place of the orientation stage", supplied.display());
+        set.push("orientation.impl=\"file\"".into());
+        set.push(format!("orientation.poses={}", quoted(&supplied)));
+    }
     eprintln!(
         "processing {} images of {} with {}",
         project.images.len(),

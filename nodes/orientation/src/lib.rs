@@ -510,6 +510,23 @@ impl Block {
         self.finished = true;
     }
 
+    /// Adds a frame whose pose comes from elsewhere (the user's `poses.csv` in place of this stage): oriented,
+    /// settled and in the control frame as given; nothing is adjusted, and check points are intersected from the
+    /// given poses.
+    pub fn add_supplied(&mut self, frame: u64, pose: Pose, sigmas: Option<([f64; 3], [f64; 3])>) {
+        self.frames.insert(frame);
+        self.poses.insert(frame, pose);
+        self.states.insert(
+            frame,
+            FrameState {
+                revision: 1,
+                settled: true,
+                sigmas,
+            },
+        );
+        self.georeferenced = true;
+    }
+
     /// Check points intersected from the oriented frames: (id, estimated − surveyed).
     pub fn check_points(&self) -> Vec<(String, Vec3)> {
         self.targets

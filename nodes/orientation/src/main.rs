@@ -131,13 +131,123 @@ fn write_results(ctx: &NodeContext, block: &Block, names: &BTreeMap<u64, String>
 
 fn body() -> Result<()> {
     let ctx = NodeContext::from_env()?;
-    if ctx.implementation("bundle") != "bundle" {
-        bail!(
-            "node '{}': unknown orientation impl '{}' (available: bundle)",
-            ctx.name(),
-            ctx.implementation("bundle")
-        );
+    match ctx.implementation("bundle") {
+        "bundle" => run_bundle(ctx),
+        "file" => run_file(ctx),
+        other => bail!(
+            "node '{}': unknown orientation impl '{other}' (available: bundle, file)",
+            ctx.name()
+        ),
     }
+}
+
+/// Parameters of `impl = "file"` (the `bundle` parameters a launch file may carry are ignored).
+#[derive(Debug, serde::Deserialize)]
+struct FileParams {
+    /// The poses, in the `poses.csv` format of `conventions.md` (relative to the launch file).
+    poses: std::path::PathBuf,
+}
+
+/// The survey's control and check points and their observations, from the latched topics; empty when not wired or
+/// never sent.
+fn survey_into(
+    block: &mut Block,
+    control_in: Option<&lineflow_runtime::Input<kinds::ControlPoints>>,
+    observations_in: Option<&lineflow_runtime::Input<kinds::Observations>>,
+) -> Result<()> {
+    if let Some(input) = control_in {
+        while let Some(m) = input.receive()? {
+            block.set_surveyed(surveyed(m.payload()));
+        }
+    }
+    if let Some(input) = observations_in {
+        while let Some(m) = input.receive()? {
+            for o in m.payload() {
+                block.add_target(o.point_id(), o.frame, [o.col, o.row]);
+            }
+        }
+    }
+    Ok(())
+}
+
+/// `impl = "file"`: poses supplied by the user (`poses.csv`, e.g. from another photogrammetry package) in place of
+/// the orientation: each image's pose is published as it arrives, oriented, settled, final and in the control
+/// frame; `poses.csv` and, with a survey, `checkpoints.csv` (the check points intersected from the given poses)
+/// are written as the `bundle` implementation writes them.
+fn run_file(ctx: NodeContext) -> Result<()> {
+    let p: FileParams = ctx.params()?;
+    let base = ctx.graph().source.parent().map(std::path::Path::to_path_buf).unwrap_or_default();
+    let path = lineflow_runtime::launch::resolve_param_path(&base, &p.poses.display().to_string());
+    let rows = lineflow_formats::read_poses(&path).map_err(|e| anyhow::anyhow!("node '{}': {e}", ctx.name()))?;
+    let supplied: BTreeMap<String, PoseRow> = rows.into_iter().map(|r| (r.image.clone(), r)).collect();
+    tracing::info!("{} poses from {}", supplied.len(), path.display());
+    let images_in = ctx.input::<kinds::Image>("images")?;
+    let camera_in = ctx.input::<kinds::CameraModel>("camera")?;
+    let control_in = ctx.optional_input::<kinds::ControlPoints>("control_points")?;
+    let observations_in = ctx.optional_input::<kinds::Observations>("observations")?;
+    let ties_in = ctx.optional_input::<kinds::TiePoints>("tiepoints")?;
+    let output = ctx.output::<kinds::Poses>("poses")?;
+    ctx.connect()?;
+
+    let mut block: Option<Block> = None;
+    let mut pixel_mm = 1.0;
+    let mut waiting: Vec<(Stamp, String)> = Vec::new();
+    let mut names: BTreeMap<u64, String> = BTreeMap::new();
+    let (mut revision, mut last_stamp) = (0u32, Stamp::default());
+    ctx.run(|| {
+        while let Some(m) = camera_in.receive()? {
+            let camera = m.user_header().camera();
+            pixel_mm = camera.pixel_size_mm;
+            block.get_or_insert_with(|| Block::new(OrientationParams::default(), camera));
+        }
+        while let Some(m) = images_in.receive()? {
+            waiting.push((m.user_header().stamp, m.user_header().name().to_owned()));
+        }
+        if let Some(t) = &ties_in {
+            while t.receive()?.is_some() {}
+        }
+        if let Some(b) = block.as_mut() {
+            survey_into(b, control_in.as_ref(), observations_in.as_ref())?;
+            for (stamp, name) in waiting.drain(..) {
+                names.insert(stamp.frame, name.clone());
+                match supplied.get(&name) {
+                    Some(row) => {
+                        let sigmas = match (row.sigma_center_m, row.sigma_angles_deg) {
+                            (None, None) => None,
+                            (c, a) => Some((c.unwrap_or([f64::NAN; 3]), a.map_or([f64::NAN; 3], |a| a.map(f64::to_radians)))),
+                        };
+                        b.add_supplied(stamp.frame, row.pose, sigmas);
+                        revision += 1;
+                        publish(&output, b, stamp, revision, pixel_mm)?;
+                    }
+                    None => tracing::warn!("frame {} ({name}): no pose in {}; not oriented", stamp.frame, path.display()),
+                }
+                last_stamp = stamp;
+            }
+        } else if images_in.is_ended() {
+            bail!("node '{}': the images ended but no camera model arrived", ctx.name());
+        }
+        Ok(if images_in.is_ended() && waiting.is_empty() {
+            Flow::Stop
+        } else {
+            Flow::Continue
+        })
+    })?;
+    if let Some(b) = block.as_mut() {
+        survey_into(b, control_in.as_ref(), observations_in.as_ref())?;
+        if b.poses.is_empty() {
+            tracing::warn!("none of the {} images has a pose in {}", names.len(), path.display());
+        }
+        b.finished = true;
+        publish(&output, b, last_stamp, revision + 1, pixel_mm)?;
+        write_results(&ctx, b, &names)?;
+    }
+    output.end_of_stream()?;
+    ctx.finish();
+    Ok(())
+}
+
+fn run_bundle(ctx: NodeContext) -> Result<()> {
     let params: OrientationParams = ctx.params()?;
     if let Err(e) = params.validate() {
         bail!("node '{}': {e}", ctx.name());

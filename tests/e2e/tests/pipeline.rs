@@ -634,3 +634,48 @@ to = ["stats"]
     assert_eq!(edges.lines().count(), 1 + 6, "{edges}");
     assert_nothing_left(&sb, &out);
 }
+
+/// Poses from elsewhere (`poses.csv` in the project folder) replace the orientation stage: every frame gets the
+/// given pose, the 3-D stages run on them, and the check points are intersected from them.
+#[test]
+fn poses_supplied_with_the_project_replace_the_orientation() {
+    let sb = Sandbox::new();
+    let scene = sb.path().join("scene");
+    let r = sb.run(&[
+        "synth",
+        "--preset",
+        "convergent",
+        "--scale",
+        "0.06",
+        "--seed",
+        "4",
+        "--out",
+        scene.to_str().unwrap(),
+    ]);
+    assert!(r.status.success());
+    std::fs::copy(scene.join("gt/poses.csv"), scene.join("poses.csv")).unwrap();
+    let r = sb.run(&["process", scene.to_str().unwrap()]);
+    let stderr = String::from_utf8_lossy(&r.stderr);
+    assert!(r.status.success(), "{stderr}");
+    assert!(stderr.contains("in place of the orientation stage"), "{stderr}");
+    let out = scene.join("out");
+    // The poses written are the ones given: the truth scores perfectly.
+    let r = sb.run(&["eval", out.to_str().unwrap(), "--gt", scene.to_str().unwrap()]);
+    let stdout = String::from_utf8_lossy(&r.stdout);
+    assert!(r.status.success() && stdout.contains("centre RMS 0.0 mm"), "{stdout}");
+    let checks = std::fs::read_to_string(out.join("checkpoints.csv")).unwrap();
+    assert!(checks.lines().count() > 1, "{checks}");
+    assert!(out.join("lines3d.csv").is_file());
+
+    // A malformed poses file: one clear line naming it, a non-zero exit.
+    std::fs::write(scene.join("poses.csv"), "image,X\nIMG_0001.png,abc\n").unwrap();
+    let r = sb.run(&[
+        "process",
+        scene.to_str().unwrap(),
+        "--out",
+        sb.path().join("out2").to_str().unwrap(),
+    ]);
+    let stderr = String::from_utf8_lossy(&r.stderr);
+    assert!(!r.status.success());
+    assert!(stderr.contains("poses.csv"), "{stderr}");
+}
