@@ -367,9 +367,8 @@ fn the_demo_graph_runs_the_synthetic_camera_and_gives_the_same_bytes_twice() {
     }
 }
 
-#[test]
-fn a_synth_folder_loads_through_the_folder_capture_and_evaluates() {
-    let sb = Sandbox::new();
+/// A small synthetic project folder (`convergent` at scale 0.06, 12 images) with its ground truth.
+fn small_convergent_scene(sb: &Sandbox) -> PathBuf {
     let scene = sb.path().join("scene");
     let r = sb.run(&[
         "synth",
@@ -382,7 +381,14 @@ fn a_synth_folder_loads_through_the_folder_capture_and_evaluates() {
         "--out",
         scene.to_str().unwrap(),
     ]);
-    assert!(r.status.success());
+    assert!(r.status.success(), "synth failed");
+    scene
+}
+
+#[test]
+fn a_synth_folder_loads_through_the_folder_capture_and_evaluates() {
+    let sb = Sandbox::new();
+    let scene = small_convergent_scene(&sb);
     for f in [
         "images/IMG_0012.png",
         "camera.toml",
@@ -640,19 +646,7 @@ to = ["stats"]
 #[test]
 fn poses_supplied_with_the_project_replace_the_orientation() {
     let sb = Sandbox::new();
-    let scene = sb.path().join("scene");
-    let r = sb.run(&[
-        "synth",
-        "--preset",
-        "convergent",
-        "--scale",
-        "0.06",
-        "--seed",
-        "4",
-        "--out",
-        scene.to_str().unwrap(),
-    ]);
-    assert!(r.status.success());
+    let scene = small_convergent_scene(&sb);
     std::fs::copy(scene.join("gt/poses.csv"), scene.join("poses.csv")).unwrap();
     let r = sb.run(&["process", scene.to_str().unwrap()]);
     let stderr = String::from_utf8_lossy(&r.stderr);
