@@ -66,6 +66,15 @@ pub fn launch_dir() -> PathBuf {
         .unwrap_or(here)
 }
 
+/// Whether the launch file `graph` declares a node `name` (false when it cannot be read; loading it reports why).
+fn has_node(graph: &Path, name: &str) -> bool {
+    let Ok(text) = std::fs::read_to_string(graph) else { return false };
+    let Ok(doc) = text.parse::<toml::Table>() else { return false };
+    doc.get("node")
+        .and_then(toml::Value::as_array)
+        .is_some_and(|nodes| nodes.iter().any(|n| n.get("name").and_then(toml::Value::as_str) == Some(name)))
+}
+
 /// Runs a graph (default `launch/folder.toml`) over a project folder.
 pub fn process(folder: &Path, out: Option<PathBuf>, graph: Option<PathBuf>, set: &[String]) -> Result<ExitCode> {
     let project = lineflow_capture::Project::open(folder, false).map_err(|e| anyhow::anyhow!("{e}"))?;
@@ -79,9 +88,9 @@ pub fn process(folder: &Path, out: Option<PathBuf>, graph: Option<PathBuf>, set:
     let mut set = set.to_vec();
     set.insert(0, format!("capture.folder={}", quoted(&folder)));
     // Poses supplied with the project (e.g. from another photogrammetry package) replace the orientation stage,
-    // unless the caller chose the orientation's implementation.
+    // unless the caller chose the orientation's implementation or the graph has no node `orientation`.
     let supplied = folder.join("poses.csv");
-    if supplied.is_file() && !set.iter().any(|s| s.starts_with("orientation.impl=")) {
+    if supplied.is_file() && !set.iter().any(|s| s.starts_with("orientation.impl=")) && has_node(&graph, "orientation") {
         eprintln!("using the poses in {} in place of the orientation stage", supplied.display());
         set.push("orientation.impl=\"file\"".into());
         set.push(format!("orientation.poses={}", quoted(&supplied)));

@@ -94,8 +94,14 @@ impl FitParams {
 pub const MULTIVIEW_MIN_SEGMENT_PX: f64 = 20.0;
 
 /// Re-estimates each merged line from the 2-D segments of every image in `views` (multi-view line intersection,
-/// [`lineflow_linematch::multiview`]); lines that too few images show keep their place. Returns how many moved.
-pub fn refine_multiview(camera: &lineflow_photogrammetry::Camera, lines: &mut [Merged], views: &[SlaveSegments], p: &FitParams) -> usize {
+/// [`lineflow_linematch::multiview`]); lines that too few images show keep their place. Returns how many moved
+/// and the RMS of their image residuals, pixels.
+pub fn refine_multiview(
+    camera: &lineflow_photogrammetry::Camera,
+    lines: &mut [Merged],
+    views: &[SlaveSegments],
+    p: &FitParams,
+) -> (usize, f64) {
     use rayon::prelude::*;
     let params = MultiviewParams {
         max_distance_px: p.multiview_max_distance_px,
@@ -106,16 +112,17 @@ pub fn refine_multiview(camera: &lineflow_photogrammetry::Camera, lines: &mut [M
         .par_iter()
         .map(|l| refine_line(camera, l.start, l.end, views, &params))
         .collect();
-    let mut moved = 0;
+    let (mut moved, mut sum_sq) = (0, 0.0);
     for (l, r) in lines.iter_mut().zip(refined) {
         if let Some(r) = r {
             l.start = r.start;
             l.end = r.end;
             l.n_images = l.n_images.max(r.views as u32);
             moved += 1;
+            sum_sq += r.rms_px * r.rms_px;
         }
     }
-    moved
+    (moved, (sum_sq / moved.max(1) as f64).sqrt())
 }
 
 /// The fragment of one point group, when its fit passes the support tests.

@@ -70,6 +70,9 @@ fn body() -> Result<()> {
         }
         if let Some(i) = &lines_in {
             while let Some(m) = i.receive()? {
+                if !multiview {
+                    continue;
+                }
                 let h = *m.user_header();
                 let (segs, _) = parts::split::<Segment2, [u16; 2]>(m.payload(), h.n_segments as usize, h.n_chain as usize)
                     .map_err(|e| anyhow::anyhow!("lines2d of frame {}: {e}", h.stamp.frame))?;
@@ -130,9 +133,9 @@ fn body() -> Result<()> {
                 .iter()
                 .map(|(pose, segments)| SlaveSegments { pose: *pose, segments })
                 .collect();
-            let moved = refine_multiview(cam, &mut merged, &views, &params);
+            let (moved, rms_px) = refine_multiview(cam, &mut merged, &views, &params);
             tracing::info!(
-                "{moved} of {} lines re-estimated from the 2-D segments of {} images in {:.2} s",
+                "{moved} of {} lines re-estimated from the 2-D segments of {} images (residual RMS {rms_px:.2} px) in {:.2} s",
                 merged.len(),
                 views.len(),
                 start.elapsed().as_secs_f64()

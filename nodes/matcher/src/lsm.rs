@@ -91,14 +91,16 @@ pub fn refine(
     params: &LsmParams,
 ) -> Option<Refined> {
     let h = params.half_window as isize;
-    let offsets: Vec<[f64; 2]> = (-h..=h)
-        .flat_map(|r| (-h..=h).map(move |c| [c as f64, r as f64]))
+    let grid: Vec<[f64; 2]> = (-h..=h).flat_map(|r| (-h..=h).map(move |c| [c as f64, r as f64])).collect();
+    // The template's pixels in the anchor image, and where the affine transfer puts them around the target point.
+    let template: Vec<f64> = grid
+        .iter()
+        .map(|[c, r]| anchor.sample(anchor_px[0] + c, anchor_px[1] + r).map(|(v, _)| v))
+        .collect::<Option<_>>()?;
+    let offsets: Vec<[f64; 2]> = grid
+        .iter()
         .map(|[c, r]| [affine[0][0] * c + affine[0][1] * r, affine[1][0] * c + affine[1][1] * r])
         .collect();
-    let template: Vec<f64> = (-h..=h)
-        .flat_map(|r| (-h..=h).map(move |c| (c as f64, r as f64)))
-        .map(|(c, r)| anchor.sample(anchor_px[0] + c, anchor_px[1] + r).map(|(v, _)| v))
-        .collect::<Option<_>>()?;
     let mean_t = template.iter().sum::<f64>() / template.len() as f64;
     let var_t = template.iter().map(|v| (v - mean_t).powi(2)).sum::<f64>();
     if var_t <= 1e-9 {

@@ -61,7 +61,11 @@ fn body() -> Result<()> {
     let mut grays: BTreeMap<u64, Gray> = BTreeMap::new();
     let mut buffer = Vec::new();
     ctx.run(|| {
-        if let Some(input) = &images {
+        // Without refinement the images are only drained.
+        if let Some(input) = images.as_ref().filter(|_| !p.refine) {
+            while input.receive()?.is_some() {}
+        }
+        if let Some(input) = images.as_ref().filter(|_| p.refine) {
             lineflow_convert::for_each_gray(input, &mut buffer, |h, g| {
                 let gray = Gray {
                     width: h.width as usize,

@@ -171,8 +171,8 @@ fn survey_into(
 }
 
 /// `impl = "file"`: poses supplied by the user (`poses.csv`, e.g. from another photogrammetry package) in place of
-/// the orientation: each image's pose is published as it arrives, oriented, settled, final and in the control
-/// frame; `poses.csv` and, with a survey, `checkpoints.csv` (the check points intersected from the given poses)
+/// the orientation: each image's pose is published as it arrives, oriented, settled and in the control frame (the
+/// last message, after the images end, final); `poses.csv` and, with a survey, `checkpoints.csv` (the check points intersected from the given poses)
 /// are written as the `bundle` implementation writes them.
 fn run_file(ctx: NodeContext) -> Result<()> {
     let p: FileParams = ctx.params()?;

@@ -624,11 +624,29 @@ to = ["stats"]
         ),
     );
     let out = sb.path().join("out");
-    let r = sb.run(&["run", graph.to_str().unwrap(), "--out", out.to_str().unwrap()]);
-    let stderr = String::from_utf8_lossy(&r.stderr);
+    // Without the rule the run would wait forever: bounded here so that the test fails instead of hanging.
+    // The log goes to a file: a pipe nobody reads while we wait could fill up and stall the run.
+    let log = sb.path().join("run.log");
+    let mut child = sb
+        .lineflow(&["run", graph.to_str().unwrap(), "--out", out.to_str().unwrap()])
+        .stderr(std::fs::File::create(&log).unwrap())
+        .spawn()
+        .unwrap();
+    let start = Instant::now();
+    let status = loop {
+        if let Some(status) = child.try_wait().unwrap() {
+            break status;
+        }
+        if start.elapsed() > Duration::from_secs(300) {
+            child.kill().unwrap();
+            panic!("the run did not finish: the orphaned input was never ended");
+        }
+        std::thread::sleep(Duration::from_millis(100));
+    };
+    let stderr = std::fs::read_to_string(&log).unwrap();
     eprintln!("{stderr}");
     assert!(
-        r.status.success(),
+        status.success(),
         "the Python node failed or the run hung (CI installs numpy and iceoryx2 for Python)"
     );
     assert!(
