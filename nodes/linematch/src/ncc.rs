@@ -1,109 +1,210 @@
-//! Normalised cross-correlation of object-space patches through summed-area tables, so that every window mode and
-//! every point of a line costs a handful of lookups instead of a pass over its samples.
+//! Normalised cross-correlation of object-space patches through column prefix sums over fixed bands of rows.
+//!
+//! Every window of a line's search spans one of a few row ranges (the line lies along a lattice row; the C, U and B
+//! windows reach above and below it by fixed amounts), so instead of a full summed-area table each quantity keeps,
+//! per row band, its column sums and their prefix along the columns: any window then costs two lookups per
+//! quantity, and building the tables is a vectorisable pass of additions down the rows instead of a 2-D recurrence.
 
-/// A summed-area table over a `width × height` lattice (row-major), with a zero border row and column.
+/// The row bands of a lattice: inclusive row ranges, and the sorted row boundaries at which running column sums
+/// are taken.
 #[derive(Debug, Clone, Default)]
-pub struct Sat {
-    width: usize,
-    data: Vec<f64>,
+pub struct Bands {
+    ranges: Vec<(usize, usize)>,
+    /// Sorted distinct boundaries: every band's first row and one past its last.
+    boundaries: Vec<usize>,
+    /// For each band, the indices into `boundaries` of its first row and of one past its last.
+    ends: Vec<(usize, usize)>,
 }
 
-impl Sat {
-    /// Builds the table of `value(k)` for lattice index `k`, reusing this table's storage.
-    pub fn build(&mut self, width: usize, height: usize, value: impl Fn(usize) -> f64) {
-        self.width = width;
-        let stride = width + 1;
-        self.data.clear();
-        self.data.resize(stride * (height + 1), 0.0);
-        for r in 0..height {
-            let mut row_sum = 0.0;
-            for c in 0..width {
-                row_sum += value(r * width + c);
-                self.data[(r + 1) * stride + c + 1] = self.data[r * stride + c + 1] + row_sum;
+impl Bands {
+    /// Forgets every band.
+    pub fn clear(&mut self) {
+        self.ranges.clear();
+        self.boundaries.clear();
+        self.ends.clear();
+    }
+
+    /// The index of the band `rows.0..=rows.1`, added when new.
+    pub fn index(&mut self, rows: (usize, usize)) -> usize {
+        match self.ranges.iter().position(|&b| b == rows) {
+            Some(i) => i,
+            None => {
+                self.ranges.push(rows);
+                self.ranges.len() - 1
             }
         }
     }
 
-    /// Sum over the inclusive rectangle `cols.0..=cols.1` × `rows.0..=rows.1` (lattice indices, in range).
+    /// Number of bands.
+    pub fn len(&self) -> usize {
+        self.ranges.len()
+    }
+
+    /// Whether there is no band.
+    pub fn is_empty(&self) -> bool {
+        self.ranges.is_empty()
+    }
+
+    /// Rows in band `b`.
+    pub fn rows(&self, b: usize) -> usize {
+        self.ranges[b].1 - self.ranges[b].0 + 1
+    }
+
+    /// Fixes the boundaries once every band is known; call before building tables.
+    pub fn seal(&mut self) {
+        self.boundaries.clear();
+        self.boundaries.extend(self.ranges.iter().flat_map(|&(a, b)| [a, b + 1]));
+        self.boundaries.sort_unstable();
+        self.boundaries.dedup();
+        let at = |r: usize| self.boundaries.binary_search(&r).unwrap_or(0);
+        self.ends = self.ranges.iter().map(|&(a, b)| (at(a), at(b + 1))).collect();
+    }
+}
+
+/// Column prefix sums of one quantity over each band: `data[band · (width + 1) + c]` is the band's sum over the
+/// columns `0..c`.
+#[derive(Debug, Clone, Default)]
+pub struct BandSums {
+    width: usize,
+    data: Vec<f64>,
+}
+
+impl BandSums {
+    /// Sum over the band `band` and the inclusive columns `cols.0..=cols.1` (in range).
     #[inline]
-    pub fn sum(&self, cols: (usize, usize), rows: (usize, usize)) -> f64 {
-        let s = self.width + 1;
-        let (c0, c1, r0, r1) = (cols.0, cols.1 + 1, rows.0, rows.1 + 1);
-        self.data[r1 * s + c1] - self.data[r0 * s + c1] - self.data[r1 * s + c0] + self.data[r0 * s + c0]
+    pub fn sum(&self, band: usize, cols: (usize, usize)) -> f64 {
+        let row = band * (self.width + 1);
+        self.data[row + cols.1 + 1] - self.data[row + cols.0]
+    }
+}
+
+/// Reused buffers of the table builds.
+#[derive(Debug, Clone, Default)]
+pub struct BandScratch<const Q: usize> {
+    running: Vec<[f64; Q]>,
+    snapshots: Vec<[f64; Q]>,
+}
+
+/// Builds the band tables of `Q` quantities of a `width × height` lattice (row-major), `value(k)` giving them for
+/// lattice index `k`. The bands, sealed, must lie within the lattice.
+pub fn build_bands<const Q: usize>(
+    width: usize,
+    height: usize,
+    bands: &Bands,
+    scratch: &mut BandScratch<Q>,
+    value: impl Fn(usize) -> [f64; Q],
+    out: [&mut BandSums; Q],
+) {
+    debug_assert!(bands.ranges.iter().all(|&(a, b)| a <= b && b < height), "bands outside the lattice");
+    let BandScratch { running, snapshots } = scratch;
+    running.clear();
+    running.resize(width, [0.0; Q]);
+    snapshots.clear();
+    let last = bands.boundaries.last().copied().unwrap_or(0).min(height);
+    let mut next = 0;
+    for r in 0..=last {
+        if bands.boundaries.get(next) == Some(&r) {
+            snapshots.extend_from_slice(running);
+            next += 1;
+        }
+        if r == last {
+            break;
+        }
+        for (c, acc) in running.iter_mut().enumerate() {
+            let v = value(r * width + c);
+            for q in 0..Q {
+                acc[q] += v[q];
+            }
+        }
+    }
+    let stride = width + 1;
+    for (q, table) in out.into_iter().enumerate() {
+        table.width = width;
+        table.data.clear();
+        table.data.resize(stride * bands.len(), 0.0);
+        for (b, &(top, bottom)) in bands.ends.iter().enumerate() {
+            let (top, bottom) = (&snapshots[top * width..][..width], &snapshots[bottom * width..][..width]);
+            let row = &mut table.data[b * stride..][..stride];
+            let mut total = 0.0;
+            for c in 0..width {
+                total += bottom[c][q] - top[c][q];
+                row[c + 1] = total;
+            }
+        }
     }
 }
 
 /// The tables of one patch (master or slave): values, squares and the count of valid samples.
 #[derive(Debug, Clone, Default)]
-pub struct PatchSats {
+pub struct PatchSums {
     /// Σ g.
-    pub sum: Sat,
+    pub sum: BandSums,
     /// Σ g².
-    pub sq: Sat,
+    pub sq: BandSums,
     /// Number of valid (non-NaN) samples.
-    pub valid: Sat,
+    pub valid: BandSums,
 }
 
-impl PatchSats {
+/// Grey values are summed about mid-grey: NCC does not change, and the sums of squares stay small enough that the
+/// variance of a window loses nothing to cancellation.
+const MID_GREY: f64 = 128.0;
+
+impl PatchSums {
     /// Builds the tables of a lattice patch (NaN = invalid sample), all three in one pass.
-    pub fn build(&mut self, width: usize, height: usize, g: &[f32]) {
-        let stride = width + 1;
-        for t in [&mut self.sum, &mut self.sq, &mut self.valid] {
-            t.width = width;
-            t.data.clear();
-            t.data.resize(stride * (height + 1), 0.0);
-        }
-        for r in 0..height {
-            let (mut s, mut q, mut n) = (0.0, 0.0, 0.0);
-            for c in 0..width {
-                let x = g[r * width + c];
-                if !x.is_nan() {
-                    let x = x as f64;
-                    s += x;
-                    q += x * x;
-                    n += 1.0;
-                }
-                let (above, here) = (r * stride + c + 1, (r + 1) * stride + c + 1);
-                self.sum.data[here] = self.sum.data[above] + s;
-                self.sq.data[here] = self.sq.data[above] + q;
-                self.valid.data[here] = self.valid.data[above] + n;
+    pub fn build(&mut self, width: usize, height: usize, bands: &Bands, scratch: &mut BandScratch<3>, g: &[f32]) {
+        let value = |k: usize| {
+            let x = g[k];
+            if x.is_nan() {
+                [0.0; 3]
+            } else {
+                let x = x as f64 - MID_GREY;
+                [x, x * x, 1.0]
             }
-        }
+        };
+        build_bands(width, height, bands, scratch, value, [&mut self.sum, &mut self.sq, &mut self.valid]);
     }
+}
+
+/// Builds the table of the products of the master patch `m` and a slave patch `g` (about mid-grey; 0 where either
+/// is invalid).
+pub fn build_cross(width: usize, height: usize, bands: &Bands, scratch: &mut BandScratch<1>, m: &[f32], g: &[f32], out: &mut BandSums) {
+    let value = |k: usize| {
+        let x = (m[k] as f64 - MID_GREY) * (g[k] as f64 - MID_GREY);
+        [if x.is_nan() { 0.0 } else { x }]
+    };
+    build_bands(width, height, bands, scratch, value, [out]);
 }
 
 /// Smallest variance per sample (grey levels²) of a patch that carries information: below it a patch is flat (the
 /// thesis's zero-variance case), and its correlation is noise.
 pub const MIN_VARIANCE: f64 = 1.0;
 
-/// NCC (eq. 17) of the master and one slave over a window, from their tables and the table of products; `None`
-/// when either patch has an invalid sample in the window. A flat slave patch correlates 0; a flat master patch is
-/// reported as `None` by the caller's check of [`master_is_textured`].
+/// NCC (eq. 17) of the master and one slave over the window of band `band` and columns `cols`, from their tables
+/// and the table of products; `None` when either patch has an invalid sample in the window. A flat slave patch
+/// correlates 0; a flat master patch is reported as `None` by the caller's check of [`master_is_textured`].
 #[inline]
-pub fn ncc(master: &PatchSats, slave: &PatchSats, cross: &Sat, cols: (usize, usize), rows: (usize, usize)) -> Option<f64> {
-    let n = ((cols.1 - cols.0 + 1) * (rows.1 - rows.0 + 1)) as f64;
-    if slave.valid.sum(cols, rows) < n - 0.5 {
+pub fn ncc(master: &PatchSums, slave: &PatchSums, cross: &BandSums, n: f64, band: usize, cols: (usize, usize)) -> Option<f64> {
+    if slave.valid.sum(band, cols) < n - 0.5 {
         return None;
     }
-    let (sm, ss) = (master.sum.sum(cols, rows), slave.sum.sum(cols, rows));
-    let vm = master.sq.sum(cols, rows) - sm * sm / n;
-    let vs = slave.sq.sum(cols, rows) - ss * ss / n;
+    let (sm, ss) = (master.sum.sum(band, cols), slave.sum.sum(band, cols));
+    let vm = master.sq.sum(band, cols) - sm * sm / n;
+    let vs = slave.sq.sum(band, cols) - ss * ss / n;
     if vs < MIN_VARIANCE * n {
         return Some(0.0);
     }
-    let cov = cross.sum(cols, rows) - sm * ss / n;
+    let cov = cross.sum(band, cols) - sm * ss / n;
     Some((cov / (vm * vs).sqrt()).clamp(-1.0, 1.0))
 }
 
-/// Whether the master's window is complete and carries texture.
+/// Whether the master's window (`n` samples) is complete and carries texture.
 #[inline]
-pub fn master_is_textured(master: &PatchSats, cols: (usize, usize), rows: (usize, usize)) -> bool {
-    let n = ((cols.1 - cols.0 + 1) * (rows.1 - rows.0 + 1)) as f64;
-    if master.valid.sum(cols, rows) < n - 0.5 {
+pub fn master_is_textured(master: &PatchSums, n: f64, band: usize, cols: (usize, usize)) -> bool {
+    if master.valid.sum(band, cols) < n - 0.5 {
         return false;
     }
-    let sm = master.sum.sum(cols, rows);
-    master.sq.sum(cols, rows) - sm * sm / n >= MIN_VARIANCE * n
+    let sm = master.sum.sum(band, cols);
+    master.sq.sum(band, cols) - sm * sm / n >= MIN_VARIANCE * n
 }
 
 #[cfg(test)]
@@ -122,26 +223,54 @@ mod tests {
         cov / (va * vb).sqrt()
     }
 
+    struct Tables {
+        bands: Bands,
+        m: PatchSums,
+        s: PatchSums,
+        cross: BandSums,
+    }
+
+    fn tables(w: usize, h: usize, rows: &[(usize, usize)], m: &[f32], s: &[f32]) -> Tables {
+        let mut bands = Bands::default();
+        for &r in rows {
+            bands.index(r);
+        }
+        bands.seal();
+        let (mut s3, mut s1) = (BandScratch::default(), BandScratch::default());
+        let mut t = Tables {
+            bands: Bands::default(),
+            m: PatchSums::default(),
+            s: PatchSums::default(),
+            cross: BandSums::default(),
+        };
+        t.m.build(w, h, &bands, &mut s3, m);
+        t.s.build(w, h, &bands, &mut s3, s);
+        build_cross(w, h, &bands, &mut s1, m, s, &mut t.cross);
+        t.bands = bands;
+        t
+    }
+
     #[test]
-    fn windowed_ncc_equals_the_direct_formula() {
+    fn windowed_ncc_equals_the_direct_formula_in_every_band() {
         let (w, h) = (13, 9);
         let m: Vec<f32> = (0..w * h).map(|k| ((k * 37 % 101) as f32).sin() * 50.0 + 100.0).collect();
         let s: Vec<f32> = m.iter().enumerate().map(|(k, &x)| 0.7 * x + 20.0 + ((k * 11 % 7) as f32)).collect();
-        let (mut pm, mut ps, mut cross) = (PatchSats::default(), PatchSats::default(), Sat::default());
-        pm.build(w, h, &m);
-        ps.build(w, h, &s);
-        cross.build(w, h, |k| m[k] as f64 * s[k] as f64);
-        let (cols, rows) = ((2, 10), (1, 7));
-        let pick = |g: &[f32]| -> Vec<f32> {
-            (rows.0..=rows.1)
-                .flat_map(|r| (cols.0..=cols.1).map(move |c| (r, c)))
-                .map(|(r, c)| g[r * w + c])
-                .collect()
-        };
-        let expected = direct(&pick(&m), &pick(&s));
-        let got = ncc(&pm, &ps, &cross, cols, rows).unwrap();
-        assert!((got - expected).abs() < 1e-9, "{got} vs {expected}");
-        assert!(master_is_textured(&pm, cols, rows));
+        let rows = [(1, 7), (0, 3), (4, 8), (2, 2)];
+        let t = tables(w, h, &rows, &m, &s);
+        for (band, &rows) in rows.iter().enumerate() {
+            let cols = (2, 10);
+            let pick = |g: &[f32]| -> Vec<f32> {
+                (rows.0..=rows.1)
+                    .flat_map(|r| (cols.0..=cols.1).map(move |c| (r, c)))
+                    .map(|(r, c)| g[r * w + c])
+                    .collect()
+            };
+            let n = ((cols.1 - cols.0 + 1) * t.bands.rows(band)) as f64;
+            let expected = direct(&pick(&m), &pick(&s));
+            let got = ncc(&t.m, &t.s, &t.cross, n, band, cols).unwrap();
+            assert!((got - expected).abs() < 1e-9, "band {rows:?}: {got} vs {expected}");
+            assert!(master_is_textured(&t.m, n, band, cols));
+        }
     }
 
     #[test]
@@ -150,15 +279,10 @@ mod tests {
         let m: Vec<f32> = (0..25).map(|k| k as f32).collect();
         let mut s = m.clone();
         s[12] = f32::NAN;
-        let (mut pm, mut ps, mut cross) = (PatchSats::default(), PatchSats::default(), Sat::default());
-        pm.build(w, h, &m);
-        ps.build(w, h, &s);
-        cross.build(w, h, |k| if s[k].is_nan() { 0.0 } else { (m[k] * s[k]) as f64 });
-        assert_eq!(ncc(&pm, &ps, &cross, (0, 4), (0, 4)), None);
-        assert!(ncc(&pm, &ps, &cross, (0, 4), (0, 1)).unwrap() > 0.999);
-        let flat = vec![7.0f32; 25];
-        ps.build(w, h, &flat);
-        cross.build(w, h, |k| (m[k] * 7.0) as f64);
-        assert_eq!(ncc(&pm, &ps, &cross, (0, 4), (0, 4)), Some(0.0));
+        let t = tables(w, h, &[(0, 4), (0, 1)], &m, &s);
+        assert_eq!(ncc(&t.m, &t.s, &t.cross, 25.0, 0, (0, 4)), None);
+        assert!(ncc(&t.m, &t.s, &t.cross, 10.0, 1, (0, 4)).unwrap() > 0.999);
+        let t = tables(w, h, &[(0, 4)], &m, &[7.0f32; 25]);
+        assert_eq!(ncc(&t.m, &t.s, &t.cross, 25.0, 0, (0, 4)), Some(0.0));
     }
 }

@@ -5,7 +5,7 @@
 //! lattice at every fine depth near the coarse peaks.
 use lineflow_photogrammetry::Vec3;
 
-use crate::ncc::{master_is_textured, ncc, PatchSats, Sat};
+use crate::ncc::{build_cross, master_is_textured, ncc, BandScratch, BandSums, Bands, PatchSums};
 use crate::slave_lines::{refine_depths, SlaveSegments};
 use crate::view::View;
 use crate::wall::{wall_of_ray, WallPlane};
@@ -90,9 +90,16 @@ struct DepthScores {
 #[derive(Default)]
 struct Scratch {
     patches: Vec<Vec<f32>>,
-    sats: Vec<PatchSats>,
-    cross: Vec<Sat>,
+    sums: Vec<PatchSums>,
+    cross: Vec<BandSums>,
+    bands: Bands,
+    windows: Vec<Window>,
+    per_patch: BandScratch<3>,
+    per_cross: BandScratch<1>,
 }
+
+/// A window on the lattice: its row band and inclusive columns (lattice indices), `None` when it leaves the lattice.
+type Window = Option<(usize, (usize, usize))>;
 
 /// Matches one master segment against the slaves; `None` when it is too short, belongs to no visible wall or no
 /// slave sees its wall.
@@ -208,12 +215,28 @@ pub fn match_segment(master: &View, slaves: &[View], walls: &[WallPlane], seg: &
         .iter()
         .take(p.max_candidates.max(1))
         .filter(|v| 4 * v.1 >= top)
-        // The true peak lies within half a coarse step of the coarse one; one more step on each side for the parabola.
-        .flat_map(|&(c, _)| (c - cf / 2 - 1..=c + cf / 2 + 1).filter(|i| i.abs() <= n_depths))
+        // The true peak lies within half a coarse step of the coarse one.
+        .flat_map(|&(c, _)| (c - cf / 2..=c + cf / 2).filter(|i| i.abs() <= n_depths))
         .collect();
     fine_idx.sort_unstable();
     fine_idx.dedup();
-    let fine: Vec<DepthScores> = fine_idx.iter().map(|&i| score(i, false, &mut scratch)).collect();
+    let mut fine: Vec<DepthScores> = fine_idx.iter().map(|&i| score(i, false, &mut scratch)).collect();
+    // A curve whose best depth lies at the edge of the evaluated ones needs the next depth for its parabola (and in
+    // case the peak lies there): evaluated only then, which most lines never need.
+    let mut edges: Vec<i32> = (0..n_pts)
+        .flat_map(|k| (0..singles.len()).map(move |m| (k, m)))
+        .filter_map(|(k, m)| argmax(curve_point(&fine, k, m)))
+        .chain((0..linears.len()).filter_map(|m| argmax(curve_linear(&fine, m))))
+        .flat_map(|(j, _)| [fine_idx[j] - 1, fine_idx[j] + 1])
+        .filter(|i| i.abs() <= n_depths && fine_idx.binary_search(i).is_err())
+        .collect();
+    edges.sort_unstable();
+    edges.dedup();
+    for i in edges {
+        let at = fine_idx.binary_search(&i).unwrap_or_else(|e| e);
+        fine.insert(at, score(i, false, &mut scratch));
+        fine_idx.insert(at, i);
+    }
 
     // Each point takes the best window over its own single-point curves and the line's linear curves.
     let linear_best: Vec<Option<Peak>> = (0..linears.len())
@@ -452,70 +475,72 @@ fn score_depth(
     if width * height > 4_000_000 {
         return invalid();
     }
+    // Every window of this depth, point by point and mode by mode, then the linear ones.
+    s.bands.clear();
+    s.windows.clear();
+    let window = |cols: (i32, i32), rows: (i32, i32), bands: &mut Bands| -> Window {
+        if cols.0 < c_lo || cols.1 > c_hi || rows.0 < r_lo || rows.1 > r_hi {
+            return None;
+        }
+        let band = bands.index(((rows.0 - r_lo) as usize, (rows.1 - r_lo) as usize));
+        Some((band, ((cols.0 - c_lo) as usize, (cols.1 - c_lo) as usize)))
+    };
+    for &[c, r] in &spots {
+        for m in singles {
+            let (cols, rows) = m.window(c, r, h);
+            s.windows.push(window(cols, rows, &mut s.bands));
+        }
+    }
+    let (first, last) = (0.min(end_col), 0.max(end_col));
+    for m in linears {
+        let (_, rows) = m.window(0, 0, h);
+        s.windows.push(window((first - h, last + h), rows, &mut s.bands));
+    }
+    s.bands.seal();
     let (along, across) = (line.along * cell, line.across * cell);
     s.patches.resize_with(views.len(), Vec::new);
-    s.sats.resize_with(views.len(), PatchSats::default);
-    s.cross.resize_with(views.len(), Sat::default);
+    s.sums.resize_with(views.len(), PatchSums::default);
+    s.cross.resize_with(views.len(), BandSums::default);
     for (v, view) in views.iter().enumerate() {
         view.sample_lattice(&origin, &along, &across, (c_lo, c_hi), (r_lo, r_hi), &mut s.patches[v]);
-        s.sats[v].build(width, height, &s.patches[v]);
+        s.sums[v].build(width, height, &s.bands, &mut s.per_patch, &s.patches[v]);
     }
-    let m = &s.patches[0];
     for v in 1..views.len() {
-        let g = &s.patches[v];
-        s.cross[v].build(width, height, |k| {
-            let x = m[k] * g[k];
-            if x.is_nan() {
-                0.0
-            } else {
-                x as f64
-            }
-        });
+        build_cross(
+            width,
+            height,
+            &s.bands,
+            &mut s.per_cross,
+            &s.patches[0],
+            &s.patches[v],
+            &mut s.cross[v],
+        );
     }
-    let at = |c: i32, r: i32| ((c - c_lo) as usize, (r - r_lo) as usize);
-    let sncc = |cols: (i32, i32), rows: (i32, i32)| -> f64 {
-        if cols.0 < c_lo || cols.1 > c_hi || rows.0 < r_lo || rows.1 > r_hi {
+    let sncc = |w: Window| -> f64 {
+        let Some((band, cols)) = w else { return f64::NAN };
+        let n = ((cols.1 - cols.0 + 1) * s.bands.rows(band)) as f64;
+        if !master_is_textured(&s.sums[0], n, band, cols) {
             return f64::NAN;
         }
-        let (c0, r0) = at(cols.0, rows.0);
-        let (c1, r1) = at(cols.1, rows.1);
-        let (cols, rows) = ((c0, c1), (r0, r1));
-        if !master_is_textured(&s.sats[0], cols, rows) {
-            return f64::NAN;
-        }
-        let (mut total, mut n) = (0.0, 0usize);
+        let (mut total, mut count) = (0.0, 0usize);
         for v in 1..views.len() {
-            if let Some(r) = ncc(&s.sats[0], &s.sats[v], &s.cross[v], cols, rows) {
+            if let Some(r) = ncc(&s.sums[0], &s.sums[v], &s.cross[v], n, band, cols) {
                 total += r;
-                n += 1;
+                count += 1;
             }
         }
-        if n >= min_slaves.max(1) {
-            total / n as f64
+        if count >= min_slaves.max(1) {
+            total / count as f64
         } else {
             f64::NAN
         }
     };
-    let point = spots
-        .iter()
-        .map(|&[c, r]| {
-            singles
-                .iter()
-                .map(|m| {
-                    let (cols, rows) = m.window(c, r, h);
-                    sncc(cols, rows)
-                })
-                .collect()
-        })
+    let n_single = singles.len();
+    let point = s.windows[..spots.len() * n_single]
+        .chunks(n_single.max(1))
+        .map(|ws| ws.iter().map(|&w| sncc(w)).collect())
         .collect();
-    let (first, last) = (0.min(end_col), 0.max(end_col));
-    let linear = linears
-        .iter()
-        .map(|m| {
-            let (_, rows) = m.window(0, 0, h);
-            sncc((first - h, last + h), rows)
-        })
-        .collect();
+    let linear = s.windows[spots.len() * n_single..].iter().map(|&w| sncc(w)).collect();
     DepthScores { point, linear }
 }
 
