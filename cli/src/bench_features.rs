@@ -1,9 +1,10 @@
-//! `lineflow bench features`: SURF on a full-size synthetic façade frame, single-thread and on every core, against
-//! OpenCV's SIFT and ORB (`opencv-python-headless`; OpenCV's own SURF is non-free and not in that package) measured
+//! `lineflow bench features`: SURF and ORB on a full-size synthetic façade frame, single-thread and on every core,
+//! against OpenCV's SIFT and ORB (`opencv-python-headless`; OpenCV's own SURF is non-free and not in that package) measured
 //! in the same run on the same image.
 use std::process::ExitCode;
 
 use anyhow::Result;
+use lineflow_features::orb::{orb, OrbParams};
 use lineflow_features::surf::{surf, SurfParams};
 
 use crate::bench_util::{median_time, python_reference, synthetic_gray};
@@ -13,7 +14,7 @@ import sys, time, cv2
 img = cv2.imread(sys.argv[1], cv2.IMREAD_GRAYSCALE)
 reps = int(sys.argv[2])
 cv2.setNumThreads(1)
-for name, det in (("sift", cv2.SIFT_create()), ("orb", cv2.ORB_create(nfeatures=10000))):
+for name, det in (("sift", cv2.SIFT_create()), ("orb", cv2.ORB_create(nfeatures=5000))):
     times = []
     for _ in range(reps):
         t = time.perf_counter(); kp, d = det.detectAndCompute(img, None); times.append(time.perf_counter() - t)
@@ -50,16 +51,29 @@ pub fn bench_features(preset: &str, reps: usize, threshold: f32) -> Result<ExitC
         t2 * 1e3,
         t1 / t2
     );
+    let po = OrbParams::default();
+    let n_orb = orb(&gray, w, h, &po).len();
+    let o1 = median_time(reps, || one.install(|| drop(orb(&gray, w, h, &po))));
+    let o2 = median_time(reps, || drop(orb(&gray, w, h, &po)));
+    println!(
+        "orb     1 thread {:7.0} ms  ({n_orb} keypoints, max {})  {} threads {:.0} ms",
+        o1 * 1e3,
+        po.max_keypoints,
+        rayon::current_num_threads(),
+        o2 * 1e3
+    );
     match python_reference(OPENCV, &[png.display().to_string(), reps.to_string()]) {
         Ok(out) => {
             for line in out.lines() {
                 let f: Vec<&str> = line.split_whitespace().collect();
                 if let [name, t, count] = f[..] {
                     let t: f64 = t.parse().unwrap_or(f64::NAN);
+                    // Ours against OpenCV's of the same kind where there is one (ORB), SURF against SIFT otherwise.
+                    let (ours, label) = if name == "orb" { (o1, "our ORB") } else { (t1, "SURF") };
                     println!(
-                        "OpenCV {name:<4} 1 thread {:7.0} ms  ({count} keypoints)  SURF / {name}: {:.2}x",
+                        "OpenCV {name:<4} 1 thread {:7.0} ms  ({count} keypoints)  {label} / OpenCV {name}: {:.2}x",
                         t * 1e3,
-                        t1 / t
+                        ours / t
                     );
                 }
             }

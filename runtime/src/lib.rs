@@ -14,6 +14,8 @@ pub mod shm;
 pub mod supervisor;
 pub mod transport;
 
+/// The bound of the payload parts `Output::publish_parts` takes, re-exported so that nodes need no iceoryx2 dependency.
+pub use iceoryx2::prelude::ZeroCopySend;
 pub use node::{Flow, NodeContext, RunEnd, StatusWatch};
 pub use ports::{Input, Output, Received};
 

@@ -5,7 +5,7 @@
 use anyhow::{bail, Result};
 use std::collections::BTreeMap;
 
-use lineflow_matcher::descriptors::FrameFeatures;
+use lineflow_matcher::descriptors::{Descriptors, FrameFeatures};
 use lineflow_matcher::lsm::Gray;
 use lineflow_matcher::{Matcher, MatcherParams};
 use lineflow_messages::{kinds, parts, Keypoint, KeypointsHeader, TiePoint, TiePointsHeader};
@@ -15,22 +15,41 @@ fn main() -> std::process::ExitCode {
     lineflow_runtime::run_node(body)
 }
 
-/// The features of a Keypoints message.
+/// The features of a Keypoints message: float (SURF) or binary (ORB) descriptors.
 fn features(h: &KeypointsHeader, payload: &[u8]) -> Result<FrameFeatures> {
-    if h.descriptor_kind != KeypointsHeader::FLOAT {
-        bail!(
-            "frame {}: binary descriptors ({}) are not supported by the matcher yet",
+    let (n, len) = (h.count as usize, h.descriptor_len as usize);
+    let malformed = |e| anyhow::anyhow!("frame {}: {e}", h.stamp.frame);
+    let (kps, descriptors) = match h.descriptor_kind {
+        KeypointsHeader::FLOAT => {
+            let (kps, values) = parts::split::<Keypoint, f32>(payload, n, n * len).map_err(malformed)?;
+            (
+                kps,
+                Descriptors::Float {
+                    values: values.to_vec(),
+                    len,
+                },
+            )
+        }
+        KeypointsHeader::BINARY => {
+            let (kps, bytes) = parts::split::<Keypoint, u8>(payload, n, n * len).map_err(malformed)?;
+            (
+                kps,
+                Descriptors::Binary {
+                    bytes: bytes.to_vec(),
+                    len,
+                },
+            )
+        }
+        other => bail!(
+            "frame {}: unknown descriptor kind {other} from detector '{}'",
             h.stamp.frame,
             lineflow_messages::str_from_fixed(&h.detector)
-        );
-    }
-    let (n, len) = (h.count as usize, h.descriptor_len as usize);
-    let (kps, desc) = parts::split::<Keypoint, f32>(payload, n, n * len).map_err(|e| anyhow::anyhow!("frame {}: {e}", h.stamp.frame))?;
+        ),
+    };
     Ok(FrameFeatures {
         px: kps.iter().map(|k| [k.col as f64, k.row as f64]).collect(),
         signs: kps.iter().map(|k| k.laplacian_sign).collect(),
-        descriptors: desc.to_vec(),
-        len,
+        descriptors,
     })
 }
 

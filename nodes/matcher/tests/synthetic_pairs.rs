@@ -1,32 +1,57 @@
 //! Tie points on the synthetic façade, checked against its exact geometry: every track's rays, with the true
 //! poses, must meet where both images see the point.
 use lineflow_capture::synth::Synthetic;
+use lineflow_features::orb::{orb, OrbParams};
 use lineflow_features::surf::{surf, SurfParams};
-use lineflow_matcher::descriptors::FrameFeatures;
+use lineflow_matcher::descriptors::{Descriptors, FrameFeatures};
 use lineflow_matcher::lsm::Gray;
 use lineflow_matcher::{Matcher, MatcherParams, Observation};
 use lineflow_messages::Encoding;
 use lineflow_photogrammetry::Vec3;
 
-fn features(syn: &Synthetic, frame: usize) -> (FrameFeatures, Gray) {
+/// The detector of a run.
+#[derive(Debug, Clone, Copy)]
+enum Detector {
+    Surf,
+    Orb,
+}
+
+fn features(syn: &Synthetic, frame: usize, detector: Detector) -> (FrameFeatures, Gray) {
     let cam = syn.camera();
     let (w, h) = (cam.width as usize, cam.height as usize);
     let mut gray = vec![0u8; w * h];
     lineflow_convert::gray_into(Encoding::Rgb8, w, h, w * 3, &syn.render(frame), &mut gray).unwrap();
-    let f = surf(
-        &gray,
-        w,
-        h,
-        &SurfParams {
-            hessian_threshold: 50.0,
-            ..Default::default()
-        },
-    );
-    let features = FrameFeatures {
-        px: f.iter().map(|f| [f.at.col as f64, f.at.row as f64]).collect(),
-        signs: f.iter().map(|f| f.at.laplacian_sign).collect(),
-        descriptors: f.iter().flat_map(|f| f.descriptor).collect(),
-        len: 64,
+    let features = match detector {
+        Detector::Surf => {
+            let f = surf(
+                &gray,
+                w,
+                h,
+                &SurfParams {
+                    hessian_threshold: 50.0,
+                    ..Default::default()
+                },
+            );
+            FrameFeatures {
+                px: f.iter().map(|f| [f.at.col as f64, f.at.row as f64]).collect(),
+                signs: f.iter().map(|f| f.at.laplacian_sign).collect(),
+                descriptors: Descriptors::Float {
+                    values: f.iter().flat_map(|f| f.descriptor).collect(),
+                    len: 64,
+                },
+            }
+        }
+        Detector::Orb => {
+            let f = orb(&gray, w, h, &OrbParams::default());
+            FrameFeatures {
+                px: f.iter().map(|f| [f.col as f64, f.row as f64]).collect(),
+                signs: vec![0; f.len()],
+                descriptors: Descriptors::Binary {
+                    bytes: f.iter().flat_map(|f| f.descriptor).collect(),
+                    len: 32,
+                },
+            }
+        }
     };
     let gray = Gray {
         width: w,
@@ -59,7 +84,7 @@ fn ray_error(syn: &Synthetic, a: &Observation, b: &Observation) -> f64 {
 type Partners = Vec<Vec<(u64, usize, usize)>>;
 
 /// Matches a preset's frames in order; returns every frame's partners and the tracks' ray errors, sorted.
-fn match_preset(preset: &str) -> (Partners, Vec<f64>) {
+fn match_preset(preset: &str, detector: Detector) -> (Partners, Vec<f64>) {
     let syn = Synthetic::new(preset, 0.3, 1).unwrap();
     let n = syn.poses().len();
     let mut m = Matcher::new(MatcherParams::default(), *syn.camera());
@@ -67,7 +92,7 @@ fn match_preset(preset: &str) -> (Partners, Vec<f64>) {
     let mut partners = Vec::new();
     for k in 0..n {
         let r = {
-            let (f, g) = features(&syn, k);
+            let (f, g) = features(&syn, k, detector);
             m.add_frame(k as u64, f, Some(g))
         };
         eprintln!(
@@ -93,13 +118,13 @@ fn match_preset(preset: &str) -> (Partners, Vec<f64>) {
     (partners, errors)
 }
 
-fn check(preset: &str) -> Partners {
-    let (partners, errors) = match_preset(preset);
+fn check(preset: &str, detector: Detector) -> Partners {
+    let (partners, errors) = match_preset(preset, detector);
     let n = partners.len();
     let median = errors[errors.len() / 2];
     let good = errors.iter().filter(|&&e| e < 3.0).count() as f64 / errors.len() as f64;
     eprintln!(
-        "{} tracks, median ray error {median:.2} px, {:.1} % under 3 px",
+        "{detector:?}: {} tracks, median ray error {median:.2} px, {:.1} % under 3 px",
         errors.len(),
         100.0 * good
     );
@@ -130,7 +155,7 @@ fn ties(partners: &[Vec<(u64, usize, usize)>], a: usize, b: usize) -> usize {
 
 #[test]
 fn a_single_strip_is_tied_frame_to_frame() {
-    let partners = check("d2x-strip");
+    let partners = check("d2x-strip", Detector::Surf);
     for k in 1..partners.len() {
         assert!(ties(&partners, k - 1, k) >= 30, "frames {} and {k}: {:?}", k - 1, partners[k]);
     }
@@ -138,7 +163,7 @@ fn a_single_strip_is_tied_frame_to_frame() {
 
 #[test]
 fn two_strips_are_tied_along_and_across() {
-    let partners = check("a55-two-strips");
+    let partners = check("a55-two-strips", Detector::Surf);
     // Two strips of nine: along each strip, and from each frame of the second strip to the first.
     for k in (1..18).filter(|k| k % 9 != 0) {
         assert!(ties(&partners, k - 1, k) >= 30, "frames {} and {k}: {:?}", k - 1, partners[k]);
@@ -146,4 +171,13 @@ fn two_strips_are_tied_along_and_across() {
     let across = (9..18).filter(|&k| (0..9).any(|j| ties(&partners, j, k) > 0)).count();
     eprintln!("{across} of 9 frames of the second strip tied to the first");
     assert!(across >= 5, "{across} of 9 frames of the second strip tied to the first");
+}
+
+/// The second detector: ORB's binary descriptors through the same matcher (Hamming distance, no Laplacian sign).
+#[test]
+fn orb_ties_the_single_strip_frame_to_frame_too() {
+    let partners = check("d2x-strip", Detector::Orb);
+    for k in 1..partners.len() {
+        assert!(ties(&partners, k - 1, k) >= 30, "frames {} and {k}: {:?}", k - 1, partners[k]);
+    }
 }

@@ -1,4 +1,5 @@
-//! The orientation stage, implementation `bundle`: exterior orientations from tie points as frames arrive.
+//! The orientation stage: exterior orientations from tie points as frames arrive. Implementation `bundle` below;
+//! `essential` (seed 001) in [`essential`]'s terms, on the same block.
 //!
 //! The first pair with enough verified common tracks starts the block: the second camera is placed against the
 //! image flow with the first as datum and the pair is adjusted (a façade is nearly a plane, where the linear
@@ -9,6 +10,7 @@
 //! control points join the adjustment with their a-priori standard deviations. At the end a full adjustment removes
 //! outliers and solves again, and the check points are intersected for `checkpoints.csv`.
 pub mod colmap;
+mod essential;
 
 use std::collections::{BTreeMap, BTreeSet};
 
@@ -33,6 +35,9 @@ pub struct OrientationParams {
     pub min_angle_deg: f64,
     /// Frames adjusted as each new one arrives (the sliding window); earlier frames are held and settled.
     pub window: usize,
+    /// `essential`: polish each linear relative orientation by minimising the Sampson distances (from the linear
+    /// solution and from the strip's motion, keeping the better); `false` is the seed's linear method alone.
+    pub refine_relative: bool,
 }
 
 impl OrientationParams {
@@ -63,8 +68,18 @@ impl Default for OrientationParams {
             min_resect_points: 8,
             min_angle_deg: 1.0,
             window: 10,
+            refine_relative: true,
         }
     }
+}
+
+/// How frames are oriented: the launch file's `impl`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Method {
+    /// Resection, intersection and the sliding-window and final bundle adjustments with control points.
+    Bundle,
+    /// Chained essential-matrix relative orientations and a transformation into the control frame (seed 001).
+    Essential,
 }
 
 /// A surveyed point.
@@ -90,6 +105,9 @@ struct Track {
 /// The block being oriented.
 pub struct Block {
     params: OrientationParams,
+    method: Method,
+    /// Control points of the last move into the control frame (`essential`).
+    georeferenced_with: usize,
     camera: Camera,
     /// Oriented frames.
     pub poses: BTreeMap<u64, Pose>,
@@ -128,6 +146,8 @@ impl Block {
     pub fn new(params: OrientationParams, camera: Camera) -> Self {
         Self {
             params,
+            method: Method::Bundle,
+            georeferenced_with: 0,
             camera,
             poses: BTreeMap::new(),
             tracks: BTreeMap::new(),
@@ -141,6 +161,11 @@ impl Block {
             states: BTreeMap::new(),
             finished: false,
         }
+    }
+
+    /// The same block oriented by `method`.
+    pub fn with_method(self, method: Method) -> Self {
+        Self { method, ..self }
     }
 
     fn ideal(&self, px: [f64; 2]) -> [f64; 2] {
@@ -217,11 +242,21 @@ impl Block {
             return true;
         }
         let first = self.poses.is_empty();
-        let ok = if first { self.initialise(k) } else { self.resect_frame(k) };
+        let ok = match (self.method, first) {
+            (Method::Essential, _) => self.orient_relative(k),
+            (Method::Bundle, true) => self.initialise(k),
+            (Method::Bundle, false) => self.resect_frame(k),
+        };
         if ok {
             self.order
                 .extend(self.poses.keys().filter(|f| !self.order.contains(f)).copied().collect::<Vec<_>>());
             self.intersect_new();
+            if self.method == Method::Essential {
+                self.georeference_model(false);
+                self.report.rms_mm = self.tie_rms_mm();
+                self.report.sigma0 = self.report.rms_mm / (self.params.tie_sigma_px * self.camera.pixel_size_mm);
+                return true;
+            }
             self.georeference();
             self.adjust_block(false);
             if first {
@@ -501,12 +536,25 @@ impl Block {
     pub fn finish(&mut self) {
         let pending: Vec<u64> = self.frames.iter().filter(|f| !self.poses.contains_key(f)).copied().collect();
         for f in pending {
-            if self.resect_frame(f) {
+            let oriented = match self.method {
+                Method::Bundle => self.resect_frame(f),
+                Method::Essential => self.orient_relative(f),
+            };
+            if oriented {
                 self.intersect_new();
             }
         }
-        self.georeference();
-        self.adjust_block(true);
+        match self.method {
+            Method::Bundle => {
+                self.georeference();
+                self.adjust_block(true);
+            }
+            Method::Essential => {
+                self.georeference_model(true);
+                self.report.rms_mm = self.tie_rms_mm();
+                self.report.sigma0 = self.report.rms_mm / (self.params.tie_sigma_px * self.camera.pixel_size_mm);
+            }
+        }
         self.finished = true;
     }
 

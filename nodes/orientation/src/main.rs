@@ -1,12 +1,14 @@
-//! `lineflow-orientation`: the orientation stage, implementation `bundle`. Orients each frame as its tie points
-//! arrive, publishes every oriented frame's pose after each adjustment (revisions per `architecture.md`), and at
-//! end-of-stream runs the full adjustment and writes `poses.csv` and `checkpoints.csv` into the run's output folder.
+//! `lineflow-orientation`: the orientation stage, implementations `bundle` (the default), `essential` (seed 001's
+//! chained essential matrices) and `file` (the user's poses). Orients each frame as its tie points arrive,
+//! publishes every oriented frame's pose after each change (revisions per `architecture.md`), and at end-of-stream
+//! runs the full adjustment (or, for `essential`, the final transformation into the control frame) and writes
+//! `poses.csv` and `checkpoints.csv` into the run's output folder.
 use std::collections::BTreeMap;
 
 use anyhow::{bail, Context, Result};
 use lineflow_formats::{write_checkpoints, write_poses, CheckRow, PoseRow};
 use lineflow_messages::{kinds, ControlPoint, Pose, PosesHeader, Stamp, StampFlags, TiePoint};
-use lineflow_orientation::{Block, OrientationParams, Surveyed};
+use lineflow_orientation::{Block, Method, OrientationParams, Surveyed};
 use lineflow_photogrammetry::Vec3;
 use lineflow_runtime::{Flow, NodeContext, Output};
 
@@ -132,10 +134,11 @@ fn write_results(ctx: &NodeContext, block: &Block, names: &BTreeMap<u64, String>
 fn body() -> Result<()> {
     let ctx = NodeContext::from_env()?;
     match ctx.implementation("bundle") {
-        "bundle" => run_bundle(ctx),
+        "bundle" => run_block(ctx, Method::Bundle),
+        "essential" => run_block(ctx, Method::Essential),
         "file" => run_file(ctx),
         other => bail!(
-            "node '{}': unknown orientation impl '{other}' (available: bundle, file)",
+            "node '{}': unknown orientation impl '{other}' (available: bundle, essential, file)",
             ctx.name()
         ),
     }
@@ -247,7 +250,7 @@ fn run_file(ctx: NodeContext) -> Result<()> {
     Ok(())
 }
 
-fn run_bundle(ctx: NodeContext) -> Result<()> {
+fn run_block(ctx: NodeContext, method: Method) -> Result<()> {
     let params: OrientationParams = ctx.params()?;
     if let Err(e) = params.validate() {
         bail!("node '{}': {e}", ctx.name());
@@ -273,7 +276,7 @@ fn run_bundle(ctx: NodeContext) -> Result<()> {
         while let Some(m) = camera_in.receive()? {
             let camera = m.user_header().camera();
             pixel_mm = camera.pixel_size_mm;
-            block.get_or_insert_with(|| Block::new(params.clone(), camera));
+            block.get_or_insert_with(|| Block::new(params.clone(), camera).with_method(method));
         }
         if let Some(input) = &control_in {
             while let Some(m) = input.receive()? {
@@ -352,7 +355,11 @@ fn run_bundle(ctx: NodeContext) -> Result<()> {
             tracing::warn!("{} frames could not be oriented: {missing:?}", missing.len());
         }
         tracing::info!(
-            "final adjustment: {} frames, σ0 {:.2}, tie-point RMS {:.2} px, {} observations removed",
+            "final {}: {} frames, σ0 {:.2}, tie-point RMS {:.2} px, {} observations removed",
+            match method {
+                Method::Bundle => "adjustment",
+                Method::Essential => "transformation",
+            },
             b.poses.len(),
             b.report.sigma0,
             b.report.rms_mm / pixel_mm,
