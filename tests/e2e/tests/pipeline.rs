@@ -691,3 +691,134 @@ fn poses_supplied_with_the_project_replace_the_orientation() {
     assert!(!r.status.success());
     assert!(stderr.contains("poses.csv"), "{stderr}");
 }
+
+/// Root-mean-square per axis of the deltas in a `checkpoints.csv`, and their number.
+fn checkpoint_rmse(text: &str) -> ([f64; 3], usize) {
+    let deltas: Vec<Vec<f64>> = text
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').skip(1).take(3).map(|x| x.parse().unwrap()).collect())
+        .collect();
+    let n = deltas.len().max(1) as f64;
+    let rmse = std::array::from_fn(|k| (deltas.iter().map(|d| d[k] * d[k]).sum::<f64>() / n).sqrt());
+    (rmse, deltas.len())
+}
+
+#[test]
+fn the_second_detector_and_the_essential_matrix_orientation_swap_in_from_the_command_line() {
+    let sb = Sandbox::new();
+    let graph = sb.graph(
+        "orient.toml",
+        r#"
+[[node]]
+name = "capture"
+stage = "capture"
+impl = "synthetic"
+params = { preset = "d2x-strip", scale = 0.25, seed = 1, fps = 0 }
+
+[[node]]
+name = "gray"
+stage = "convert"
+impl = "gray"
+
+[[node]]
+name = "features"
+stage = "features"
+impl = "surf"
+remap = { images = "gray" }
+
+[[node]]
+name = "matcher"
+stage = "matcher"
+impl = "ratio"
+remap = { images = "gray" }
+
+[[node]]
+name = "orientation"
+stage = "orientation"
+impl = "bundle"
+
+[[edge]]
+topic = "images"
+type = "Image"
+from = "capture"
+to = ["gray", "orientation"]
+
+[[edge]]
+topic = "gray"
+type = "Image"
+from = "gray"
+to = ["features", "matcher"]
+
+[[edge]]
+topic = "camera"
+type = "CameraModel"
+from = "capture"
+to = ["matcher", "orientation"]
+
+[[edge]]
+topic = "keypoints"
+type = "Keypoints"
+from = "features"
+to = ["matcher"]
+
+[[edge]]
+topic = "tiepoints"
+type = "TiePoints"
+from = "matcher"
+to = ["orientation"]
+
+[[edge]]
+topic = "control_points"
+type = "ControlPoints"
+from = "capture"
+to = ["orientation"]
+
+[[edge]]
+topic = "observations"
+type = "Observations"
+from = "capture"
+to = ["orientation"]
+
+[[edge]]
+topic = "poses"
+type = "Poses"
+from = "orientation"
+to = []
+"#,
+    );
+    let out = sb.path().join("out");
+    let r = sb.run(&[
+        "run",
+        graph.to_str().unwrap(),
+        "--set",
+        "features.impl=orb",
+        "--set",
+        "orientation.impl=essential",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(r.status.success(), "run failed");
+    let log = String::from_utf8_lossy(&r.stderr);
+    assert!(log.contains("final transformation"), "the essential impl did not run:\n{log}");
+    let poses = std::fs::read_to_string(out.join("poses.csv")).expect("no poses.csv");
+    assert_eq!(poses.lines().count(), 34, "every frame of the strip oriented:\n{poses}");
+    let (rmse, n) = checkpoint_rmse(&std::fs::read_to_string(out.join("checkpoints.csv")).expect("no checkpoints.csv"));
+    // GSD of the d2x-strip preset at scale 0.25: 6.3 mm / 0.25. The chain without adjustment stays within 2 GSD.
+    let gsd = 0.0063 / 0.25;
+    eprintln!("orb + essential: check-point RMSE {rmse:?} m over {n} points (GSD {gsd} m)");
+    assert!(n >= 10 && rmse.iter().all(|&r| r < 2.0 * gsd), "check-point RMSE {rmse:?} m");
+    let info = String::from_utf8_lossy(&sb.run(&["info", out.join("recording.mcap").to_str().unwrap()]).stdout).into_owned();
+    assert!(info.lines().any(|l| l.starts_with("keypoints ")), "{info}");
+    // An unknown implementation names the available ones.
+    let bad = sb.run(&[
+        "run",
+        graph.to_str().unwrap(),
+        "--set",
+        "features.impl=sift",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(!bad.status.success());
+    assert!(String::from_utf8_lossy(&bad.stderr).contains("available: surf, orb"));
+}
