@@ -90,13 +90,18 @@ fn run_id(out: &Path) -> String {
     s.split_whitespace().nth(1).unwrap().to_owned()
 }
 
-fn assert_nothing_left(sandbox: &Sandbox, out: &Path) {
-    let id = run_id(out);
-    let left: Vec<_> = std::fs::read_dir("/dev/shm")
+/// The files of run `id` in `/dev/shm`.
+fn shm_files(id: &str) -> Vec<std::fs::DirEntry> {
+    std::fs::read_dir("/dev/shm")
         .unwrap()
         .flatten()
         .filter(|e| e.file_name().to_string_lossy().contains(&format!("lf{id}_")))
-        .collect();
+        .collect()
+}
+
+fn assert_nothing_left(sandbox: &Sandbox, out: &Path) {
+    let id = run_id(out);
+    let left = shm_files(&id);
     assert!(left.is_empty(), "run {id} left {left:?} in /dev/shm");
     let runs = sandbox.path().join("state/runs");
     assert!(
@@ -821,4 +826,61 @@ to = []
     ]);
     assert!(!bad.status.success());
     assert!(String::from_utf8_lossy(&bad.stderr).contains("available: surf, orb"));
+}
+
+#[test]
+fn doctor_finds_what_a_killed_run_left_and_fix_removes_it() {
+    let sb = Sandbox::new();
+    let folder = sb.project(2, 16, 16);
+    // A watching capture keeps the run alive until it is killed.
+    let graph = sb.graph("g.toml", &direct_graph(&folder, ", watch = true, idle_timeout_s = 60.0", ""));
+    let out = sb.path().join("out");
+    let mut child = sb
+        .lineflow(&["run", graph.to_str().unwrap(), "--out", out.to_str().unwrap()])
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    let runs = sb.path().join("state/runs");
+    let start = Instant::now();
+    let id = loop {
+        let id = std::fs::read_dir(&runs)
+            .into_iter()
+            .flatten()
+            .flatten()
+            .find_map(|e| e.file_name().to_str().map(str::to_owned));
+        let nodes_up = !children_of(child.id(), "lineflow-stats").is_empty() && !children_of(child.id(), "lineflow-captur").is_empty();
+        if let Some(id) = id.filter(|id| nodes_up && !shm_files(id).is_empty()) {
+            // Past the `--describe` runs: the nodes proper are connected.
+            std::thread::sleep(Duration::from_millis(500));
+            break id;
+        }
+        assert!(start.elapsed() < Duration::from_secs(30), "the run never got going");
+        std::thread::sleep(Duration::from_millis(50));
+    };
+    // The supervisor and every node die at once, as in a power cut or `kill -9` of the process group.
+    let nodes = children_of(child.id(), "lineflow");
+    for pid in nodes.iter().copied().chain([child.id()]) {
+        // SAFETY: signalling processes this test started.
+        unsafe { libc::kill(pid as i32, libc::SIGKILL) };
+    }
+    let _ = child.wait();
+    std::thread::sleep(Duration::from_millis(200));
+    assert!(!shm_files(&id).is_empty(), "the killed run left nothing to clean up");
+
+    let report = sb.run(&["doctor"]);
+    let text = String::from_utf8_lossy(&report.stdout);
+    assert_eq!(report.status.code(), Some(2), "stale runs are a finding:\n{text}");
+    assert!(
+        text.contains(&format!("run {id}: stale")) && text.contains("supervisor died"),
+        "{text}"
+    );
+    assert!(text.contains("free"), "{text}");
+
+    let fixed = sb.run(&["doctor", "--fix"]);
+    assert!(fixed.status.success(), "{}", String::from_utf8_lossy(&fixed.stdout));
+    assert!(String::from_utf8_lossy(&fixed.stdout).contains("removed"));
+    assert!(shm_files(&id).is_empty(), "doctor --fix left files of run {id} in /dev/shm");
+    assert!(!runs.join(&id).exists(), "doctor --fix left the run's folder");
+    let again = sb.run(&["doctor"]);
+    assert!(again.status.success() && String::from_utf8_lossy(&again.stdout).contains("no stale runs"));
 }
