@@ -154,9 +154,13 @@ impl<M: Message> Input<M> {
 }
 
 impl<M: Message> Connect for InputInner<M> {
-    /// Ends an input whose publisher left without end-of-stream (its end-of-stream was dropped, or it exited
-    /// abnormally and will not be restarted): otherwise the node, and everything downstream, would wait forever.
+    /// Connects publishers that appeared since, and ends an input whose publisher left without end-of-stream (its
+    /// end-of-stream was dropped, or it exited abnormally and will not be restarted): otherwise the node, and
+    /// everything downstream, would wait forever.
     fn refresh(&self) {
+        // A restarted publisher is connected on every wake (at most RUN_TICK apart), whether or not the node's code
+        // reads this input now: the publisher's samples wait in the connection instead of being dropped (pitfall P1).
+        let _ = self.subscriber.update_connections();
         // Latched topics carry one message and never an end-of-stream: their publisher leaving is normal.
         if self.ended.get() || M::KIND.latched() {
             return;
