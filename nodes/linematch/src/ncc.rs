@@ -179,32 +179,56 @@ pub fn build_cross(width: usize, height: usize, bands: &Bands, scratch: &mut Ban
 /// thesis's zero-variance case), and its correlation is noise.
 pub const MIN_VARIANCE: f64 = 1.0;
 
-/// NCC (eq. 17) of the master and one slave over the window of band `band` and columns `cols`, from their tables
-/// and the table of products; `None` when either patch has an invalid sample in the window. A flat slave patch
-/// correlates 0; a flat master patch is reported as `None` by the caller's check of [`master_is_textured`].
+/// The master's side of one window: its band and columns, sample count, sum and variance (times `n`).
+#[derive(Debug, Clone, Copy)]
+pub struct MasterWindow {
+    band: usize,
+    cols: (usize, usize),
+    n: f64,
+    sum: f64,
+    variance_n: f64,
+}
+
+/// The master's window of band `band` and columns `cols` when it is complete and carries texture (the thesis's
+/// zero-variance case is `None`): computed once per window, shared by every slave's NCC.
 #[inline]
-pub fn ncc(master: &PatchSums, slave: &PatchSums, cross: &BandSums, n: f64, band: usize, cols: (usize, usize)) -> Option<f64> {
+pub fn master_window(master: &PatchSums, band: usize, cols: (usize, usize), rows: usize) -> Option<MasterWindow> {
+    let n = ((cols.1 - cols.0 + 1) * rows) as f64;
+    if master.valid.sum(band, cols) < n - 0.5 {
+        return None;
+    }
+    let sum = master.sum.sum(band, cols);
+    let variance_n = master.sq.sum(band, cols) - sum * sum / n;
+    (variance_n >= MIN_VARIANCE * n).then_some(MasterWindow {
+        band,
+        cols,
+        n,
+        sum,
+        variance_n,
+    })
+}
+
+/// NCC (eq. 17) of the master's window and one slave, from the slave's tables and the table of products; `None`
+/// when the slave has an invalid sample in the window. A flat slave patch correlates 0.
+#[inline]
+pub fn ncc(master: &MasterWindow, slave: &PatchSums, cross: &BandSums) -> Option<f64> {
+    let MasterWindow {
+        band,
+        cols,
+        n,
+        sum: sm,
+        variance_n: vm,
+    } = *master;
     if slave.valid.sum(band, cols) < n - 0.5 {
         return None;
     }
-    let (sm, ss) = (master.sum.sum(band, cols), slave.sum.sum(band, cols));
-    let vm = master.sq.sum(band, cols) - sm * sm / n;
+    let ss = slave.sum.sum(band, cols);
     let vs = slave.sq.sum(band, cols) - ss * ss / n;
     if vs < MIN_VARIANCE * n {
         return Some(0.0);
     }
     let cov = cross.sum(band, cols) - sm * ss / n;
     Some((cov / (vm * vs).sqrt()).clamp(-1.0, 1.0))
-}
-
-/// Whether the master's window (`n` samples) is complete and carries texture.
-#[inline]
-pub fn master_is_textured(master: &PatchSums, n: f64, band: usize, cols: (usize, usize)) -> bool {
-    if master.valid.sum(band, cols) < n - 0.5 {
-        return false;
-    }
-    let sm = master.sum.sum(band, cols);
-    master.sq.sum(band, cols) - sm * sm / n >= MIN_VARIANCE * n
 }
 
 #[cfg(test)]
@@ -265,11 +289,10 @@ mod tests {
                     .map(|(r, c)| g[r * w + c])
                     .collect()
             };
-            let n = ((cols.1 - cols.0 + 1) * t.bands.rows(band)) as f64;
             let expected = direct(&pick(&m), &pick(&s));
-            let got = ncc(&t.m, &t.s, &t.cross, n, band, cols).unwrap();
+            let window = master_window(&t.m, band, cols, t.bands.rows(band)).expect("textured");
+            let got = ncc(&window, &t.s, &t.cross).unwrap();
             assert!((got - expected).abs() < 1e-9, "band {rows:?}: {got} vs {expected}");
-            assert!(master_is_textured(&t.m, n, band, cols));
         }
     }
 
@@ -280,9 +303,16 @@ mod tests {
         let mut s = m.clone();
         s[12] = f32::NAN;
         let t = tables(w, h, &[(0, 4), (0, 1)], &m, &s);
-        assert_eq!(ncc(&t.m, &t.s, &t.cross, 25.0, 0, (0, 4)), None);
-        assert!(ncc(&t.m, &t.s, &t.cross, 10.0, 1, (0, 4)).unwrap() > 0.999);
+        let (whole, top) = (
+            master_window(&t.m, 0, (0, 4), 5).unwrap(),
+            master_window(&t.m, 1, (0, 4), 2).unwrap(),
+        );
+        assert_eq!(ncc(&whole, &t.s, &t.cross), None);
+        assert!(ncc(&top, &t.s, &t.cross).unwrap() > 0.999);
         let t = tables(w, h, &[(0, 4)], &m, &[7.0f32; 25]);
-        assert_eq!(ncc(&t.m, &t.s, &t.cross, 25.0, 0, (0, 4)), Some(0.0));
+        assert_eq!(ncc(&whole, &t.s, &t.cross), Some(0.0));
+        // A flat master window carries nothing to correlate.
+        let flat = tables(w, h, &[(0, 4)], &[7.0f32; 25], &m);
+        assert!(master_window(&flat.m, 0, (0, 4), 5).is_none());
     }
 }

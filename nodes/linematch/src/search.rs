@@ -5,7 +5,7 @@
 //! lattice at every fine depth near the coarse peaks.
 use lineflow_photogrammetry::Vec3;
 
-use crate::ncc::{build_cross, master_is_textured, ncc, BandScratch, BandSums, Bands, PatchSums};
+use crate::ncc::{build_cross, master_window, ncc, BandScratch, BandSums, Bands, PatchSums};
 use crate::slave_lines::{refine_depths, SlaveSegments};
 use crate::view::View;
 use crate::wall::{wall_of_ray, WallPlane};
@@ -80,8 +80,10 @@ impl Line<'_> {
 /// SNCC of every sampled point for each single-point mode, and of the line for each linear mode, at one depth.
 #[derive(Debug, Clone)]
 struct DepthScores {
-    /// `point[k][m]`: point k, single-point mode m (index into the enabled single modes); NaN when invalid.
-    point: Vec<Vec<f64>>,
+    /// `point[k · modes + m]`: point k, single-point mode m (index into the enabled single modes); NaN when invalid.
+    point: Vec<f64>,
+    /// Enabled single-point modes.
+    modes: usize,
     /// One per enabled linear mode; NaN when invalid.
     linear: Vec<f64>,
 }
@@ -352,7 +354,7 @@ fn snap_parallel(points: Vec<MatchedPoint>, line: &Line, depth_step: f64, tolera
 
 /// Single-point mode `m` of point `k` over depths.
 fn curve_point(scores: &[DepthScores], k: usize, m: usize) -> impl Iterator<Item = f64> + '_ {
-    scores.iter().map(move |s| s.point[k][m])
+    scores.iter().map(move |s| s.point[k * s.modes + m])
 }
 
 /// Linear mode `m` over depths.
@@ -460,7 +462,8 @@ fn score_depth(
     let spots: Vec<[i32; 2]> = line.rays.iter().map(|r| pos(&line.at(r, depth))).collect();
     let end_col = pos(&end)[0];
     let invalid = || DepthScores {
-        point: vec![vec![f64::NAN; singles.len()]; line.rays.len()],
+        point: vec![f64::NAN; singles.len() * line.rays.len()],
+        modes: singles.len(),
         linear: vec![f64::NAN; linears.len()],
     };
     if !origin.iter().all(|v| v.is_finite()) || spots.is_empty() {
@@ -518,13 +521,12 @@ fn score_depth(
     }
     let sncc = |w: Window| -> f64 {
         let Some((band, cols)) = w else { return f64::NAN };
-        let n = ((cols.1 - cols.0 + 1) * s.bands.rows(band)) as f64;
-        if !master_is_textured(&s.sums[0], n, band, cols) {
+        let Some(master) = master_window(&s.sums[0], band, cols, s.bands.rows(band)) else {
             return f64::NAN;
-        }
+        };
         let (mut total, mut count) = (0.0, 0usize);
         for v in 1..views.len() {
-            if let Some(r) = ncc(&s.sums[0], &s.sums[v], &s.cross[v], n, band, cols) {
+            if let Some(r) = ncc(&master, &s.sums[v], &s.cross[v]) {
                 total += r;
                 count += 1;
             }
@@ -536,12 +538,13 @@ fn score_depth(
         }
     };
     let n_single = singles.len();
-    let point = s.windows[..spots.len() * n_single]
-        .chunks(n_single.max(1))
-        .map(|ws| ws.iter().map(|&w| sncc(w)).collect())
-        .collect();
+    let point = s.windows[..spots.len() * n_single].iter().map(|&w| sncc(w)).collect();
     let linear = s.windows[spots.len() * n_single..].iter().map(|&w| sncc(w)).collect();
-    DepthScores { point, linear }
+    DepthScores {
+        point,
+        modes: n_single,
+        linear,
+    }
 }
 
 #[cfg(test)]
