@@ -8,11 +8,11 @@
 //!
 //! This is the seed's comparison method, not the default: a façade is nearly a plane, where the linear essential
 //! matrix is ill-conditioned, and chained relative orientations drift along a strip with nothing to hold them.
-use lineflow_photogrammetry::epipolar::{eight_point, refine_relative, relative_pose, verify, Ransac, Ray};
+use lineflow_photogrammetry::epipolar::{eight_point, refine_relative, relative_pose, Ray};
 use lineflow_photogrammetry::intersect::{affine, intersect_rays, similarity};
 use lineflow_photogrammetry::{Mat3, Pose, Vec3};
 
-use crate::Block;
+use crate::{Block, VerifiedPair};
 
 /// Tracks with an intersected point needed to fix the length of a new baseline.
 const MIN_SCALE_POINTS: usize = 3;
@@ -68,24 +68,16 @@ impl Block {
         } else {
             self.poses.keys().copied().collect()
         };
-        let Some((j, common)) = partners
-            .into_iter()
-            .map(|j| (j, self.common(j, k)))
-            .max_by_key(|(j, c)| (c.len(), *j))
+        let Some(VerifiedPair {
+            partner: j,
+            common,
+            a,
+            b,
+            inliers,
+        }) = self.verified_pair(k, partners, 0x0E55)
         else {
             return false;
         };
-        if common.len() < self.params.min_init_tracks {
-            return false;
-        }
-        let a: Vec<Ray> = common.iter().map(|c| self.ray(c.0)).collect();
-        let b: Vec<Ray> = common.iter().map(|c| self.ray(c.1)).collect();
-        let ransac = Ransac {
-            threshold: 2.0 * self.params.tie_sigma_px * self.camera.pixel_size_mm / self.camera.focal_mm,
-            iterations: 2000,
-            seed: 0x0E55,
-        };
-        let inliers = verify(&a, &b, &ransac, self.params.min_init_tracks);
         if inliers.is_empty() {
             tracing::warn!("frame {k}: no essential matrix with frame {j} ({} common tracks)", common.len());
             return false;

@@ -102,6 +102,16 @@ struct Track {
     point: Option<Vec3>,
 }
 
+/// Two frames' common tracks (ideal coordinates in the partner, in the new frame, track id), their rays, and the
+/// essential-matrix inliers among them.
+struct VerifiedPair {
+    partner: u64,
+    common: Vec<([f64; 2], [f64; 2], u64)>,
+    a: Vec<Ray>,
+    b: Vec<Ray>,
+    inliers: Vec<usize>,
+}
+
 /// The block being oriented.
 pub struct Block {
     params: OrientationParams,
@@ -266,27 +276,45 @@ impl Block {
         ok
     }
 
-    fn initialise(&mut self, k: u64) -> bool {
-        let Some((j, common)) = self
-            .frames
-            .iter()
-            .filter(|&&j| j != k)
-            .map(|&j| (j, self.common(j, k)))
-            .max_by_key(|(j, c)| (c.len(), *j))
-        else {
-            return false;
-        };
+    /// The frame among `partners` that shares most tracks with `k`, with the common tracks, their rays in both and
+    /// the essential-matrix RANSAC inliers among them (empty when too few agree); `None` when too few tracks are
+    /// shared.
+    fn verified_pair(&self, k: u64, partners: Vec<u64>, seed: u64) -> Option<VerifiedPair> {
+        let (partner, common) = partners
+            .into_iter()
+            .map(|j| (j, self.common(j, k)))
+            .max_by_key(|(j, c)| (c.len(), *j))?;
         if common.len() < self.params.min_init_tracks {
-            return false;
+            return None;
         }
         let a: Vec<Ray> = common.iter().map(|c| self.ray(c.0)).collect();
         let b: Vec<Ray> = common.iter().map(|c| self.ray(c.1)).collect();
         let ransac = Ransac {
             threshold: 2.0 * self.params.tie_sigma_px * self.camera.pixel_size_mm / self.camera.focal_mm,
             iterations: 2000,
-            seed: 0x0E1E,
+            seed,
         };
         let inliers = verify(&a, &b, &ransac, self.params.min_init_tracks);
+        Some(VerifiedPair {
+            partner,
+            common,
+            a,
+            b,
+            inliers,
+        })
+    }
+
+    fn initialise(&mut self, k: u64) -> bool {
+        let partners: Vec<u64> = self.frames.iter().copied().filter(|&j| j != k).collect();
+        let Some(VerifiedPair {
+            partner: j,
+            common,
+            inliers,
+            ..
+        }) = self.verified_pair(k, partners, 0x0E1E)
+        else {
+            return false;
+        };
         if inliers.is_empty() {
             return false;
         }
