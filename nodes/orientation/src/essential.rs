@@ -64,7 +64,7 @@ impl Block {
     pub(crate) fn orient_relative(&mut self, k: u64) -> bool {
         let first = self.poses.is_empty();
         let partners: Vec<u64> = if first {
-            self.frames.iter().copied().filter(|&j| j != k).collect()
+            self.frames_but(k)
         } else {
             self.poses.keys().copied().collect()
         };

@@ -276,6 +276,11 @@ impl Block {
         ok
     }
 
+    /// Every frame seen except `k`.
+    fn frames_but(&self, k: u64) -> Vec<u64> {
+        self.frames.iter().copied().filter(|&j| j != k).collect()
+    }
+
     /// The frame among `partners` that shares most tracks with `k`, with the common tracks, their rays in both and
     /// the essential-matrix RANSAC inliers among them (empty when too few agree); `None` when too few tracks are
     /// shared.
@@ -305,13 +310,12 @@ impl Block {
     }
 
     fn initialise(&mut self, k: u64) -> bool {
-        let partners: Vec<u64> = self.frames.iter().copied().filter(|&j| j != k).collect();
         let Some(VerifiedPair {
             partner: j,
             common,
             inliers,
             ..
-        }) = self.verified_pair(k, partners, 0x0E1E)
+        }) = self.verified_pair(k, self.frames_but(k), 0x0E1E)
         else {
             return false;
         };
