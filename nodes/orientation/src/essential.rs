@@ -165,14 +165,7 @@ impl Block {
     /// Moves the model into the control frame when more control points are intersected than at the last move;
     /// with `last`, always, and by the affine where the control points determine it.
     pub(crate) fn georeference_model(&mut self, last: bool) {
-        let pairs: Vec<(Vec3, Vec3)> = self
-            .targets
-            .iter()
-            .filter_map(|(id, t)| {
-                let s = self.surveyed.get(id).filter(|s| s.control)?;
-                Some((self.triangulate(t)?, s.xyz))
-            })
-            .collect();
+        let pairs = self.control_pairs();
         if pairs.len() < 3 || (!last && pairs.len() <= self.georeferenced_with) {
             return;
         }
@@ -185,15 +178,7 @@ impl Block {
                 None => return,
             },
         };
-        for p in self.poses.values_mut() {
-            p.rotation = transform.rotation(&p.rotation);
-            p.center = transform.point(&p.center);
-        }
-        for t in self.tracks.values_mut() {
-            if let Some(x) = &mut t.point {
-                *x = transform.point(x);
-            }
-        }
+        self.move_block(|x| transform.point(x), |m| transform.rotation(m));
         for s in self.states.values_mut() {
             s.revision += 1;
             s.settled = true;

@@ -17,7 +17,7 @@ use std::collections::{BTreeMap, BTreeSet};
 use lineflow_photogrammetry::bundle::{adjust, resect, BundleOptions, BundleProblem, BundleReport, ImageObservation, PointPrior};
 use lineflow_photogrammetry::epipolar::{verify, Ransac, Ray};
 use lineflow_photogrammetry::intersect::{intersect_rays, similarity};
-use lineflow_photogrammetry::{Camera, Pose, Vec3};
+use lineflow_photogrammetry::{Camera, Mat3, Pose, Vec3};
 
 /// Settings.
 #[derive(Debug, Clone, serde::Deserialize)]
@@ -422,19 +422,36 @@ impl Block {
         }
     }
 
-    /// Moves the block into the control frame once three control points are intersected.
-    fn georeference(&mut self) {
-        if self.georeferenced {
-            return;
-        }
-        let pairs: Vec<(Vec3, Vec3)> = self
-            .targets
+    /// Every control point intersected from the oriented frames, with its surveyed coordinates.
+    fn control_pairs(&self) -> Vec<(Vec3, Vec3)> {
+        self.targets
             .iter()
             .filter_map(|(id, t)| {
                 let s = self.surveyed.get(id).filter(|s| s.control)?;
                 Some((self.triangulate(t)?, s.xyz))
             })
-            .collect();
+            .collect()
+    }
+
+    /// Moves every pose and intersected point: centres and points by `point`, rotations by `rotation`.
+    fn move_block(&mut self, point: impl Fn(&Vec3) -> Vec3, rotation: impl Fn(&Mat3) -> Mat3) {
+        for p in self.poses.values_mut() {
+            p.center = point(&p.center);
+            p.rotation = rotation(&p.rotation);
+        }
+        for t in self.tracks.values_mut() {
+            if let Some(x) = &mut t.point {
+                *x = point(x);
+            }
+        }
+    }
+
+    /// Moves the block into the control frame once three control points are intersected.
+    fn georeference(&mut self) {
+        if self.georeferenced {
+            return;
+        }
+        let pairs = self.control_pairs();
         if pairs.len() < 3 {
             return;
         }
@@ -442,15 +459,7 @@ impl Block {
         let Some(s) = similarity(&from, &to) else {
             return;
         };
-        for p in self.poses.values_mut() {
-            p.center = s.apply(&p.center);
-            p.rotation *= s.rotation.transpose();
-        }
-        for t in self.tracks.values_mut() {
-            if let Some(x) = &mut t.point {
-                *x = s.apply(x);
-            }
-        }
+        self.move_block(|x| s.apply(x), |m| m * s.rotation.transpose());
         self.georeferenced = true;
         tracing::info!("georeferenced with {} control points (scale {:.4})", from.len(), s.scale);
     }
