@@ -195,34 +195,52 @@ impl Block {
         );
     }
 
-    /// Reprojection RMS of the intersected tracks (mm in the image), as the report of a block nothing adjusts.
-    pub(crate) fn tie_rms_mm(&self) -> f64 {
+    /// The report of a block nothing adjusts: the intersected tracks' reprojection RMS (mm in the image) and σ0
+    /// against the tie points' a-priori standard deviation.
+    pub(crate) fn report_chain(&mut self) {
         let (mut sum, mut n) = (0.0, 0usize);
         for t in self.tracks.values() {
             let Some(x) = t.point else { continue };
             for (f, ideal) in &t.obs {
-                let Some(pose) = self.poses.get(f) else { continue };
-                let c = pose.to_camera(&x);
-                if c.z >= 0.0 {
-                    continue;
+                if let Some(p) = self.poses.get(f).and_then(|pose| pose.project_ideal(&self.camera, &x)) {
+                    sum += (p[0] - ideal[0]).powi(2) + (p[1] - ideal[1]).powi(2);
+                    n += 1;
                 }
-                let f_mm = self.camera.focal_mm;
-                let (u, v) = (-f_mm * c.x / c.z, -f_mm * c.y / c.z);
-                sum += (u - ideal[0]).powi(2) + (v - ideal[1]).powi(2);
-                n += 1;
             }
         }
-        if n == 0 {
-            f64::NAN
-        } else {
-            (sum / n as f64).sqrt()
-        }
+        self.report.rms_mm = if n == 0 { f64::NAN } else { (sum / n as f64).sqrt() };
+        self.report.sigma0 = self.report.rms_mm / (self.params.tie_sigma_px * self.camera.pixel_size_mm);
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn an_affine_that_is_a_similarity_moves_cameras_as_the_similarity_does() {
+        use lineflow_photogrammetry::intersect::{Affine, Similarity};
+        let r = lineflow_photogrammetry::rotation_from_opk(0.1, 0.2, -0.3);
+        let t = Vec3::new(5.0, -2.0, 1.0);
+        let similarity = ToControl::Similarity(Similarity {
+            scale: 2.5,
+            rotation: r,
+            translation: t,
+        });
+        let affine = ToControl::Affine(Affine {
+            linear: r * 2.5,
+            translation: t,
+        });
+        let camera = lineflow_photogrammetry::rotation_from_opk(1.4, -0.05, 0.02);
+        let x = Vec3::new(0.3, 19.0, -1.2);
+        assert!((similarity.point(&x) - affine.point(&x)).norm() < 1e-12);
+        assert!((similarity.rotation(&camera) - affine.rotation(&camera)).norm() < 1e-12);
+        // A camera's ray to a point stays its ray to the moved point.
+        let (c, moved) = (Vec3::new(1.0, 2.0, 3.0), affine.rotation(&camera));
+        let before = (camera * (x - c)).normalize();
+        let after = (moved * (affine.point(&x) - affine.point(&c))).normalize();
+        assert!((before - after).norm() < 1e-12);
+    }
 
     #[test]
     fn the_nearest_rotation_of_a_rotation_is_itself_and_of_a_sheared_one_is_orthonormal() {

@@ -261,16 +261,18 @@ impl Block {
             self.order
                 .extend(self.poses.keys().filter(|f| !self.order.contains(f)).copied().collect::<Vec<_>>());
             self.intersect_new();
-            if self.method == Method::Essential {
-                self.georeference_model(false);
-                self.report.rms_mm = self.tie_rms_mm();
-                self.report.sigma0 = self.report.rms_mm / (self.params.tie_sigma_px * self.camera.pixel_size_mm);
-                return true;
-            }
-            self.georeference();
-            self.adjust_block(false);
-            if first {
-                self.pair.truncate(1);
+            match self.method {
+                Method::Bundle => {
+                    self.georeference();
+                    self.adjust_block(false);
+                    if first {
+                        self.pair.truncate(1);
+                    }
+                }
+                Method::Essential => {
+                    self.georeference_model(false);
+                    self.report_chain();
+                }
             }
         }
         ok
@@ -592,8 +594,7 @@ impl Block {
             }
             Method::Essential => {
                 self.georeference_model(true);
-                self.report.rms_mm = self.tie_rms_mm();
-                self.report.sigma0 = self.report.rms_mm / (self.params.tie_sigma_px * self.camera.pixel_size_mm);
+                self.report_chain();
             }
         }
         self.finished = true;
