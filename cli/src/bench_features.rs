@@ -36,9 +36,10 @@ pub fn bench_features(preset: &str, reps: usize, threshold: f32) -> Result<ExitC
         (w * h) as f64 / 1e6
     );
     let one = rayon::ThreadPoolBuilder::new().num_threads(1).build()?;
+    // Median seconds of `detect` on one thread and on every core.
+    let timed = |detect: &(dyn Fn() + Sync)| (median_time(reps, || one.install(detect)), median_time(reps, detect));
     let n = surf(&gray, w, h, &p).len();
-    let t1 = median_time(reps, || one.install(|| drop(surf(&gray, w, h, &p))));
-    let t2 = median_time(reps, || drop(surf(&gray, w, h, &p)));
+    let (t1, t2) = timed(&|| drop(surf(&gray, w, h, &p)));
     println!(
         "surf    1 thread {:7.0} ms  ({n} keypoints)  target <= {:.0} ms: {}",
         t1 * 1e3,
@@ -53,8 +54,7 @@ pub fn bench_features(preset: &str, reps: usize, threshold: f32) -> Result<ExitC
     );
     let po = OrbParams::default();
     let n_orb = orb(&gray, w, h, &po).len();
-    let o1 = median_time(reps, || one.install(|| drop(orb(&gray, w, h, &po))));
-    let o2 = median_time(reps, || drop(orb(&gray, w, h, &po)));
+    let (o1, o2) = timed(&|| drop(orb(&gray, w, h, &po)));
     println!(
         "orb     1 thread {:7.0} ms  ({n_orb} keypoints, max {})  {} threads {:.0} ms",
         o1 * 1e3,
