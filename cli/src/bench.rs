@@ -139,6 +139,35 @@ pub enum BenchCmd {
         #[arg(long)]
         flat_textures: bool,
     },
+    /// Orientation while the photos arrive: renders a synthetic folder, runs `launch/orientation-stream.toml` on it
+    /// at 1 frame/s and reports each frame's first pose against the next frame's arrival, the camera centres against
+    /// the truth, and COLMAP's on the same images where `pycolmap` installs.
+    Stream {
+        /// Preset.
+        #[arg(long, default_value = "d2x-strip")]
+        preset: String,
+        /// Image scale (0.5 = about 3 MP for the D2X).
+        #[arg(long, default_value_t = 0.5)]
+        scale: f64,
+        /// Seed of the scene.
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+        /// Frames per second delivered.
+        #[arg(long, default_value_t = 1.0)]
+        fps: f64,
+        /// Launch graph [default: launch/orientation-stream.toml].
+        #[arg(long)]
+        graph: Option<std::path::PathBuf>,
+        /// Parameter override NODE.KEY=VALUE (repeatable), e.g. `--set capture.fps=2`.
+        #[arg(long)]
+        set: Vec<String>,
+        /// Keep the run's results in this folder [default: a temporary one].
+        #[arg(long)]
+        out: Option<std::path::PathBuf>,
+        /// Skip the COLMAP reference.
+        #[arg(long)]
+        no_colmap: bool,
+    },
     /// The recorder node: MB/s of raw 12 MP RGB frames written with nothing dropped, against the disk.
     Record {
         /// Frames.
@@ -401,6 +430,25 @@ pub fn bench(cmd: BenchCmd) -> Result<ExitCode> {
         }),
         BenchCmd::Linematch { preset, scale, reps } => crate::bench_linematch::bench_linematch(&preset, scale, reps),
         BenchCmd::Bundle { cameras, points } => crate::bench_bundle::bench_bundle(cameras, points),
+        BenchCmd::Stream {
+            preset,
+            scale,
+            seed,
+            fps,
+            graph,
+            set,
+            out,
+            no_colmap,
+        } => crate::bench_stream::bench_stream(crate::bench_stream::StreamArgs {
+            preset: &preset,
+            scale,
+            seed,
+            fps,
+            graph: graph.as_deref(),
+            set: &set,
+            out,
+            no_colmap,
+        }),
         BenchCmd::Record {
             frames,
             width,

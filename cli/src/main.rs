@@ -8,6 +8,7 @@ mod bench_linematch;
 mod bench_lines2d;
 mod bench_modelfit;
 mod bench_record;
+mod bench_stream;
 mod bench_util;
 mod doctor;
 mod model_cmd;

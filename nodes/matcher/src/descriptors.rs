@@ -83,20 +83,40 @@ impl FrameFeatures {
     }
 }
 
-/// Squared descriptor distance between keypoint `i` of `a` and keypoint `j` of `b` (comparable kinds). A binary
-/// descriptor of `L` bits counts as the unit vector of ±1/√L per bit, so that a Hamming distance `H` is `4H / L`:
-/// unrelated descriptors lie near 2 (orthogonal unit vectors) for both kinds, and the ratio and distance thresholds
-/// mean the same for SURF and ORB.
+/// Squared Euclidean distance of two float descriptors, in eight lanes so that the compiler can use SIMD (a single
+/// running sum is a chain of dependent additions).
+#[inline]
+fn float_distance(x: &[f32], y: &[f32]) -> f32 {
+    let mut lanes = [0f32; 8];
+    let (xc, yc) = (x.chunks_exact(8), y.chunks_exact(8));
+    let tail: f32 = xc.remainder().iter().zip(yc.remainder()).map(|(p, q)| (p - q) * (p - q)).sum();
+    for (cx, cy) in xc.zip(yc) {
+        for k in 0..8 {
+            let d = cx[k] - cy[k];
+            lanes[k] += d * d;
+        }
+    }
+    lanes.iter().sum::<f32>() + tail
+}
+
+/// A binary descriptor of `L` bits counts as the unit vector of ±1/√L per bit, so that a Hamming distance `H` is
+/// the squared distance `4H / L`.
+#[inline]
+fn binary_distance(x: &[u8], y: &[u8]) -> f32 {
+    let hamming: u32 = x.iter().zip(y).map(|(p, q)| (p ^ q).count_ones()).sum();
+    4.0 * hamming as f32 / (8 * x.len()).max(1) as f32
+}
+
+/// Squared descriptor distance between keypoint `i` of `a` and keypoint `j` of `b` (comparable kinds): unrelated
+/// descriptors lie near 2 (orthogonal unit vectors) for both kinds, and the ratio and distance thresholds mean the
+/// same for SURF and ORB.
 fn squared_distance(a: &FrameFeatures, i: usize, b: &FrameFeatures, j: usize) -> f32 {
     match (&a.descriptors, &b.descriptors) {
         (Descriptors::Float { values: x, len }, Descriptors::Float { values: y, .. }) => {
-            let (x, y) = (&x[i * len..(i + 1) * len], &y[j * len..(j + 1) * len]);
-            x.iter().zip(y).map(|(p, q)| (p - q) * (p - q)).sum()
+            float_distance(&x[i * len..(i + 1) * len], &y[j * len..(j + 1) * len])
         }
         (Descriptors::Binary { bytes: x, len }, Descriptors::Binary { bytes: y, .. }) => {
-            let (x, y) = (&x[i * len..(i + 1) * len], &y[j * len..(j + 1) * len]);
-            let hamming: u32 = x.iter().zip(y).map(|(p, q)| (p ^ q).count_ones()).sum();
-            4.0 * hamming as f32 / (8 * len).max(1) as f32
+            binary_distance(&x[i * len..(i + 1) * len], &y[j * len..(j + 1) * len])
         }
         _ => f32::INFINITY,
     }
@@ -107,31 +127,91 @@ pub fn distance(a: &FrameFeatures, i: usize, b: &FrameFeatures, j: usize) -> f32
     squared_distance(a, i, b, j).sqrt()
 }
 
-/// For each keypoint of `a`, its nearest neighbour in `b` with the same Laplacian sign, when the nearest is
-/// clearly closer than the second (distance ratio below `ratio`).
-fn nearest(a: &FrameFeatures, b: &FrameFeatures, ratio: f32) -> Vec<Option<usize>> {
-    let r2 = ratio * ratio;
-    (0..a.count())
-        .into_par_iter()
-        .map(|i| {
-            let (mut best, mut second, mut at) = (f32::INFINITY, f32::INFINITY, usize::MAX);
-            for j in 0..b.count() {
-                if b.signs[j] != a.signs[i] {
-                    continue;
-                }
-                let d = squared_distance(a, i, b, j);
-                if d < best {
-                    second = best;
-                    best = d;
-                    at = j;
-                } else if d < second {
-                    second = d;
-                }
-            }
-            // Without a second candidate there is no ratio to test: no match.
-            (second.is_finite() && best < r2 * second).then_some(at)
+/// The nearest and second-nearest candidate of one keypoint: the smallest squared distance (ties to the lower
+/// index), its index, and the second smallest distance (equal to the smallest when two candidates tie).
+#[derive(Debug, Clone, Copy)]
+struct Nearest {
+    best: f32,
+    second: f32,
+    at: usize,
+}
+
+impl Nearest {
+    const NONE: Nearest = Nearest {
+        best: f32::INFINITY,
+        second: f32::INFINITY,
+        at: usize::MAX,
+    };
+
+    #[inline]
+    fn offer(&mut self, d: f32, j: usize) {
+        if d < self.best || (d == self.best && j < self.at) {
+            self.second = self.best;
+            self.best = d;
+            self.at = j;
+        } else if d < self.second {
+            self.second = d;
+        }
+    }
+
+    /// The nearest over the union of two candidate sets; the order of merging does not change the result.
+    fn merge(self, other: Nearest) -> Nearest {
+        let (lo, hi) = if (self.best, self.at) <= (other.best, other.at) { (self, other) } else { (other, self) };
+        Nearest {
+            second: lo.second.min(hi.best),
+            ..lo
+        }
+    }
+
+    /// The match, when there was a second candidate and the best is clearly closer (squared ratio `r2`).
+    fn passes_ratio(&self, r2: f32) -> Option<usize> {
+        (self.second.is_finite() && self.best < r2 * self.second).then_some(self.at)
+    }
+}
+
+/// Rows of `a` per parallel task of [`nearest_both_ways`].
+const ROWS_PER_TASK: usize = 128;
+
+/// For every keypoint of `a` its nearest candidates in `b`, and for every keypoint of `b` its nearest in `a`, from
+/// one pass over the distance matrix; only keypoints with the same Laplacian sign are compared.
+fn nearest_both_ways(a: &FrameFeatures, b: &FrameFeatures, distance: impl Fn(usize, usize) -> f32 + Sync) -> (Vec<Nearest>, Vec<Nearest>) {
+    let mut by_sign: Vec<(i32, Vec<usize>)> = Vec::new();
+    for (j, &s) in b.signs.iter().enumerate() {
+        match by_sign.iter_mut().find(|(t, _)| *t == s) {
+            Some((_, v)) => v.push(j),
+            None => by_sign.push((s, vec![j])),
+        }
+    }
+    let rows: Vec<usize> = (0..a.count()).collect();
+    let tasks: Vec<(Vec<Nearest>, Vec<Nearest>)> = rows
+        .par_chunks(ROWS_PER_TASK)
+        .map(|chunk| {
+            let mut columns = vec![Nearest::NONE; b.count()];
+            let rows = chunk
+                .iter()
+                .map(|&i| {
+                    let mut row = Nearest::NONE;
+                    let same_sign = by_sign.iter().find(|(s, _)| *s == a.signs[i]).map_or(&[][..], |(_, v)| v);
+                    for &j in same_sign {
+                        let d = distance(i, j);
+                        row.offer(d, j);
+                        columns[j].offer(d, i);
+                    }
+                    row
+                })
+                .collect();
+            (rows, columns)
         })
-        .collect()
+        .collect();
+    let mut of_a = Vec::with_capacity(a.count());
+    let mut of_b = vec![Nearest::NONE; b.count()];
+    for (rows, columns) in tasks {
+        of_a.extend(rows);
+        for (acc, c) in of_b.iter_mut().zip(columns) {
+            *acc = acc.merge(c);
+        }
+    }
+    (of_a, of_b)
 }
 
 /// Matches `a` to `b`: ratio test both ways and mutual consistency. Pairs of indices, ordered by `a`'s index.
@@ -139,11 +219,19 @@ pub fn match_features(a: &FrameFeatures, b: &FrameFeatures, ratio: f32) -> Vec<(
     if !a.descriptors.comparable(&b.descriptors) {
         return Vec::new();
     }
-    let ab = nearest(a, b, ratio);
-    let ba = nearest(b, a, ratio);
+    let (ab, ba) = match (&a.descriptors, &b.descriptors) {
+        (Descriptors::Float { values: x, len }, Descriptors::Float { values: y, .. }) => {
+            nearest_both_ways(a, b, |i, j| float_distance(&x[i * len..(i + 1) * len], &y[j * len..(j + 1) * len]))
+        }
+        (Descriptors::Binary { bytes: x, len }, Descriptors::Binary { bytes: y, .. }) => {
+            nearest_both_ways(a, b, |i, j| binary_distance(&x[i * len..(i + 1) * len], &y[j * len..(j + 1) * len]))
+        }
+        _ => return Vec::new(),
+    };
+    let r2 = ratio * ratio;
     ab.iter()
         .enumerate()
-        .filter_map(|(i, j)| j.filter(|&j| ba[j] == Some(i)).map(|j| (i, j)))
+        .filter_map(|(i, n)| n.passes_ratio(r2).filter(|&j| ba[j].passes_ratio(r2) == Some(i)).map(|j| (i, j)))
         .collect()
 }
 
@@ -194,35 +282,24 @@ pub fn guided_match(
         })
         .collect();
     let (r2d, max2) = (ratio * ratio, max_distance * max_distance);
-    let passes = |best: f32, second: f32| best < max2 && (second.is_infinite() || best < r2d * second);
+    let passes = |n: &Nearest| n.best < max2 && (n.second.is_infinite() || n.best < r2d * n.second);
     // Best and second-best per keypoint of `b`, over the keypoints of `a` that chose it as a candidate.
-    let mut of_b = vec![(f32::INFINITY, f32::INFINITY, usize::MAX); b.count()];
+    let mut of_b = vec![Nearest::NONE; b.count()];
     for (i, list) in candidates.iter().enumerate() {
         for &(d, j) in list {
-            let e = &mut of_b[j];
-            if d < e.0 || (d == e.0 && i < e.2) {
-                *e = (d, e.0, i);
-            } else if d < e.1 {
-                e.1 = d;
-            }
+            of_b[j].offer(d, i);
         }
     }
     candidates
         .iter()
         .enumerate()
         .filter_map(|(i, list)| {
-            let (mut best, mut second, mut at) = (f32::INFINITY, f32::INFINITY, usize::MAX);
+            let mut row = Nearest::NONE;
             for &(d, j) in list {
-                if d < best || (d == best && j < at) {
-                    second = best;
-                    best = d;
-                    at = j;
-                } else if d < second {
-                    second = d;
-                }
+                row.offer(d, j);
             }
-            let back = of_b.get(at)?;
-            (passes(best, second) && back.2 == i && passes(back.0, back.1)).then_some((i, at))
+            let back = of_b.get(row.at)?;
+            (passes(&row) && back.at == i && passes(back)).then_some((i, row.at))
         })
         .collect()
 }
@@ -267,6 +344,41 @@ mod tests {
         assert!((distance(&a, 0, &b, 1) - (0.125f32).sqrt()).abs() < 1e-6);
         let float = features(&[[1.0, 0.0], [0.0, 1.0]], &[0, 0]);
         assert!(match_features(&a, &float, 0.8).is_empty());
+    }
+
+    #[test]
+    fn the_one_pass_both_ways_agrees_with_two_separate_searches() {
+        // Coarse random descriptors (many exact ties) and mixed signs, more rows than one parallel task holds.
+        let mut state = 7u64;
+        let mut next = || {
+            state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            (state >> 60) as f32 / 4.0
+        };
+        let mut make = |n: usize| FrameFeatures {
+            px: vec![[0.0; 2]; n],
+            signs: (0..n).map(|i| if i % 3 == 0 { -1 } else { 1 }).collect(),
+            descriptors: Descriptors::Float {
+                values: (0..n * 3).map(|_| next()).collect(),
+                len: 3,
+            },
+        };
+        let (a, b) = (make(300), make(270));
+        let naive = |x: &FrameFeatures, y: &FrameFeatures| -> Vec<Option<usize>> {
+            (0..x.count())
+                .map(|i| {
+                    let mut n = Nearest::NONE;
+                    for j in (0..y.count()).filter(|&j| y.signs[j] == x.signs[i]) {
+                        n.offer(squared_distance(x, i, y, j), j);
+                    }
+                    n.passes_ratio(0.64)
+                })
+                .collect()
+        };
+        let (ab, ba) = (naive(&a, &b), naive(&b, &a));
+        let expected: Vec<(usize, usize)> =
+            (0..a.count()).filter_map(|i| ab[i].filter(|&j| ba[j] == Some(i)).map(|j| (i, j))).collect();
+        assert!(expected.len() > 10, "{}", expected.len());
+        assert_eq!(match_features(&a, &b, 0.8), expected);
     }
 
     #[test]
