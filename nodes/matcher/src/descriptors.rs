@@ -156,7 +156,11 @@ impl Nearest {
 
     /// The nearest over the union of two candidate sets; the order of merging does not change the result.
     fn merge(self, other: Nearest) -> Nearest {
-        let (lo, hi) = if (self.best, self.at) <= (other.best, other.at) { (self, other) } else { (other, self) };
+        let (lo, hi) = if (self.best, self.at) <= (other.best, other.at) {
+            (self, other)
+        } else {
+            (other, self)
+        };
         Nearest {
             second: lo.second.min(hi.best),
             ..lo
@@ -375,8 +379,9 @@ mod tests {
                 .collect()
         };
         let (ab, ba) = (naive(&a, &b), naive(&b, &a));
-        let expected: Vec<(usize, usize)> =
-            (0..a.count()).filter_map(|i| ab[i].filter(|&j| ba[j] == Some(i)).map(|j| (i, j))).collect();
+        let expected: Vec<(usize, usize)> = (0..a.count())
+            .filter_map(|i| ab[i].filter(|&j| ba[j] == Some(i)).map(|j| (i, j)))
+            .collect();
         assert!(expected.len() > 10, "{}", expected.len());
         assert_eq!(match_features(&a, &b, 0.8), expected);
     }

@@ -127,20 +127,76 @@ pub fn consistent_displacements(pairs: &[([f64; 2], [f64; 2])], neighbours: usiz
         return vec![true; pairs.len()];
     }
     let disp: Vec<[f64; 2]> = pairs.iter().map(|(a, b)| [b[0] - a[0], b[1] - a[1]]).collect();
-    (0..pairs.len())
-        .map(|i| {
-            let a = pairs[i].0;
-            let mut near: Vec<(f64, usize)> = (0..pairs.len())
-                .filter(|&j| j != i)
-                .map(|j| ((pairs[j].0[0] - a[0]).hypot(pairs[j].0[1] - a[1]), j))
-                .collect();
-            near.select_nth_unstable_by(neighbours - 1, |x, y| x.0.total_cmp(&y.0).then(x.1.cmp(&y.1)));
+    let at: Vec<[f64; 2]> = pairs.iter().map(|p| p.0).collect();
+    k_nearest(&at, neighbours)
+        .par_iter()
+        .enumerate()
+        .map(|(i, near)| {
             let median = |axis: usize| {
-                let mut v: Vec<f64> = near[..neighbours].iter().map(|&(_, j)| disp[j][axis]).collect();
+                let mut v: Vec<f64> = near.iter().map(|&j| disp[j][axis]).collect();
                 v.sort_by(f64::total_cmp);
                 v[v.len() / 2]
             };
             (disp[i][0] - median(0)).hypot(disp[i][1] - median(1)) <= tolerance_px
+        })
+        .collect()
+}
+
+/// The `k` nearest other points of every point (by distance, ties to the lower index), through a uniform grid of
+/// about `k` points per cell: searched ring by ring until no unvisited cell can hold a nearer point.
+fn k_nearest(points: &[[f64; 2]], k: usize) -> Vec<Vec<usize>> {
+    let n = points.len();
+    let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+    for p in points {
+        for a in 0..2 {
+            lo[a] = lo[a].min(p[a]);
+            hi[a] = hi[a].max(p[a]);
+        }
+    }
+    let area = ((hi[0] - lo[0]) * (hi[1] - lo[1])).max(1.0);
+    let cell = (area * k as f64 / n.max(1) as f64).sqrt().max(1e-6);
+    let dims = [0, 1].map(|a| (((hi[a] - lo[a]) / cell) as usize + 1).min(4096));
+    let cell_of = |p: [f64; 2]| [0, 1].map(|a| (((p[a] - lo[a]) / cell) as usize).min(dims[a] - 1));
+    let mut buckets = vec![Vec::new(); dims[0] * dims[1]];
+    for (j, &p) in points.iter().enumerate() {
+        let [cx, cy] = cell_of(p);
+        buckets[cy * dims[0] + cx].push(j);
+    }
+    (0..n)
+        .into_par_iter()
+        .map(|i| {
+            let p = points[i];
+            let [cx, cy] = cell_of(p).map(|c| c as isize);
+            let mut candidates: Vec<(f64, usize)> = Vec::new();
+            for ring in 0..=dims[0].max(dims[1]) as isize {
+                for y in cy - ring..=cy + ring {
+                    for x in cx - ring..=cx + ring {
+                        let on_ring = (x - cx).abs() == ring || (y - cy).abs() == ring;
+                        if !on_ring || x < 0 || y < 0 || x >= dims[0] as isize || y >= dims[1] as isize {
+                            continue;
+                        }
+                        for &j in &buckets[y as usize * dims[0] + x as usize] {
+                            if j != i {
+                                let d = [points[j][0] - p[0], points[j][1] - p[1]];
+                                candidates.push((d[0] * d[0] + d[1] * d[1], j));
+                            }
+                        }
+                    }
+                }
+                // Cells beyond this ring are at least `ring` whole cells away.
+                if candidates.len() >= k {
+                    candidates.select_nth_unstable_by(k - 1, |a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+                    let reach = ring as f64 * cell;
+                    if candidates[k - 1].0 <= reach * reach {
+                        break;
+                    }
+                }
+            }
+            if candidates.len() > k {
+                candidates.select_nth_unstable_by(k - 1, |a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+            }
+            candidates.truncate(k);
+            candidates.into_iter().map(|(_, j)| j).collect()
         })
         .collect()
 }
@@ -552,6 +608,47 @@ impl Matcher {
                 out.push(of_old(self, t));
             }
             _ => {}
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_grid_finds_the_same_nearest_neighbours_as_a_full_search() {
+        let mut state = 11u64;
+        let mut next = || {
+            state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            (state >> 40) as f64 / (1u64 << 24) as f64
+        };
+        // Clustered points, duplicates (equal distances) and a far outlier.
+        let mut points: Vec<[f64; 2]> = (0..400)
+            .map(|_| [next() * 2000.0, next() * 300.0 + 1000.0 * (next() > 0.8) as i32 as f64])
+            .collect();
+        points.extend([[5.0, 5.0], [5.0, 5.0], [6.0, 5.0], [1.0e5, 3.0]]);
+        for k in [1, 8, 30] {
+            let brute: Vec<Vec<usize>> = (0..points.len())
+                .map(|i| {
+                    let mut d: Vec<(f64, usize)> = (0..points.len())
+                        .filter(|&j| j != i)
+                        .map(|j| ((points[j][0] - points[i][0]).powi(2) + (points[j][1] - points[i][1]).powi(2), j))
+                        .collect();
+                    d.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+                    let mut v: Vec<usize> = d[..k].iter().map(|x| x.1).collect();
+                    v.sort_unstable();
+                    v
+                })
+                .collect();
+            let grid: Vec<Vec<usize>> = k_nearest(&points, k)
+                .into_iter()
+                .map(|mut v| {
+                    v.sort_unstable();
+                    v
+                })
+                .collect();
+            assert_eq!(grid, brute, "k = {k}");
         }
     }
 }
