@@ -124,8 +124,18 @@ pub fn bench_stream(a: StreamArgs<'_>) -> Result<ExitCode> {
     let ours = centres(&lineflow_formats::read_poses(&out.join("poses.csv"))?);
     let gsd = truth.gsd_m();
     println!("camera centres against the truth (GSD {:.1} mm):", gsd * 1e3);
-    print_centres("lineflow, control points only", &centre_errors(&ours, &true_centres, false), frames, gsd);
-    print_centres("lineflow, similarity onto truth", &centre_errors(&ours, &true_centres, true), frames, gsd);
+    print_centres(
+        "lineflow, control points only",
+        &centre_errors(&ours, &true_centres, false),
+        frames,
+        gsd,
+    );
+    print_centres(
+        "lineflow, similarity onto truth",
+        &centre_errors(&ours, &true_centres, true),
+        frames,
+        gsd,
+    );
     if a.no_colmap {
         return Ok(ExitCode::SUCCESS);
     }
@@ -148,7 +158,9 @@ fn toml_string(p: &Path) -> String {
 
 /// An image's name without its extension: the recording's export, COLMAP and `poses.csv` differ only there.
 fn stem(name: &str) -> String {
-    Path::new(name).file_stem().map_or(name.into(), |s| s.to_string_lossy().into_owned())
+    Path::new(name)
+        .file_stem()
+        .map_or(name.into(), |s| s.to_string_lossy().into_owned())
 }
 
 /// Arrival of each frame on `images` and the first oriented pose of it on `poses`, from the recorder's clock.
@@ -234,8 +246,7 @@ fn report_latency(times: &BTreeMap<u64, FrameTimes>, period_ns: f64) {
 /// Camera-centre errors (name, metres) of `estimated` against `truth`, optionally after the least-squares
 /// similarity of the estimate onto the truth (as any reconstruction without control must be scored).
 fn centre_errors(estimated: &BTreeMap<String, Vec3>, truth: &BTreeMap<String, Vec3>, align: bool) -> Vec<f64> {
-    let pairs: Vec<(Vec3, Vec3)> =
-        estimated.iter().filter_map(|(name, c)| Some((*c, *truth.get(name)?))).collect();
+    let pairs: Vec<(Vec3, Vec3)> = estimated.iter().filter_map(|(name, c)| Some((*c, *truth.get(name)?))).collect();
     let (from, to): (Vec<Vec3>, Vec<Vec3>) = pairs.into_iter().unzip();
     let moved: Vec<Vec3> = match align.then(|| similarity(&from, &to)).flatten() {
         Some(s) => from.iter().map(|c| s.apply(c)).collect(),
@@ -277,10 +288,7 @@ fn colmap_centres(out: &Path, images: &Path, work: &Path) -> Result<(BTreeMap<St
     let colmap = work.join("colmap");
     std::fs::create_dir_all(colmap.join("sparse"))?;
     let args = [images.to_owned(), colmap].map(|p| p.display().to_string());
-    let stdout = python_reference(
-        COLMAP,
-        &[args[0].clone(), args[1].clone(), f[1].to_owned(), f[4..].join(",")],
-    )?;
+    let stdout = python_reference(COLMAP, &[args[0].clone(), args[1].clone(), f[1].to_owned(), f[4..].join(",")])?;
     let mut centres = BTreeMap::new();
     let mut seconds = f64::NAN;
     for line in stdout.lines() {
