@@ -108,6 +108,10 @@ macro_rules! with_kind {
                 type $M = kinds::Wireframe;
                 $body
             }
+            MessageKind::ModelFaces => {
+                type $M = kinds::ModelFaces;
+                $body
+            }
         }
     };
 }

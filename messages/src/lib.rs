@@ -27,7 +27,7 @@ pub use control::{ControlPoint, ControlPointsHeader, Observation, ObservationsHe
 pub use features::{Keypoint, KeypointsHeader, TiePoint, TiePointsHeader};
 pub use image::{Encoding, ImageHeader};
 pub use lines::{EdgeMapHeader, EdgePixel, Line3, Lines2DHeader, Lines3DHeader, Point3, PointGroup, Points3DHeader, Segment2};
-pub use model::{WireEdge, WireframeHeader};
+pub use model::{FaceVertex, ModelFacesHeader, WireEdge, WireframeHeader};
 pub use poses::{Pose, PosesHeader};
 pub use registry::{kinds, Message, MessageKind};
 pub use stamp::{Stamp, StampFlags};

@@ -31,3 +31,32 @@ pub struct WireEdge {
     /// 0 wall, 1 roof, 2 opening, 3 ground.
     pub kind: u32,
 }
+
+/// Header of a `ModelFaces` message: the faces of the wire-frame published with the same stamp, as rings of its
+/// vertex indices (the edges alone cannot tell them: an edge bounds two faces).
+#[derive(Debug, Default, Clone, Copy, ZeroCopySend)]
+#[repr(C)]
+#[type_name("lineflow/ModelFaces/v1")]
+pub struct ModelFacesHeader {
+    /// The stamp of the wire-frame these faces belong to.
+    pub stamp: Stamp,
+    /// Number of faces.
+    pub n_faces: u32,
+    /// Zero.
+    pub reserved: u32,
+}
+
+/// One vertex of a face's boundary; a face's vertices come ring by ring, each ring in order.
+#[derive(Debug, Default, Clone, Copy, PartialEq, Eq, ZeroCopySend)]
+#[repr(C)]
+#[type_name("lineflow/FaceVertex/v1")]
+pub struct FaceVertex {
+    /// Face index.
+    pub face: u32,
+    /// 0 for the outer ring, k for the face's k-th hole.
+    pub ring: u32,
+    /// Surface kind: 0 wall, 1 roof, 2 ground, 3 floor, 4 window, 5 door.
+    pub kind: u32,
+    /// Vertex index into the wire-frame.
+    pub vertex: u32,
+}

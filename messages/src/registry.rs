@@ -88,6 +88,7 @@ messages! {
     Points3D => Points3DHeader, u8, latched = false, "Matched object points per 2-D line (two-part bytes).";
     Lines3D => Lines3DHeader, Line3, latched = false, "3-D segments.";
     Wireframe => WireframeHeader, u8, latched = false, "Wire-frame model (two-part bytes).";
+    ModelFaces => ModelFacesHeader, FaceVertex, latched = false, "Faces of a wire-frame model: rings of vertex indices.";
 }
 
 /// Runs `$body` with the type alias `$M` bound to the [`kinds`] marker type of a runtime [`MessageKind`], for code
@@ -153,6 +154,10 @@ macro_rules! with_kind {
             }
             K::Wireframe => {
                 type $M = $crate::kinds::Wireframe;
+                $body
+            }
+            K::ModelFaces => {
+                type $M = $crate::kinds::ModelFaces;
                 $body
             }
         }

@@ -251,6 +251,8 @@ static VERTEX: Layout = Layout {
     }],
 };
 static WIRE_EDGE: Layout = layout!(WireEdge, "WireEdge" { a: S(U32), b: S(U32), face: S(U32), kind: S(U32) });
+static MODEL_FACES: Layout = layout!(ModelFacesHeader, "ModelFaces" { stamp: Struct(&STAMP), n_faces: S(U32), reserved: S(U32) });
+static FACE_VERTEX: Layout = layout!(FaceVertex, "FaceVertex" { face: S(U32), ring: S(U32), kind: S(U32), vertex: S(U32) });
 
 const fn one(name: &'static str, layout: &'static Layout) -> Payload {
     Payload::One(Part {
@@ -352,6 +354,11 @@ static SCHEMAS: &[MessageSchema] = &[
             a: part("vertices", &VERTEX),
             b: part("edges", &WIRE_EDGE),
         },
+    },
+    MessageSchema {
+        kind: MessageKind::ModelFaces,
+        header: &MODEL_FACES,
+        payload: one("vertices", &FACE_VERTEX),
     },
 ];
 

@@ -19,6 +19,26 @@ pub enum SurfaceKind {
 }
 
 impl SurfaceKind {
+    /// Every kind, in the order of their codes in `FaceVertex.kind`.
+    pub const ALL: [SurfaceKind; 6] = [
+        SurfaceKind::Wall,
+        SurfaceKind::Roof,
+        SurfaceKind::Ground,
+        SurfaceKind::Floor,
+        SurfaceKind::Window,
+        SurfaceKind::Door,
+    ];
+
+    /// The code of the kind in a `ModelFaces` message.
+    pub fn code(self) -> u32 {
+        Self::ALL.iter().position(|&k| k == self).unwrap_or(0) as u32
+    }
+
+    /// The kind of a code; `None` for an unknown one.
+    pub fn from_code(code: u32) -> Option<SurfaceKind> {
+        Self::ALL.get(code as usize).copied()
+    }
+
     /// The CityJSON 2.0 semantic surface type.
     pub fn cityjson(self) -> &'static str {
         match self {

@@ -4,7 +4,7 @@ use std::collections::HashMap;
 
 use anyhow::{bail, Context, Result};
 use lineflow_formats::Line3Row;
-use lineflow_messages::{kinds, Line3, Pose, Stamp, WireEdge, WireframeHeader};
+use lineflow_messages::{kinds, FaceVertex, Line3, ModelFacesHeader, Pose, Stamp, WireEdge, WireframeHeader};
 use lineflow_model::{build, export, lines_from_rows, Model, ModelParams, SurfaceKind};
 use lineflow_photogrammetry::Vec3;
 use lineflow_runtime::{Flow, NodeContext, Output};
@@ -45,7 +45,33 @@ fn wire_edges(model: &Model) -> Vec<WireEdge> {
         .collect()
 }
 
-fn publish(output: &Output<kinds::Wireframe>, stamp: Stamp, model: &Model) -> Result<()> {
+/// The faces as rings of vertex indices, outer ring first, then the holes.
+fn face_vertices(model: &Model) -> Vec<FaceVertex> {
+    let mut out = Vec::new();
+    for (f, face) in model.faces.iter().enumerate() {
+        for (ring, vertices) in std::iter::once(&face.ring).chain(&face.holes).enumerate() {
+            out.extend(vertices.iter().map(|&v| FaceVertex {
+                face: f as u32,
+                ring: ring as u32,
+                kind: face.kind.code(),
+                vertex: v as u32,
+            }));
+        }
+    }
+    out
+}
+
+/// Publishes the faces (when wired) and then the wire-frame, with the same stamp: a reader that has the wire-frame
+/// has its faces.
+fn publish(output: &Output<kinds::Wireframe>, faces: Option<&Output<kinds::ModelFaces>>, stamp: Stamp, model: &Model) -> Result<()> {
+    if let Some(faces) = faces {
+        let header = ModelFacesHeader {
+            stamp,
+            n_faces: model.faces.len() as u32,
+            reserved: 0,
+        };
+        faces.publish(header, &face_vertices(model))?;
+    }
     let vertices: Vec<[f64; 3]> = model.vertices.iter().map(|v| v.point.into()).collect();
     let edges = wire_edges(model);
     let header = WireframeHeader {
@@ -69,6 +95,7 @@ fn body() -> Result<()> {
     let lines_in = ctx.input::<kinds::Lines3D>("lines3d")?;
     let poses_in = ctx.optional_input::<kinds::Poses>("poses")?;
     let output = ctx.output::<kinds::Wireframe>("wireframe")?;
+    let faces_out = ctx.optional_output::<kinds::ModelFaces>("faces")?;
     ctx.connect()?;
 
     let mut viewpoint: Option<Vec3> = None;
@@ -103,11 +130,14 @@ fn body() -> Result<()> {
                 faces = model.faces.len(),
                 "model rebuilt"
             );
-            publish(&output, stamp, &model)?;
+            publish(&output, faces_out.as_ref(), stamp, &model)?;
         }
         Ok(if lines_in.is_ended() { Flow::Stop } else { Flow::Continue })
     })?;
     output.end_of_stream()?;
+    if let Some(f) = &faces_out {
+        f.end_of_stream()?;
+    }
     let dir = ctx.out_dir();
     let (obj, city) = (dir.join("model.obj"), dir.join("model.city.json"));
     export::write_obj(&obj, &model).with_context(|| format!("writing {}", obj.display()))?;

@@ -3,12 +3,13 @@
 //!
 //! The pieces are plain functions: [`observations`] puts edge pixels into ideal photo coordinates and bins them,
 //! [`weights`] holds the seed's four weighting schemes, [`parametric`] what is adjusted, [`fit`] the loop with
-//! the shrinking buffer, [`wireframe`] fits a whole wire-frame component by component, and [`aerial`] with
+//! the shrinking buffer, [`wireframe`] fits a whole wire-frame component by component, [`faces`] gives the fitted wire-frame its faces, and [`aerial`] with
 //! [`experiment`] reproduce the seed's experiments.
 #![warn(missing_docs)]
 
 pub mod aerial;
 pub mod experiment;
+pub mod faces;
 pub mod fit;
 pub mod observations;
 pub mod parametric;
@@ -20,4 +21,4 @@ pub use fit::{fit, Fit, FitParams};
 pub use observations::{EdgeObservation, ImageEdges};
 pub use parametric::{BoxModel, FacePlane, FreeVertices, Parametric};
 pub use weights::Weighting;
-pub use wireframe::{fit_wireframe, write_obj, WireframeFit};
+pub use wireframe::{fit_wireframe, WireframeFit};

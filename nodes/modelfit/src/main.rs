@@ -1,14 +1,15 @@
 //! `lineflow-modelfit`: the modelfit stage (`impl = "lsmif"`). Keeps every frame's edge pixels and the newest
 //! poses; at end-of-stream fits the final wire-frame with the final poses, publishes it and writes
-//! `model_fitted.obj`. With `live_interval_frames` > 0 it also fits the newest wire-frame on a worker thread
+//! `model_fitted.obj` and `model_fitted.city.json`, with the faces of the `faces` topic when it is wired. With `live_interval_frames` > 0 it also fits the newest wire-frame on a worker thread
 //! every so many new edge maps and publishes each fit.
 use std::collections::BTreeMap;
 use std::sync::Arc;
 
-use anyhow::{bail, Context, Result};
-use lineflow_messages::{kinds, parts, EdgePixel, Stamp, WireEdge, WireframeHeader};
+use anyhow::{bail, Result};
+use lineflow_messages::{kinds, parts, EdgePixel, FaceVertex, Stamp, WireEdge, WireframeHeader};
+use lineflow_modelfit::faces::fitted_model;
 use lineflow_modelfit::wireframe::facade_params;
-use lineflow_modelfit::{fit_wireframe, write_obj, FitParams, ImageEdges, Weighting};
+use lineflow_modelfit::{fit_wireframe, FitParams, ImageEdges, Weighting};
 use lineflow_photogrammetry::{Camera, Pose, Vec3};
 use lineflow_runtime::{Flow, NodeContext, Output};
 use serde::Deserialize;
@@ -70,6 +71,8 @@ struct State {
     /// Edge images built for the pose they were built with.
     images: BTreeMap<u64, (Pose, Arc<ImageEdges>)>,
     wireframe: Option<Wire>,
+    /// The newest faces of the model stage, with the stamp of their wire-frame.
+    faces: Option<(Stamp, Vec<FaceVertex>)>,
     edges_since_fit: usize,
 }
 
@@ -128,6 +131,35 @@ fn publish(output: &Output<kinds::Wireframe>, stamp: Stamp, vertices: &[Vec3], e
     output.publish_parts(header, &v, edges)
 }
 
+/// Writes `model_fitted.obj` and `model_fitted.city.json`: the fitted vertices with the faces published for the
+/// same wire-frame, or as a bare wire-frame (with a warning) when there are none or they do not fit it.
+fn write_model(
+    ctx: &NodeContext,
+    vertices: &[Vec3],
+    stamp: Stamp,
+    edges: &[[usize; 2]],
+    faces: Option<&(Stamp, Vec<FaceVertex>)>,
+) -> Result<()> {
+    let same = |s: &Stamp| (s.frame, s.revision, s.capture_time_ns) == (stamp.frame, stamp.revision, stamp.capture_time_ns);
+    let model = match faces {
+        Some((s, rows)) if same(s) => fitted_model(vertices, edges, rows).unwrap_or_else(|why| {
+            tracing::warn!("the model's faces do not fit its wire-frame ({why}); the fitted model is written without faces");
+            fitted_model(vertices, edges, &[]).unwrap_or_default()
+        }),
+        Some(_) => {
+            tracing::warn!("no faces arrived for the final wire-frame; the fitted model is written without faces");
+            fitted_model(vertices, edges, &[]).unwrap_or_default()
+        }
+        None => fitted_model(vertices, edges, &[]).unwrap_or_default(),
+    };
+    let dir = ctx.out_dir();
+    let (obj, city) = (dir.join("model_fitted.obj"), dir.join("model_fitted.city.json"));
+    lineflow_model::export::write_obj(&obj, &model)?;
+    lineflow_model::export::write_cityjson(&city, &model)?;
+    tracing::info!("fitted model ({} faces) -> {}", model.faces.len(), obj.display());
+    Ok(())
+}
+
 fn body() -> Result<()> {
     let ctx = NodeContext::from_env()?;
     match ctx.implementation("lsmif") {
@@ -139,6 +171,7 @@ fn body() -> Result<()> {
     let edges_in = ctx.input::<kinds::EdgeMap>("edges")?;
     let poses_in = ctx.input::<kinds::Poses>("poses")?;
     let camera_in = ctx.input::<kinds::CameraModel>("camera")?;
+    let faces_in = ctx.optional_input::<kinds::ModelFaces>("faces")?;
     let output = ctx.output::<kinds::Wireframe>("wireframe_fitted")?;
     ctx.connect()?;
 
@@ -173,6 +206,11 @@ fn body() -> Result<()> {
         while let Some(m) = poses_in.receive()? {
             for p in m.payload().iter().filter(|p| p.flags & lineflow_messages::Pose::ORIENTED != 0) {
                 st.poses.insert(p.frame, p.exterior());
+            }
+        }
+        if let Some(faces) = &faces_in {
+            while let Some(m) = faces.receive()? {
+                st.faces = Some((m.user_header().stamp, m.payload().to_vec()));
             }
         }
         while let Some(m) = wire_in.receive()? {
@@ -214,7 +252,7 @@ fn body() -> Result<()> {
         (Some(p), Some((wire, images))) => {
             let v = fit_job(&wire, &images, &p);
             publish(&output, wire.0, &v, &wire.2)?;
-            fitted = Some((v, wire.2));
+            fitted = Some((v, wire.0, wire.2));
         }
         _ if st.wireframe.is_none() => tracing::warn!("no wire-frame arrived: nothing to fit"),
         _ if st.camera.is_none() => tracing::warn!("no camera model arrived: the model was not fitted"),
@@ -222,10 +260,8 @@ fn body() -> Result<()> {
         _ => tracing::warn!("no frame has both edges and a pose: the model was not fitted"),
     }
     output.end_of_stream()?;
-    if let Some((v, edges)) = fitted {
-        let path = ctx.out_dir().join("model_fitted.obj");
-        write_obj(&path, &v, &pairs(&edges)).with_context(|| format!("writing {}", path.display()))?;
-        tracing::info!("fitted model -> {}", path.display());
+    if let Some((v, stamp, edges)) = fitted {
+        write_model(&ctx, &v, stamp, &pairs(&edges), st.faces.as_ref())?;
     }
     ctx.finish();
     Ok(())

@@ -207,24 +207,6 @@ pub fn fit_wireframe<I: Borrow<ImageEdges> + Sync>(
     out
 }
 
-/// A wire-frame as Wavefront OBJ: `v` vertices and one `l` element per edge.
-pub fn obj_text(vertices: &[Vec3], edges: &[[usize; 2]]) -> String {
-    use std::fmt::Write;
-    let mut s = String::from("# lineflow modelfit: wire-frame fitted to the images (LSMIF)\n");
-    for v in vertices {
-        let _ = writeln!(s, "v {:.6} {:.6} {:.6}", v.x, v.y, v.z);
-    }
-    for e in edges {
-        let _ = writeln!(s, "l {} {}", e[0] + 1, e[1] + 1);
-    }
-    s
-}
-
-/// Writes [`obj_text`] to `path`.
-pub fn write_obj(path: &std::path::Path, vertices: &[Vec3], edges: &[[usize; 2]]) -> std::io::Result<()> {
-    std::fs::write(path, obj_text(vertices, edges))
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;

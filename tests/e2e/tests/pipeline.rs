@@ -560,6 +560,15 @@ fn the_demo_graph_orients_both_strips_and_extracts_3d_lines_and_a_model_the_same
             obj.lines().filter(|l| l.starts_with("v ")).count(),
             "the fitted model keeps the model's vertices"
         );
+        // ... and its faces (the `faces` topic), written by the same code.
+        let faces = |text: &str| {
+            text.lines()
+                .filter(|l| l.starts_with("f ") || l.starts_with("g "))
+                .map(str::to_owned)
+                .collect::<Vec<_>>()
+        };
+        assert_eq!(faces(&fitted), faces(&obj), "the fitted model's faces");
+        assert!(out.join("model_fitted.city.json").is_file());
         assert!(report.contains("| fitted to the images (`model_fitted.obj`) |"), "{report}");
         models.push(obj);
         fits.push(fitted);
