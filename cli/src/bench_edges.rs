@@ -5,7 +5,7 @@ use std::process::ExitCode;
 use anyhow::Result;
 use lineflow_edges::{canny, log, sobel};
 
-use crate::bench_util::{median_time, python_reference, synthetic_gray};
+use crate::bench_util::{median_time, python_reference, synthetic_gray, OPENCV_PACKAGES};
 
 const OPENCV: &str = r#"
 import sys, time, cv2, numpy as np
@@ -46,6 +46,7 @@ pub fn bench_edges(preset: &str, reps: usize, high: f64) -> Result<ExitCode> {
             reps.to_string(),
             cv_out.display().to_string(),
         ],
+        OPENCV_PACKAGES,
     )?;
     let times: Vec<f64> = stdout.lines().filter_map(|l| l.split_whitespace().nth(1)?.parse().ok()).collect();
     let cv = image::open(&cv_out)?.into_luma8();

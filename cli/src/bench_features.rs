@@ -7,7 +7,7 @@ use anyhow::Result;
 use lineflow_features::orb::{orb, OrbParams};
 use lineflow_features::surf::{surf, SurfParams};
 
-use crate::bench_util::{median_time, python_reference, synthetic_gray};
+use crate::bench_util::{median_time, python_reference, synthetic_gray, OPENCV_PACKAGES};
 
 const OPENCV: &str = r#"
 import sys, time, cv2
@@ -62,7 +62,7 @@ pub fn bench_features(preset: &str, reps: usize, threshold: f32) -> Result<ExitC
         rayon::current_num_threads(),
         o2 * 1e3
     );
-    match python_reference(OPENCV, &[png.display().to_string(), reps.to_string()]) {
+    match python_reference(OPENCV, &[png.display().to_string(), reps.to_string()], OPENCV_PACKAGES) {
         Ok(out) => {
             for line in out.lines() {
                 let f: Vec<&str> = line.split_whitespace().collect();

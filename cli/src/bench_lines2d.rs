@@ -11,7 +11,7 @@ use lineflow_eval::Truth;
 use lineflow_formats::Line2Row;
 use lineflow_messages::Encoding;
 
-use crate::bench_util::{median_time, python_reference};
+use crate::bench_util::{median_time, python_reference, OPENCV_PACKAGES};
 
 const OPENCV_LSD: &str = r#"
 import sys, time, cv2
@@ -122,7 +122,7 @@ pub fn bench_lines2d(preset: &str, reps: usize, high: f64) -> Result<ExitCode> {
     let dir = tempfile::tempdir()?;
     let png = dir.path().join("gray.png");
     image::save_buffer(&png, &gray, w as u32, h as u32, image::ExtendedColorType::L8)?;
-    match python_reference(OPENCV_LSD, &[png.display().to_string(), reps.to_string()]) {
+    match python_reference(OPENCV_LSD, &[png.display().to_string(), reps.to_string()], OPENCV_PACKAGES) {
         Ok(out) if out.starts_with("unavailable") => println!("OpenCV LSD: {}", out.trim()),
         Ok(out) => {
             let t: f64 = out

@@ -288,7 +288,11 @@ fn colmap_centres(out: &Path, images: &Path, work: &Path) -> Result<(BTreeMap<St
     let colmap = work.join("colmap");
     std::fs::create_dir_all(colmap.join("sparse"))?;
     let args = [images.to_owned(), colmap].map(|p| p.display().to_string());
-    let stdout = python_reference(COLMAP, &[args[0].clone(), args[1].clone(), f[1].to_owned(), f[4..].join(",")])?;
+    let stdout = python_reference(
+        COLMAP,
+        &[args[0].clone(), args[1].clone(), f[1].to_owned(), f[4..].join(",")],
+        "pycolmap",
+    )?;
     let mut centres = BTreeMap::new();
     let mut seconds = f64::NAN;
     for line in stdout.lines() {

@@ -33,8 +33,11 @@ pub fn synthetic_gray(preset: &str, dir: &Path) -> Result<(Vec<u8>, usize, usize
     Ok((gray, w, h, png))
 }
 
-/// Runs an OpenCV reference script; its standard output.
-pub fn python_reference(script: &str, args: &[String]) -> Result<String> {
+/// What the OpenCV reference scripts need.
+pub const OPENCV_PACKAGES: &str = "opencv-python-headless numpy";
+
+/// Runs a Python reference script that needs the pip `packages`; its standard output.
+pub fn python_reference(script: &str, args: &[String], packages: &str) -> Result<String> {
     let py = Command::new("python3")
         .arg("-c")
         .arg(script)
@@ -43,7 +46,7 @@ pub fn python_reference(script: &str, args: &[String]) -> Result<String> {
         .context("cannot run python3")?;
     if !py.status.success() {
         bail!(
-            "OpenCV reference failed (pip install opencv-python-headless numpy): {}",
+            "the Python reference failed (pip install {packages}): {}",
             String::from_utf8_lossy(&py.stderr).lines().last().unwrap_or("")
         );
     }
