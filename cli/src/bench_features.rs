@@ -5,7 +5,7 @@ use std::process::ExitCode;
 
 use anyhow::Result;
 use lineflow_features::orb::{orb, OrbParams};
-use lineflow_features::surf::{surf, SurfParams};
+use lineflow_features::surf::{surf, surf_in, SurfParams, SurfScratch};
 
 use crate::bench_util::{median_time, python_reference, synthetic_gray, OPENCV_PACKAGES};
 
@@ -39,10 +39,14 @@ pub fn bench_features(preset: &str, reps: usize, threshold: f32) -> Result<ExitC
     // Median seconds of `detect` on one thread and on every core.
     let timed = |detect: &(dyn Fn() + Sync)| (median_time(reps, || one.install(detect)), median_time(reps, detect));
     let n = surf(&gray, w, h, &p).len();
-    let (t1, t2) = timed(&|| drop(surf(&gray, w, h, &p)));
+    // The stage keeps its working memory from one frame to the next; the first frame pays for fresh pages.
+    let scratch = std::sync::Mutex::new(SurfScratch::default());
+    let (t1, t2) = timed(&|| drop(surf_in(&mut scratch.lock().unwrap_or_else(|e| e.into_inner()), &gray, w, h, &p)));
+    let fresh = one.install(|| median_time(reps, || drop(surf(&gray, w, h, &p))));
     println!(
-        "surf    1 thread {:7.0} ms  ({n} keypoints)  target <= {:.0} ms: {}",
+        "surf    1 thread {:7.0} ms  ({n} keypoints; memory kept between frames as the stage runs, {:.0} ms with fresh memory)  target <= {:.0} ms: {}",
         t1 * 1e3,
+        fresh * 1e3,
         TARGET_S * 1e3,
         if t1 <= TARGET_S { "met" } else { "NOT met" }
     );

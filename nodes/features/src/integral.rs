@@ -18,9 +18,19 @@ impl Integral {
     /// # Panics
     /// When `pixels` is shorter than `width * height` (a caller bug).
     pub fn new(pixels: &[u8], width: usize, height: usize) -> Self {
+        Self::in_buffer(pixels, width, height, Vec::new())
+    }
+
+    /// [`Integral::new`] in the memory of `buffer` (from [`Integral::into_buffer`]): a 12 MP frame's sums are 49 MB,
+    /// and fresh pages cost the kernel's zeroing on every frame.
+    ///
+    /// # Panics
+    /// When `pixels` is shorter than `width * height` (a caller bug).
+    pub fn in_buffer(pixels: &[u8], width: usize, height: usize, mut sums: Vec<u32>) -> Self {
         assert!(pixels.len() >= width * height, "{} pixels for {width}x{height}", pixels.len());
         let stride = width + 1;
-        let mut sums = vec![0u32; stride * (height + 1)];
+        sums.clear();
+        sums.resize(stride * (height + 1), 0);
         for y in 0..height {
             let (above, rest) = sums.split_at_mut((y + 1) * stride);
             let above = &above[y * stride..];
@@ -37,6 +47,11 @@ impl Integral {
             height,
             sums,
         }
+    }
+
+    /// The memory of the sums, for the next [`Integral::in_buffer`].
+    pub fn into_buffer(self) -> Vec<u32> {
+        self.sums
     }
 
     /// Image width.

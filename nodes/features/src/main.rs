@@ -2,7 +2,7 @@
 //! then the descriptors): `impl = "surf"` with `count × 64` `f32`, `impl = "orb"` with `count × 32` bytes.
 use anyhow::{bail, Result};
 use lineflow_features::orb::{orb, OrbParams};
-use lineflow_features::surf::{surf, Feature, SurfParams};
+use lineflow_features::surf::{surf_in, Feature, SurfParams, SurfScratch};
 use lineflow_messages::{fixed_str, kinds, Keypoint, KeypointsHeader};
 use lineflow_runtime::{Flow, NodeContext};
 
@@ -73,8 +73,9 @@ fn run_surf(ctx: NodeContext) -> Result<()> {
             ctx.name()
         );
     }
+    let mut scratch = SurfScratch::default();
     let describe = move |gray: &[u8], w: usize, h: usize| {
-        let features = surf(gray, w, h, &p);
+        let features = surf_in(&mut scratch, gray, w, h, &p);
         let kps: Vec<Keypoint> = features.iter().map(keypoint).collect();
         let descriptors: Vec<f32> = features.iter().flat_map(|f| f.descriptor).collect();
         (kps, descriptors)
