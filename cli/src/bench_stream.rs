@@ -192,55 +192,78 @@ fn frame_times(recording: &Path) -> Result<BTreeMap<u64, FrameTimes>> {
 /// Prints the latency of each frame's first pose against its deadline, the next frame's arrival. The first frame
 /// has no pose of its own until a second frame gives it a partner, so its latency counts from that arrival.
 fn report_latency(times: &BTreeMap<u64, FrameTimes>, period_ns: f64) {
-    let arrivals: Vec<(u64, u64)> = times.iter().filter_map(|(f, t)| Some((*f, t.arrived?))).collect();
-    let mut latencies = Vec::new();
-    let mut late = Vec::new();
-    let mut unoriented = Vec::new();
-    for (i, &(frame, _)) in arrivals.iter().enumerate() {
-        let Some(posed) = times[&frame].first_pose else {
-            unoriented.push(frame);
-            continue;
-        };
-        // The first frame is measured from the second's arrival, its first chance of a pose.
-        let k = if i == 0 && arrivals.len() > 1 { 1 } else { i };
-        let from = arrivals[k].1;
-        let deadline = arrivals.get(k + 1).map_or(from as f64 + period_ns, |a| a.1 as f64);
-        let latency = posed.saturating_sub(from) as f64;
-        latencies.push(latency);
-        if posed as f64 > deadline {
-            late.push((frame, latency));
-        }
-    }
-    if latencies.is_empty() {
+    let l = latencies(times, period_ns);
+    if l.posed.is_empty() {
         println!("no frame was oriented");
         return;
     }
-    let mut sorted = latencies.clone();
+    let mut sorted: Vec<f64> = l.posed.iter().map(|p| p.1).collect();
     sorted.sort_by(f64::total_cmp);
     let q = |f: f64| sorted[((sorted.len() - 1) as f64 * f).round() as usize] / 1e6;
     println!(
         "first pose after arrival ({} of {} frames oriented): median {:.0} ms, p90 {:.0} ms, max {:.0} ms; frame period {:.0} ms, max / period {:.2}",
-        latencies.len(),
-        arrivals.len(),
+        l.posed.len(),
+        l.frames,
         q(0.5),
         q(0.9),
         q(1.0),
         period_ns / 1e6,
         q(1.0) * 1e6 / period_ns
     );
-    if late.is_empty() {
-        println!("every oriented frame had its first pose before the next frame arrived: target met");
-    } else {
-        let list: Vec<String> = late.iter().map(|(f, l)| format!("{f} ({:.0} ms)", l / 1e6)).collect();
+    if !l.late.is_empty() {
+        let list: Vec<String> = l.late.iter().map(|(f, t)| format!("{f} ({:.0} ms)", t / 1e6)).collect();
         println!(
-            "{} frames had no pose before the next frame arrived: {}: target NOT met",
-            late.len(),
+            "{} frames had no pose before the next frame arrived: {}",
+            l.late.len(),
             list.join(", ")
         );
     }
-    if !unoriented.is_empty() {
-        println!("never oriented: frames {unoriented:?}");
+    if !l.unoriented.is_empty() {
+        println!("never oriented: frames {:?}", l.unoriented);
     }
+    if l.late.is_empty() && l.unoriented.is_empty() {
+        println!("every frame had its first pose before the next frame arrived: target met");
+    } else {
+        println!("target NOT met");
+    }
+}
+
+/// Each frame's first-pose latency against its deadline.
+#[derive(Debug, Default, PartialEq)]
+struct Latencies {
+    /// Frames that arrived.
+    frames: usize,
+    /// (frame, latency ns) of every oriented frame.
+    posed: Vec<(u64, f64)>,
+    /// (frame, latency ns) of the frames whose first pose came after the next frame's arrival.
+    late: Vec<(u64, f64)>,
+    /// Frames that arrived and were never oriented.
+    unoriented: Vec<u64>,
+}
+
+/// The latency of each frame's first pose, from its arrival to the next frame's (or one period when it is the last).
+/// The first frame has no pose of its own until a second frame gives it a partner, so it is timed from that arrival.
+fn latencies(times: &BTreeMap<u64, FrameTimes>, period_ns: f64) -> Latencies {
+    let arrivals: Vec<(u64, u64)> = times.iter().filter_map(|(f, t)| Some((*f, t.arrived?))).collect();
+    let mut out = Latencies {
+        frames: arrivals.len(),
+        ..Latencies::default()
+    };
+    for (i, &(frame, _)) in arrivals.iter().enumerate() {
+        let Some(posed) = times[&frame].first_pose else {
+            out.unoriented.push(frame);
+            continue;
+        };
+        let k = if i == 0 && arrivals.len() > 1 { 1 } else { i };
+        let from = arrivals[k].1;
+        let deadline = arrivals.get(k + 1).map_or(from as f64 + period_ns, |a| a.1 as f64);
+        let latency = posed.saturating_sub(from) as f64;
+        out.posed.push((frame, latency));
+        if posed as f64 > deadline {
+            out.late.push((frame, latency));
+        }
+    }
+    out
 }
 
 /// Camera-centre errors (name, metres) of `estimated` against `truth`, optionally after the least-squares
@@ -307,4 +330,30 @@ fn colmap_centres(out: &Path, images: &Path, work: &Path) -> Result<(BTreeMap<St
         }
     }
     Ok((centres, seconds))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_frame_is_late_when_its_first_pose_comes_after_the_next_frame_and_the_first_counts_from_the_second() {
+        let ms = 1_000_000u64;
+        let times: BTreeMap<u64, FrameTimes> = [
+            // Posed with the second frame: 500 ms after the second frame's arrival, before the third's.
+            (0, Some(0), Some(1500 * ms)),
+            (1, Some(1000 * ms), Some(2100 * ms)),
+            (2, Some(2000 * ms), None),
+            // The last frame's deadline is one period after it.
+            (3, Some(3000 * ms), Some(3900 * ms)),
+        ]
+        .into_iter()
+        .map(|(f, arrived, first_pose)| (f, FrameTimes { arrived, first_pose }))
+        .collect();
+        let l = latencies(&times, 1e9);
+        assert_eq!(l.frames, 4);
+        assert_eq!(l.posed, vec![(0, 500e6), (1, 1100e6), (3, 900e6)]);
+        assert_eq!(l.late, vec![(1, 1100e6)]);
+        assert_eq!(l.unoriented, vec![2]);
+    }
 }
