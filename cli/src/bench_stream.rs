@@ -12,7 +12,7 @@ use anyhow::{bail, Context, Result};
 use lineflow_capture::synth::Synthetic;
 use lineflow_eval::Truth;
 use lineflow_formats::PoseRow;
-use lineflow_messages::schema::{decode, read_elements, read_pod};
+use lineflow_messages::schema::{decode, decode_view, read_elements, read_pod, Decoded};
 use lineflow_messages::{ImageHeader, MessageKind, Pose};
 use lineflow_photogrammetry::intersect::similarity;
 use lineflow_photogrammetry::Vec3;
@@ -167,11 +167,13 @@ fn stem(name: &str) -> String {
 fn frame_times(recording: &Path) -> Result<BTreeMap<u64, FrameTimes>> {
     let rec = Recording::open(recording)?;
     let mut times: BTreeMap<u64, FrameTimes> = BTreeMap::new();
+    let mut scratch = Decoded::default();
     rec.for_each_message(|m| {
         match (m.topic.as_str(), m.kind) {
             ("images", Some(MessageKind::Image)) => {
-                let d = decode(MessageKind::Image, &m.data)?;
-                let h: ImageHeader = read_pod(&d.header);
+                // The header alone: the pixels are not copied.
+                let (header, _) = decode_view(MessageKind::Image, &m.data, &mut scratch)?;
+                let h: ImageHeader = read_pod(header);
                 times.entry(h.stamp.frame).or_default().arrived.get_or_insert(m.log_time);
             }
             ("poses", Some(MessageKind::Poses)) => {

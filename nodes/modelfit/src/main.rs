@@ -141,17 +141,18 @@ fn write_model(
     faces: Option<&(Stamp, Vec<FaceVertex>)>,
 ) -> Result<()> {
     let same = |s: &Stamp| (s.frame, s.revision, s.capture_time_ns) == (stamp.frame, stamp.revision, stamp.capture_time_ns);
-    let model = match faces {
-        Some((s, rows)) if same(s) => fitted_model(vertices, edges, rows).unwrap_or_else(|why| {
-            tracing::warn!("the model's faces do not fit its wire-frame ({why}); the fitted model is written without faces");
-            fitted_model(vertices, edges, &[]).unwrap_or_default()
-        }),
-        Some(_) => {
-            tracing::warn!("no faces arrived for the final wire-frame; the fitted model is written without faces");
-            fitted_model(vertices, edges, &[]).unwrap_or_default()
+    let with_faces = match faces {
+        Some((s, rows)) if same(s) => {
+            fitted_model(vertices, edges, rows).map_err(|why| format!("the model's faces do not fit its wire-frame ({why})"))
         }
-        None => fitted_model(vertices, edges, &[]).unwrap_or_default(),
+        Some(_) => Err("no faces arrived for the final wire-frame".to_owned()),
+        None => Err("no faces arrived (is the model stage's `faces` topic wired to this node?)".to_owned()),
     };
+    // Without faces the wire-frame cannot fail to build: every edge names a vertex (checked on arrival).
+    let model = with_faces.unwrap_or_else(|why| {
+        tracing::warn!("{why}; the fitted model is written without faces");
+        fitted_model(vertices, edges, &[]).unwrap_or_default()
+    });
     let dir = ctx.out_dir();
     let (obj, city) = (dir.join("model_fitted.obj"), dir.join("model_fitted.city.json"));
     lineflow_model::export::write_obj(&obj, &model)?;

@@ -567,6 +567,7 @@ fn the_demo_graph_orients_both_strips_and_extracts_3d_lines_and_a_model_the_same
                 .map(str::to_owned)
                 .collect::<Vec<_>>()
         };
+        assert!(obj.lines().any(|l| l.starts_with("f ")), "the demo model has faces to keep:\n{obj}");
         assert_eq!(faces(&fitted), faces(&obj), "the fitted model's faces");
         assert!(out.join("model_fitted.city.json").is_file());
         assert!(report.contains("| fitted to the images (`model_fitted.obj`) |"), "{report}");
