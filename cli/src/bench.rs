@@ -60,7 +60,7 @@ pub enum BenchCmd {
         #[arg(long, default_value_t = 3)]
         reps: usize,
         /// Canny high threshold (low = 0.4 × high), as the edges node's default.
-        #[arg(long, default_value_t = 100.0)]
+        #[arg(long, default_value_t = lineflow_edges::DEFAULT_HIGH)]
         high: f64,
     },
     /// SURF on a full-size synthetic frame against OpenCV's SIFT and ORB (needs opencv-python-headless).

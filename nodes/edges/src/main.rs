@@ -1,6 +1,6 @@
 //! `lineflow-edges`: the edges stage (`impl = "canny"`, `"sobel"` or `"log"`); one EdgeMap per image.
 use anyhow::{bail, Result};
-use lineflow_edges::{canny, log, pixels, sobel, DEFAULT_LOW_RATIO};
+use lineflow_edges::{canny, log, pixels, sobel, DEFAULT_HIGH, DEFAULT_LOW_RATIO};
 use lineflow_messages::{fixed_str, kinds, EdgeMapHeader};
 use lineflow_runtime::{Flow, NodeContext};
 use serde::Deserialize;
@@ -45,7 +45,7 @@ fn detector(name: &str, impl_: &str, p: Params) -> Result<Detector> {
     let d = match impl_ {
         "canny" => {
             only(&["high", "low"])?;
-            let high = p.high.unwrap_or(100.0);
+            let high = p.high.unwrap_or(DEFAULT_HIGH);
             Detector::Canny {
                 low: p.low.unwrap_or(DEFAULT_LOW_RATIO * high),
                 high,

@@ -24,6 +24,10 @@ struct Params {
     /// Largest angle between joined fragments, degrees.
     #[serde(default = "default_angle")]
     max_merge_angle_deg: f64,
+    /// How far ahead along its line a chain looks for its next pixel across a gap, pixels (0 = the thesis's
+    /// 8-neighbour search alone).
+    #[serde(default = "default_jump")]
+    max_jump_px: f64,
 }
 
 fn default_distance() -> f64 {
@@ -37,6 +41,9 @@ fn default_gap() -> f64 {
 }
 fn default_angle() -> f64 {
     TraceParams::default().max_merge_angle_deg
+}
+fn default_jump() -> f64 {
+    TraceParams::default().max_jump_px
 }
 
 /// One frame's segments, their concatenated pixel chains, and their `lines2d.csv` rows.
@@ -169,12 +176,20 @@ fn drain<M: lineflow_messages::Message>(input: &Option<lineflow_runtime::Input<M
     Ok(())
 }
 
+/// Longer jumps would join unrelated edges that happen to line up.
+const MAX_JUMP_PX: f64 = 32.0;
+
 /// `impl = "trace"`: the thesis's line tracing on the edge maps.
 fn run_trace(ctx: NodeContext) -> Result<()> {
     let p: Params = ctx.params()?;
-    if !(p.max_distance_px > 0.0 && p.min_length_px >= 0.0 && p.max_gap_px >= 0.0 && (0.0..90.0).contains(&p.max_merge_angle_deg)) {
+    if !(p.max_distance_px > 0.0
+        && p.min_length_px >= 0.0
+        && p.max_gap_px >= 0.0
+        && (0.0..90.0).contains(&p.max_merge_angle_deg)
+        && (0.0..=MAX_JUMP_PX).contains(&p.max_jump_px))
+    {
         bail!(
-            "node '{}': max_distance_px must be > 0, min_length_px and max_gap_px >= 0, max_merge_angle_deg in [0, 90)",
+            "node '{}': max_distance_px must be > 0, min_length_px and max_gap_px >= 0, max_merge_angle_deg in [0, 90), max_jump_px in [0, {MAX_JUMP_PX}]",
             ctx.name()
         );
     }
@@ -183,6 +198,7 @@ fn run_trace(ctx: NodeContext) -> Result<()> {
         min_length_px: p.min_length_px,
         max_gap_px: p.max_gap_px,
         max_merge_angle_deg: p.max_merge_angle_deg,
+        max_jump_px: p.max_jump_px,
     };
     let edges = ctx.input::<kinds::EdgeMap>("edges")?;
     let camera_in = ctx.input::<kinds::CameraModel>("camera")?;

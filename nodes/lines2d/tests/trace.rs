@@ -74,6 +74,7 @@ fn collinear_fragments_are_joined_across_a_small_gap_only() {
         &TraceParams {
             min_length_px: 5.0,
             max_gap_px: 4.0,
+            max_jump_px: 0.0,
             ..TraceParams::default()
         },
     );
@@ -89,10 +90,45 @@ fn collinear_fragments_are_joined_across_a_small_gap_only() {
         &TraceParams {
             min_length_px: 5.0,
             max_gap_px: 0.0,
+            max_jump_px: 0.0,
             ..TraceParams::default()
         },
     );
     assert_eq!(thesis.len(), 3);
+}
+
+#[test]
+fn a_chain_jumps_gaps_along_its_line_up_to_the_set_length() {
+    // A line of slope 0.1 with gaps of 3 missing pixels every 12 (a weak edge, or one cut by crossing joints),
+    // then a gap of 6, in one band of the parallel tracing.
+    let on_line = |c: u16| [c, (200.0 + 0.1 * c as f64).round() as u16];
+    let mut v: Vec<[u16; 2]> = (15..130).filter(|c| c % 15 < 12).map(on_line).collect();
+    v.extend((136..180).map(on_line));
+    // An unrelated pixel beside the line within reach of a jump but off the line: not taken.
+    v.push([131, 207]);
+    let px = raster(v);
+    let run = |max_jump_px: f64| {
+        let p = TraceParams {
+            max_jump_px,
+            ..TraceParams::default()
+        };
+        let mut lengths: Vec<f64> = trace(200, 400, &px, &identity(&px), &p)
+            .iter()
+            .map(|l| (l.end[0] - l.start[0]).hypot(l.end[1] - l.start[1]))
+            .collect();
+        lengths.sort_by(f64::total_cmp);
+        lengths
+    };
+    // No jumps: pieces of 12 px are too short to keep; only the last stretch is left.
+    assert_eq!(run(0.0).len(), 1, "{:?}", run(0.0));
+    // 4 px: the 3-pixel gaps are crossed, the 6-pixel one is not.
+    let four = run(4.0);
+    assert_eq!(four.len(), 2, "{four:?}");
+    assert!((four[1] - 114.6).abs() < 1.5, "{four:?}");
+    // 8 px: one segment from end to end.
+    let eight = run(8.0);
+    assert_eq!(eight.len(), 1, "{eight:?}");
+    assert!((eight[0] - 164.8).abs() < 1.5, "{eight:?}");
 }
 
 /// A blurred step edge between columns: `x` is where the intensity crosses half-way.
@@ -142,4 +178,26 @@ fn steep_lines_cross_every_band_of_the_parallel_tracing_whole_and_apart() {
         assert!((l.end[1] - l.start[1]).abs() > 98.0, "{l:?}");
     }
     assert_eq!(lines, trace(40, 100, &px, &identity(&px), &TraceParams::default()), "deterministic");
+}
+
+#[test]
+fn short_chains_that_cross_a_long_edge_first_do_not_cut_it_into_pieces() {
+    // A horizontal edge on row 240 with a short vertical joint touching it from above every 10 columns, as brick
+    // mortar meets a window lintel: in raster order every joint is seeded before the edge and, tracing down, takes
+    // the edge pixel it meets; a joint is too short to keep, so the edge must be able to pass through. (All in one
+    // band of the parallel tracing: rows 200 to 249.)
+    let mut v: Vec<[u16; 2]> = (10..190).map(|c| [c, 240]).collect();
+    for c in (15..190).step_by(10) {
+        v.extend((233..240).map(|r| [c, r]));
+    }
+    let px = raster(v);
+    let lines = trace(200, 400, &px, &identity(&px), &TraceParams::default());
+    let horizontal: Vec<_> = lines.iter().filter(|l| (l.end[1] - l.start[1]).abs() < 1.0).collect();
+    assert_eq!(
+        horizontal.len(),
+        1,
+        "{:?}",
+        lines.iter().map(|l| (l.start, l.end)).collect::<Vec<_>>()
+    );
+    assert!((horizontal[0].end[0] - horizontal[0].start[0]).abs() > 175.0);
 }
