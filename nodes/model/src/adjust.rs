@@ -31,10 +31,10 @@ impl LineObservation {
         let others = [(axis + 1) % 3, (axis + 2) % 3];
         let centre = l.midpoint();
         let len_k = d[axis];
-        let s2 = l.sigma_m * l.sigma_m;
         let mut observed = [[0.0; 2]; 2];
         let mut cov = [Matrix2::zeros(); 2];
         for (m, &j) in others.iter().enumerate() {
+            let s2 = l.sigma_along(j).powi(2);
             let b = d[j] / len_k;
             observed[m] = [0.0, b];
             // First-order propagation of isotropic endpoint errors (σ per coordinate) into (a, b); the cross term

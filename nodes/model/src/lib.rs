@@ -7,18 +7,21 @@
 //!   standard deviations.
 //! - Faces ([`faces`]): closed planar cycles of edges become wall, roof and opening surfaces; a face inside another
 //!   face of the same plane is its opening (the seed's "roof inside a roof").
+//! - Refine ([`refine`], optional): every adjusted edge measured again in the images' 2-D lines, intersected
+//!   through interpretation planes, and adjusted together with its 3-D line.
 //! - Export ([`export`]): `model.obj` and `model.city.json` (CityJSON 2.0, LOD 3).
 //!
-//! Not yet: the seed's Refine step (fusion with 2-D image lines), occluded-edge completion along the shortest
-//! path, and model-image fitting (LSMIF, seed 004).
+//! Not yet: occluded-edge completion along the shortest path. Model-image fitting (LSMIF, seed 004) is the
+//! `modelfit` stage.
 pub mod adjust;
 pub mod corners;
 pub mod export;
 pub mod faces;
 mod grid;
 pub mod junction;
+pub mod refine;
 
-use lineflow_photogrammetry::Vec3;
+use lineflow_photogrammetry::{Camera, Vec3};
 use serde::Deserialize;
 
 pub use faces::{Face, SurfaceKind};
@@ -31,11 +34,23 @@ pub struct ModelLine {
     pub end: Vec3,
     /// Standard deviation of each endpoint coordinate across the line, metres.
     pub sigma_m: f64,
+    /// Per object axis (X, Y, Z) in place of `sigma_m`, where a line is better known in some directions than in
+    /// others (one measured in images: sharp across the viewing rays, weak along them).
+    pub sigma_axes_m: Option<Vec3>,
 }
 
 impl ModelLine {
     pub fn new(start: Vec3, end: Vec3, sigma_m: f64) -> Self {
-        ModelLine { start, end, sigma_m }
+        ModelLine {
+            start,
+            end,
+            sigma_m,
+            sigma_axes_m: None,
+        }
+    }
+    /// The standard deviation of each endpoint coordinate along object axis `axis`, metres.
+    pub fn sigma_along(&self, axis: usize) -> f64 {
+        self.sigma_axes_m.map_or(self.sigma_m, |s| s[axis])
     }
     pub fn length(&self) -> f64 {
         (self.end - self.start).norm()
@@ -71,6 +86,16 @@ pub struct ModelParams {
     pub corner_k: f64,
     /// Two planes of faces are one when their normals differ by less than this, degrees.
     pub plane_angle_deg: f64,
+    /// Refine with the images' 2-D lines when the node has them (the `lines2d` and `camera` inputs wired).
+    pub refine: bool,
+    /// Refine's thresholds, in standard deviations (the seed: two or three).
+    pub refine_k: f64,
+    /// Standard deviation of an image line's endpoints across it, pixels.
+    pub refine_image_sigma_px: f64,
+    /// Shortest image line used, pixels.
+    pub refine_min_image_line_px: f64,
+    /// Interpretation planes closer than this angle are not intersected, degrees.
+    pub refine_min_plane_angle_deg: f64,
 }
 
 impl Default for ModelParams {
@@ -84,11 +109,28 @@ impl Default for ModelParams {
             min_angle_deg: 5.0,
             corner_k: 3.0,
             plane_angle_deg: 2.0,
+            // Off by default: on the pipeline's own lines it changes nothing measurable (docs/model.md, Refine).
+            refine: false,
+            refine_k: refine::RefineParams::default().k,
+            refine_image_sigma_px: refine::RefineParams::default().image_sigma_px,
+            refine_min_image_line_px: refine::RefineParams::default().min_image_line_px,
+            refine_min_plane_angle_deg: refine::RefineParams::default().min_plane_angle_deg,
         }
     }
 }
 
 impl ModelParams {
+    /// Refine's parameters.
+    pub fn refine_params(&self) -> refine::RefineParams {
+        refine::RefineParams {
+            k: self.refine_k,
+            image_sigma_px: self.refine_image_sigma_px,
+            min_image_line_px: self.refine_min_image_line_px,
+            min_plane_angle_deg: self.refine_min_plane_angle_deg,
+            ..refine::RefineParams::default()
+        }
+    }
+
     /// Checks the values before anything is built.
     pub fn validate(&self) -> Result<(), String> {
         let positive = [
@@ -98,6 +140,8 @@ impl ModelParams {
             ("gap_k", self.gap_k),
             ("corner_k", self.corner_k),
             ("plane_angle_deg", self.plane_angle_deg),
+            ("refine_k", self.refine_k),
+            ("refine_image_sigma_px", self.refine_image_sigma_px),
         ];
         for (name, v) in positive {
             if !(v.is_finite() && v > 0.0) {
@@ -106,6 +150,18 @@ impl ModelParams {
         }
         if !(0.0..45.0).contains(&self.min_angle_deg) {
             return Err(format!("min_angle_deg must be in [0, 45), got {}", self.min_angle_deg));
+        }
+        if !(0.0..45.0).contains(&self.refine_min_plane_angle_deg) {
+            return Err(format!(
+                "refine_min_plane_angle_deg must be in [0, 45), got {}",
+                self.refine_min_plane_angle_deg
+            ));
+        }
+        if self.refine_min_image_line_px.is_nan() || self.refine_min_image_line_px < 0.0 {
+            return Err(format!(
+                "refine_min_image_line_px must be ≥ 0, got {}",
+                self.refine_min_image_line_px
+            ));
         }
         if self.min_length_m.is_nan() || self.min_length_m < 0.0 {
             return Err(format!("min_length_m must be ≥ 0, got {}", self.min_length_m));
@@ -154,6 +210,8 @@ pub struct Diagnostics {
     pub objects_unadjusted: usize,
     /// Median σ̂0 over the objects with redundancy.
     pub median_sigma0: Option<f64>,
+    /// Edges measured again in the images by Refine (each a second observation in its object's adjustment).
+    pub lines_refined: usize,
 }
 
 /// The wire-frame model.
@@ -175,7 +233,7 @@ impl Model {
     pub fn summary(&self) -> String {
         let d = &self.diagnostics;
         format!(
-            "{} of {} lines used, {} objects, {} vertices, {} edges, {} faces ({} walls, {} window/door, {} roof), ends resolved by stage 1/2/3: {}/{}/{}, free {}, median sigma0 {}",
+            "{} of {} lines used, {} objects, {} vertices, {} edges, {} faces ({} walls, {} window/door, {} roof), ends resolved by stage 1/2/3: {}/{}/{}, free {}, median sigma0 {}, {} edges refined by image lines",
             d.lines_used,
             d.lines_in,
             d.objects,
@@ -189,7 +247,8 @@ impl Model {
             d.ends_by_stage[1],
             d.ends_by_stage[2],
             d.ends_by_stage[3],
-            d.median_sigma0.map_or("-".into(), |s| format!("{s:.2}"))
+            d.median_sigma0.map_or("-".into(), |s| format!("{s:.2}")),
+            d.lines_refined
         )
     }
 }
@@ -197,6 +256,20 @@ impl Model {
 /// Construct and Shape: the wire-frame of `lines`, then its faces, oriented towards `viewpoint` (e.g. the mean
 /// camera centre) when given. Deterministic for a given line order.
 pub fn build(lines: &[ModelLine], params: &ModelParams, viewpoint: Option<Vec3>) -> Model {
+    build_with_images(lines, params, viewpoint, None)
+}
+
+/// The oriented images' 2-D lines for Refine.
+#[derive(Debug, Clone, Copy)]
+pub struct Images<'a> {
+    pub camera: &'a Camera,
+    pub lines: &'a [refine::ImageLines],
+    pub params: refine::RefineParams,
+}
+
+/// [`build`] with Refine when `images` are given: every adjusted edge is measured again in the images' 2-D lines
+/// and its corners adjusted from both observations.
+pub fn build_with_images(lines: &[ModelLine], params: &ModelParams, viewpoint: Option<Vec3>, images: Option<&Images>) -> Model {
     let kept: Vec<usize> = (0..lines.len())
         .filter(|&k| {
             lines[k].length() >= params.min_length_m.max(1e-6) && lines[k].start.iter().chain(lines[k].end.iter()).all(|v| v.is_finite())
@@ -252,19 +325,33 @@ pub fn build(lines: &[ModelLine], params: &ModelParams, viewpoint: Option<Vec3>)
             .collect();
         let sub_lines: Vec<ModelLine> = object_lines.iter().map(|&l| used_lines[l].clone()).collect();
         let start: Vec<Vec3> = object_corners.iter().map(|&c| corners[c].point).collect();
-        match adjust::adjust(&sub_lines, &start, &incidences) {
-            Some(r) => {
-                for (ci, &c) in object_corners.iter().enumerate() {
-                    corner_point[c] = r.corners[ci];
-                    corner_sigma[c] = Some(r.sigmas[ci]);
-                }
-                for (li, &l) in object_lines.iter().enumerate() {
-                    line_axis[l] = Some(r.lines[li]);
-                }
-                sigma0s.extend(r.sigma0);
+        let Some(mut r) = adjust::adjust(&sub_lines, &start, &incidences) else {
+            diagnostics.objects_unadjusted += 1;
+            continue;
+        };
+        if let Some(images) = images {
+            // Refine: each edge measured again in the images, then both observations of it adjusted together.
+            let mut lines = sub_lines.clone();
+            let mut with_images = incidences.clone();
+            for (ll, refined) in refine_object(images, &sub_lines, &incidences, &r) {
+                lines.push(refined.line);
+                with_images.extend(incidences.iter().filter(|i| i.1 == ll).map(|i| (i.0, lines.len() - 1)));
             }
-            None => diagnostics.objects_unadjusted += 1,
+            if lines.len() > sub_lines.len() {
+                if let Some(fused) = adjust::adjust(&lines, &r.corners, &with_images) {
+                    diagnostics.lines_refined += lines.len() - sub_lines.len();
+                    r = fused;
+                }
+            }
         }
+        for (ci, &c) in object_corners.iter().enumerate() {
+            corner_point[c] = r.corners[ci];
+            corner_sigma[c] = Some(r.sigmas[ci]);
+        }
+        for (li, &l) in object_lines.iter().enumerate() {
+            line_axis[l] = Some(r.lines[li]);
+        }
+        sigma0s.extend(r.sigma0);
     }
     sigma0s.sort_by(f64::total_cmp);
     diagnostics.median_sigma0 = sigma0s.get(sigma0s.len() / 2).copied();
@@ -330,6 +417,61 @@ pub fn build(lines: &[ModelLine], params: &ModelParams, viewpoint: Option<Vec3>)
         faces,
         diagnostics,
     }
+}
+
+/// The image-line estimates of an adjusted object's lines, by local line index: each line's span between its
+/// corners (or from its one corner to its far end), with the corners' σ and a neighbouring edge at each corner.
+fn refine_object(
+    images: &Images,
+    lines: &[ModelLine],
+    incidences: &[(usize, usize)],
+    r: &adjust::Adjusted,
+) -> Vec<(usize, refine::Refined)> {
+    let mut out = Vec::new();
+    for (ll, line) in lines.iter().enumerate() {
+        let (origin, dir) = r.lines[ll];
+        let t = |p: &Vec3| (p - origin).dot(&dir);
+        let mut on: Vec<(f64, usize)> = incidences.iter().filter(|i| i.1 == ll).map(|i| (t(&r.corners[i.0]), i.0)).collect();
+        on.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+        let (Some(&first), Some(&last)) = (on.first(), on.last()) else {
+            continue;
+        };
+        // A neighbouring edge at a corner: another line through it, well away from this one's direction.
+        let neighbour = |corner: usize| {
+            incidences
+                .iter()
+                .filter(|i| i.0 == corner && i.1 != ll)
+                .map(|i| r.lines[i.1].1)
+                .find(|d| d.dot(&dir).abs() < 20f64.to_radians().cos())
+                .map(|d| (r.corners[corner], d))
+        };
+        let free = Vec3::repeat(line.sigma_m);
+        let end_of = |(tc, c): (f64, usize)| (origin + dir * tc, r.sigmas[c], neighbour(c));
+        let (start, end) = if first.1 != last.1 {
+            (end_of(first), end_of(last))
+        } else {
+            // One corner: the span runs to the line's end farther from it.
+            let (ts, te) = (t(&line.start), t(&line.end));
+            let far = if (ts - first.0).abs() > (te - first.0).abs() { ts } else { te };
+            let corner = end_of(first);
+            let free_end = (origin + dir * far, free, None);
+            if far < first.0 {
+                (free_end, corner)
+            } else {
+                (corner, free_end)
+            }
+        };
+        let s = refine::StructureLine {
+            start: start.0,
+            end: end.0,
+            sigma: [start.1, end.1],
+            neighbours: [start.2, end.2],
+        };
+        if let Some(refined) = refine::refine_line(images.camera, images.lines, &s, &images.params) {
+            out.push((ll, refined));
+        }
+    }
+    out
 }
 
 /// The model's lines from `lines3d.csv` rows (or `Lines3D` elements through their rows), each with the endpoint

@@ -4,10 +4,50 @@ use std::collections::HashMap;
 
 use anyhow::{bail, Context, Result};
 use lineflow_formats::Line3Row;
-use lineflow_messages::{kinds, FaceVertex, Line3, ModelFacesHeader, Pose, Stamp, WireEdge, WireframeHeader};
-use lineflow_model::{build, export, lines_from_rows, Model, ModelParams, SurfaceKind};
-use lineflow_photogrammetry::Vec3;
+use lineflow_messages::{kinds, parts, FaceVertex, Line3, ModelFacesHeader, Pose, Segment2, Stamp, WireEdge, WireframeHeader};
+use lineflow_model::refine::ImageLines;
+use lineflow_model::{build_with_images, export, lines_from_rows, Images, Model, ModelParams, SurfaceKind};
+use lineflow_photogrammetry::{Camera, Vec3};
 use lineflow_runtime::{Flow, NodeContext, Output};
+
+/// A 2-D segment's endpoints in measured pixels.
+type Endpoints = ([f64; 2], [f64; 2]);
+
+/// The images' 2-D lines for Refine: segments as they arrive, indexed once the camera is known, each image
+/// placed at its newest pose.
+#[derive(Default)]
+struct ImageLineStore {
+    /// Measured-pixel endpoints of frames not indexed yet.
+    pending: std::collections::BTreeMap<u64, Vec<Endpoints>>,
+    /// Indexed frames, ascending, and their lines.
+    frames: Vec<u64>,
+    lines: Vec<ImageLines>,
+    /// The newest pose of every oriented frame.
+    poses: std::collections::BTreeMap<u64, lineflow_photogrammetry::Pose>,
+}
+
+impl ImageLineStore {
+    /// Every frame's lines, at its newest pose (none while not oriented); how many are oriented.
+    fn update(&mut self, camera: &Camera, min_px: f64) -> (&[ImageLines], usize) {
+        for (frame, segments) in std::mem::take(&mut self.pending) {
+            let at = self.frames.partition_point(|&f| f < frame);
+            let lines = ImageLines::new(camera, None, &segments, min_px);
+            if self.frames.get(at) == Some(&frame) {
+                self.lines[at] = lines;
+            } else {
+                self.frames.insert(at, frame);
+                self.lines.insert(at, lines);
+            }
+        }
+        let mut oriented = 0;
+        for (frame, lines) in self.frames.iter().zip(&mut self.lines) {
+            let pose = self.poses.get(frame).copied();
+            oriented += usize::from(pose.is_some());
+            lines.set_pose(pose);
+        }
+        (&self.lines, oriented)
+    }
+}
 
 fn main() -> std::process::ExitCode {
     lineflow_runtime::run_node(body)
@@ -94,6 +134,9 @@ fn body() -> Result<()> {
     }
     let lines_in = ctx.input::<kinds::Lines3D>("lines3d")?;
     let poses_in = ctx.optional_input::<kinds::Poses>("poses")?;
+    // Refine needs the images' 2-D lines, the camera and the poses.
+    let lines2d_in = ctx.optional_input::<kinds::Lines2D>("lines2d")?;
+    let camera_in = ctx.optional_input::<kinds::CameraModel>("camera")?;
     let output = ctx.output::<kinds::Wireframe>("wireframe")?;
     let faces_out = ctx.optional_output::<kinds::ModelFaces>("faces")?;
     ctx.connect()?;
@@ -101,18 +144,38 @@ fn body() -> Result<()> {
     let mut viewpoint: Option<Vec3> = None;
     let mut model = Model::default();
     let mut latest: Option<(Stamp, Vec<Line3Row>)> = None;
+    let mut camera: Option<Camera> = None;
+    let mut image_lines = ImageLineStore::default();
+    let refining = params.refine && lines2d_in.is_some() && camera_in.is_some() && poses_in.is_some();
+    if params.refine && !refining {
+        tracing::warn!("refine needs the lines2d, camera and poses inputs wired: building without it");
+    }
     ctx.run(|| {
+        if let Some(cam) = &camera_in {
+            while let Some(m) = cam.receive()? {
+                camera = Some(m.user_header().camera());
+            }
+        }
         if let Some(poses) = &poses_in {
             while let Some(m) = poses.receive()? {
-                let oriented: Vec<Vec3> = m
-                    .payload()
-                    .iter()
-                    .filter(|p: &&Pose| p.flags & 1 != 0)
-                    .map(|p| Vec3::from(p.center_m))
-                    .collect();
+                let oriented: Vec<&Pose> = m.payload().iter().filter(|p: &&Pose| p.flags & 1 != 0).collect();
                 if !oriented.is_empty() {
-                    viewpoint = Some(oriented.iter().sum::<Vec3>() / oriented.len() as f64);
+                    viewpoint = Some(oriented.iter().map(|p| Vec3::from(p.center_m)).sum::<Vec3>() / oriented.len() as f64);
                 }
+                image_lines.poses = oriented.iter().map(|p| (p.frame, p.exterior())).collect();
+            }
+        }
+        if let Some(lines2d) = &lines2d_in {
+            while let Some(m) = lines2d.receive()? {
+                if !refining {
+                    continue;
+                }
+                let h = *m.user_header();
+                let (segs, _) = parts::split::<Segment2, [u16; 2]>(m.payload(), h.n_segments as usize, h.n_chain as usize)
+                    .map_err(|e| anyhow::anyhow!("lines2d of frame {}: {e}", h.stamp.frame))?;
+                image_lines
+                    .pending
+                    .insert(h.stamp.frame, segs.iter().map(|s| (s.start_px, s.end_px)).collect());
             }
         }
         // Only the newest set of lines matters: each one holds every line so far.
@@ -121,7 +184,19 @@ fn body() -> Result<()> {
             latest = Some((m.user_header().stamp, rows));
         }
         if let Some((stamp, rows)) = latest.take() {
-            model = build(&lines_from_rows(&rows, &params), &params, viewpoint);
+            let lines = lines_from_rows(&rows, &params);
+            let images = match (&camera, refining) {
+                (Some(cam), true) => match image_lines.update(cam, params.refine_min_image_line_px) {
+                    (lines, oriented) if oriented >= 2 => Some(Images {
+                        camera: cam,
+                        lines,
+                        params: params.refine_params(),
+                    }),
+                    _ => None,
+                },
+                _ => None,
+            };
+            model = build_with_images(&lines, &params, viewpoint, images.as_ref());
             let d = &model.diagnostics;
             tracing::debug!(
                 frame = stamp.frame,
