@@ -195,6 +195,13 @@ enum Cmd {
         /// Camera poses (poses.csv): faces are oriented towards the cameras.
         #[arg(long)]
         poses: Option<PathBuf>,
+        /// The images' 2-D lines (lines2d.csv): Refine measures every edge again in them (needs --poses and
+        /// --camera; docs/model.md).
+        #[arg(long, requires_all = ["poses", "camera"])]
+        lines2d: Option<PathBuf>,
+        /// The camera the 2-D lines were measured with (camera.toml).
+        #[arg(long, requires = "lines2d")]
+        camera: Option<PathBuf>,
         /// Output folder [default: the lines' folder].
         #[arg(long)]
         out: Option<PathBuf>,
@@ -273,7 +280,20 @@ fn main() -> ExitCode {
             noise_dn: noise,
         }),
         Cmd::Eval { results, gt, out } => eval(&results, &gt, out),
-        Cmd::Model { lines, poses, out, set } => model_cmd::model(&lines, poses.as_deref(), out, &set),
+        Cmd::Model {
+            lines,
+            poses,
+            lines2d,
+            camera,
+            out,
+            set,
+        } => {
+            let refine = lines2d
+                .as_deref()
+                .zip(camera.as_deref())
+                .map(|(lines2d, camera)| model_cmd::RefineInputs { lines2d, camera });
+            model_cmd::model(&lines, poses.as_deref(), refine, out, &set)
+        }
         Cmd::Experiment { name, trials, seed } => match name.as_str() {
             "seed001" => {
                 print!("{}", seed001::experiment(trials.unwrap_or(500).max(1), seed));

@@ -6,8 +6,9 @@ use std::time::Instant;
 
 use anyhow::{Context, Result};
 use lineflow_capture::synth::{rng::Rng, Synthetic};
-use lineflow_formats::{read_lines3d, read_poses, Line3Row};
-use lineflow_model::{build, export, junction, lines_from_rows, Model, ModelLine, ModelParams, SurfaceKind};
+use lineflow_formats::{read_lines2d, read_lines3d, read_poses, Line3Row, PoseRow};
+use lineflow_model::refine::{Endpoints, ImageLines};
+use lineflow_model::{build, build_with_images, export, junction, lines_from_rows, Images, Model, ModelLine, ModelParams, SurfaceKind};
 use lineflow_photogrammetry::Vec3;
 
 use crate::bench_util::median_time;
@@ -29,19 +30,60 @@ fn params_with(set: &[String]) -> Result<ModelParams> {
     Ok(params)
 }
 
-/// `lineflow model LINES3D [--poses POSES] [--out DIR] [--set PARAM=VALUE]...`
-pub fn model(lines: &Path, poses: Option<&Path>, out: Option<PathBuf>, set: &[String]) -> Result<ExitCode> {
+/// Where Refine finds the images' 2-D lines: `lines2d.csv` and the `camera.toml` they were measured with (the
+/// poses come from `--poses`).
+pub struct RefineInputs<'a> {
+    pub lines2d: &'a Path,
+    pub camera: &'a Path,
+}
+
+/// Every posed image's 2-D lines for Refine (images of `lines2d.csv` without a pose are left out).
+fn image_lines(
+    inputs: &RefineInputs,
+    poses: &[PoseRow],
+    params: &ModelParams,
+) -> Result<(lineflow_photogrammetry::Camera, Vec<ImageLines>)> {
+    let camera = lineflow_capture::project::read_camera(inputs.camera)?.camera();
+    let rows = read_lines2d(inputs.lines2d)?;
+    let mut by_image: std::collections::HashMap<&str, Vec<Endpoints>> = Default::default();
+    for r in &rows {
+        by_image.entry(r.image.as_str()).or_default().push((r.start_px, r.end_px));
+    }
+    let lines = poses
+        .iter()
+        .map(|p| {
+            let segments = by_image.get(p.image.as_str()).map_or(&[][..], Vec::as_slice);
+            ImageLines::new(&camera, Some(p.pose), segments, params.refine_min_image_line_px)
+        })
+        .collect();
+    Ok((camera, lines))
+}
+
+/// `lineflow model LINES3D [--poses POSES] [--lines2d LINES2D --camera CAMERA] [--out DIR] [--set PARAM=VALUE]...`
+pub fn model(lines: &Path, poses: Option<&Path>, refine: Option<RefineInputs>, out: Option<PathBuf>, set: &[String]) -> Result<ExitCode> {
     let params = params_with(set)?;
     let rows = read_lines3d(lines)?;
-    let viewpoint = match poses {
-        Some(p) => {
-            let poses = read_poses(p)?;
-            (!poses.is_empty()).then(|| poses.iter().map(|p| p.pose.center).sum::<Vec3>() / poses.len() as f64)
+    let poses = poses.map(read_poses).transpose()?.unwrap_or_default();
+    let viewpoint = (!poses.is_empty()).then(|| poses.iter().map(|p| p.pose.center).sum::<Vec3>() / poses.len() as f64);
+    let images = match &refine {
+        Some(inputs) if poses.is_empty() => {
+            anyhow::bail!("refining with {} needs the images' poses: give --poses", inputs.lines2d.display())
         }
+        Some(inputs) => Some(image_lines(inputs, &poses, &params)?),
         None => None,
     };
     let started = Instant::now();
-    let model = build(&lines_from_rows(&rows, &params), &params, viewpoint);
+    let model = match &images {
+        Some((camera, lines_2d)) => {
+            let images = Images {
+                camera,
+                lines: lines_2d,
+                params: params.refine_params(),
+            };
+            build_with_images(&lines_from_rows(&rows, &params), &params, viewpoint, Some(&images))
+        }
+        None => build(&lines_from_rows(&rows, &params), &params, viewpoint),
+    };
     let elapsed = started.elapsed().as_secs_f64();
     let out = out.unwrap_or_else(|| lines.parent().map(Path::to_path_buf).unwrap_or_default());
     export::write_obj(&out.join("model.obj"), &model)?;

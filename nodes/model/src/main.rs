@@ -5,13 +5,10 @@ use std::collections::HashMap;
 use anyhow::{bail, Context, Result};
 use lineflow_formats::Line3Row;
 use lineflow_messages::{kinds, parts, FaceVertex, Line3, ModelFacesHeader, Pose, Segment2, Stamp, WireEdge, WireframeHeader};
-use lineflow_model::refine::ImageLines;
+use lineflow_model::refine::{Endpoints, ImageLines};
 use lineflow_model::{build_with_images, export, lines_from_rows, Images, Model, ModelParams, SurfaceKind};
 use lineflow_photogrammetry::{Camera, Vec3};
 use lineflow_runtime::{Flow, NodeContext, Output};
-
-/// A 2-D segment's endpoints in measured pixels.
-type Endpoints = ([f64; 2], [f64; 2]);
 
 /// The images' 2-D lines for Refine: segments as they arrive, indexed once the camera is known, each image
 /// placed at its newest pose.

@@ -40,6 +40,9 @@ impl Default for RefineParams {
     }
 }
 
+/// A 2-D line's endpoints in measured pixels.
+pub type Endpoints = ([f64; 2], [f64; 2]);
+
 /// One image's pose and its 2-D lines, endpoints in ideal photo coordinates (mm; straight where the image lines
 /// are straight after the correction model), with a coarse grid over them.
 #[derive(Debug, Clone)]
@@ -52,7 +55,7 @@ pub struct ImageLines {
 
 impl ImageLines {
     /// The image lines of one image from their measured pixel endpoints; lines shorter than `min_px` are left out.
-    pub fn new(camera: &Camera, pose: Option<Pose>, measured: &[([f64; 2], [f64; 2])], min_px: f64) -> Self {
+    pub fn new(camera: &Camera, pose: Option<Pose>, measured: &[Endpoints], min_px: f64) -> Self {
         let segments: Vec<[[f64; 2]; 2]> = measured
             .iter()
             .filter(|(a, b)| (b[0] - a[0]).hypot(b[1] - a[1]) >= min_px)

@@ -578,6 +578,46 @@ fn the_demo_graph_orients_both_strips_and_extracts_3d_lines_and_a_model_the_same
     assert!(lines[0] == lines[1], "two runs gave different 3-D lines");
     assert!(models[0] == models[1], "two runs gave different models");
     assert!(fits[0] == fits[1], "two runs gave different fitted models");
+
+    // Refine offline: the same lines with the images' 2-D lines, the camera they were measured with and the poses.
+    let out = sb.path().join("out0");
+    let camera = sb.path().join("camera.toml");
+    let scene = lineflow_capture::synth::Synthetic::new("a55-two-strips", 0.3, 1).unwrap();
+    std::fs::write(&camera, toml_camera(&scene)).unwrap();
+    let refined = sb.path().join("refined");
+    let arg = |name: &str| out.join(name).to_str().unwrap().to_owned();
+    let r = sb.run(&[
+        "model",
+        &arg("lines3d.csv"),
+        "--poses",
+        &arg("poses.csv"),
+        "--lines2d",
+        &arg("lines2d.csv"),
+        "--camera",
+        camera.to_str().unwrap(),
+        "--out",
+        refined.to_str().unwrap(),
+    ]);
+    let said = String::from_utf8_lossy(&r.stdout).into_owned();
+    assert!(r.status.success(), "{said}{}", String::from_utf8_lossy(&r.stderr));
+    let refined_edges = figure_after(&said, "median sigma0", ", ");
+    assert!(refined_edges > 0.0, "no edge refined: {said}");
+    assert!(refined.join("model.obj").is_file() && refined.join("model.city.json").is_file());
+    // Without poses the images cannot be used: a clear refusal, nothing written.
+    let r = sb.run(&[
+        "model",
+        &arg("lines3d.csv"),
+        "--lines2d",
+        &arg("lines2d.csv"),
+        "--camera",
+        camera.to_str().unwrap(),
+    ]);
+    assert!(!r.status.success());
+}
+
+/// The camera of a synthetic scene as `camera.toml` text.
+fn toml_camera(scene: &lineflow_capture::synth::Synthetic) -> String {
+    toml::to_string(&lineflow_capture::CameraFile::of(scene.camera())).expect("camera.toml")
 }
 
 /// The first number after `marker` (then `lead`) in `text`.
