@@ -107,6 +107,11 @@ fn constraint(first_two: &[[f64; 2]; 2], fit: &Fit) -> Option<([f64; 2], [f64; 2
     }
 }
 
+/// Distance of `q` from the line through `o` with unit direction `d`.
+fn off_line(q: [f64; 2], o: [f64; 2], d: [f64; 2]) -> f64 {
+    ((q[0] - o[0]) * d[1] - (q[1] - o[1]) * d[0]).abs()
+}
+
 const NEIGHBOURS: [(i32, i32); 8] = [(1, 0), (1, 1), (0, 1), (-1, 1), (-1, 0), (-1, -1), (0, -1), (1, -1)];
 
 /// Horizontal bands of rows traced in parallel; fixed, so that the result does not depend on the thread count.
@@ -263,16 +268,18 @@ fn trace_band(
                 let (ec, er) = (pixels[end as usize][0] as i32, pixels[end as usize][1] as i32);
                 let line = constraint(&first_two, &fit);
                 let here = corrected[end as usize];
-                let mut best: Option<(f64, u32)> = None;
-                for (dc, dr) in NEIGHBOURS {
-                    let (c, r) = (ec + dc, er + dr - row0 as i32);
+                // The edge pixel at image (col, row) if it is in this band and in no chain yet.
+                let free_at = |c: i32, r: i32| {
+                    let r = r - row0 as i32;
                     if c < 0 || r < 0 || c >= width as i32 || r >= height as i32 {
-                        continue;
+                        return None;
                     }
                     let j = index[r as usize * width + c as usize];
-                    if j == NONE || state[j as usize - first] == Pixel::Taken {
-                        continue;
-                    }
+                    (j != NONE && state[j as usize - first] != Pixel::Taken).then_some(j)
+                };
+                let mut best: Option<(f64, u32)> = None;
+                for (dc, dr) in NEIGHBOURS {
+                    let Some(j) = free_at(ec + dc, er + dr) else { continue };
                     let q = corrected[j as usize];
                     let step = [q[0] - here[0], q[1] - here[1]];
                     // Onwards only: a step must not turn back against the arm's heading.
@@ -282,7 +289,7 @@ fn trace_band(
                     let score = match line {
                         None => 0.0,
                         Some((o, d)) => {
-                            let dist = ((q[0] - o[0]) * d[1] - (q[1] - o[1]) * d[0]).abs();
+                            let dist = off_line(q, o, d);
                             if dist > p.max_distance_px {
                                 continue;
                             }
@@ -301,21 +308,13 @@ fn trace_band(
                     let at = |j: u32| {
                         let q = corrected[j as usize];
                         let along = h[0] * (q[0] - here[0]) + h[1] * (q[1] - here[1]);
-                        let off = ((q[0] - o[0]) * d[1] - (q[1] - o[1]) * d[0]).abs();
-                        (along, off)
+                        (along, off_line(q, o, d))
                     };
                     let mut found: Option<(f64, f64, u32)> = None;
                     for k in 2..=p.max_jump_px as i32 {
                         let (cc, cr) = (ec + (h[0] * k as f64).round() as i32, er + (h[1] * k as f64).round() as i32);
                         for (dc, dr) in std::iter::once((0, 0)).chain(NEIGHBOURS) {
-                            let (c, r) = (cc + dc, cr + dr - row0 as i32);
-                            if c < 0 || r < 0 || c >= width as i32 || r >= height as i32 {
-                                continue;
-                            }
-                            let j = index[r as usize * width + c as usize];
-                            if j == NONE || state[j as usize - first] == Pixel::Taken {
-                                continue;
-                            }
+                            let Some(j) = free_at(cc + dc, cr + dr) else { continue };
                             let (along, off) = at(j);
                             if along <= 0.0 || along > p.max_jump_px + 1.0 || off > p.max_distance_px {
                                 continue;
