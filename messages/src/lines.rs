@@ -70,6 +70,17 @@ pub struct Lines2DHeader {
     pub name: [u8; 64],
 }
 
+impl Lines2DHeader {
+    /// The segments of a Lines2D payload and their concatenated pixel chains.
+    ///
+    /// # Errors
+    /// When the payload is shorter than the header's counts need (the message names the frame).
+    pub fn split<'a>(&self, payload: &'a [u8]) -> Result<(&'a [Segment2], &'a [[u16; 2]]), String> {
+        crate::parts::split::<Segment2, [u16; 2]>(payload, self.n_segments as usize, self.n_chain as usize)
+            .map_err(|e| format!("lines2d of frame {}: {e}", self.stamp.frame))
+    }
+}
+
 impl Default for Lines2DHeader {
     fn default() -> Self {
         Self {

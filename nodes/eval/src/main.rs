@@ -5,7 +5,7 @@ use anyhow::{bail, Context, Result};
 use lineflow_capture::synth::{self, Synthetic};
 use lineflow_eval::{evaluate, report, Results, Truth, Wireframe};
 use lineflow_formats::{Line2Row, Line3Row, PoseRow};
-use lineflow_messages::{kinds, parts, Segment2, WireEdge};
+use lineflow_messages::{kinds, parts, WireEdge};
 use lineflow_photogrammetry::Vec3;
 use lineflow_runtime::{Flow, NodeContext};
 
@@ -88,8 +88,7 @@ fn body() -> Result<()> {
         if let (Some(i), Some(rows)) = (&segments, &mut est_segments) {
             while let Some(m) = i.receive()? {
                 let h = m.user_header();
-                let (segs, _) = parts::split::<Segment2, [u16; 2]>(m.payload(), h.n_segments as usize, h.n_chain as usize)
-                    .map_err(|e| anyhow::anyhow!("lines2d frame {}: {e}", h.stamp.frame))?;
+                let (segs, _) = h.split(m.payload()).map_err(anyhow::Error::msg)?;
                 rows.extend(segs.iter().map(|s| Line2Row {
                     image: h.name().to_string(),
                     id: s.id as u64,

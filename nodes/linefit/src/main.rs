@@ -74,8 +74,7 @@ fn body() -> Result<()> {
                     continue;
                 }
                 let h = *m.user_header();
-                let (segs, _) = parts::split::<Segment2, [u16; 2]>(m.payload(), h.n_segments as usize, h.n_chain as usize)
-                    .map_err(|e| anyhow::anyhow!("lines2d of frame {}: {e}", h.stamp.frame))?;
+                let (segs, _) = h.split(m.payload()).map_err(anyhow::Error::msg)?;
                 segments.insert(h.stamp.frame, segs.to_vec());
             }
         }

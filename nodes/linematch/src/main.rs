@@ -9,7 +9,7 @@ use anyhow::{bail, Result};
 use lineflow_linematch::{
     choose_slaves, fit_wall, match_master, DistortionLut, FrameSegments, MatchParams, SegmentInput, SegmentMatch, View, WallPlane,
 };
-use lineflow_messages::{kinds, parts, Point3, PointGroup, Points3DHeader, Pose as PoseMsg, Segment2, Stamp, StampFlags};
+use lineflow_messages::{kinds, Point3, PointGroup, Points3DHeader, Pose as PoseMsg, Segment2, Stamp, StampFlags};
 use lineflow_photogrammetry::intersect::intersect_rays;
 use lineflow_photogrammetry::{Camera, Pose, Vec3};
 use lineflow_runtime::{Flow, NodeContext, Output};
@@ -165,8 +165,7 @@ fn body() -> Result<()> {
         })?;
         while let Some(m) = lines_in.receive()? {
             let h = *m.user_header();
-            let (segs, chain) = parts::split::<Segment2, [u16; 2]>(m.payload(), h.n_segments as usize, h.n_chain as usize)
-                .map_err(|e| anyhow::anyhow!("lines2d of frame {}: {e}", h.stamp.frame))?;
+            let (segs, chain) = h.split(m.payload()).map_err(anyhow::Error::msg)?;
             st.lines.insert(
                 h.stamp.frame,
                 FrameLines {

@@ -4,7 +4,7 @@ use std::collections::HashMap;
 
 use anyhow::{bail, Context, Result};
 use lineflow_formats::Line3Row;
-use lineflow_messages::{kinds, parts, FaceVertex, Line3, ModelFacesHeader, Pose, Segment2, Stamp, WireEdge, WireframeHeader};
+use lineflow_messages::{kinds, FaceVertex, Line3, ModelFacesHeader, Pose, Stamp, WireEdge, WireframeHeader};
 use lineflow_model::refine::{Endpoints, ImageLines};
 use lineflow_model::{build_with_images, export, lines_from_rows, Images, Model, ModelParams, SurfaceKind};
 use lineflow_photogrammetry::{Camera, Vec3};
@@ -168,8 +168,7 @@ fn body() -> Result<()> {
                     continue;
                 }
                 let h = *m.user_header();
-                let (segs, _) = parts::split::<Segment2, [u16; 2]>(m.payload(), h.n_segments as usize, h.n_chain as usize)
-                    .map_err(|e| anyhow::anyhow!("lines2d of frame {}: {e}", h.stamp.frame))?;
+                let (segs, _) = h.split(m.payload()).map_err(anyhow::Error::msg)?;
                 image_lines
                     .pending
                     .insert(h.stamp.frame, segs.iter().map(|s| (s.start_px, s.end_px)).collect());
