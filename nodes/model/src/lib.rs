@@ -86,7 +86,8 @@ pub struct ModelParams {
     pub corner_k: f64,
     /// Two planes of faces are one when their normals differ by less than this, degrees.
     pub plane_angle_deg: f64,
-    /// Refine with the images' 2-D lines when the node has them (the `lines2d` and `camera` inputs wired).
+    /// Refine with the images' 2-D lines when the node has them (the `lines2d`, `camera` and `poses` inputs
+    /// wired; `lineflow model` refines whenever it is given `--lines2d`).
     pub refine: bool,
     /// Refine's thresholds, in standard deviations (the seed: two or three).
     pub refine_k: f64,
@@ -445,7 +446,7 @@ fn refine_object(
                 .find(|d| d.dot(&dir).abs() < 20f64.to_radians().cos())
                 .map(|d| (r.corners[corner], d))
         };
-        let free = Vec3::repeat(line.sigma_m);
+        let free = Vec3::from_fn(|k, _| line.sigma_along(k));
         let end_of = |(tc, c): (f64, usize)| (origin + dir * tc, r.sigmas[c], neighbour(c));
         let (start, end) = if first.1 != last.1 {
             (end_of(first), end_of(last))

@@ -1,9 +1,10 @@
 //! Refine (seed 003 §3.5): the model's edges measured again in the images. Each edge is projected into every
 //! image that sees it; the image's 2-D lines near the projection pass three tests with error-propagated
-//! thresholds (distance, angle, and the side of the neighbouring edges: the seed's thresholds 1–3); image lines
-//! of the same edge in two images are intersected through their interpretation planes; the 3-D fragments that
-//! agree with the edge (thresholds 4 and 5) are fitted into one line, which the Shape adjustment then takes as a
-//! second observation of the edge (the spec's fusion option (i)).
+//! thresholds (distance, angle, and the side of the neighbouring edges: the seed's thresholds 1–3), and the
+//! nearest one gives the image's interpretation plane; pairs of planes are intersected, each common line tested
+//! against the edge (thresholds 4 and 5), and the one most planes agree with selects the images whose planes the
+//! edge is then fitted to by least squares. The Shape adjustment takes that line as a second observation of the
+//! edge (the spec's fusion option (i)).
 //!
 //! Where the seed fused aerial image lines with LiDAR lines, a façade model fuses its image lines with the
 //! object-space matches of `linematch`: the image lines are sharper across the edge, the matches carry the depth
@@ -11,6 +12,9 @@
 use lineflow_photogrammetry::{Camera, Pose, Vec3};
 
 use crate::ModelLine;
+
+/// The farthest an image line may lie from an edge's projection, pixels, however uncertain the edge.
+const MAX_REACH_PX: f64 = 200.0;
 
 /// Refine's parameters.
 #[derive(Debug, Clone, Copy)]
@@ -97,8 +101,11 @@ impl SegmentIndex {
     fn key(cell: f64, p: [f64; 2]) -> (i64, i64) {
         ((p[0] / cell).floor() as i64, (p[1] / cell).floor() as i64)
     }
-    /// Segments whose midpoints may lie within `reach` of the segment a–b, in ascending order.
+    /// Segments whose midpoints may lie within `reach` of the segment a–b or 5 % beyond its ends (where the
+    /// tests look), in ascending order.
     fn near(&self, a: [f64; 2], b: [f64; 2], reach: f64) -> Vec<u32> {
+        let beyond = [(b[0] - a[0]) * 0.05, (b[1] - a[1]) * 0.05];
+        let (a, b) = ([a[0] - beyond[0], a[1] - beyond[1]], [b[0] + beyond[0], b[1] + beyond[1]]);
         let (lo, hi) = (
             Self::key(self.cell, [a[0].min(b[0]) - reach, a[1].min(b[1]) - reach]),
             Self::key(self.cell, [a[0].max(b[0]) + reach, a[1].max(b[1]) + reach]),
@@ -149,7 +156,8 @@ pub struct StructureLine {
 /// What Refine measured for one edge.
 #[derive(Debug, Clone)]
 pub struct Refined {
-    /// The edge fitted to the image-line fragments, spanning the structure line's extent.
+    /// The edge fitted to the agreeing interpretation planes, spanning the structure line's extent, with its σ per
+    /// object axis.
     pub line: ModelLine,
     /// Images whose interpretation planes agree on the edge (those in the fit).
     pub images: usize,
@@ -251,6 +259,9 @@ fn image_tests(proj: &Projection, seg: &[[f64; 2]; 2], p: &RefineParams, image_s
     // Threshold 2: angle, lines undirected.
     let v = sub(seg[1], seg[0]);
     let lv = v[0].hypot(v[1]);
+    if lv <= 0.0 {
+        return None;
+    }
     let theta = (cross(v, proj.u).abs() / lv).clamp(0.0, 1.0).asin();
     let sigma_theta =
         ((proj.sigma[0].powi(2) + proj.sigma[1].powi(2)) / (proj.len * proj.len) + 2.0 * image_sigma * image_sigma / (lv * lv)).sqrt();
@@ -289,6 +300,9 @@ impl PlaneObservation {
             .try_normalize(1e-12)?;
         let v = sub(seg[1], seg[0]);
         let l2 = dot(v, v);
+        if l2 <= 0.0 {
+            return None;
+        }
         let ends = [proj.a, [proj.a[0] + proj.u[0] * proj.len, proj.a[1] + proj.u[1] * proj.len]];
         let mut sigma = [0.0; 2];
         for (e, (q, x)) in ends.iter().zip([s.start, s.end]).enumerate() {
@@ -346,11 +360,16 @@ fn passes_space_tests(s: &StructureLine, line: &[Vec3; 2], p: &RefineParams) -> 
     theta <= (p.k * sigma_theta).max(0.5f64.to_radians())
 }
 
+/// Two unit vectors across the unit direction `u`, orthogonal to it and to each other.
+fn across(u: &Vec3) -> [Vec3; 2] {
+    let e1 = u.cross(&if u.x.abs() < 0.9 { Vec3::x() } else { Vec3::y() }).normalize();
+    [e1, u.cross(&e1)]
+}
+
 /// The point nearest to `prior` in the plane through it across `u` that best fits the interpretation planes
 /// (weights 1/σ²), with its covariance there (m²); `None` when the planes leave it undetermined.
 fn fit_point(planes: &[(PlaneObservation, f64)], prior: &Vec3, u: &Vec3) -> Option<(Vec3, nalgebra::Matrix2<f64>)> {
-    let e1 = u.cross(&if u.x.abs() < 0.9 { Vec3::x() } else { Vec3::y() }).normalize();
-    let e2 = u.cross(&e1);
+    let [e1, e2] = across(u);
     let (mut n, mut b) = (nalgebra::Matrix2::zeros(), nalgebra::Vector2::zeros());
     for (pl, sigma) in planes {
         let w = 1.0 / (sigma * sigma);
@@ -373,7 +392,8 @@ pub fn refine_line(camera: &Camera, images: &[ImageLines], s: &StructureLine, p:
     let mut planes: Vec<PlaneObservation> = Vec::new();
     for image in images {
         let Some(proj) = project(camera, image, s, p) else { continue };
-        let reach = p.k * proj.sigma[0].max(proj.sigma[1]) + image_sigma;
+        // Capped: an edge known to a metre has no business picking lines from half the image.
+        let reach = (p.k * proj.sigma[0].max(proj.sigma[1]) + image_sigma).min(MAX_REACH_PX * camera.pixel_size_mm);
         let b = [proj.a[0] + proj.u[0] * proj.len, proj.a[1] + proj.u[1] * proj.len];
         // Façade edges come in close parallel families (an opening's outline, its frame a few centimetres
         // behind, the reveal) and several can pass the tests; the image line nearest to the projection, in
@@ -430,9 +450,7 @@ pub fn refine_line(camera: &Camera, images: &[ImageLines], s: &StructureLine, p:
     }
     // The endpoints' error ellipses as σ per object axis: façade edges run along the axes, so the ellipse's
     // long axis (along the viewing rays) and short axis (across them) fall on different coordinates.
-    let e1 = u.cross(&if u.x.abs() < 0.9 { Vec3::x() } else { Vec3::y() }).normalize();
-    let e2 = u.cross(&e1);
-    let basis = nalgebra::Matrix3x2::from_columns(&[e1, e2]);
+    let basis = nalgebra::Matrix3x2::from_columns(&across(&u));
     let per_axis = |c: &nalgebra::Matrix2<f64>| (basis * c * basis.transpose()).diagonal();
     let (va, vb) = (per_axis(&cov_a), per_axis(&cov_b));
     let sigma_axes = Vec3::from_fn(|k, _| va[k].max(vb[k]).max(0.0).sqrt().max(p.min_sigma_m));
