@@ -36,7 +36,7 @@ impl Default for TraceParams {
             max_merge_angle_deg: 2.0,
             // Off by default: on the full-size d2x-strip 3 px raised recall from 84.5 % to 85.6 %, but brick
             // courses, cut every few pixels by the vertical joints, then become wall-long lines (30,000 segments
-            // became 4,300) and the 3-D line stage's work grew eight-fold.
+            // became 4,300) and the 3-D line stage's first master took 20 s instead of 5 (docs/lines2d.md).
             max_jump_px: 0.0,
         }
     }
