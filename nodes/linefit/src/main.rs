@@ -84,7 +84,9 @@ fn body() -> Result<()> {
                 poses = m.payload().iter().map(|p| (p.frame, p.exterior())).collect();
             }
         }
-        let mut changed = false;
+        // Every frame received gets its own set, in order, so that downstream sees no frame missing even when
+        // several arrive in one wake (a linematch with `master_every` > 1 passes frames on without points).
+        let mut received: Vec<Stamp> = Vec::new();
         while let Some(m) = input.receive()? {
             let h = *m.user_header();
             let (groups, points) = parts::split::<PointGroup, Point3>(m.payload(), h.n_groups as usize, h.n_points as usize)
@@ -103,13 +105,15 @@ fn body() -> Result<()> {
                 .collect();
             tracing::debug!(master, groups = groups.len(), lines = fitted.len(), "fitted");
             fragments.insert(master, fitted);
-            last = h.stamp;
-            changed = true;
+            received.push(h.stamp);
         }
-        if changed {
+        if let Some(&newest) = received.last() {
             let all: Vec<Fragment> = fragments.values().flatten().cloned().collect();
             merged = merge(&all, &params.rule());
-            publish(&output, last, &merged)?;
+            for stamp in &received {
+                publish(&output, *stamp, &merged)?;
+            }
+            last = newest;
         }
         // The final set waits for every image's lines and the final poses too.
         let others_ended = [lines_in.as_ref().map(|i| i.is_ended()), poses_in.as_ref().map(|i| i.is_ended())]

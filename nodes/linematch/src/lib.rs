@@ -140,6 +140,9 @@ pub struct MatchParams {
     pub parallel_snap_m: f64,
     /// Slaves per master (nearest by overlap).
     pub max_slaves: usize,
+    /// Every `master_every`-th frame (by frame number) is a master; the others serve as slaves only. With six
+    /// slaves, masters two frames apart still see every part of a strip from several masters.
+    pub master_every: u64,
     /// A slave must see at least this share of the master's wall area.
     pub min_overlap: f64,
     /// Fewest slaves that must see a window.
@@ -181,6 +184,7 @@ impl Default for MatchParams {
             front_margin: -1.0,
             parallel_snap_m: 0.03,
             max_slaves: 6,
+            master_every: 1,
             min_overlap: 0.2,
             min_slaves: 1,
             wall_margin_m: 0.5,
@@ -225,6 +229,9 @@ impl MatchParams {
         }
         if self.max_slaves == 0 || self.min_slaves > self.max_slaves {
             return Err("max_slaves must be >= 1 and >= min_slaves".into());
+        }
+        if self.master_every == 0 {
+            return Err("master_every must be >= 1".into());
         }
         if self.depth_step_m > self.depth_range_m {
             return Err("depth_step_m must not exceed depth_range_m".into());
@@ -293,4 +300,28 @@ pub fn choose_slaves(
             .then(a.0.cmp(&b.0))
     });
     scored.into_iter().take(max_slaves).map(|(f, _)| f).collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn parameters_out_of_range_are_refused_by_name() {
+        assert!(MatchParams::default().validate().is_ok());
+        let e = MatchParams {
+            master_every: 0,
+            ..MatchParams::default()
+        }
+        .validate()
+        .unwrap_err();
+        assert!(e.contains("master_every"), "{e}");
+        let e = MatchParams {
+            max_slaves: 0,
+            ..MatchParams::default()
+        }
+        .validate()
+        .unwrap_err();
+        assert!(e.contains("max_slaves"), "{e}");
+    }
 }

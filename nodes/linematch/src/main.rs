@@ -213,6 +213,12 @@ fn body() -> Result<()> {
                     match_and_publish(&mut st, &params, (master, slaves), &output)?;
                     return Ok(Flow::Continue);
                 }
+                Step::Pass(frame) => {
+                    st.matched.insert(frame, Vec::new());
+                    st.revision += 1;
+                    let stamp = st.stamps.get(&frame).copied().unwrap_or_default();
+                    publish(&output, stamp, frame, st.revision, &[])?;
+                }
                 Step::Wait => return Ok(Flow::Continue),
                 Step::NextSnapshot => match st.snapshots.pop_front() {
                     Some((stamp, snapshot)) => {
@@ -233,7 +239,8 @@ fn body() -> Result<()> {
     }
     let groups: usize = st.matched.values().map(Vec::len).sum();
     let points: usize = st.matched.values().flatten().map(|m| m.points.len()).sum();
-    tracing::info!("{} masters matched: {groups} point groups, {points} points", st.matched.len());
+    let masters = st.matched.keys().filter(|f| *f % params.master_every == 0).count();
+    tracing::info!("{masters} masters matched: {groups} point groups, {points} points");
     for (frame, why) in &st.skipped {
         tracing::warn!("frame {frame} was not matched: {why}");
     }
@@ -253,6 +260,8 @@ struct Ended {
 enum Step {
     /// Match this master against these slaves.
     Match(u64, Vec<u64>),
+    /// A frame that is no master (`master_every`) is passed on without points.
+    Pass(u64),
     /// A ready master waits for its images or lines (or the tie points for a wall fit).
     Wait,
     /// Nothing more is ready under the current snapshot.
@@ -289,8 +298,18 @@ fn step(st: &mut State, params: &MatchParams, ended: &Ended, at_end: bool) -> St
         return if at_end { Step::Done } else { Step::NextSnapshot };
     };
     let camera = *camera;
+    // A master before this frame is still to be matched.
+    let mut earlier_pending = false;
     for &(frame, pose) in &candidates {
         if st.matched.contains_key(&frame) || st.skipped.contains_key(&frame) {
+            continue;
+        }
+        if frame % params.master_every != 0 {
+            // A slave only: its empty message, in frame order, keeps the sequence whole downstream (no "missed"
+            // frame).
+            if !earlier_pending && (st.stamps.contains_key(&frame) || ended.images) {
+                return Step::Pass(frame);
+            }
             continue;
         }
         let slaves = choose_slaves(&camera, (frame, &pose), &candidates, &walls, params.max_slaves, params.min_overlap);
@@ -303,6 +322,8 @@ fn step(st: &mut State, params: &MatchParams, ended: &Ended, at_end: bool) -> St
         if !ready {
             if at_end {
                 st.skipped.insert(frame, "no neighbour overlaps it".into());
+            } else {
+                earlier_pending = true;
             }
             continue;
         }

@@ -140,7 +140,7 @@ fn body() -> Result<()> {
 
     let mut viewpoint: Option<Vec3> = None;
     let mut model = Model::default();
-    let mut latest: Option<(Stamp, Vec<Line3Row>)> = None;
+    let mut latest: Option<Vec<Line3Row>> = None;
     let mut camera: Option<Camera> = None;
     let mut image_lines = ImageLineStore::default();
     let refining = params.refine && lines2d_in.is_some() && camera_in.is_some() && poses_in.is_some();
@@ -174,12 +174,14 @@ fn body() -> Result<()> {
                     .insert(h.stamp.frame, segs.iter().map(|s| (s.start_px, s.end_px)).collect());
             }
         }
-        // Only the newest set of lines matters: each one holds every line so far.
+        // Only the newest set of lines is built: each one holds every line so far. Every set received still gets
+        // its model message, in order, so that downstream sees no frame missing.
+        let mut received: Vec<Stamp> = Vec::new();
         while let Some(m) = lines_in.receive()? {
-            let rows: Vec<Line3Row> = m.payload().iter().map(|l: &Line3| Line3Row::from(l)).collect();
-            latest = Some((m.user_header().stamp, rows));
+            latest = Some(m.payload().iter().map(|l: &Line3| Line3Row::from(l)).collect());
+            received.push(m.user_header().stamp);
         }
-        if let Some((stamp, rows)) = latest.take() {
+        if let (Some(rows), Some(&stamp)) = (latest.take(), received.last()) {
             let lines = lines_from_rows(&rows, &params);
             let images = match (&camera, refining) {
                 (Some(cam), true) => match image_lines.update(cam, params.refine_min_image_line_px) {
@@ -201,7 +203,9 @@ fn body() -> Result<()> {
                 faces = model.faces.len(),
                 "model rebuilt"
             );
-            publish(&output, faces_out.as_ref(), stamp, &model)?;
+            for stamp in &received {
+                publish(&output, faces_out.as_ref(), *stamp, &model)?;
+            }
         }
         Ok(if lines_in.is_ended() { Flow::Stop } else { Flow::Continue })
     })?;

@@ -370,6 +370,37 @@ fn the_demo_graph_runs_the_synthetic_camera_and_gives_the_same_bytes_twice() {
         assert!(edges.lines().skip(1).all(|l| l.split(',').nth(1) == Some(detector)), "{edges}");
         assert!(!outputs[0].1.starts_with(&edges));
     }
+    // Every other frame as a master: the others pass on without points, and no stage downstream misses a frame.
+    let out = sb.path().join("every_other_master");
+    let r = sb.run(&[
+        "run",
+        demo.to_str().unwrap(),
+        "--set",
+        "capture.scale=0.06",
+        "--set",
+        "linematch.master_every=2",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    let log = String::from_utf8_lossy(&r.stderr).into_owned();
+    assert!(r.status.success(), "master_every run failed:\n{log}");
+    let masters: usize = log
+        .lines()
+        .find_map(|l| {
+            l.split(" masters matched")
+                .next()
+                .filter(|_| l.contains(" masters matched"))?
+                .split_whitespace()
+                .last()?
+                .parse()
+                .ok()
+        })
+        .expect("no masters line");
+    assert!(masters <= 9, "{masters} masters of 18 frames:\n{log}");
+    for node in ["linematch", "linefit", "model", "modelfit", "eval"] {
+        let row = summary_row(&out, node);
+        assert_eq!(row[9], "-", "{node} missed frames: {row:?}");
+    }
 }
 
 /// A small synthetic project folder (`convergent` at scale 0.06, 12 images) with its ground truth.
