@@ -17,7 +17,7 @@ pub mod transport;
 /// The bound of the payload parts `Output::publish_parts` takes, re-exported so that nodes need no iceoryx2 dependency.
 pub use iceoryx2::prelude::ZeroCopySend;
 pub use node::{Flow, NodeContext, RunEnd, StatusWatch};
-pub use ports::{Input, Output, Received};
+pub use ports::{frames_to_publish, Input, Output, Received};
 
 /// Runs a node's body and turns an error into one line on stderr (`[node] error: ...`, causes joined by `: `) and
 /// exit status 1, instead of a debug dump with a backtrace.

@@ -365,3 +365,44 @@ impl<M: Message> Connect for OutputInner<M> {
             .map_err(|e| anyhow::anyhow!("{e:?}"))
     }
 }
+
+/// For a stage that publishes one state (every set holds everything so far) after draining several messages:
+/// the stamps to publish that state under, in order: every frame seen for the first time (recorded in
+/// `published`), so that subscribers see no frame missing, and the newest stamp if it is a revision of a frame
+/// already out. Revisions in between (a burst of re-estimates) share the newest's message.
+pub fn frames_to_publish(received: &[Stamp], published: &mut std::collections::HashSet<u64>) -> Vec<Stamp> {
+    let mut out: Vec<Stamp> = received.iter().filter(|s| published.insert(s.frame)).copied().collect();
+    if let Some(newest) = received.last() {
+        if out.last() != Some(newest) {
+            out.push(*newest);
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod frames_to_publish_tests {
+    use super::frames_to_publish;
+    use lineflow_messages::Stamp;
+
+    fn stamp(frame: u64, revision: u32) -> Stamp {
+        Stamp {
+            frame,
+            revision,
+            ..Stamp::default()
+        }
+    }
+
+    #[test]
+    fn new_frames_each_get_a_message_and_revisions_share_the_newest() {
+        let mut published = std::collections::HashSet::new();
+        let got = frames_to_publish(&[stamp(0, 0), stamp(1, 0), stamp(2, 0)], &mut published);
+        assert_eq!(got.iter().map(|s| s.frame).collect::<Vec<_>>(), [0, 1, 2]);
+        // The final re-estimation: every frame again with a higher revision, then a new one.
+        let got = frames_to_publish(&[stamp(0, 1), stamp(1, 2), stamp(2, 3)], &mut published);
+        assert_eq!(got, [stamp(2, 3)]);
+        let got = frames_to_publish(&[stamp(1, 4), stamp(3, 5)], &mut published);
+        assert_eq!(got, [stamp(3, 5)]);
+        assert!(frames_to_publish(&[], &mut published).is_empty());
+    }
+}

@@ -62,6 +62,7 @@ fn body() -> Result<()> {
     let mut fragments: BTreeMap<u64, Vec<Fragment>> = BTreeMap::new();
     let mut merged: Vec<Merged> = Vec::new();
     let mut last = Stamp::default();
+    let mut published = std::collections::HashSet::new();
     ctx.run(|| {
         if let Some(i) = &camera_in {
             while let Some(m) = i.receive()? {
@@ -84,8 +85,9 @@ fn body() -> Result<()> {
                 poses = m.payload().iter().map(|p| (p.frame, p.exterior())).collect();
             }
         }
-        // Every frame received gets its own set, in order, so that downstream sees no frame missing even when
-        // several arrive in one wake (a linematch with `master_every` > 1 passes frames on without points).
+        // Every frame received for the first time gets its own set, in order, so that downstream sees no frame
+        // missing even when several arrive in one wake (a linematch with `master_every` > 1 passes frames on
+        // without points); revisions of frames already out (the final re-estimation) share one set.
         let mut received: Vec<Stamp> = Vec::new();
         while let Some(m) = input.receive()? {
             let h = *m.user_header();
@@ -110,8 +112,8 @@ fn body() -> Result<()> {
         if let Some(&newest) = received.last() {
             let all: Vec<Fragment> = fragments.values().flatten().cloned().collect();
             merged = merge(&all, &params.rule());
-            for stamp in &received {
-                publish(&output, *stamp, &merged)?;
+            for stamp in lineflow_runtime::frames_to_publish(&received, &mut published) {
+                publish(&output, stamp, &merged)?;
             }
             last = newest;
         }

@@ -141,6 +141,7 @@ fn body() -> Result<()> {
     let mut viewpoint: Option<Vec3> = None;
     let mut model = Model::default();
     let mut latest: Option<Vec<Line3Row>> = None;
+    let mut published = std::collections::HashSet::new();
     let mut camera: Option<Camera> = None;
     let mut image_lines = ImageLineStore::default();
     let refining = params.refine && lines2d_in.is_some() && camera_in.is_some() && poses_in.is_some();
@@ -174,8 +175,8 @@ fn body() -> Result<()> {
                     .insert(h.stamp.frame, segs.iter().map(|s| (s.start_px, s.end_px)).collect());
             }
         }
-        // Only the newest set of lines is built: each one holds every line so far. Every set received still gets
-        // its model message, in order, so that downstream sees no frame missing.
+        // Only the newest set of lines is built: each one holds every line so far. Every frame received for the
+        // first time still gets its model message, in order, so that downstream sees no frame missing.
         let mut received: Vec<Stamp> = Vec::new();
         while let Some(m) = lines_in.receive()? {
             latest = Some(m.payload().iter().map(|l: &Line3| Line3Row::from(l)).collect());
@@ -203,8 +204,8 @@ fn body() -> Result<()> {
                 faces = model.faces.len(),
                 "model rebuilt"
             );
-            for stamp in &received {
-                publish(&output, faces_out.as_ref(), *stamp, &model)?;
+            for stamp in lineflow_runtime::frames_to_publish(&received, &mut published) {
+                publish(&output, faces_out.as_ref(), stamp, &model)?;
             }
         }
         Ok(if lines_in.is_ended() { Flow::Stop } else { Flow::Continue })
