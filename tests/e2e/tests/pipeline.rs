@@ -351,20 +351,23 @@ fn the_demo_graph_runs_the_synthetic_camera_and_gives_the_same_bytes_twice() {
         outputs.push((rows, edges + &lines));
     }
     assert_eq!(outputs[0], outputs[1], "two runs of the synthetic camera differ");
-    // Swapping the edge detector is a launch-file parameter.
-    for detector in ["sobel", "log"] {
-        let out = sb.path().join(detector);
-        let set = format!("edges.impl={detector}");
-        let r = sb.run(&[
+    // The tiny demo with one more parameter set, into `out`.
+    let run_with = |set: &str, out: &Path| {
+        sb.run(&[
             "run",
             demo.to_str().unwrap(),
             "--set",
             "capture.scale=0.06",
             "--set",
-            &set,
+            set,
             "--out",
             out.to_str().unwrap(),
-        ]);
+        ])
+    };
+    // Swapping the edge detector is a launch-file parameter.
+    for detector in ["sobel", "log"] {
+        let out = sb.path().join(detector);
+        let r = run_with(&format!("edges.impl={detector}"), &out);
         assert!(r.status.success(), "{detector} run failed");
         let edges = std::fs::read_to_string(out.join("edges.csv")).unwrap();
         assert!(edges.lines().skip(1).all(|l| l.split(',').nth(1) == Some(detector)), "{edges}");
@@ -372,16 +375,7 @@ fn the_demo_graph_runs_the_synthetic_camera_and_gives_the_same_bytes_twice() {
     }
     // Every other frame as a master: the others pass on without points, and no stage downstream misses a frame.
     let out = sb.path().join("every_other_master");
-    let r = sb.run(&[
-        "run",
-        demo.to_str().unwrap(),
-        "--set",
-        "capture.scale=0.06",
-        "--set",
-        "linematch.master_every=2",
-        "--out",
-        out.to_str().unwrap(),
-    ]);
+    let r = run_with("linematch.master_every=2", &out);
     let log = String::from_utf8_lossy(&r.stderr).into_owned();
     assert!(r.status.success(), "master_every run failed:\n{log}");
     let masters: usize = log
