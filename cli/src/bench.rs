@@ -46,8 +46,8 @@ pub enum BenchCmd {
         /// Repetitions per measurement.
         #[arg(long, default_value_t = 5)]
         reps: usize,
-        /// Canny high threshold (low = 0.4 × high).
-        #[arg(long, default_value_t = 100.0)]
+        /// Canny high threshold (low = 0.4 × high), as the edges node's default.
+        #[arg(long, default_value_t = lineflow_edges::DEFAULT_HIGH)]
         high: f64,
     },
     /// The default 2-D stage (Canny + line tracing) on a full-size synthetic frame: time per step, recall and

@@ -309,19 +309,17 @@ mod tests {
     #[test]
     fn parameters_out_of_range_are_refused_by_name() {
         assert!(MatchParams::default().validate().is_ok());
-        let e = MatchParams {
+        let no_masters = MatchParams {
             master_every: 0,
             ..MatchParams::default()
-        }
-        .validate()
-        .unwrap_err();
-        assert!(e.contains("master_every"), "{e}");
-        let e = MatchParams {
+        };
+        let no_slaves = MatchParams {
             max_slaves: 0,
             ..MatchParams::default()
+        };
+        for (params, name) in [(no_masters, "master_every"), (no_slaves, "max_slaves")] {
+            let e = params.validate().unwrap_err();
+            assert!(e.contains(name), "{e}");
         }
-        .validate()
-        .unwrap_err();
-        assert!(e.contains("max_slaves"), "{e}");
     }
 }

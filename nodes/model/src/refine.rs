@@ -72,14 +72,6 @@ impl ImageLines {
     pub fn set_pose(&mut self, pose: Option<Pose>) {
         self.pose = pose;
     }
-    /// The number of image lines kept.
-    pub fn len(&self) -> usize {
-        self.segments.len()
-    }
-    /// Whether no image line was kept.
-    pub fn is_empty(&self) -> bool {
-        self.segments.is_empty()
-    }
 }
 
 /// Image lines bucketed by the cells their midpoints fall in.
@@ -106,38 +98,19 @@ impl SegmentIndex {
     fn near(&self, a: [f64; 2], b: [f64; 2], reach: f64) -> Vec<u32> {
         let beyond = [(b[0] - a[0]) * 0.05, (b[1] - a[1]) * 0.05];
         let (a, b) = ([a[0] - beyond[0], a[1] - beyond[1]], [b[0] + beyond[0], b[1] + beyond[1]]);
-        let (lo, hi) = (
-            Self::key(self.cell, [a[0].min(b[0]) - reach, a[1].min(b[1]) - reach]),
-            Self::key(self.cell, [a[0].max(b[0]) + reach, a[1].max(b[1]) + reach]),
-        );
-        // A long diagonal edge would visit a large empty box; walk the cells its band crosses instead.
-        let mut found = Vec::new();
+        // The cells within reach of points every cell along the segment.
         let len = (b[0] - a[0]).hypot(b[1] - a[1]);
-        if (hi.0 - lo.0 + 1) * (hi.1 - lo.1 + 1) > 64 && len > 0.0 {
-            let n = (len / self.cell).ceil() as usize + 1;
-            let r = (reach / self.cell).ceil() as i64 + 1;
-            let mut keys = Vec::new();
-            for s in 0..=n {
-                let t = s as f64 / n as f64;
-                let (kx, ky) = Self::key(self.cell, [a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])]);
-                for dx in -r..=r {
-                    for dy in -r..=r {
-                        keys.push((kx + dx, ky + dy));
-                    }
-                }
-            }
-            keys.sort_unstable();
-            keys.dedup();
-            for k in keys {
-                found.extend(self.cells.get(&k).into_iter().flatten());
-            }
-        } else {
-            for kx in lo.0..=hi.0 {
-                for ky in lo.1..=hi.1 {
-                    found.extend(self.cells.get(&(kx, ky)).into_iter().flatten());
-                }
-            }
+        let n = (len / self.cell).ceil() as usize + 1;
+        let r = (reach / self.cell).ceil() as i64 + 1;
+        let mut keys = Vec::new();
+        for s in 0..=n {
+            let t = s as f64 / n as f64;
+            let (kx, ky) = Self::key(self.cell, [a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])]);
+            keys.extend((-r..=r).flat_map(|dx| (-r..=r).map(move |dy| (kx + dx, ky + dy))));
         }
+        keys.sort_unstable();
+        keys.dedup();
+        let mut found: Vec<u32> = keys.iter().flat_map(|k| self.cells.get(k).into_iter().flatten().copied()).collect();
         found.sort_unstable();
         found
     }

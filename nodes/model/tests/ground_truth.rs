@@ -21,17 +21,24 @@ fn score(truth: &Truth, model: &Model) -> lineflow_eval::model::ModelReport {
     evaluate(&truth.lines, &v, &e, truth.gsd_m())
 }
 
-#[test]
-fn a55_true_edges_with_half_a_gsd_of_noise_give_the_model_within_one_gsd() {
+/// The a55 preset's truth, and its true edges with `sigma_gsd` GSD of noise per coordinate with the parameters
+/// that say so, and the mean camera centre.
+fn a55_noisy(sigma_gsd: f64) -> (Truth, ModelParams, Vec<ModelLine>, Vec3) {
     let truth = Truth::from_scene(Synthetic::new("a55-two-strips", 1.0, 1).unwrap());
-    let gsd = truth.gsd_m();
-    let sigma = 0.5 * gsd;
+    let sigma = sigma_gsd * truth.gsd_m();
     let params = ModelParams {
         sigma_m: sigma,
         ..ModelParams::default()
     };
     let lines = noisy_lines(&truth, sigma);
     let cameras = truth.poses.iter().map(|p| p.pose.center).sum::<Vec3>() / truth.poses.len() as f64;
+    (truth, params, lines, cameras)
+}
+
+#[test]
+fn a55_true_edges_with_half_a_gsd_of_noise_give_the_model_within_one_gsd() {
+    let (truth, params, lines, cameras) = a55_noisy(0.5);
+    let gsd = truth.gsd_m();
     let model = build(&lines, &params, Some(cameras));
     let r = score(&truth, &model);
     assert!(
@@ -151,14 +158,7 @@ fn axis_rms(truth: &Truth, model: &Model) -> Vec3 {
 fn refine_with_the_images_lines_pins_the_corners_where_the_images_see_sharply() {
     // 3-D lines with 1 GSD of noise per coordinate give corners 1.5 GSD off (docs/model.md); the true edges as
     // 2-D lines (0.3 px of noise) in the 26 images are intersected through their interpretation planes.
-    let truth = Truth::from_scene(Synthetic::new("a55-two-strips", 1.0, 1).unwrap());
-    let gsd = truth.gsd_m();
-    let params = ModelParams {
-        sigma_m: gsd,
-        ..ModelParams::default()
-    };
-    let lines = noisy_lines(&truth, gsd);
-    let cameras = truth.poses.iter().map(|p| p.pose.center).sum::<Vec3>() / truth.poses.len() as f64;
+    let (truth, params, lines, cameras) = a55_noisy(1.0);
     let shaped = build(&lines, &params, Some(cameras));
     let image_lines = true_image_lines(&truth, 0.3);
     let images = lineflow_model::Images {
