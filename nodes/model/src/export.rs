@@ -17,7 +17,7 @@ fn write(path: &Path, text: &str) -> Result<()> {
 }
 
 /// Wavefront OBJ: `v` per vertex (metres, object coordinates), `f` per face outer ring grouped by kind (OBJ has no
-/// holes: openings are their own faces), `l` per edge.
+/// holes: openings are their own faces), `l` per edge (group `edges`, and `completed_edges` for the occluded ones).
 pub fn obj_text(model: &Model) -> String {
     let mut s = String::new();
     let _ = writeln!(
@@ -41,9 +41,15 @@ pub fn obj_text(model: &Model) -> String {
             let _ = writeln!(s, "f {}", idx.join(" "));
         }
     }
-    let _ = writeln!(s, "g edges");
-    for e in &model.edges {
-        let _ = writeln!(s, "l {} {}", e.a + 1, e.b + 1);
+    // Completed (hidden) edges in their own group, as the seed flags them.
+    for (group, completed) in [("edges", false), ("completed_edges", true)] {
+        let mut group_edges = model.edges.iter().filter(|e| e.completed == completed).peekable();
+        if group_edges.peek().is_some() {
+            let _ = writeln!(s, "g {group}");
+        }
+        for e in group_edges {
+            let _ = writeln!(s, "l {} {}", e.a + 1, e.b + 1);
+        }
     }
     s
 }

@@ -62,9 +62,11 @@ pub struct Face {
     pub kind: SurfaceKind,
 }
 
-struct Plane {
-    normal: Vec3,
-    offset: f64,
+/// A plane n · x = offset, n a unit normal.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Plane {
+    pub normal: Vec3,
+    pub offset: f64,
 }
 
 /// The faces of a wire-frame. `viewpoint` (e.g. the mean camera centre) decides which side is outside; without
@@ -74,40 +76,8 @@ pub fn find(vertices: &[Vertex], edges: &[Edge], params: &ModelParams, viewpoint
         return Vec::new();
     }
     let tol = plane_tolerance(vertices, params);
-    let mut incident: Vec<Vec<usize>> = vec![Vec::new(); vertices.len()];
-    for (k, e) in edges.iter().enumerate() {
-        incident[e.a].push(k);
-        incident[e.b].push(k);
-    }
-    let dir = |e: &Edge, from: usize| {
-        let (p, q) = if e.a == from { (e.a, e.b) } else { (e.b, e.a) };
-        (vertices[q].point - vertices[p].point).normalize()
-    };
-    // Plane hypotheses at every corner from every pair of its non-parallel edges, merged greedily in a fixed order.
-    let min_sin = 10f64.to_radians().sin();
-    let cos_merge = params.plane_angle_deg.to_radians().cos();
-    let mut planes: Vec<Plane> = Vec::new();
-    for (v, list) in incident.iter().enumerate() {
-        for (x, &e1) in list.iter().enumerate() {
-            for &e2 in &list[x + 1..] {
-                let n = dir(&edges[e1], v).cross(&dir(&edges[e2], v));
-                if n.norm() < min_sin {
-                    continue;
-                }
-                let n = canonical(n.normalize());
-                let p = vertices[v].point;
-                let known = planes
-                    .iter()
-                    .any(|pl| pl.normal.dot(&n) > cos_merge && (pl.normal.dot(&p) - pl.offset).abs() < tol);
-                if !known {
-                    planes.push(Plane {
-                        normal: n,
-                        offset: n.dot(&p),
-                    });
-                }
-            }
-        }
-    }
+    let incident = incident_edges(vertices.len(), edges);
+    let planes = plane_hypotheses(vertices, edges, &incident, params, tol);
     let inside_ref = viewpoint.unwrap_or_else(|| vertices.iter().map(|v| v.point).sum::<Vec3>() / vertices.len() as f64);
     let outward_from_centroid = viewpoint.is_none();
     let mut faces = Vec::new();
@@ -147,8 +117,52 @@ pub fn find(vertices: &[Vertex], edges: &[Edge], params: &ModelParams, viewpoint
     faces
 }
 
+/// The edges at each vertex.
+pub(crate) fn incident_edges(n_vertices: usize, edges: &[Edge]) -> Vec<Vec<usize>> {
+    let mut incident: Vec<Vec<usize>> = vec![Vec::new(); n_vertices];
+    for (k, e) in edges.iter().enumerate() {
+        incident[e.a].push(k);
+        incident[e.b].push(k);
+    }
+    incident
+}
+
+/// Plane hypotheses at every corner from every pair of its non-parallel edges, merged greedily in a fixed order:
+/// normals within `plane_angle_deg`, offsets within `tol`.
+pub(crate) fn plane_hypotheses(vertices: &[Vertex], edges: &[Edge], incident: &[Vec<usize>], params: &ModelParams, tol: f64) -> Vec<Plane> {
+    let dir = |e: &Edge, from: usize| {
+        let (p, q) = if e.a == from { (e.a, e.b) } else { (e.b, e.a) };
+        (vertices[q].point - vertices[p].point).normalize()
+    };
+    let min_sin = 10f64.to_radians().sin();
+    let cos_merge = params.plane_angle_deg.to_radians().cos();
+    let mut planes: Vec<Plane> = Vec::new();
+    for (v, list) in incident.iter().enumerate() {
+        for (x, &e1) in list.iter().enumerate() {
+            for &e2 in &list[x + 1..] {
+                let n = dir(&edges[e1], v).cross(&dir(&edges[e2], v));
+                if n.norm() < min_sin {
+                    continue;
+                }
+                let n = canonical(n.normalize());
+                let p = vertices[v].point;
+                let known = planes
+                    .iter()
+                    .any(|pl| pl.normal.dot(&n) > cos_merge && (pl.normal.dot(&p) - pl.offset).abs() < tol);
+                if !known {
+                    planes.push(Plane {
+                        normal: n,
+                        offset: n.dot(&p),
+                    });
+                }
+            }
+        }
+    }
+    planes
+}
+
 /// Three times the median corner σ, at least 5 mm: vertices of one plane scatter by their own precision.
-fn plane_tolerance(vertices: &[Vertex], params: &ModelParams) -> f64 {
+pub(crate) fn plane_tolerance(vertices: &[Vertex], params: &ModelParams) -> f64 {
     let mut s: Vec<f64> = vertices.iter().filter_map(|v| v.sigma).map(|s| s.norm() / 3f64.sqrt()).collect();
     s.sort_by(f64::total_cmp);
     let typical = s.get(s.len() / 2).copied().unwrap_or(params.sigma_m);
@@ -177,7 +191,7 @@ fn kind_of_plane(normal: Vec3) -> SurfaceKind {
 }
 
 /// A 2-D frame in a plane: u, v with u × v = normal.
-fn plane_basis(normal: Vec3) -> (Vec3, Vec3) {
+pub(crate) fn plane_basis(normal: Vec3) -> (Vec3, Vec3) {
     let helper = if normal.z.abs() < 0.9 { Vec3::z() } else { Vec3::x() };
     let u = helper.cross(&normal).normalize();
     (u, normal.cross(&u))

@@ -5,20 +5,22 @@
 //!   (error-free logic, distance checks, topology), junctions clustered into corners, lines grouped into objects.
 //! - Shape ([`adjust`]): the corners of each object adjusted from its lines in the Gauss-Helmert model, with
 //!   standard deviations.
+//! - Occluded edges ([`occlusion`]): an open face boundary closed along the outline of the structure in front of
+//!   it that hides the rest, the shortest path through its corners.
 //! - Faces ([`faces`]): closed planar cycles of edges become wall, roof and opening surfaces; a face inside another
 //!   face of the same plane is its opening (the seed's "roof inside a roof").
 //! - Refine ([`refine`], optional): every adjusted edge measured again in the images' 2-D lines, intersected
 //!   through interpretation planes, and adjusted together with its 3-D line.
 //! - Export ([`export`]): `model.obj` and `model.city.json` (CityJSON 2.0, LOD 3).
 //!
-//! Not yet: occluded-edge completion along the shortest path. Model-image fitting (LSMIF, seed 004) is the
-//! `modelfit` stage.
+//! Model-image fitting (LSMIF, seed 004) is the `modelfit` stage.
 pub mod adjust;
 pub mod corners;
 pub mod export;
 pub mod faces;
 mod grid;
 pub mod junction;
+pub mod occlusion;
 pub mod refine;
 
 use lineflow_photogrammetry::{Camera, Vec3};
@@ -97,6 +99,12 @@ pub struct ModelParams {
     pub refine_min_image_line_px: f64,
     /// Interpretation planes closer than this angle are not intersected, degrees.
     pub refine_min_plane_angle_deg: f64,
+    /// Occluded-edge completion: how far a free end of an open face boundary may lie from the outline of the
+    /// structure in front of it that hides the rest, metres; 0 turns the completion off.
+    pub occlusion_reach_m: f64,
+    /// How far in front of a face (along Z for roofs, towards the cameras for walls) the structure that hides part
+    /// of it stands at least, metres: a neighbouring building, a wing, a balcony, not the façade's own relief.
+    pub occlusion_min_depth_m: f64,
 }
 
 impl Default for ModelParams {
@@ -116,6 +124,8 @@ impl Default for ModelParams {
             refine_image_sigma_px: refine::RefineParams::default().image_sigma_px,
             refine_min_image_line_px: refine::RefineParams::default().min_image_line_px,
             refine_min_plane_angle_deg: refine::RefineParams::default().min_plane_angle_deg,
+            occlusion_reach_m: 0.5,
+            occlusion_min_depth_m: 0.5,
         }
     }
 }
@@ -164,6 +174,14 @@ impl ModelParams {
                 self.refine_min_image_line_px
             ));
         }
+        for (name, v) in [
+            ("occlusion_reach_m", self.occlusion_reach_m),
+            ("occlusion_min_depth_m", self.occlusion_min_depth_m),
+        ] {
+            if !(v.is_finite() && v >= 0.0) {
+                return Err(format!("{name} must be ≥ 0, got {v}"));
+            }
+        }
         if self.min_length_m.is_nan() || self.min_length_m < 0.0 {
             return Err(format!("min_length_m must be ≥ 0, got {}", self.min_length_m));
         }
@@ -193,7 +211,10 @@ pub struct Vertex {
 pub struct Edge {
     pub a: usize,
     pub b: usize,
+    /// Index of the input line; `usize::MAX` for a completed edge.
     pub line: usize,
+    /// Not observed: completed along an occluder's outline ([`occlusion`]).
+    pub completed: bool,
 }
 
 /// What the model was built from and how, for the log and the report.
@@ -213,6 +234,8 @@ pub struct Diagnostics {
     pub median_sigma0: Option<f64>,
     /// Edges measured again in the images by Refine (each a second observation in its object's adjustment).
     pub lines_refined: usize,
+    /// Open chains closed along the outline of an occluder in front of them.
+    pub chains_completed: usize,
 }
 
 /// The wire-frame model.
@@ -234,7 +257,7 @@ impl Model {
     pub fn summary(&self) -> String {
         let d = &self.diagnostics;
         format!(
-            "{} of {} lines used, {} objects, {} vertices, {} edges, {} faces ({} walls, {} window/door, {} roof), ends resolved by stage 1/2/3: {}/{}/{}, free {}, median sigma0 {}, {} edges refined by image lines",
+            "{} of {} lines used, {} objects, {} vertices, {} edges, {} faces ({} walls, {} window/door, {} roof), ends resolved by stage 1/2/3: {}/{}/{}, free {}, median sigma0 {}, {} edges refined by image lines, {} occluded boundaries completed",
             d.lines_used,
             d.lines_in,
             d.objects,
@@ -249,7 +272,8 @@ impl Model {
             d.ends_by_stage[2],
             d.ends_by_stage[3],
             d.median_sigma0.map_or("-".into(), |s| format!("{s:.2}")),
-            d.lines_refined
+            d.lines_refined,
+            d.chains_completed
         )
     }
 }
@@ -407,10 +431,12 @@ pub fn build_with_images(lines: &[ModelLine], params: &ModelParams, viewpoint: O
                     a: w[0].1,
                     b: w[1].1,
                     line: kept[l],
+                    completed: false,
                 });
             }
         }
     }
+    diagnostics.chains_completed = occlusion::complete(&mut vertices, &mut edges, params, viewpoint);
     let faces = faces::find(&vertices, &edges, params, viewpoint);
     Model {
         vertices,

@@ -10,7 +10,15 @@ use lineflow_photogrammetry::Vec3;
 pub fn fitted_model(vertices: &[Vec3], edges: &[[usize; 2]], faces: &[FaceVertex]) -> Result<Model, String> {
     let mut model = Model {
         vertices: vertices.iter().map(|&point| Vertex { point, sigma: None }).collect(),
-        edges: edges.iter().map(|&[a, b]| Edge { a, b, line: usize::MAX }).collect(),
+        edges: edges
+            .iter()
+            .map(|&[a, b]| Edge {
+                a,
+                b,
+                line: usize::MAX,
+                completed: false,
+            })
+            .collect(),
         ..Model::default()
     };
     // Consecutive rows of one face, then of one ring.
