@@ -94,7 +94,7 @@ pub fn bench_modelfit(args: Args) -> Result<ExitCode> {
     let mut model = Model::default();
     let t_build = median_time(reps, || model = build(&input.lines, &input.params, Some(input.viewpoint)));
     let vertices: Vec<Vec3> = model.vertices.iter().map(|v| v.point).collect();
-    let edges: Vec<[usize; 2]> = model.edges.iter().map(|e| [e.a, e.b]).collect();
+    let edges: Vec<[usize; 2]> = model.observed_edges();
     let faces = face_planes(&model);
     let params = FitParams {
         weighting,

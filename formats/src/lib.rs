@@ -335,16 +335,42 @@ pub fn read_lines3d(path: &Path) -> Result<Vec<Line3Row>, FormatError> {
         .collect()
 }
 
-/// The wire-frame of a Wavefront OBJ file (`model.obj`): its `v` vertices and the vertex pairs of its `l`
-/// elements (a polyline of k vertices gives k − 1 edges). Faces and other statements are skipped.
-pub fn read_obj_wireframe(path: &Path) -> Result<(Vec<Vec3>, Vec<[usize; 2]>), FormatError> {
+/// A Wavefront OBJ file (`model.obj`) as lineflow writes and reads it: vertices, the vertex pairs of its `l`
+/// elements (a polyline of k vertices gives k − 1 edges), and its `f` faces with the group (`g`) they are in.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct ObjModel {
+    /// Object coordinates, metres.
+    pub vertices: Vec<Vec3>,
+    /// Vertex index pairs.
+    pub edges: Vec<[usize; 2]>,
+    /// The edges of group `completed_edges`: not observed, completed behind an occluder (`docs/model.md`).
+    pub hidden_edges: Vec<[usize; 2]>,
+    /// (group, vertex indices of the face's ring).
+    pub faces: Vec<(String, Vec<usize>)>,
+}
+
+/// Reads an OBJ file's vertices, lines, faces and groups; other statements are skipped.
+pub fn read_obj(path: &Path) -> Result<ObjModel, FormatError> {
     let text = std::fs::read_to_string(path).map_err(|e| err(path, 0, format!("cannot read: {e}")))?;
-    let mut vertices = Vec::new();
-    let mut edges = Vec::new();
+    let mut obj = ObjModel::default();
+    let mut group = String::new();
     for (k, raw) in text.lines().enumerate() {
         let line = k as u64 + 1;
         let mut words = raw.split_whitespace();
-        match words.next() {
+        let keyword = words.next();
+        let indices = |words: std::str::SplitWhitespace, n: usize| {
+            words
+                .map(|w| {
+                    let v = w.split('/').next().unwrap_or(w);
+                    match v.parse::<i64>() {
+                        Ok(i) if i > 0 && (i as usize) <= n => Ok(i as usize - 1),
+                        Ok(i) if i < 0 && ((-i) as usize) <= n => Ok(n - (-i) as usize),
+                        _ => Err(err(path, line, format!("'{w}' is not a vertex defined above"))),
+                    }
+                })
+                .collect::<Result<Vec<usize>, _>>()
+        };
+        match keyword {
             Some("v") => {
                 let xyz: Vec<f64> = words
                     .take(3)
@@ -353,25 +379,35 @@ pub fn read_obj_wireframe(path: &Path) -> Result<(Vec<Vec3>, Vec<[usize; 2]>), F
                 if xyz.len() != 3 || xyz.iter().any(|v| !v.is_finite()) {
                     return Err(err(path, line, "a vertex needs three finite coordinates"));
                 }
-                vertices.push(Vec3::new(xyz[0], xyz[1], xyz[2]));
+                obj.vertices.push(Vec3::new(xyz[0], xyz[1], xyz[2]));
             }
             Some("l") => {
-                let idx: Vec<usize> = words
-                    .map(|w| {
-                        let v = w.split('/').next().unwrap_or(w);
-                        match v.parse::<i64>() {
-                            Ok(i) if i > 0 && (i as usize) <= vertices.len() => Ok(i as usize - 1),
-                            Ok(i) if i < 0 && ((-i) as usize) <= vertices.len() => Ok(vertices.len() - (-i) as usize),
-                            _ => Err(err(path, line, format!("'{w}' is not a vertex defined above"))),
-                        }
-                    })
-                    .collect::<Result<_, _>>()?;
-                edges.extend(idx.windows(2).map(|w| [w[0], w[1]]));
+                let idx = indices(words, obj.vertices.len())?;
+                let list = if group == "completed_edges" {
+                    &mut obj.hidden_edges
+                } else {
+                    &mut obj.edges
+                };
+                list.extend(idx.windows(2).map(|w| [w[0], w[1]]));
             }
+            Some("f") => {
+                let idx = indices(words, obj.vertices.len())?;
+                if idx.len() < 3 {
+                    return Err(err(path, line, "a face needs at least three vertices"));
+                }
+                obj.faces.push((group.clone(), idx));
+            }
+            Some("g") => group = words.collect::<Vec<_>>().join(" "),
             _ => {}
         }
     }
-    Ok((vertices, edges))
+    Ok(obj)
+}
+
+/// The wire-frame of an OBJ file: its vertices and the edges of its `l` elements but the hidden ones
+/// ([`read_obj`]).
+pub fn read_obj_wireframe(path: &Path) -> Result<(Vec<Vec3>, Vec<[usize; 2]>), FormatError> {
+    read_obj(path).map(|o| (o.vertices, o.edges))
 }
 
 /// Writes 3-D segments as an ASCII PLY file of vertices and edges, readable by any 3-D viewer.

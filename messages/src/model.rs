@@ -20,7 +20,7 @@ pub struct WireframeHeader {
 /// An edge between two vertices.
 #[derive(Debug, Default, Clone, Copy, PartialEq, Eq, ZeroCopySend)]
 #[repr(C)]
-#[type_name("lineflow/WireEdge/v1")]
+#[type_name("lineflow/WireEdge/v2")]
 pub struct WireEdge {
     /// First vertex index.
     pub a: u32,
@@ -30,6 +30,8 @@ pub struct WireEdge {
     pub face: u32,
     /// 0 wall, 1 roof, 2 opening, 3 ground.
     pub kind: u32,
+    /// 1 when the edge was not observed but completed behind an occluder (hidden from the cameras), else 0.
+    pub hidden: u32,
 }
 
 /// Header of a `ModelFaces` message: the faces of the wire-frame published with the same stamp, as rings of its

@@ -250,7 +250,7 @@ static VERTEX: Layout = Layout {
         ty: Array(F64, 3),
     }],
 };
-static WIRE_EDGE: Layout = layout!(WireEdge, "WireEdge" { a: S(U32), b: S(U32), face: S(U32), kind: S(U32) });
+static WIRE_EDGE: Layout = layout!(WireEdge, "WireEdge" { a: S(U32), b: S(U32), face: S(U32), kind: S(U32), hidden: S(U32) });
 static MODEL_FACES: Layout = layout!(ModelFacesHeader, "ModelFaces" { stamp: Struct(&STAMP), n_faces: S(U32), reserved: S(U32) });
 static FACE_VERTEX: Layout = layout!(FaceVertex, "FaceVertex" { face: S(U32), ring: S(U32), kind: S(U32), vertex: S(U32) });
 

@@ -91,6 +91,22 @@ pub struct Results {
     pub model: Option<Wireframe>,
     /// The wire-frame fitted to the images (`model_fitted.obj`).
     pub model_fitted: Option<Wireframe>,
+    /// The window and door faces of `model.obj`.
+    pub model_openings: Option<Vec<model::ModelOpening>>,
+    /// Edges of `model.obj` completed behind an occluder (not scored: the truth holds the edges seen in images).
+    pub model_hidden_edges: Option<usize>,
+}
+
+/// The window and door faces (groups `Window` and `Door`) of an OBJ model.
+pub fn openings_of_obj(obj: &lineflow_formats::ObjModel) -> Vec<model::ModelOpening> {
+    obj.faces
+        .iter()
+        .filter(|(group, _)| group == "Window" || group == "Door")
+        .map(|(group, ring)| model::ModelOpening {
+            door: group == "Door",
+            ring: ring.iter().map(|&v| obj.vertices[v]).collect(),
+        })
+        .collect()
 }
 
 fn optional<T>(path: PathBuf, read: impl Fn(&Path) -> Result<T, lineflow_formats::FormatError>) -> Result<Option<T>> {
@@ -108,12 +124,15 @@ impl Results {
         if !dir.is_dir() {
             bail!("{}: not a folder", dir.display());
         }
+        let obj = optional(dir.join("model.obj"), lineflow_formats::read_obj)?;
         Ok(Results {
             poses: optional(dir.join("poses.csv"), read_poses)?,
             checkpoints: optional(dir.join("checkpoints.csv"), read_checkpoints)?,
             lines2d: optional(dir.join("lines2d.csv"), read_lines2d)?,
             lines3d: optional(dir.join("lines3d.csv"), read_lines3d)?,
-            model: optional(dir.join("model.obj"), lineflow_formats::read_obj_wireframe)?,
+            model_openings: obj.as_ref().map(openings_of_obj),
+            model_hidden_edges: obj.as_ref().map(|o| o.hidden_edges.len()),
+            model: obj.map(|o| (o.vertices, o.edges)),
             model_fitted: optional(dir.join("model_fitted.obj"), lineflow_formats::read_obj_wireframe)?,
         })
     }
@@ -126,6 +145,9 @@ pub struct Evaluation {
     pub lines3d: Option<lines3d::Lines3dReport>,
     pub model: Option<model::ModelReport>,
     pub model_fitted: Option<model::ModelReport>,
+    pub openings: Option<model::OpeningReport>,
+    /// Edges of the model completed behind an occluder, left out of the scores.
+    pub hidden_edges: Option<usize>,
 }
 
 /// Evaluates whatever `results` holds.
@@ -145,5 +167,10 @@ pub fn evaluate(truth: &Truth, results: &Results) -> Evaluation {
             .model_fitted
             .as_ref()
             .map(|(v, e)| model::evaluate(&truth.lines, v, e, truth.gsd_m())),
+        openings: results
+            .model_openings
+            .as_ref()
+            .map(|o| model::evaluate_openings(&truth.scene.building.openings, o, truth.gsd_m())),
+        hidden_edges: results.model_hidden_edges,
     }
 }

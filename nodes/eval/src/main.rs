@@ -1,11 +1,11 @@
 //! `lineflow-eval`: the live evaluation sink. Collects the ground truth (`gt/poses`, `gt/lines3d`) and whatever
-//! results the graph produces (`poses`, `lines2d`, `lines3d`, `wireframe`), and at end-of-stream writes `eval/report.md` into the run's
+//! results the graph produces (`poses`, `lines2d`, `lines3d`, `wireframe`, `faces`), and at end-of-stream writes `eval/report.md` into the run's
 //! output folder. The scene is regenerated from the parameters of the graph's `synthetic` capture node.
 use anyhow::{bail, Context, Result};
 use lineflow_capture::synth::{self, Synthetic};
-use lineflow_eval::{evaluate, report, Results, Truth, Wireframe};
+use lineflow_eval::{evaluate, model::ModelOpening, report, Results, Truth, Wireframe};
 use lineflow_formats::{Line2Row, Line3Row, PoseRow};
-use lineflow_messages::{kinds, parts, WireEdge};
+use lineflow_messages::{kinds, parts, FaceVertex, WireEdge};
 use lineflow_photogrammetry::Vec3;
 use lineflow_runtime::{Flow, NodeContext};
 
@@ -61,6 +61,7 @@ fn body() -> Result<()> {
     let segments = ctx.optional_input::<kinds::Lines2D>("lines2d")?;
     let wireframe = ctx.optional_input::<kinds::Wireframe>("wireframe")?;
     let fitted = ctx.optional_input::<kinds::Wireframe>("wireframe_fitted")?;
+    let faces = ctx.optional_input::<kinds::ModelFaces>("faces")?;
     let syn = scene_of_graph(&ctx)?;
     ctx.connect()?;
 
@@ -68,6 +69,8 @@ fn body() -> Result<()> {
     let (mut truth_poses, mut truth_lines, mut est_poses, mut est_lines) = (Vec::new(), Vec::new(), None, None);
     let mut est_segments: Option<Vec<Line2Row>> = segments.as_ref().map(|_| Vec::new());
     let (mut est_model, mut est_fitted): (Option<Wireframe>, Option<Wireframe>) = (None, None);
+    let mut est_faces: Option<Vec<FaceVertex>> = None;
+    let mut hidden = [0usize; 2];
     ctx.run(|| {
         while let Some(m) = gt_poses.receive()? {
             truth_poses = m.payload().to_vec();
@@ -98,20 +101,28 @@ fn body() -> Result<()> {
                 }));
             }
         }
-        for (input, slot) in [(&wireframe, &mut est_model), (&fitted, &mut est_fitted)] {
+        for (slot_is_fitted, input, slot) in [(false, &wireframe, &mut est_model), (true, &fitted, &mut est_fitted)] {
             if let Some(i) = input {
                 while let Some(m) = i.receive()? {
                     let h = m.user_header();
                     let (v, e) = parts::split::<[f64; 3], WireEdge>(m.payload(), h.n_vertices as usize, h.n_edges as usize)
                         .map_err(|e| anyhow::anyhow!("wireframe of frame {}: {e}", h.stamp.frame))?;
+                    // Edges completed behind an occluder are not scored: the truth holds the edges seen in images.
                     *slot = Some((
                         v.iter().map(|p| Vec3::from(*p)).collect(),
-                        e.iter().map(|e| [e.a as usize, e.b as usize]).collect(),
+                        e.iter().filter(|e| e.hidden == 0).map(|e| [e.a as usize, e.b as usize]).collect(),
                     ));
+                    hidden[usize::from(slot_is_fitted)] = e.iter().filter(|e| e.hidden != 0).count();
                 }
             }
         }
+        if let Some(i) = &faces {
+            while let Some(m) = i.receive()? {
+                est_faces = Some(m.payload().to_vec());
+            }
+        }
         let done = segments.as_ref().is_none_or(|i| i.is_ended())
+            && faces.as_ref().is_none_or(|i| i.is_ended())
             && wireframe.as_ref().is_none_or(|i| i.is_ended())
             && fitted.as_ref().is_none_or(|i| i.is_ended())
             && gt_poses.is_ended()
@@ -137,6 +148,8 @@ fn body() -> Result<()> {
             p if p.exists() => Some(lineflow_formats::read_checkpoints(&p).context("reading checkpoints.csv")?),
             _ => None,
         },
+        model_openings: est_model.as_ref().zip(est_faces.as_ref()).map(|((v, _), f)| openings(v, f)),
+        model_hidden_edges: est_model.as_ref().map(|_| hidden[0]),
         model: est_model,
         model_fitted: est_fitted,
     };
@@ -153,4 +166,26 @@ fn body() -> Result<()> {
     );
     ctx.finish();
     Ok(())
+}
+
+/// The window and door faces (outer rings) of a `ModelFaces` message over its wire-frame's vertices.
+fn openings(vertices: &[Vec3], faces: &[FaceVertex]) -> Vec<ModelOpening> {
+    // Surface kind codes of `FaceVertex.kind` (messages/src/model.rs).
+    const WINDOW: u32 = 4;
+    const DOOR: u32 = 5;
+    let mut out: Vec<(u32, ModelOpening)> = Vec::new();
+    for f in faces.iter().filter(|f| f.ring == 0 && (f.kind == WINDOW || f.kind == DOOR)) {
+        let Some(&p) = vertices.get(f.vertex as usize) else { continue };
+        match out.last_mut() {
+            Some((face, o)) if *face == f.face => o.ring.push(p),
+            _ => out.push((
+                f.face,
+                ModelOpening {
+                    door: f.kind == DOOR,
+                    ring: vec![p],
+                },
+            )),
+        }
+    }
+    out.into_iter().map(|(_, o)| o).collect()
 }

@@ -108,9 +108,98 @@ pub fn evaluate(truth: &[Line3Row], vertices: &[Vec3], edges: &[[usize; 2]], gsd
     }
 }
 
+/// An opening face of a model: its outer ring and whether the model calls it a door.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ModelOpening {
+    pub door: bool,
+    pub ring: Vec<Vec3>,
+}
+
+/// Openings (windows and doors) of the model against the true ones.
+#[derive(Debug, Clone, PartialEq)]
+pub struct OpeningReport {
+    pub true_openings: usize,
+    /// Window and door faces of the model (frames and panes behind an opening included).
+    pub model_openings: usize,
+    /// True openings whose four corners each have a vertex of one model opening face within `reach_m`.
+    pub found: usize,
+    /// Of those, the ones the model calls a door when it is one and a window when it is one.
+    pub kind_right: usize,
+    /// RMSE of the found openings' corners (each to its nearest vertex of the matching face), metres.
+    pub corner_rmse_m: f64,
+    pub reach_m: f64,
+}
+
+/// Scores the model's opening faces against the true openings (outlines in the wall plane) at `gsd_m`: an opening
+/// is found when some model opening face has a vertex within 5 GSD of each of its four corners (the face with the
+/// smallest corner RMS is its match).
+pub fn evaluate_openings(truth: &[lineflow_capture::synth::scene::Opening], model: &[ModelOpening], gsd_m: f64) -> OpeningReport {
+    let reach = 5.0 * gsd_m;
+    let (mut found, mut kind_right, mut sq) = (0, 0, 0.0);
+    for t in truth {
+        let corners: Vec<Vec3> = t.corners.iter().map(|&c| Vec3::from(c)).collect();
+        let best = model
+            .iter()
+            .filter_map(|m| {
+                let d: Vec<f64> = corners.iter().map(|c| nearest(&m.ring, c).map_or(f64::INFINITY, |n| n.1)).collect();
+                d.iter()
+                    .all(|&x| x <= reach)
+                    .then(|| (d.iter().map(|x| x * x).sum::<f64>(), m.door))
+            })
+            .min_by(|a, b| a.0.total_cmp(&b.0));
+        if let Some((s, door)) = best {
+            found += 1;
+            kind_right += usize::from(door == t.door);
+            sq += s;
+        }
+    }
+    OpeningReport {
+        true_openings: truth.len(),
+        model_openings: model.len(),
+        found,
+        kind_right,
+        corner_rmse_m: if found == 0 { f64::NAN } else { (sq / (4 * found) as f64).sqrt() },
+        reach_m: reach,
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn an_opening_is_found_by_its_four_corners_and_its_kind_is_checked() {
+        let rect = |x0: f64, y: f64| [[x0, y, 1.0], [x0 + 1.0, y, 1.0], [x0 + 1.0, y, 2.0], [x0, y, 2.0]];
+        let truth = vec![
+            lineflow_capture::synth::scene::Opening {
+                door: false,
+                corners: rect(0.0, 0.0),
+            },
+            lineflow_capture::synth::scene::Opening {
+                door: true,
+                corners: rect(3.0, 0.0),
+            },
+        ];
+        let ring = |c: [[f64; 3]; 4], dy: f64| c.iter().map(|&p| Vec3::from(p) + Vec3::new(0.0, dy, 0.0)).collect();
+        let model = vec![
+            // The first opening 1 cm off, called a window; its frame 10 cm behind; the second one's frame only.
+            ModelOpening {
+                door: false,
+                ring: ring(rect(0.0, 0.0), 0.01),
+            },
+            ModelOpening {
+                door: false,
+                ring: ring(rect(0.0, 0.0), 0.1),
+            },
+            ModelOpening {
+                door: true,
+                ring: ring(rect(3.0, 0.0), 0.1),
+            },
+        ];
+        let r = evaluate_openings(&truth, &model, 0.005);
+        assert_eq!((r.true_openings, r.model_openings, r.found, r.kind_right), (2, 3, 1, 1));
+        assert!((r.corner_rmse_m - 0.01).abs() < 1e-12);
+    }
 
     fn row(a: [f64; 3], b: [f64; 3]) -> Line3Row {
         Line3Row {

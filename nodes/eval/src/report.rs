@@ -213,6 +213,24 @@ pub fn write(truth: &Truth, results: &Path, eval: &Evaluation, out: &Path) -> Re
         );
     }
     let _ = writeln!(md);
+    if let Some(n) = eval.hidden_edges.filter(|&n| n > 0) {
+        let _ = writeln!(
+            md,
+            "{n} edges of the CSR model were completed behind an occluder (`docs/model.md`); they are not scored, as the truth holds the edges seen in two images.\n"
+        );
+    }
+    if let Some(o) = &eval.openings {
+        let _ = writeln!(
+            md,
+            "Openings of the CSR model: {} of {} true windows and doors found (a model window or door face with a vertex within {} mm of each of the four corners of the opening's outline), {} of them of the right kind, corner RMSE {} mm; {} window and door faces in the model (frames and panes behind an opening included).\n",
+            o.found,
+            o.true_openings,
+            mm(o.reach_m),
+            o.kind_right,
+            mm(o.corner_rmse_m),
+            o.model_openings
+        );
+    }
     let path = out.join("report.md");
     std::fs::write(&path, md).with_context(|| format!("cannot write {}", path.display()))?;
     Ok(path)

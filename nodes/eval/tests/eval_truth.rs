@@ -52,12 +52,32 @@ fn the_truth_scores_perfectly_and_known_shifts_score_as_expected() {
             lines3d: Some(lines.clone()),
             model: Some(lineflow_eval::model::true_wireframe(&lines)),
             model_fitted: Some(lineflow_eval::model::true_wireframe(&lines)),
+            model_hidden_edges: None,
+            model_openings: Some(
+                truth
+                    .scene
+                    .building
+                    .openings
+                    .iter()
+                    .map(|o| lineflow_eval::model::ModelOpening {
+                        door: o.door,
+                        ring: o.corners.iter().map(|&c| c.into()).collect(),
+                    })
+                    .collect(),
+            ),
         },
     );
     for m in [perfect.model.as_ref().unwrap(), perfect.model_fitted.as_ref().unwrap()] {
         assert_eq!((m.edge_precision, m.edge_recall, m.vertex_rmse_m), (1.0, 1.0, 0.0), "{m:?}");
         assert_eq!(m.matched_vertices, m.true_vertices);
     }
+    let openings = perfect.openings.as_ref().unwrap();
+    assert!(openings.true_openings > 0 && truth.scene.building.openings.iter().any(|o| o.door));
+    assert_eq!(
+        (openings.found, openings.kind_right),
+        (openings.true_openings, openings.true_openings)
+    );
+    assert_eq!(openings.corner_rmse_m, 0.0);
     let o = perfect.orientation.as_ref().unwrap();
     assert!(o.rms_center_m < 1e-5 && o.rms_rotation_deg < 1e-5 && o.missing.is_empty());
     let l2 = perfect.lines2d.as_ref().unwrap();

@@ -111,7 +111,7 @@ pub fn find(vertices: &[Vertex], edges: &[Edge], params: &ModelParams, viewpoint
         }
     }
     if viewpoint.is_some() {
-        recessed_openings(vertices, &incident, edges, &mut faces);
+        recessed_openings(vertices, &incident, edges, &mut faces, 2.0 * tol);
     }
     nest_openings(vertices, &mut faces, params);
     faces
@@ -296,31 +296,56 @@ fn point_in_polygon(q: [f64; 2], poly: &[[f64; 2]]) -> bool {
     inside
 }
 
-/// A vertical face whose corners (three or more) have edges running straight back from it, and none running
-/// forward, is an opening in its own right: a hole with reveals, even where the wall's outline is not closed
-/// (a façade's top edge is often hidden under the eaves). Needs outward normals, i.e. a viewpoint.
-fn recessed_openings(vertices: &[Vertex], incident: &[Vec<usize>], edges: &[Edge], faces: &mut [Face]) {
+/// A vertical face at least [`MIN_OPENING_M`] across whose corners (two or more) have edges running straight back
+/// from it, and none running forward, is an opening in its own right: a hole with reveals, even where the wall's
+/// outline is not closed (a façade's foot or top edge is often hidden). Two corners, because a street-level
+/// camera sees only the reveals at an opening's top corners (from above, its bottom ones); the size keeps out the
+/// front of a sill, whose edges also run back to the wall. A reveal edge may start at a vertex of its own within
+/// `tol` (twice the plane tolerance) of the corner, where noise kept its junction from the corner. Needs outward normals, i.e. a viewpoint.
+fn recessed_openings(vertices: &[Vertex], incident: &[Vec<usize>], edges: &[Edge], faces: &mut [Face], tol: f64) {
     let cos = 20f64.to_radians().cos();
+    let grid = crate::grid::SegmentGrid::of_points(vertices.iter().map(|v| v.point), tol);
     for f in faces.iter_mut() {
-        if f.kind != SurfaceKind::Wall {
+        if f.kind != SurfaceKind::Wall || smaller_side(vertices, f) < MIN_OPENING_M {
             continue;
         }
         let (mut back, mut forward) = (0, 0);
         for &v in &f.ring {
+            let p = vertices[v].point;
+            let near: Vec<usize> = grid
+                .near_point(&p, tol)
+                .into_iter()
+                .filter(|&w| (vertices[w].point - p).norm() <= tol)
+                .collect();
             let goes = |sign: f64| {
-                incident[v].iter().any(|&e| {
-                    let other = if edges[e].a == v { edges[e].b } else { edges[e].a };
-                    let d = (vertices[other].point - vertices[v].point).normalize();
-                    sign * d.dot(&f.normal) > cos
+                near.iter().any(|&w| {
+                    incident[w].iter().any(|&e| {
+                        let other = if edges[e].a == w { edges[e].b } else { edges[e].a };
+                        let d = (vertices[other].point - vertices[w].point).normalize();
+                        sign * d.dot(&f.normal) > cos
+                    })
                 })
             };
             back += usize::from(goes(-1.0));
             forward += usize::from(goes(1.0));
         }
-        if back >= 3 && forward == 0 {
+        if back >= 2 && forward == 0 {
             f.kind = SurfaceKind::Window;
         }
     }
+}
+
+/// The smallest opening found by its reveals alone, metres (a cellar window; a sill's front is 6 cm tall).
+const MIN_OPENING_M: f64 = 0.25;
+
+/// The smaller side of a face's bounding rectangle in its plane.
+fn smaller_side(vertices: &[Vertex], f: &Face) -> f64 {
+    let (u, v) = plane_basis(f.normal);
+    let span = |axis: &Vec3| {
+        let t = f.ring.iter().map(|&k| vertices[k].point.dot(axis));
+        t.clone().fold(f64::NEG_INFINITY, f64::max) - t.fold(f64::INFINITY, f64::min)
+    };
+    span(&u).min(span(&v))
 }
 
 /// A face lying inside a larger wall or roof face of the same plane, sharing no vertex with it, is that face's

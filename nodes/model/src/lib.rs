@@ -248,6 +248,12 @@ pub struct Model {
 }
 
 impl Model {
+    /// The observed edges as vertex pairs: those completed behind an occluder left out (they have no image
+    /// evidence, and a ground truth of seen edges does not hold them).
+    pub fn observed_edges(&self) -> Vec<[usize; 2]> {
+        self.edges.iter().filter(|e| !e.completed).map(|e| [e.a, e.b]).collect()
+    }
+
     /// The faces of the given kinds.
     pub fn count(&self, kinds: &[SurfaceKind]) -> usize {
         self.faces.iter().filter(|f| kinds.contains(&f.kind)).count()

@@ -77,6 +77,7 @@ fn wire_edges(model: &Model) -> Vec<WireEdge> {
                 b: e.b as u32,
                 face: face.map_or(u32::MAX, |f| f as u32),
                 kind,
+                hidden: u32::from(e.completed),
             }
         })
         .collect()

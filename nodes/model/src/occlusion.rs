@@ -14,7 +14,8 @@
 //!   corners. Both keep a façade's own relief out: a sill, a cornice, a frame or a reveal hides parts of its
 //!   opening or of the wall that are no edges of the model, and closing those would add faces that do not exist;
 //! - an open chain is a connected set of edges in one plane with exactly two free ends (the seed: two unresolved
-//!   boundary ends), not all parallel;
+//!   boundary ends), not all parallel, and of a building's scale (at least twice `occlusion_min_depth_m` across
+//!   in both directions of its plane);
 //! - each free end is extended, up to `occlusion_reach_m` either way, to the nearest crossing with an occluder
 //!   edge's projection (the seed's junction of lines 1 and 5);
 //! - the shortest path between the two junctions runs over the occluders' projected edges (Dijkstra from the one
@@ -60,24 +61,84 @@ pub fn complete(vertices: &mut Vec<Vertex>, edges: &mut Vec<Edge>, params: &Mode
         let component = components(vertices.len(), edges);
         let occluders = Occluders::of(vertices, edges, &component, &view);
         for chain in chains {
-            if !faces_the_viewpoint(vertices, &chain, &view, viewpoint) {
-                continue;
-            }
-            if let Some(path) = hidden_path(
-                vertices,
-                edges,
-                &occluders,
-                component[chain.ends[0].0],
-                &view,
-                &chain,
-                params.occlusion_reach_m,
-            ) {
+            let own = component[chain.ends[0].0];
+            // The seed's case needs a face of a building's scale: a façade's relief (reveals, frames, sills) is
+            // smaller than the depth that makes an occluder, and its planes are not 2.5-D along their normals.
+            let building = chain.extent >= 2.0 * view.min_depth && faces_the_viewpoint(vertices, &chain, &view, viewpoint);
+            let reach = params.occlusion_reach_m;
+            if let Some(path) = building
+                .then(|| hidden_path(vertices, edges, &occluders, own, &view, &chain, reach))
+                .flatten()
+            {
                 add_path(vertices, edges, &chain, &path, tol);
+                closed += 1;
+            } else if relief_hides_chord(vertices, edges, &component, &view, &chain, reach, viewpoint) {
+                let [(a, _), (b, _)] = chain.ends;
+                add_path(vertices, edges, &chain, &[vertices[a].point, vertices[b].point], tol);
                 closed += 1;
             }
         }
     }
     closed
+}
+
+/// The façade's own relief hides an opening's edge where the opening's other edges are seen whole: a sill hides the
+/// bottom edge of a window above the cameras, 3 cm above it. The chain is a U (its two end edges run the same
+/// way, the chord between its free ends across them), and an observed edge of another structure, in front by
+/// less than `occlusion_min_depth_m`, runs along the chord (parallel within 10°, over half its length) on its
+/// outer side within `reach`, and the cameras look at the chord over it (the viewpoint on that side). Then the
+/// free ends are the corners and the chord is the hidden edge. An occluder on the inner side (a frame behind the
+/// opening's outline) does not qualify: the edge it hides is no outline of the face.
+fn relief_hides_chord(
+    vertices: &[Vertex],
+    edges: &[Edge],
+    component: &[usize],
+    view: &PlaneView,
+    chain: &Chain,
+    reach: f64,
+    viewpoint: Option<Vec3>,
+) -> bool {
+    let [(v0, p0), (v1, p1)] = chain.ends;
+    let (a, b) = (vertices[v0].point, vertices[v1].point);
+    let (Some(d0), Some(d1)) = (
+        (a - vertices[p0].point).try_normalize(1e-12),
+        (b - vertices[p1].point).try_normalize(1e-12),
+    ) else {
+        return false;
+    };
+    let (cos10, sin10) = (10f64.to_radians().cos(), 10f64.to_radians().sin());
+    let len = (b - a).norm();
+    let c = (b - a) / len.max(1e-12);
+    if d0.dot(&d1) < cos10 || len < 2.0 * view.tol || c.dot(&d0).abs() > sin10 {
+        return false;
+    }
+    let Some(out) = ((d0 + d1) - c * c.dot(&(d0 + d1))).try_normalize(1e-12) else {
+        return false;
+    };
+    let mid = (a + b) / 2.0;
+    if viewpoint.is_none_or(|eye| (eye - mid).dot(&out) <= 0.0) {
+        return false;
+    }
+    let own = component[v0];
+    let relief = |x: &Vec3| {
+        let h = view.height(x);
+        h > std::f64::consts::SQRT_2 * view.tol && h < view.min_depth
+    };
+    edges.iter().any(|e| {
+        if e.completed || component.get(e.a).is_none_or(|&k| k == own) {
+            return false;
+        }
+        let (pa, pb) = (vertices[e.a].point, vertices[e.b].point);
+        if !(relief(&pa) && relief(&pb)) {
+            return false;
+        }
+        let (qa, qb) = (view.project(&pa), view.project(&pb));
+        let parallel = (qb - qa).try_normalize(1e-12).is_some_and(|d| d.dot(&c).abs() > cos10);
+        let outside = [qa, qb].iter().all(|q| (-view.tol..=reach).contains(&(q - a).dot(&out)));
+        let (ta, tb) = ((qa - a).dot(&c), (qb - a).dot(&c));
+        let overlap = ta.max(tb).min(len) - ta.min(tb).max(0.0);
+        parallel && outside && overlap >= 0.5 * len
+    })
 }
 
 /// The observed edges standing in front of a plane, with their structures (connected components).
@@ -188,10 +249,12 @@ fn projection_direction(plane: &Plane, vertices: &[Vertex], viewpoint: Option<Ve
     Some(if h.dot(&towards) >= 0.0 { h } else { -h })
 }
 
-/// An open chain: its two free ends, each with the vertex before it, in a fixed order.
+/// An open chain: its two free ends, each with the vertex before it, in a fixed order, and its size.
 #[derive(Debug, Clone, Copy, PartialEq)]
 struct Chain {
     ends: [(usize, usize); 2],
+    /// The smaller side of its bounding rectangle in the plane, metres.
+    extent: f64,
 }
 
 /// The connected sets of in-plane edges with exactly two vertices of degree one, not all parallel.
@@ -238,10 +301,21 @@ fn open_chains(vertices: &[Vertex], edges: &[Edge], view: &PlaneView) -> Vec<Cha
         if bent {
             out.push(Chain {
                 ends: [(leaves[0], adj[&leaves[0]][0]), (leaves[1], adj[&leaves[1]][0])],
+                extent: extent(vertices, &component, &view.plane),
             });
         }
     }
     out
+}
+
+/// The smaller side of the bounding rectangle of `points` in the plane.
+fn extent(vertices: &[Vertex], points: &[usize], plane: &Plane) -> f64 {
+    let (u, v) = plane_basis(plane.normal);
+    let span = |axis: &Vec3| {
+        let t = points.iter().map(|&k| vertices[k].point.dot(axis));
+        t.clone().fold(f64::NEG_INFINITY, f64::max) - t.fold(f64::INFINITY, f64::min)
+    };
+    span(&u).min(span(&v))
 }
 
 /// Where a free end's line, extended up to `reach` either way, first crosses an occluder edge's projection: the
@@ -508,5 +582,62 @@ mod tests {
         // The wall alone.
         let alone = build(&facade(-3.0)[..3], &ModelParams::default(), camera);
         assert_eq!(alone.diagnostics.chains_completed, 0);
+    }
+}
+
+#[cfg(test)]
+mod relief_tests {
+    use crate::{build, ModelLine, ModelParams, SurfaceKind};
+    use lineflow_photogrammetry::Vec3;
+
+    /// A window (x 1…2.4, z 10…11.7 in the wall y = 0) whose bottom edge is not seen, with reveals running back
+    /// from its top corners and a sill 6 cm in front, 3 cm below it.
+    fn window_over_a_sill(sill_y: f64, sill_z: f64) -> Vec<ModelLine> {
+        let segs: [([f64; 3], [f64; 3]); 7] = [
+            ([1.0, 0.0, 10.0], [1.0, 0.0, 11.7]),
+            ([1.0, 0.0, 11.7], [2.4, 0.0, 11.7]),
+            ([2.4, 0.0, 11.7], [2.4, 0.0, 10.0]),
+            ([1.0, 0.0, 11.7], [1.0, 0.2, 11.7]),
+            ([2.4, 0.0, 11.7], [2.4, 0.2, 11.7]),
+            ([0.95, sill_y, sill_z], [2.45, sill_y, sill_z]),
+            ([0.95, sill_y, sill_z - 0.06], [2.45, sill_y, sill_z - 0.06]),
+        ];
+        segs.iter()
+            .map(|&(a, b)| ModelLine::new(Vec3::from(a), Vec3::from(b), 0.002))
+            .collect()
+    }
+
+    fn window_faces(lines: &[ModelLine], camera: Vec3) -> (usize, usize) {
+        let model = build(lines, &ModelParams::default(), Some(camera));
+        // The only face reaches the lowest foot, so it is called a door.
+        let windows = model.count(&[SurfaceKind::Window, SurfaceKind::Door]);
+        (model.diagnostics.chains_completed, windows)
+    }
+
+    #[test]
+    fn a_sill_hides_the_bottom_edge_of_a_window_seen_from_below() {
+        let below = Vec3::new(1.7, -12.0, 1.5);
+        let (closed, windows) = window_faces(&window_over_a_sill(-0.06, 9.97), below);
+        assert_eq!((closed, windows), (1, 1), "closed along the chord, an opening by its reveals");
+        let model = build(&window_over_a_sill(-0.06, 9.97), &ModelParams::default(), Some(below));
+        let hidden: Vec<_> = model.edges.iter().filter(|e| e.completed).collect();
+        assert_eq!(hidden.len(), 1);
+        let (a, b) = (model.vertices[hidden[0].a].point, model.vertices[hidden[0].b].point);
+        assert!(
+            (a.z - 10.0).abs() < 1e-9 && (b.z - 10.0).abs() < 1e-9,
+            "the chord between the seen ends: {a} {b}"
+        );
+        assert_eq!(model.observed_edges().len(), model.edges.len() - 1);
+    }
+
+    #[test]
+    fn no_chord_without_a_sill_on_the_outer_side_seen_from_that_side() {
+        // Seen from above, the sill hides nothing of the window.
+        let above = Vec3::new(1.7, -12.0, 25.0);
+        assert_eq!(window_faces(&window_over_a_sill(-0.06, 9.97), above).0, 0);
+        // An occluder across the window's inside (a transom bar in front) is no sill.
+        assert_eq!(window_faces(&window_over_a_sill(-0.06, 10.9), Vec3::new(1.7, -12.0, 1.5)).0, 0);
+        // A sill more than `occlusion_reach_m` below.
+        assert_eq!(window_faces(&window_over_a_sill(-0.06, 9.2), Vec3::new(1.7, -12.0, 1.5)).0, 0);
     }
 }

@@ -17,7 +17,7 @@ fn noisy_lines(truth: &Truth, sigma: f64) -> Vec<ModelLine> {
 
 fn score(truth: &Truth, model: &Model) -> lineflow_eval::model::ModelReport {
     let v: Vec<Vec3> = model.vertices.iter().map(|v| v.point).collect();
-    let e: Vec<[usize; 2]> = model.edges.iter().map(|e| [e.a, e.b]).collect();
+    let e: Vec<[usize; 2]> = model.observed_edges();
     evaluate(&truth.lines, &v, &e, truth.gsd_m())
 }
 

@@ -1,22 +1,22 @@
 //! The fitted wire-frame as a [`Model`] with the model stage's faces, so that `model_fitted.obj` and
 //! `model_fitted.city.json` are written by the same code as `model.obj` and `model.city.json`. The fit moves
 //! vertices only; the faces (rings of vertex indices, from the `faces` topic) hold as they are.
-use lineflow_messages::FaceVertex;
+use lineflow_messages::{FaceVertex, WireEdge};
 use lineflow_model::{Edge, Face, Model, SurfaceKind, Vertex};
 use lineflow_photogrammetry::Vec3;
 
 /// The model of `vertices` and `edges` with the faces of `faces` (rings in order, outer ring 0 first, then the
 /// holes); an error names a face that does not fit the wire-frame.
-pub fn fitted_model(vertices: &[Vec3], edges: &[[usize; 2]], faces: &[FaceVertex]) -> Result<Model, String> {
+pub fn fitted_model(vertices: &[Vec3], edges: &[WireEdge], faces: &[FaceVertex]) -> Result<Model, String> {
     let mut model = Model {
         vertices: vertices.iter().map(|&point| Vertex { point, sigma: None }).collect(),
         edges: edges
             .iter()
-            .map(|&[a, b]| Edge {
-                a,
-                b,
+            .map(|e| Edge {
+                a: e.a as usize,
+                b: e.b as usize,
                 line: usize::MAX,
-                completed: false,
+                completed: e.hidden != 0,
             })
             .collect(),
         ..Model::default()
@@ -83,9 +83,14 @@ mod tests {
         .iter()
         .map(|p| Vec3::new(p[0] + 0.001, p[1], p[2]))
         .collect();
-        let edges: Vec<[usize; 2]> = (0..4)
+        let edges: Vec<WireEdge> = (0..4)
             .map(|i| [i, (i + 1) % 4])
             .chain((0..4).map(|i| [4 + i, 4 + (i + 1) % 4]))
+            .map(|[a, b]| WireEdge {
+                a,
+                b,
+                ..WireEdge::default()
+            })
             .collect();
         let mut rows: Vec<FaceVertex> = (0..4).map(|i| row(0, 0, 0, i)).collect();
         rows.extend((4..8).rev().map(|i| row(0, 1, 0, i)));

@@ -116,9 +116,14 @@ fn fit_job(wire: &Wire, images: &[Arc<ImageEdges>], params: &FitParams) -> Vec<V
     fit.vertices
 }
 
-/// The edges as vertex-index pairs.
+/// The observed edges as vertex-index pairs: an edge completed behind an occluder has no edge pixels of its own
+/// (those near its projection belong to the occluder).
 fn pairs(edges: &[WireEdge]) -> Vec<[usize; 2]> {
-    edges.iter().map(|e| [e.a as usize, e.b as usize]).collect()
+    edges
+        .iter()
+        .filter(|e| e.hidden == 0)
+        .map(|e| [e.a as usize, e.b as usize])
+        .collect()
 }
 
 fn publish(output: &Output<kinds::Wireframe>, stamp: Stamp, vertices: &[Vec3], edges: &[WireEdge]) -> Result<()> {
@@ -137,7 +142,7 @@ fn write_model(
     ctx: &NodeContext,
     vertices: &[Vec3],
     stamp: Stamp,
-    edges: &[[usize; 2]],
+    edges: &[WireEdge],
     faces: Option<&(Stamp, Vec<FaceVertex>)>,
 ) -> Result<()> {
     let same = |s: &Stamp| (s.frame, s.revision, s.capture_time_ns) == (stamp.frame, stamp.revision, stamp.capture_time_ns);
@@ -262,7 +267,7 @@ fn body() -> Result<()> {
     }
     output.end_of_stream()?;
     if let Some((v, stamp, edges)) = fitted {
-        write_model(&ctx, &v, stamp, &pairs(&edges), st.faces.as_ref())?;
+        write_model(&ctx, &v, stamp, &edges, st.faces.as_ref())?;
     }
     ctx.finish();
     Ok(())

@@ -345,12 +345,14 @@ mod tests {
                 b: 1,
                 face: 0,
                 kind: 0,
+                hidden: 0,
             },
             WireEdge {
                 a: 1,
                 b: 2,
                 face: 0,
                 kind: 0,
+                hidden: 0,
             },
         ];
         let mut payload = vec![0u8; parts::two_part_len::<[f64; 3], WireEdge>(3, 2)];

@@ -86,6 +86,17 @@ pub struct Building {
     pub targets: Vec<Target>,
     /// The true walls (façade, sides, back), counter-clockwise seen from outside.
     pub walls: Vec<(String, Vec<[f64; 3]>)>,
+    /// The façade's openings: their outlines in the wall plane.
+    pub openings: Vec<Opening>,
+}
+
+/// A window or door opening: its outline in the wall plane, counter-clockwise seen from outside.
+#[derive(Debug, Clone, Serialize)]
+pub struct Opening {
+    /// A door (down to the ground floor), not a window.
+    pub door: bool,
+    /// Object coordinates, metres.
+    pub corners: [[f64; 3]; 4],
 }
 
 /// A wall's own frame: `point(x, z, d) = origin + x·ex + z·ez − d·n` with n the outward normal.
@@ -374,6 +385,17 @@ pub fn build(spec: &BuildingSpec, seed: u64) -> Building {
             sills.push(Rect::new(r.x0 - 0.05, r.x1 + 0.05, z0 - 0.09, z0 - 0.03));
         }
     }
+    let openings = holes
+        .iter()
+        .map(|h: &Hole| {
+            let r = &h.rect;
+            let corner = |x: f64, z: f64| facade.point(x, z, 0.0).into();
+            Opening {
+                door: door_rect == Some(*r),
+                corners: [corner(r.x0, r.z0), corner(r.x1, r.z0), corner(r.x1, r.z1), corner(r.x0, r.z1)],
+            }
+        })
+        .collect();
     let facade_relief = Relief {
         material: Material::Brick,
         holes,
@@ -477,6 +499,7 @@ pub fn build(spec: &BuildingSpec, seed: u64) -> Building {
         edges: b.edges,
         targets,
         walls,
+        openings,
     }
 }
 
