@@ -168,7 +168,8 @@ pub fn bench_model(preset: &str, sigmas_gsd: &[f64], reps: usize, out: Option<&P
         let vertices: Vec<Vec3> = model.vertices.iter().map(|v| v.point).collect();
         let edges: Vec<[usize; 2]> = model.observed_edges();
         let r = lineflow_eval::model::evaluate(&truth.lines, &vertices, &edges, gsd);
-        let o = lineflow_eval::model::evaluate_openings(&truth.scene.building.openings, &openings(&model), gsd);
+        let found: Vec<_> = model.openings().into_iter().map(lineflow_eval::model::ModelOpening::from).collect();
+        let o = lineflow_eval::model::evaluate_openings(&truth.scene.building.openings, &found, gsd);
         println!(
             "| {k} | {:.1} | {:.2} | {}/{} | {:.1} % | {:.1} % | {}/{} ({}) | {:.1} | {} | {} | {:.0} | {:.0} | {:.2} |",
             r.vertex_rmse_m * 1000.0,
@@ -197,17 +198,4 @@ pub fn bench_model(preset: &str, sigmas_gsd: &[f64], reps: usize, out: Option<&P
         }
     }
     Ok(ExitCode::SUCCESS)
-}
-
-/// The model's window and door faces for `lineflow_eval::model::evaluate_openings`.
-fn openings(model: &Model) -> Vec<lineflow_eval::model::ModelOpening> {
-    model
-        .faces
-        .iter()
-        .filter(|f| matches!(f.kind, SurfaceKind::Window | SurfaceKind::Door))
-        .map(|f| lineflow_eval::model::ModelOpening {
-            door: f.kind == SurfaceKind::Door,
-            ring: f.ring.iter().map(|&v| model.vertices[v].point).collect(),
-        })
-        .collect()
 }

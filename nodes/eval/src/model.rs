@@ -115,6 +115,13 @@ pub struct ModelOpening {
     pub ring: Vec<Vec3>,
 }
 
+impl From<(bool, Vec<Vec3>)> for ModelOpening {
+    /// From (door, ring), as `lineflow_model::Model::openings` gives them.
+    fn from((door, ring): (bool, Vec<Vec3>)) -> Self {
+        ModelOpening { door, ring }
+    }
+}
+
 /// Openings (windows and doors) of the model against the true ones.
 #[derive(Debug, Clone, PartialEq)]
 pub struct OpeningReport {

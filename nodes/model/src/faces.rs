@@ -97,7 +97,9 @@ pub fn find(vertices: &[Vertex], edges: &[Edge], params: &ModelParams, viewpoint
             } else {
                 inside_ref - centroid
             };
-            let (normal, ring) = if plane.normal.dot(&towards) >= 0.0 {
+            // A face through the reference point (a flat model without viewpoint) keeps the canonical normal, so
+            // that all faces of one plane agree.
+            let (normal, ring) = if plane.normal.dot(&towards) >= -1e-9 {
                 (plane.normal, ring)
             } else {
                 (-plane.normal, ring.into_iter().rev().collect())
@@ -150,15 +152,53 @@ pub(crate) fn plane_hypotheses(vertices: &[Vertex], edges: &[Edge], incident: &[
                     .iter()
                     .any(|pl| pl.normal.dot(&n) > cos_merge && (pl.normal.dot(&p) - pl.offset).abs() < tol);
                 if !known {
-                    planes.push(Plane {
-                        normal: n,
-                        offset: n.dot(&p),
-                    });
+                    planes.push(refit(
+                        vertices,
+                        Plane {
+                            normal: n,
+                            offset: n.dot(&p),
+                        },
+                        cos_merge,
+                        tol,
+                    ));
                 }
             }
         }
     }
     planes
+}
+
+/// A hypothesis from two edges at one corner, refitted to the vertices near it (least squares, smallest
+/// eigenvector), three times with a shrinking band (3, 2, 1 × `tol`): two noisy edges give the normal a few
+/// tenths of a degree off, which tilts a 30 m façade out of the tolerance at its far end, so the wall's outline
+/// would never close. The normal may turn by less than the merge angle.
+fn refit(vertices: &[Vertex], plane: Plane, cos_merge: f64, tol: f64) -> Plane {
+    let mut p = plane;
+    for band in [3.0 * tol, 2.0 * tol, tol] {
+        let near: Vec<Vec3> = vertices
+            .iter()
+            .map(|v| v.point)
+            .filter(|x| (p.normal.dot(x) - p.offset).abs() < band)
+            .collect();
+        if near.len() < 3 {
+            break;
+        }
+        let c = near.iter().sum::<Vec3>() / near.len() as f64;
+        let cov = near
+            .iter()
+            .fold(nalgebra::Matrix3::zeros(), |m, x| m + (x - c) * (x - c).transpose());
+        let eig = nalgebra::SymmetricEigen::new(cov);
+        let n = eig.eigenvectors.column(eig.eigenvalues.imin()).into_owned();
+        let n = if n.dot(&p.normal) < 0.0 { -n } else { n };
+        if n.dot(&p.normal) < cos_merge {
+            break;
+        }
+        p = Plane {
+            normal: n,
+            offset: n.dot(&c),
+        };
+    }
+    p
 }
 
 /// Three times the median corner σ, at least 5 mm: vertices of one plane scatter by their own precision.
@@ -363,7 +403,10 @@ fn nest_openings(vertices: &[Vertex], faces: &mut [Face], params: &ModelParams) 
     // Each face's polygon in its own plane, area and offset, once.
     let polys: Vec<Vec<[f64; 2]>> = faces.iter().map(|f| flat(f, &f.ring)).collect();
     let areas: Vec<f64> = polys.iter().map(|p| signed_area(p).abs()).collect();
-    let offsets: Vec<f64> = faces.iter().map(|f| f.normal.dot(&vertices[f.ring[0]].point)).collect();
+    let centroids: Vec<Vec3> = faces
+        .iter()
+        .map(|f| f.ring.iter().map(|&k| vertices[k].point).sum::<Vec3>() / f.ring.len() as f64)
+        .collect();
     let mut parent: Vec<Option<usize>> = vec![None; faces.len()];
     let container = |k: SurfaceKind| matches!(k, SurfaceKind::Wall | SurfaceKind::Roof);
     for (i, f) in faces.iter().enumerate() {
@@ -372,7 +415,7 @@ fn nest_openings(vertices: &[Vertex], faces: &mut [Face], params: &ModelParams) 
         }
         let mut best: Option<(f64, usize)> = None;
         for (j, g) in faces.iter().enumerate() {
-            let coplanar = g.normal.dot(&f.normal) > cos_par && (offsets[j] - offsets[i]).abs() < 0.01;
+            let coplanar = g.normal.dot(&f.normal) > cos_par && f.normal.dot(&(centroids[j] - centroids[i])).abs() < 0.01;
             if i == j || !container(g.kind) || !coplanar || areas[j] <= areas[i] || g.ring.iter().any(|v| f.ring.contains(v)) {
                 continue;
             }

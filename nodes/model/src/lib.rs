@@ -254,6 +254,20 @@ impl Model {
         self.edges.iter().filter(|e| !e.completed).map(|e| [e.a, e.b]).collect()
     }
 
+    /// The window and door faces: whether a door, and the points of the outer ring.
+    pub fn openings(&self) -> Vec<(bool, Vec<Vec3>)> {
+        self.faces
+            .iter()
+            .filter(|f| matches!(f.kind, SurfaceKind::Window | SurfaceKind::Door))
+            .map(|f| {
+                (
+                    f.kind == SurfaceKind::Door,
+                    f.ring.iter().map(|&v| self.vertices[v].point).collect(),
+                )
+            })
+            .collect()
+    }
+
     /// The faces of the given kinds.
     pub fn count(&self, kinds: &[SurfaceKind]) -> usize {
         self.faces.iter().filter(|f| kinds.contains(&f.kind)).count()
