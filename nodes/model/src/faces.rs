@@ -5,6 +5,7 @@ use std::collections::BTreeMap;
 
 use lineflow_photogrammetry::Vec3;
 
+use crate::disjoint::Disjoint;
 use crate::{Edge, ModelParams, Vertex};
 
 /// The CityJSON semantic surface of a face.
@@ -76,6 +77,8 @@ pub fn find(vertices: &[Vertex], edges: &[Edge], params: &ModelParams, viewpoint
         return Vec::new();
     }
     let tol = plane_tolerance(vertices, params);
+    let merged = merge_close(vertices, edges, 2.0 * tol);
+    let edges = &merged[..];
     let incident = incident_edges(vertices.len(), edges);
     let planes = plane_hypotheses(vertices, edges, &incident, params, tol);
     let inside_ref = viewpoint.unwrap_or_else(|| vertices.iter().map(|v| v.point).sum::<Vec3>() / vertices.len() as f64);
@@ -117,6 +120,30 @@ pub fn find(vertices: &[Vertex], edges: &[Edge], params: &ModelParams, viewpoint
     }
     nest_openings(vertices, &mut faces, params);
     faces
+}
+
+/// The edges with every vertex replaced by the first of the vertices within `reach` of it (single linkage), and
+/// the edges that then join a vertex to itself left out. Noise can leave two ends of one corner apart: a line
+/// end left free a few millimetres from the corner its line runs into, or a reveal's corner beside the outline's.
+/// Within twice the plane tolerance they cannot be told apart, and kept apart they break the face's cycle. The
+/// wire-frame keeps both vertices; only the faces see one.
+fn merge_close(vertices: &[Vertex], edges: &[Edge], reach: f64) -> Vec<Edge> {
+    let grid = crate::grid::SegmentGrid::of_points(vertices.iter().map(|v| v.point), reach);
+    let mut sets = Disjoint::new(vertices.len());
+    for (v, vertex) in vertices.iter().enumerate() {
+        for w in grid.near_point(&vertex.point, reach) {
+            if w > v && (vertices[w].point - vertex.point).norm() <= reach {
+                sets.join(v, w);
+            }
+        }
+    }
+    edges
+        .iter()
+        .filter_map(|e| {
+            let (a, b) = (sets.root(e.a), sets.root(e.b));
+            (a != b).then_some(Edge { a, b, ..*e })
+        })
+        .collect()
 }
 
 /// The edges at each vertex.

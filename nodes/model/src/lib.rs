@@ -16,6 +16,7 @@
 //! Model-image fitting (LSMIF, seed 004) is the `modelfit` stage.
 pub mod adjust;
 pub mod corners;
+mod disjoint;
 pub mod export;
 pub mod faces;
 mod grid;

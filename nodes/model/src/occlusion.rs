@@ -29,6 +29,7 @@ use std::collections::{BTreeMap, BinaryHeap};
 
 use lineflow_photogrammetry::Vec3;
 
+use crate::disjoint::Disjoint;
 use crate::faces::{incident_edges, plane_basis, plane_hypotheses, plane_tolerance, Plane};
 use crate::{Edge, ModelParams, Vertex};
 
@@ -191,19 +192,11 @@ fn faces_the_viewpoint(vertices: &[Vertex], chain: &Chain, view: &PlaneView, vie
 
 /// The connected component of every vertex (the smallest vertex index in it).
 fn components(n: usize, edges: &[Edge]) -> Vec<usize> {
-    let mut parent: Vec<usize> = (0..n).collect();
-    fn root(parent: &mut [usize], mut v: usize) -> usize {
-        while parent[v] != v {
-            parent[v] = parent[parent[v]];
-            v = parent[v];
-        }
-        v
-    }
+    let mut sets = Disjoint::new(n);
     for e in edges {
-        let (a, b) = (root(&mut parent, e.a), root(&mut parent, e.b));
-        parent[a.max(b)] = a.min(b);
+        sets.join(e.a, e.b);
     }
-    (0..n).map(|v| root(&mut parent, v)).collect()
+    (0..n).map(|v| sets.root(v)).collect()
 }
 
 /// A plane with the direction occluders are sought in and points are projected along.
