@@ -6,7 +6,8 @@
 //! - Shape ([`adjust`]): the corners of each object adjusted from its lines in the Gauss-Helmert model, with
 //!   standard deviations.
 //! - Occluded edges ([`occlusion`]): an open face boundary closed along the outline of the structure in front of
-//!   it that hides the rest, the shortest path through its corners.
+//!   it that hides the rest (the shortest path through its corners), or, where the façade's relief hides an
+//!   opening's edge, by the chord between its seen ends.
 //! - Faces ([`faces`]): closed planar cycles of edges become wall, roof and opening surfaces; a face inside another
 //!   face of the same plane is its opening (the seed's "roof inside a roof").
 //! - Refine ([`refine`], optional): every adjusted edge measured again in the images' 2-D lines, intersected

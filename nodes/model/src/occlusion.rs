@@ -24,6 +24,10 @@
 //! - the path's nodes are put into the face's plane along the projection direction: for a plane face this is
 //!   exact, where the seed's eq. 5 (heights shared out by path length) leaves a bent path off a tilted plane;
 //! - a path longer than three times the distance between its ends is refused as a detour, not an outline.
+//!
+//! The façade's own relief hides edges at a smaller scale, where a path along the occluder would put the edge on
+//! the occluder: a sill hides the bottom edge of a window above the cameras while its sides are seen to their
+//! ends. Such a chain, a U, is closed by the chord between its seen ends (`relief_hides_chord`).
 use std::cmp::Reverse;
 use std::collections::{BTreeMap, BinaryHeap};
 
