@@ -126,15 +126,35 @@ impl ViewRenderer {
                 let split = parts::align8(nv * 24).min(payload.len());
                 let vertices: Vec<[f64; 3]> = read_elements(&payload[..(nv * 24).min(split)]);
                 let edges: Vec<WireEdge> = read_elements(&payload[split..]);
-                let pts = edges
-                    .iter()
-                    .filter(|e| (e.a as usize) < vertices.len() && (e.b as usize) < vertices.len())
-                    .flat_map(|e| [point(vertices[e.a as usize]), point(vertices[e.b as usize])])
-                    .collect();
-                let e = entity(&stamp, "model".into(), pts, json!({ "r": 0.9, "g": 0.9, "b": 0.9, "a": 1.0 }), 3.0);
+                let pts = |hidden: bool| -> Vec<Value> {
+                    edges
+                        .iter()
+                        .filter(|e| (e.hidden != 0) == hidden)
+                        .filter(|e| (e.a as usize) < vertices.len() && (e.b as usize) < vertices.len())
+                        .flat_map(|e| [point(vertices[e.a as usize]), point(vertices[e.b as usize])])
+                        .collect()
+                };
+                let mut entities = vec![entity(
+                    &stamp,
+                    "model".into(),
+                    pts(false),
+                    json!({ "r": 0.9, "g": 0.9, "b": 0.9, "a": 1.0 }),
+                    3.0,
+                )];
+                // Edges completed behind an occluder: drawn apart, dimmer, so that a viewer can tell them.
+                let hidden = pts(true);
+                if !hidden.is_empty() {
+                    entities.push(entity(
+                        &stamp,
+                        "model/hidden".into(),
+                        hidden,
+                        json!({ "r": 0.5, "g": 0.6, "b": 1.0, "a": 0.6 }),
+                        2.0,
+                    ));
+                }
                 vec![(
                     "scene",
-                    serde_json::to_vec(&json!({ "deletions": [], "entities": [e] })).unwrap_or_default(),
+                    serde_json::to_vec(&json!({ "deletions": [], "entities": entities })).unwrap_or_default(),
                 )]
             }
             MessageKind::Poses => vec![("scene", scene_poses(&stamp, &read_elements::<Pose>(payload)))],
@@ -367,5 +387,19 @@ mod tests {
         let pts = &v["entities"][0]["lines"][0]["points"];
         assert_eq!(pts.as_array().unwrap().len(), 4);
         assert_eq!(pts[3]["z"], 2.0);
+        assert_eq!(v["entities"].as_array().unwrap().len(), 1, "no hidden edges, no second entity");
+
+        // The second edge hidden: drawn as its own entity.
+        let hidden = [edges[0], WireEdge { hidden: 1, ..edges[1] }];
+        let mut buf = vec![0u64; payload.len().div_ceil(8)];
+        let bytes: &mut [u8] = unsafe { std::slice::from_raw_parts_mut(buf.as_mut_ptr().cast(), payload.len()) };
+        parts::write(bytes, &vertices, &hidden);
+        let mut cdr = Vec::new();
+        encode(MessageKind::Wireframe, bytes_of(&header), bytes, &mut cdr);
+        let out = ViewRenderer::new(0).render(MessageKind::Wireframe, &cdr);
+        let v: Value = serde_json::from_slice(&out[0].1).unwrap();
+        assert_eq!(v["entities"][0]["lines"][0]["points"].as_array().unwrap().len(), 2);
+        assert_eq!(v["entities"][1]["id"], "model/hidden");
+        assert_eq!(v["entities"][1]["lines"][0]["points"][1]["z"], 2.0);
     }
 }
