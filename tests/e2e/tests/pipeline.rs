@@ -596,6 +596,11 @@ fn the_demo_graph_orients_both_strips_and_extracts_3d_lines_and_a_model_the_same
         assert_eq!(faces(&fitted), faces(&obj), "the fitted model's faces");
         assert!(out.join("model_fitted.city.json").is_file());
         assert!(report.contains("| fitted to the images (`model_fitted.obj`) |"), "{report}");
+        // The live eval got the model's faces too (the `faces` topic): the openings are scored.
+        assert!(
+            report.contains("Openings of the CSR model:") && report.contains("of 40 true windows and doors found"),
+            "{report}"
+        );
         models.push(obj);
         fits.push(fitted);
     }
