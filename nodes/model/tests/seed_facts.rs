@@ -55,30 +55,31 @@ fn b2_a_gable_roof_is_one_object_with_three_line_ridge_corners() {
     assert!(roofs.iter().all(|f| f.ring.len() == 4 && f.normal.z > 0.5), "the slopes, facing up");
 }
 
+/// Two flat roofs, [0, 10] at 5 m and [x0, 20] at `z`: built as two objects, each a closed face of four corners;
+/// their corners.
+fn two_buildings(x0: f64, z: f64) -> Vec<Vec3> {
+    let mut segs = flat_roof(0.0, 10.0, 5.0);
+    segs.extend(flat_roof(x0, 20.0, z));
+    let m = build(&lines(&segs), &ModelParams::default(), Some(Vec3::new(10.0, 3.0, 100.0)));
+    assert_eq!(m.diagnostics.objects, 2, "{}", m.summary());
+    assert_eq!(m.faces.len(), 2);
+    let c = corners(&m);
+    assert_eq!(c.len(), 8, "{c:?}");
+    c
+}
+
 /// B3: two buildings whose footprints touch (x = 10) at different heights are two objects with no corner across.
 #[test]
 fn b3_touching_buildings_of_different_heights_stay_apart() {
-    let mut segs = flat_roof(0.0, 10.0, 5.0);
-    segs.extend(flat_roof(10.0, 20.0, 8.0));
-    let m = build(&lines(&segs), &ModelParams::default(), Some(Vec3::new(10.0, 3.0, 100.0)));
-    assert_eq!(m.diagnostics.objects, 2, "{}", m.summary());
-    let c = corners(&m);
-    assert_eq!(c.len(), 8);
+    let c = two_buildings(10.0, 8.0);
     assert!(c.iter().all(|p| p.z == 5.0 || p.z == 8.0));
-    assert_eq!(m.faces.len(), 2);
 }
 
 /// B4: two buildings of one height 30 cm apart (a fire lane): no junction across the gap.
 #[test]
 fn b4_a_narrow_gap_keeps_two_buildings_apart() {
-    let mut segs = flat_roof(0.0, 10.0, 5.0);
-    segs.extend(flat_roof(10.3, 20.0, 5.0));
-    let m = build(&lines(&segs), &ModelParams::default(), Some(Vec3::new(10.0, 3.0, 100.0)));
-    assert_eq!(m.diagnostics.objects, 2, "{}", m.summary());
-    let c = corners(&m);
-    assert_eq!(c.len(), 8);
+    let c = two_buildings(10.3, 5.0);
     for x in [0.0, 10.0, 10.3, 20.0] {
         assert_eq!(c.iter().filter(|p| (p.x - x).abs() < 1e-6).count(), 2, "two corners at x = {x}");
     }
-    assert_eq!(m.faces.len(), 2);
 }
