@@ -153,6 +153,24 @@ impl<M: Message> Input<M> {
     }
 }
 
+impl Input<lineflow_messages::kinds::Lines2D> {
+    /// Drains the pending 2-D line sets, each split into its segments and their pixel chains.
+    ///
+    /// # Errors
+    /// When receiving fails, a payload is shorter than its header says (the error names the frame), or `each` fails.
+    pub fn for_each_segments(
+        &self,
+        mut each: impl FnMut(&lineflow_messages::Lines2DHeader, &[lineflow_messages::Segment2], &[[u16; 2]]) -> Result<()>,
+    ) -> Result<()> {
+        while let Some(m) = self.receive()? {
+            let h = m.user_header();
+            let (segments, chain) = h.split(m.payload()).map_err(anyhow::Error::msg)?;
+            each(h, segments, chain)?;
+        }
+        Ok(())
+    }
+}
+
 impl<M: Message> Connect for InputInner<M> {
     /// Connects publishers that appeared since, and ends an input whose publisher left without end-of-stream (its
     /// end-of-stream was dropped, or it exited abnormally and will not be restarted): otherwise the node, and

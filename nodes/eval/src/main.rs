@@ -70,7 +70,7 @@ fn body() -> Result<()> {
     let mut est_segments: Option<Vec<Line2Row>> = segments.as_ref().map(|_| Vec::new());
     let (mut est_model, mut est_fitted): (Option<Wireframe>, Option<Wireframe>) = (None, None);
     let mut est_faces: Option<Vec<FaceVertex>> = None;
-    let mut hidden = [0usize; 2];
+    let mut model_hidden = 0usize;
     ctx.run(|| {
         while let Some(m) = gt_poses.receive()? {
             truth_poses = m.payload().to_vec();
@@ -89,9 +89,7 @@ fn body() -> Result<()> {
             }
         }
         if let (Some(i), Some(rows)) = (&segments, &mut est_segments) {
-            while let Some(m) = i.receive()? {
-                let h = m.user_header();
-                let (segs, _) = h.split(m.payload()).map_err(anyhow::Error::msg)?;
+            i.for_each_segments(|h, segs, _| {
                 rows.extend(segs.iter().map(|s| Line2Row {
                     image: h.name().to_string(),
                     id: s.id as u64,
@@ -99,9 +97,13 @@ fn body() -> Result<()> {
                     end_px: s.end_px,
                     n_pixels: Some(s.chain_len),
                 }));
-            }
+                Ok(())
+            })?;
         }
-        for (slot_is_fitted, input, slot) in [(false, &wireframe, &mut est_model), (true, &fitted, &mut est_fitted)] {
+        for (input, slot, mut hidden) in [
+            (&wireframe, &mut est_model, Some(&mut model_hidden)),
+            (&fitted, &mut est_fitted, None),
+        ] {
             if let Some(i) = input {
                 while let Some(m) = i.receive()? {
                     let h = m.user_header();
@@ -112,7 +114,9 @@ fn body() -> Result<()> {
                         v.iter().map(|p| Vec3::from(*p)).collect(),
                         e.iter().filter(|e| e.hidden == 0).map(|e| [e.a as usize, e.b as usize]).collect(),
                     ));
-                    hidden[usize::from(slot_is_fitted)] = e.iter().filter(|e| e.hidden != 0).count();
+                    if let Some(n) = hidden.as_deref_mut() {
+                        *n = e.iter().filter(|e| e.hidden != 0).count();
+                    }
                 }
             }
         }
@@ -149,7 +153,7 @@ fn body() -> Result<()> {
             _ => None,
         },
         model_openings: est_model.as_ref().zip(est_faces.as_ref()).map(|((v, _), f)| openings(v, f)),
-        model_hidden_edges: est_model.as_ref().map(|_| hidden[0]),
+        model_hidden_edges: est_model.as_ref().map(|_| model_hidden),
         model: est_model,
         model_fitted: est_fitted,
     };

@@ -70,14 +70,12 @@ fn body() -> Result<()> {
             }
         }
         if let Some(i) = &lines_in {
-            while let Some(m) = i.receive()? {
-                if !multiview {
-                    continue;
+            i.for_each_segments(|h, segs, _| {
+                if multiview {
+                    segments.insert(h.stamp.frame, segs.to_vec());
                 }
-                let h = *m.user_header();
-                let (segs, _) = h.split(m.payload()).map_err(anyhow::Error::msg)?;
-                segments.insert(h.stamp.frame, segs.to_vec());
-            }
+                Ok(())
+            })?;
         }
         if let Some(i) = &poses_in {
             // Every Poses message holds every oriented frame; the last one is the final adjustment.

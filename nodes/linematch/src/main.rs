@@ -163,9 +163,7 @@ fn body() -> Result<()> {
             st.stamps.insert(h.stamp.frame, h.stamp);
             Ok(())
         })?;
-        while let Some(m) = lines_in.receive()? {
-            let h = *m.user_header();
-            let (segs, chain) = h.split(m.payload()).map_err(anyhow::Error::msg)?;
+        lines_in.for_each_segments(|h, segs, chain| {
             st.lines.insert(
                 h.stamp.frame,
                 FrameLines {
@@ -173,7 +171,8 @@ fn body() -> Result<()> {
                     chain: chain.to_vec(),
                 },
             );
-        }
+            Ok(())
+        })?;
         while let Some(m) = poses_in.receive()? {
             let snapshot = m
                 .payload()

@@ -127,7 +127,7 @@ pub fn find(vertices: &[Vertex], edges: &[Edge], params: &ModelParams, viewpoint
 /// end left free a few millimetres from the corner its line runs into, or a reveal's corner beside the outline's.
 /// Within twice the plane tolerance they cannot be told apart, and kept apart they break the face's cycle. The
 /// wire-frame keeps both vertices; only the faces see one.
-fn merge_close(vertices: &[Vertex], edges: &[Edge], reach: f64) -> Vec<Edge> {
+pub(crate) fn merge_close(vertices: &[Vertex], edges: &[Edge], reach: f64) -> Vec<Edge> {
     let grid = crate::grid::SegmentGrid::of_points(vertices.iter().map(|v| v.point), reach);
     let mut sets = Disjoint::new(vertices.len());
     for (v, vertex) in vertices.iter().enumerate() {

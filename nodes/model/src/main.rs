@@ -165,16 +165,14 @@ fn body() -> Result<()> {
             }
         }
         if let Some(lines2d) = &lines2d_in {
-            while let Some(m) = lines2d.receive()? {
-                if !refining {
-                    continue;
+            lines2d.for_each_segments(|h, segs, _| {
+                if refining {
+                    image_lines
+                        .pending
+                        .insert(h.stamp.frame, segs.iter().map(|s| (s.start_px, s.end_px)).collect());
                 }
-                let h = *m.user_header();
-                let (segs, _) = h.split(m.payload()).map_err(anyhow::Error::msg)?;
-                image_lines
-                    .pending
-                    .insert(h.stamp.frame, segs.iter().map(|s| (s.start_px, s.end_px)).collect());
-            }
+                Ok(())
+            })?;
         }
         // Only the newest set of lines is built: each one holds every line so far. Every frame received for the
         // first time still gets its model message, in order, so that downstream sees no frame missing.

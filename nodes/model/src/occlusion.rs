@@ -34,7 +34,7 @@ use std::collections::{BTreeMap, BinaryHeap};
 use lineflow_photogrammetry::Vec3;
 
 use crate::disjoint::Disjoint;
-use crate::faces::{incident_edges, plane_basis, plane_hypotheses, plane_tolerance, Plane};
+use crate::faces::{incident_edges, merge_close, plane_basis, plane_hypotheses, plane_tolerance, Plane};
 use crate::{Edge, ModelParams, Vertex};
 
 /// Closes the open chains that an occluder in front of them explains; appends the new vertices (no σ) and edges
@@ -45,8 +45,11 @@ pub fn complete(vertices: &mut Vec<Vertex>, edges: &mut Vec<Edge>, params: &Mode
         return 0;
     }
     let tol = plane_tolerance(vertices, params);
-    let incident = incident_edges(vertices.len(), edges);
-    let planes = plane_hypotheses(vertices, edges, &incident, params, tol);
+    // The wire-frame as the faces will see it (corners split by noise made one), so that a chain is open here
+    // exactly when its face would be.
+    let mut graph = merge_close(vertices, edges, 2.0 * tol);
+    let incident = incident_edges(vertices.len(), &graph);
+    let planes = plane_hypotheses(vertices, &graph, &incident, params, tol);
     let mut closed = 0;
     for plane in planes {
         let Some(up) = projection_direction(&plane, vertices, viewpoint) else {
@@ -58,28 +61,31 @@ pub fn complete(vertices: &mut Vec<Vertex>, edges: &mut Vec<Edge>, params: &Mode
             tol,
             min_depth: params.occlusion_min_depth_m.max(std::f64::consts::SQRT_2 * tol),
         };
-        let chains = open_chains(vertices, edges, &view);
+        let chains = open_chains(vertices, &graph, &view);
         if chains.is_empty() {
             continue;
         }
         // Per plane: completions of earlier planes joined structures.
-        let component = components(vertices.len(), edges);
-        let occluders = Occluders::of(vertices, edges, &component, &view);
+        let component = components(vertices.len(), &graph);
+        let occluders = Occluders::of(vertices, &graph, &component, &view);
         for chain in chains {
             let own = component[chain.ends[0].0];
             // The seed's case needs a face of a building's scale: a façade's relief (reveals, frames, sills) is
             // smaller than the depth that makes an occluder, and its planes are not 2.5-D along their normals.
             let building = chain.extent >= 2.0 * view.min_depth && faces_the_viewpoint(vertices, &chain, &view, viewpoint);
             let reach = params.occlusion_reach_m;
-            if let Some(path) = building
-                .then(|| hidden_path(vertices, edges, &occluders, own, &view, &chain, reach))
-                .flatten()
-            {
-                add_path(vertices, edges, &chain, &path, tol);
-                closed += 1;
-            } else if relief_hides_chord(vertices, edges, &component, &view, &chain, reach, viewpoint) {
+            let seed_path = building
+                .then(|| hidden_path(vertices, &graph, &occluders, own, &view, &chain, reach))
+                .flatten();
+            let path = seed_path.or_else(|| {
                 let [(a, _), (b, _)] = chain.ends;
-                add_path(vertices, edges, &chain, &[vertices[a].point, vertices[b].point], tol);
+                relief_hides_chord(vertices, &graph, &component, &view, &chain, reach, viewpoint)
+                    .then(|| vec![vertices[a].point, vertices[b].point])
+            });
+            if let Some(path) = path {
+                let before = edges.len();
+                add_path(vertices, edges, &chain, &path, tol);
+                graph.extend_from_slice(&edges[before..]);
                 closed += 1;
             }
         }
