@@ -77,7 +77,7 @@ pub fn find(vertices: &[Vertex], edges: &[Edge], params: &ModelParams, viewpoint
         return Vec::new();
     }
     let tol = plane_tolerance(vertices, params);
-    let merged = merge_close(vertices, edges, 2.0 * tol);
+    let merged = merge_close(vertices, edges, tol);
     let edges = &merged[..];
     let incident = incident_edges(vertices.len(), edges);
     let planes = plane_hypotheses(vertices, edges, &incident, params, tol);
@@ -116,18 +116,19 @@ pub fn find(vertices: &[Vertex], edges: &[Edge], params: &ModelParams, viewpoint
         }
     }
     if viewpoint.is_some() {
-        recessed_openings(vertices, &incident, edges, &mut faces, 2.0 * tol);
+        recessed_openings(vertices, &incident, edges, &mut faces);
     }
     nest_openings(vertices, &mut faces, params);
     faces
 }
 
-/// The edges with every vertex replaced by the first of the vertices within `reach` of it (single linkage), and
-/// the edges that then join a vertex to itself left out. Noise can leave two ends of one corner apart: a line
+/// The edges with every vertex replaced by the first of the vertices within twice the plane tolerance `tol` of it
+/// (single linkage), and the edges that then join a vertex to itself left out. Noise can leave two ends of one corner apart: a line
 /// end left free a few millimetres from the corner its line runs into, or a reveal's corner beside the outline's.
 /// Within twice the plane tolerance they cannot be told apart, and kept apart they break the face's cycle. The
 /// wire-frame keeps both vertices; only the faces see one.
-pub(crate) fn merge_close(vertices: &[Vertex], edges: &[Edge], reach: f64) -> Vec<Edge> {
+pub(crate) fn merge_close(vertices: &[Vertex], edges: &[Edge], tol: f64) -> Vec<Edge> {
+    let reach = 2.0 * tol;
     let grid = crate::grid::SegmentGrid::of_points(vertices.iter().map(|v| v.point), reach);
     let mut sets = Disjoint::new(vertices.len());
     for (v, vertex) in vertices.iter().enumerate() {
@@ -367,30 +368,22 @@ fn point_in_polygon(q: [f64; 2], poly: &[[f64; 2]]) -> bool {
 /// from it, and none running forward, is an opening in its own right: a hole with reveals, even where the wall's
 /// outline is not closed (a façade's foot or top edge is often hidden). Two corners, because a street-level
 /// camera sees only the reveals at an opening's top corners (from above, its bottom ones); the size keeps out the
-/// front of a sill, whose edges also run back to the wall. A reveal edge may start at a vertex of its own within
-/// `tol` (twice the plane tolerance) of the corner, where noise kept its junction from the corner. Needs outward normals, i.e. a viewpoint.
-fn recessed_openings(vertices: &[Vertex], incident: &[Vec<usize>], edges: &[Edge], faces: &mut [Face], tol: f64) {
+/// front of a sill, whose edges also run back to the wall.
+/// Needs outward normals, i.e. a viewpoint. The edges are those of the merged graph ([`merge_close`]), so a reveal
+/// whose junction noise kept a few millimetres from the corner counts at the corner.
+fn recessed_openings(vertices: &[Vertex], incident: &[Vec<usize>], edges: &[Edge], faces: &mut [Face]) {
     let cos = 20f64.to_radians().cos();
-    let grid = crate::grid::SegmentGrid::of_points(vertices.iter().map(|v| v.point), tol);
     for f in faces.iter_mut() {
-        if f.kind != SurfaceKind::Wall || smaller_side(vertices, f) < MIN_OPENING_M {
+        if f.kind != SurfaceKind::Wall || smaller_side(vertices, &f.ring, f.normal) < MIN_OPENING_M {
             continue;
         }
         let (mut back, mut forward) = (0, 0);
         for &v in &f.ring {
-            let p = vertices[v].point;
-            let near: Vec<usize> = grid
-                .near_point(&p, tol)
-                .into_iter()
-                .filter(|&w| (vertices[w].point - p).norm() <= tol)
-                .collect();
             let goes = |sign: f64| {
-                near.iter().any(|&w| {
-                    incident[w].iter().any(|&e| {
-                        let other = if edges[e].a == w { edges[e].b } else { edges[e].a };
-                        let d = (vertices[other].point - vertices[w].point).normalize();
-                        sign * d.dot(&f.normal) > cos
-                    })
+                incident[v].iter().any(|&e| {
+                    let other = if edges[e].a == v { edges[e].b } else { edges[e].a };
+                    let d = (vertices[other].point - vertices[v].point).normalize();
+                    sign * d.dot(&f.normal) > cos
                 })
             };
             back += usize::from(goes(-1.0));
@@ -405,11 +398,11 @@ fn recessed_openings(vertices: &[Vertex], incident: &[Vec<usize>], edges: &[Edge
 /// The smallest opening found by its reveals alone, metres (a cellar window; a sill's front is 6 cm tall).
 const MIN_OPENING_M: f64 = 0.25;
 
-/// The smaller side of a face's bounding rectangle in its plane.
-fn smaller_side(vertices: &[Vertex], f: &Face) -> f64 {
-    let (u, v) = plane_basis(f.normal);
+/// The smaller side of the bounding rectangle of the vertices `points` in the plane of `normal`.
+pub(crate) fn smaller_side(vertices: &[Vertex], points: &[usize], normal: Vec3) -> f64 {
+    let (u, v) = plane_basis(normal);
     let span = |axis: &Vec3| {
-        let t = f.ring.iter().map(|&k| vertices[k].point.dot(axis));
+        let t = points.iter().map(|&k| vertices[k].point.dot(axis));
         t.clone().fold(f64::NEG_INFINITY, f64::max) - t.fold(f64::INFINITY, f64::min)
     };
     span(&u).min(span(&v))

@@ -34,7 +34,7 @@ use std::collections::{BTreeMap, BinaryHeap};
 use lineflow_photogrammetry::Vec3;
 
 use crate::disjoint::Disjoint;
-use crate::faces::{incident_edges, merge_close, plane_basis, plane_hypotheses, plane_tolerance, Plane};
+use crate::faces::{incident_edges, merge_close, plane_basis, plane_hypotheses, plane_tolerance, smaller_side, Plane};
 use crate::{Edge, ModelParams, Vertex};
 
 /// Closes the open chains that an occluder in front of them explains; appends the new vertices (no σ) and edges
@@ -47,7 +47,7 @@ pub fn complete(vertices: &mut Vec<Vertex>, edges: &mut Vec<Edge>, params: &Mode
     let tol = plane_tolerance(vertices, params);
     // The wire-frame as the faces will see it (corners split by noise made one), so that a chain is open here
     // exactly when its face would be.
-    let mut graph = merge_close(vertices, edges, 2.0 * tol);
+    let mut graph = merge_close(vertices, edges, tol);
     let incident = incident_edges(vertices.len(), &graph);
     let planes = plane_hypotheses(vertices, &graph, &incident, params, tol);
     let mut closed = 0;
@@ -304,21 +304,11 @@ fn open_chains(vertices: &[Vertex], edges: &[Edge], view: &PlaneView) -> Vec<Cha
         if bent {
             out.push(Chain {
                 ends: [(leaves[0], adj[&leaves[0]][0]), (leaves[1], adj[&leaves[1]][0])],
-                extent: extent(vertices, &component, &view.plane),
+                extent: smaller_side(vertices, &component, view.plane.normal),
             });
         }
     }
     out
-}
-
-/// The smaller side of the bounding rectangle of `points` in the plane.
-fn extent(vertices: &[Vertex], points: &[usize], plane: &Plane) -> f64 {
-    let (u, v) = plane_basis(plane.normal);
-    let span = |axis: &Vec3| {
-        let t = points.iter().map(|&k| vertices[k].point.dot(axis));
-        t.clone().fold(f64::NEG_INFINITY, f64::max) - t.fold(f64::INFINITY, f64::min)
-    };
-    span(&u).min(span(&v))
 }
 
 /// Where a free end's line, extended up to `reach` either way, first crosses an occluder edge's projection: the
