@@ -44,11 +44,18 @@ pub enum Mode {
     /// The whole segment along the other side.
     #[serde(rename = "linear-R")]
     LinearR,
+    /// A thin strip along the whole segment, just off it on the linear-L side: the surface that meets the edge
+    /// there and nothing beyond (a 6 cm sill's front face, not the wall around it).
+    #[serde(rename = "strip-L")]
+    StripL,
+    /// The same on the linear-R side.
+    #[serde(rename = "strip-R")]
+    StripR,
 }
 
 impl Mode {
     /// Every mode.
-    pub const ALL: [Mode; 8] = [
+    pub const ALL: [Mode; 10] = [
         Mode::C,
         Mode::L,
         Mode::R,
@@ -57,11 +64,18 @@ impl Mode {
         Mode::LinearC,
         Mode::LinearL,
         Mode::LinearR,
+        Mode::StripL,
+        Mode::StripR,
     ];
 
     /// Whether the window spans the whole segment.
     pub fn is_linear(self) -> bool {
-        matches!(self, Mode::LinearC | Mode::LinearL | Mode::LinearR)
+        matches!(self, Mode::LinearC | Mode::LinearL | Mode::LinearR | Mode::StripL | Mode::StripR)
+    }
+
+    /// Whether the window is one of the thin strips beside the segment.
+    pub fn is_strip(self) -> bool {
+        matches!(self, Mode::StripL | Mode::StripR)
     }
 
     /// The window's inclusive lattice ranges (cols, rows) around the target (c, r) for half-size `h`; for linear
@@ -77,6 +91,9 @@ impl Mode {
             Mode::R => ((c - 2 * h, c + o), (r - h, r + h)),
             Mode::U | Mode::LinearR => ((c - h, c + h), (r - 2 * h, r + o)),
             Mode::B | Mode::LinearL => ((c - h, c + h), (r - o, r + 2 * h)),
+            // One cell off the edge, whose blur belongs to both sides.
+            Mode::StripL => ((c - h, c + h), (r + 1, r + o)),
+            Mode::StripR => ((c - h, c + h), (r - o, r - 1)),
         }
     }
 
@@ -91,6 +108,8 @@ impl Mode {
             Mode::LinearC => "linear-C",
             Mode::LinearL => "linear-L",
             Mode::LinearR => "linear-R",
+            Mode::StripL => "strip-L",
+            Mode::StripR => "strip-R",
         }
     }
 
@@ -135,6 +154,16 @@ pub struct MatchParams {
     /// Each point takes the front-most window peak within this much SNCC of the best (edges at depth steps belong
     /// to the nearer surface); a negative value takes the best SNCC over all modes, as the thesis does.
     pub front_margin: f64,
+    /// How far in front of the best peak, metres, the front-most window may lie.
+    pub front_reach_m: f64,
+    /// How far in front of the best peak, in pixels of parallax at the longest baseline, a window must lie to count
+    /// as another surface: nearer peaks are the same surface seen through a broad correlation curve (a short
+    /// baseline), and taking the front-most of them would only bias the depth forward.
+    pub front_min_px: f64,
+    /// The same as a distance, metres: the larger of the two applies.
+    pub front_min_m: f64,
+    /// Where that step is larger than this, metres (short baselines), the best SNCC over the windows applies.
+    pub front_max_step_m: f64,
     /// A line whose depth changes by less than this from end to end is taken as parallel to its wall and its
     /// points share one depth, metres (0 keeps every point's own depth, as the thesis does).
     pub parallel_snap_m: f64,
@@ -181,7 +210,11 @@ impl Default for MatchParams {
             max_candidates: 2,
             min_sncc: 0.6,
             max_ambiguity: 0.95,
-            front_margin: -1.0,
+            front_margin: 0.05,
+            front_reach_m: 0.4,
+            front_min_px: 1.5,
+            front_min_m: 0.03,
+            front_max_step_m: 0.05,
             parallel_snap_m: 0.03,
             max_slaves: 6,
             master_every: 1,

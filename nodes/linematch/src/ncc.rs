@@ -179,6 +179,10 @@ pub fn build_cross(width: usize, height: usize, bands: &Bands, scratch: &mut Ban
 /// thesis's zero-variance case), and its correlation is noise.
 pub const MIN_VARIANCE: f64 = 1.0;
 
+/// The same for the thin strips, whose few rows on a near-uniform surface (a painted frame, glass) correlate best
+/// with whatever structure the edge's blur or the sensor noise leaves: 3 grey levels of standard deviation.
+pub const STRIP_MIN_VARIANCE: f64 = 9.0;
+
 /// The master's side of one window: its band and columns, sample count, sum and variance (times `n`).
 #[derive(Debug, Clone, Copy)]
 pub struct MasterWindow {
@@ -192,14 +196,14 @@ pub struct MasterWindow {
 /// The master's window of band `band` and columns `cols` when it is complete and carries texture (the thesis's
 /// zero-variance case is `None`): computed once per window, shared by every slave's NCC.
 #[inline]
-pub fn master_window(master: &PatchSums, band: usize, cols: (usize, usize), rows: usize) -> Option<MasterWindow> {
+pub fn master_window(master: &PatchSums, band: usize, cols: (usize, usize), rows: usize, min_variance: f64) -> Option<MasterWindow> {
     let n = ((cols.1 - cols.0 + 1) * rows) as f64;
     if master.valid.sum(band, cols) < n - 0.5 {
         return None;
     }
     let sum = master.sum.sum(band, cols);
     let variance_n = master.sq.sum(band, cols) - sum * sum / n;
-    (variance_n >= MIN_VARIANCE * n).then_some(MasterWindow {
+    (variance_n >= min_variance * n).then_some(MasterWindow {
         band,
         cols,
         n,
@@ -290,7 +294,7 @@ mod tests {
                     .collect()
             };
             let expected = direct(&pick(&m), &pick(&s));
-            let window = master_window(&t.m, band, cols, t.bands.rows(band)).expect("textured");
+            let window = master_window(&t.m, band, cols, t.bands.rows(band), MIN_VARIANCE).expect("textured");
             let got = ncc(&window, &t.s, &t.cross).unwrap();
             assert!((got - expected).abs() < 1e-9, "band {rows:?}: {got} vs {expected}");
         }
@@ -304,8 +308,8 @@ mod tests {
         s[12] = f32::NAN;
         let t = tables(w, h, &[(0, 4), (0, 1)], &m, &s);
         let (whole, top) = (
-            master_window(&t.m, 0, (0, 4), 5).unwrap(),
-            master_window(&t.m, 1, (0, 4), 2).unwrap(),
+            master_window(&t.m, 0, (0, 4), 5, MIN_VARIANCE).unwrap(),
+            master_window(&t.m, 1, (0, 4), 2, MIN_VARIANCE).unwrap(),
         );
         assert_eq!(ncc(&whole, &t.s, &t.cross), None);
         assert!(ncc(&top, &t.s, &t.cross).unwrap() > 0.999);
@@ -313,6 +317,6 @@ mod tests {
         assert_eq!(ncc(&whole, &t.s, &t.cross), Some(0.0));
         // A flat master window carries nothing to correlate.
         let flat = tables(w, h, &[(0, 4)], &[7.0f32; 25], &m);
-        assert!(master_window(&flat.m, 0, (0, 4), 5).is_none());
+        assert!(master_window(&flat.m, 0, (0, 4), 5, MIN_VARIANCE).is_none());
     }
 }

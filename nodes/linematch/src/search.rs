@@ -5,7 +5,7 @@
 //! lattice at every fine depth near the coarse peaks.
 use lineflow_photogrammetry::Vec3;
 
-use crate::ncc::{build_cross, master_window, ncc, BandScratch, BandSums, Bands, PatchSums};
+use crate::ncc::{build_cross, master_window, ncc, BandScratch, BandSums, Bands, PatchSums, MIN_VARIANCE, STRIP_MIN_VARIANCE};
 use crate::slave_lines::{refine_depths, SlaveSegments};
 use crate::view::View;
 use crate::wall::{wall_of_ray, WallPlane};
@@ -177,8 +177,21 @@ pub fn match_segment(master: &View, slaves: &[View], walls: &[WallPlane], seg: &
     let (cell, depth_step) = (p.cell_m * scale, p.depth_step_m * scale);
     let n_depths = (p.depth_range_m / depth_step).floor() as i32;
     let depth = |i: i32| i as f64 * depth_step;
+    // Another surface in front has to lie a resolvable depth away: `front_min_px` pixels of parallax at the longest
+    // baseline, at least `front_min_m` (3 cm on the D2X strip). Where that step is coarser than `front_max_step_m`
+    // (7–12 cm on the A55's short baselines) the correlation curves are too broad to tell a step in depth from the
+    // same surface, and the thesis's choice applies.
+    let baseline = seen.iter().map(|s| (s.pose.center - center).norm()).fold(0.0, f64::max);
+    let front_min = (p.front_min_px * gsd * (mid0 - center).norm() / baseline.max(1e-9)).max(p.front_min_m);
+    let front_margin = if front_min <= p.front_max_step_m { p.front_margin } else { -1.0 };
     let singles: Vec<Mode> = p.modes.iter().copied().filter(|m| !m.is_linear()).collect();
-    let linears: Vec<Mode> = p.modes.iter().copied().filter(|m| m.is_linear()).collect();
+    // The strips serve only the front-most choice; the thesis's best-over-all-modes has no use for them.
+    let linears: Vec<Mode> = p
+        .modes
+        .iter()
+        .copied()
+        .filter(|m| m.is_linear() && !(m.is_strip() && front_margin < 0.0))
+        .collect();
     let mut scratch = Scratch::default();
     let views: Vec<&View> = std::iter::once(master).chain(seen.iter().copied()).collect();
     let cf = p.coarse_factor.max(1) as i32;
@@ -197,8 +210,8 @@ pub fn match_segment(master: &View, slaves: &[View], walls: &[WallPlane], seg: &
         Some(v) => v.1 += weight,
         None => votes.push((i, weight)),
     };
-    for m in 0..linears.len() {
-        if let Some((j, _)) = argmax(curve_linear(&coarse, m)) {
+    for (m, mode) in linears.iter().enumerate() {
+        if let Some((j, _)) = argmax(curve_linear(&coarse, m)).filter(|_| !mode.is_strip()) {
             vote(coarse_idx[j], n_pts.max(1));
         }
     }
@@ -213,11 +226,28 @@ pub fn match_segment(master: &View, slaves: &[View], walls: &[WallPlane], seg: &
     votes.sort_by(|a, b| b.1.cmp(&a.1).then(a.0.abs().cmp(&b.0.abs())).then(a.0.cmp(&b.0)));
     // Further candidates only when a real share of the points backs them: most lines have one depth.
     let top = votes.first().map_or(0, |v| v.1);
-    let mut fine_idx: Vec<i32> = votes
+    let mut candidates: Vec<i32> = votes
         .iter()
         .take(p.max_candidates.max(1))
         .filter(|v| 4 * v.1 >= top)
-        .flat_map(|&(c, _)| (c - 1..=c + 1).filter(|i| i.abs() <= n_depths))
+        .map(|v| v.0)
+        .collect();
+    // A strip's own peak is searched too when it lies in front of the leading depth, within reach: the strips
+    // only ever pull points forward (`choose_peak`), and would crowd out the windows' depths as candidates.
+    if let Some(&lead) = candidates.first() {
+        let reach = (p.front_reach_m / depth_step).ceil() as i32 + cf;
+        for (m, mode) in linears.iter().enumerate() {
+            if let Some((j, _)) = argmax(curve_linear(&coarse, m)).filter(|_| mode.is_strip()) {
+                let c = coarse_idx[j];
+                if c > lead && c <= lead + reach {
+                    candidates.push(c);
+                }
+            }
+        }
+    }
+    let mut fine_idx: Vec<i32> = candidates
+        .iter()
+        .flat_map(|&c| (c - 1..=c + 1).filter(|i| i.abs() <= n_depths))
         .collect();
     fine_idx.sort_unstable();
     fine_idx.dedup();
@@ -241,7 +271,7 @@ pub fn match_segment(master: &View, slaves: &[View], walls: &[WallPlane], seg: &
         fine_idx.insert(at, i);
     }
 
-    // Each point takes the best window over its own single-point curves and the line's linear curves.
+    // Each point chooses among its own single-point curves and the line's linear curves (`choose_peak`).
     let linear_best: Vec<Option<Peak>> = (0..linears.len())
         .map(|m| {
             peak(
@@ -264,7 +294,7 @@ pub fn match_segment(master: &View, slaves: &[View], walls: &[WallPlane], seg: &
             peaks.extend(peak(&fine_idx, &f, &coarse_idx, &c, cf, n_depths, p).map(|pk| (pk, mode)));
         }
         peaks.extend(linears.iter().zip(&linear_best).filter_map(|(&mode, pk)| pk.map(|pk| (pk, mode))));
-        let best = choose_peak(&peaks, p.front_margin);
+        let best = choose_peak(&peaks, front_margin, (front_min / depth_step, p.front_reach_m / depth_step));
         let Some((pk, mode)) = best else { continue };
         if !pk.accepted {
             continue;
@@ -364,20 +394,25 @@ fn curve_linear(scores: &[DepthScores], m: usize) -> impl Iterator<Item = f64> +
 }
 
 /// The window a point takes: with `front_margin` < 0 the best SNCC over all modes (the thesis); otherwise the
-/// front-most accepted peak within `front_margin` of the best accepted one. An image edge at a depth step belongs
-/// to the nearer surface, while the window with the highest correlation is often the one on the other side, where
-/// more texture lies (the interior of a window opening behind a sill or an outline edge).
-fn choose_peak(peaks: &[(Peak, Mode)], front_margin: f64) -> Option<(Peak, Mode)> {
+/// front-most accepted peak within `front_margin` of the best accepted one and between `front.0` and `front.1` depth
+/// steps in front of it, or the best when there is none. An image edge at a depth step belongs to the nearer
+/// surface, while the window with the highest correlation is often the one on the other side, where more texture
+/// lies (the interior of a window opening behind a sill or an outline edge). The thin strips only ever pull a point
+/// forward: on their own, along a brick course, their few rows correlate as well at a wrong depth as at the right
+/// one.
+fn choose_peak(peaks: &[(Peak, Mode)], front_margin: f64, front: (f64, f64)) -> Option<(Peak, Mode)> {
     let by_value = |a: &&(Peak, Mode), b: &&(Peak, Mode)| a.0.value.total_cmp(&b.0.value);
+    let windows = peaks.iter().filter(|(_, m)| !m.is_strip());
     if front_margin < 0.0 {
-        return peaks.iter().max_by(by_value).copied();
+        return windows.max_by(by_value).copied();
     }
-    let best = peaks.iter().filter(|(pk, _)| pk.accepted).max_by(by_value)?.0.value;
-    peaks
+    let best = *windows.filter(|(pk, _)| pk.accepted).max_by(by_value)?;
+    let (lo, hi) = (best.0.index + front.0, best.0.index + front.1);
+    let in_front = peaks
         .iter()
-        .filter(|(pk, _)| pk.accepted && pk.value >= best - front_margin)
-        .max_by(|a, b| a.0.index.total_cmp(&b.0.index).then(a.0.value.total_cmp(&b.0.value)))
-        .copied()
+        .filter(|(pk, _)| pk.accepted && pk.value >= best.0.value - front_margin && pk.index >= lo && pk.index <= hi)
+        .max_by(|a, b| a.0.index.total_cmp(&b.0.index).then(a.0.value.total_cmp(&b.0.value)));
+    Some(*in_front.unwrap_or(&best))
 }
 
 /// The best depth of one curve.
@@ -498,7 +533,9 @@ fn score_depth(
     let (first, last) = (0.min(end_col), 0.max(end_col));
     for m in linears {
         let (_, rows) = m.window(0, 0, h);
-        s.windows.push(window((first - h, last + h), rows, &mut s.bands));
+        // A strip keeps to the segment: past its ends lie the corners, whose structure would anchor any depth.
+        let cols = if m.is_strip() { (first, last) } else { (first - h, last + h) };
+        s.windows.push(window(cols, rows, &mut s.bands));
     }
     s.bands.seal();
     let (along, across) = (line.along * cell, line.across * cell);
@@ -520,9 +557,9 @@ fn score_depth(
             &mut s.cross[v],
         );
     }
-    let sncc = |w: Window| -> f64 {
+    let sncc = |w: Window, min_variance: f64| -> f64 {
         let Some((band, cols)) = w else { return f64::NAN };
-        let Some(master) = master_window(&s.sums[0], band, cols, s.bands.rows(band)) else {
+        let Some(master) = master_window(&s.sums[0], band, cols, s.bands.rows(band), min_variance) else {
             return f64::NAN;
         };
         let (mut total, mut count) = (0.0, 0usize);
@@ -539,8 +576,12 @@ fn score_depth(
         }
     };
     let n_single = singles.len();
-    let point = s.windows[..spots.len() * n_single].iter().map(|&w| sncc(w)).collect();
-    let linear = s.windows[spots.len() * n_single..].iter().map(|&w| sncc(w)).collect();
+    let point = s.windows[..spots.len() * n_single].iter().map(|&w| sncc(w, MIN_VARIANCE)).collect();
+    let linear = s.windows[spots.len() * n_single..]
+        .iter()
+        .zip(linears)
+        .map(|(&w, m)| sncc(w, if m.is_strip() { STRIP_MIN_VARIANCE } else { MIN_VARIANCE }))
+        .collect();
     DepthScores {
         point,
         modes: n_single,
@@ -588,6 +629,46 @@ mod tests {
             across: Vec3::x(),
         };
         snap_parallel(pts, &line, 0.01, 0.03, 0.15)
+    }
+
+    fn pk(index: f64, value: f64) -> Peak {
+        Peak {
+            index,
+            value,
+            accepted: true,
+        }
+    }
+
+    #[test]
+    fn the_thesis_takes_the_best_window_and_ignores_the_strips() {
+        let peaks = [(pk(0.0, 0.95), Mode::C), (pk(6.0, 0.97), Mode::B), (pk(9.0, 0.99), Mode::StripL)];
+        let (best, mode) = choose_peak(&peaks, -1.0, (3.0, 10.0)).unwrap();
+        assert_eq!((best.index, mode), (6.0, Mode::B));
+    }
+
+    #[test]
+    fn the_front_most_peak_within_margin_and_reach_wins() {
+        // The wall around a 6 cm sill correlates best; the strip on the sill's face peaks 6 steps in front.
+        let peaks = [(pk(0.0, 0.99), Mode::C), (pk(6.0, 0.96), Mode::StripL)];
+        assert_eq!(choose_peak(&peaks, 0.05, (3.0, 10.0)).unwrap().1, Mode::StripL);
+        // Out of reach, too near to be another surface, or too weak: the best window stays.
+        assert_eq!(choose_peak(&peaks, 0.05, (3.0, 5.0)).unwrap().1, Mode::C);
+        assert_eq!(choose_peak(&peaks, 0.05, (7.0, 10.0)).unwrap().1, Mode::C);
+        assert_eq!(choose_peak(&peaks, 0.02, (3.0, 10.0)).unwrap().1, Mode::C);
+        // A strip never pushes a point back, and never decides alone.
+        let behind = [(pk(0.0, 0.99), Mode::C), (pk(-6.0, 0.99), Mode::StripL)];
+        assert_eq!(choose_peak(&behind, 0.05, (3.0, 10.0)).unwrap().1, Mode::C);
+        let alone = [
+            (
+                Peak {
+                    accepted: false,
+                    ..pk(0.0, 0.5)
+                },
+                Mode::C,
+            ),
+            (pk(6.0, 0.99), Mode::StripL),
+        ];
+        assert!(choose_peak(&alone, 0.05, (3.0, 10.0)).is_none());
     }
 
     #[test]
