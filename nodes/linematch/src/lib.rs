@@ -152,7 +152,8 @@ pub struct MatchParams {
     /// lines along the epipolar direction). 1 or more disables the test.
     pub max_ambiguity: f64,
     /// Each point takes the front-most window peak within this much SNCC of the best (edges at depth steps belong
-    /// to the nearer surface); a negative value takes the best SNCC over all modes, as the thesis does.
+    /// to the nearer surface), within the steps below; a negative value takes the best SNCC over all modes, as the
+    /// thesis does, and computes no strips.
     pub front_margin: f64,
     /// How far in front of the best peak, metres, the front-most window may lie.
     pub front_reach_m: f64,
@@ -269,6 +270,14 @@ impl MatchParams {
         if self.depth_step_m > self.depth_range_m {
             return Err("depth_step_m must not exceed depth_range_m".into());
         }
+        let front = [self.front_min_px, self.front_min_m, self.front_max_step_m, self.front_reach_m];
+        if self.front_margin.is_nan() || !front.iter().all(|v| v.is_finite() && *v >= 0.0) || self.front_min_m > self.front_reach_m {
+            return Err(format!(
+                "front_margin must be a number, front_min_px, front_min_m, front_max_step_m and front_reach_m >= 0, and \
+                 front_min_m <= front_reach_m (got {}, {front:?})",
+                self.front_margin
+            ));
+        }
         Ok(())
     }
 }
@@ -350,7 +359,15 @@ mod tests {
             max_slaves: 0,
             ..MatchParams::default()
         };
-        for (params, name) in [(no_masters, "master_every"), (no_slaves, "max_slaves")] {
+        let front_behind = MatchParams {
+            front_reach_m: -0.1,
+            ..MatchParams::default()
+        };
+        for (params, name) in [
+            (no_masters, "master_every"),
+            (no_slaves, "max_slaves"),
+            (front_behind, "front_reach_m"),
+        ] {
             let e = params.validate().unwrap_err();
             assert!(e.contains(name), "{e}");
         }
