@@ -196,7 +196,7 @@ fn sill_fronts_are_matched_on_the_sill_not_on_the_wall_behind() {
         .map(|e| e.edge)
         .collect();
     // The top and bottom edges of the sills' front faces.
-    let sill_tops: Vec<Edge> = seen
+    let sill_fronts: Vec<Edge> = seen
         .iter()
         .filter(|e| e.kind == "sill" && (e.a[1] + 0.06).abs() < 1e-6)
         .cloned()
@@ -205,9 +205,9 @@ fn sill_fronts_are_matched_on_the_sill_not_on_the_wall_behind() {
     // coincide in the image, the thesis's choice takes the frame's and the front-most the outline's.
     let openings: Vec<Edge> = seen.iter().filter(|e| e.kind == "opening").cloned().collect();
     assert!(
-        sill_tops.len() >= 40 && openings.len() >= 100,
+        sill_fronts.len() >= 40 && openings.len() >= 100,
         "{} sills, {} opening edges",
-        sill_tops.len(),
+        sill_fronts.len(),
         openings.len()
     );
     // Median distance of each matched edge's points from the true edge, metres.
@@ -233,16 +233,16 @@ fn sill_fronts_are_matched_on_the_sill_not_on_the_wall_behind() {
         front_margin: -1.0,
         ..MatchParams::default()
     };
-    let (ours, theirs) = (placed(&sill_tops, &MatchParams::default()), placed(&sill_tops, &thesis));
+    let (ours, theirs) = (placed(&sill_fronts, &MatchParams::default()), placed(&sill_fronts, &thesis));
     eprintln!(
         "sill fronts on the edge: {} of {} (thesis's choice: {} of {})",
         on_edge(&ours),
-        sill_tops.len(),
+        sill_fronts.len(),
         on_edge(&theirs),
-        sill_tops.len()
+        sill_fronts.len()
     );
-    assert!(on_edge(&ours) * 2 >= sill_tops.len(), "{ours:?}");
-    assert!(on_edge(&theirs) * 10 <= sill_tops.len(), "{theirs:?}");
+    assert!(on_edge(&ours) * 2 >= sill_fronts.len(), "{ours:?}");
+    assert!(on_edge(&theirs) * 10 <= sill_fronts.len(), "{theirs:?}");
     let (ours, theirs) = (placed(&openings, &MatchParams::default()), placed(&openings, &thesis));
     eprintln!(
         "opening edges on the edge: {} (thesis's choice: {}) of {}",
