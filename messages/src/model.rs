@@ -62,3 +62,10 @@ pub struct FaceVertex {
     /// Vertex index into the wire-frame.
     pub vertex: u32,
 }
+
+impl FaceVertex {
+    /// `kind` of a window face.
+    pub const KIND_WINDOW: u32 = 4;
+    /// `kind` of a door face.
+    pub const KIND_DOOR: u32 = 5;
+}

@@ -174,18 +174,16 @@ fn body() -> Result<()> {
 
 /// The window and door faces (outer rings) of a `ModelFaces` message over its wire-frame's vertices.
 fn openings(vertices: &[Vec3], faces: &[FaceVertex]) -> Vec<ModelOpening> {
-    // Surface kind codes of `FaceVertex.kind` (messages/src/model.rs).
-    const WINDOW: u32 = 4;
-    const DOOR: u32 = 5;
+    let (window, door) = (FaceVertex::KIND_WINDOW, FaceVertex::KIND_DOOR);
     let mut out: Vec<(u32, ModelOpening)> = Vec::new();
-    for f in faces.iter().filter(|f| f.ring == 0 && (f.kind == WINDOW || f.kind == DOOR)) {
+    for f in faces.iter().filter(|f| f.ring == 0 && (f.kind == window || f.kind == door)) {
         let Some(&p) = vertices.get(f.vertex as usize) else { continue };
         match out.last_mut() {
             Some((face, o)) if *face == f.face => o.ring.push(p),
             _ => out.push((
                 f.face,
                 ModelOpening {
-                    door: f.kind == DOOR,
+                    door: f.kind == door,
                     ring: vec![p],
                 },
             )),

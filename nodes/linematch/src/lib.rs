@@ -97,25 +97,24 @@ impl Mode {
         }
     }
 
-    /// Short name ("C", "linear-L", ...).
-    pub fn name(self) -> &'static str {
-        match self {
-            Mode::C => "C",
-            Mode::L => "L",
-            Mode::R => "R",
-            Mode::U => "U",
-            Mode::B => "B",
-            Mode::LinearC => "linear-C",
-            Mode::LinearL => "linear-L",
-            Mode::LinearR => "linear-R",
-            Mode::StripL => "strip-L",
-            Mode::StripR => "strip-R",
+    /// The columns of a linear window along a segment spanning lattice columns `first..=last`: the segment and a
+    /// half-window past each end, except for a strip, which keeps to the segment (past its ends lie the corners,
+    /// whose structure would anchor any depth).
+    pub fn linear_cols(self, first: i32, last: i32, h: i32) -> (i32, i32) {
+        if self.is_strip() {
+            (first, last)
+        } else {
+            (first - h, last + h)
         }
     }
 
-    /// The mode's code in `Point3.mode` (its index in [`Mode::ALL`]).
-    pub fn code(self) -> u32 {
-        Mode::ALL.iter().position(|&m| m == self).unwrap_or(0) as u32
+    /// The smallest master variance per sample (grey levels²) at which the window carries information.
+    pub fn min_variance(self) -> f64 {
+        if self.is_strip() {
+            ncc::STRIP_MIN_VARIANCE
+        } else {
+            ncc::MIN_VARIANCE
+        }
     }
 }
 

@@ -5,7 +5,7 @@
 //! lattice at every fine depth near the coarse peaks.
 use lineflow_photogrammetry::Vec3;
 
-use crate::ncc::{build_cross, master_window, ncc, BandScratch, BandSums, Bands, PatchSums, MIN_VARIANCE, STRIP_MIN_VARIANCE};
+use crate::ncc::{build_cross, master_window, ncc, BandScratch, BandSums, Bands, PatchSums, MIN_VARIANCE};
 use crate::slave_lines::{refine_depths, SlaveSegments};
 use crate::view::View;
 use crate::wall::{wall_of_ray, WallPlane};
@@ -210,9 +210,16 @@ pub fn match_segment(master: &View, slaves: &[View], walls: &[WallPlane], seg: &
         Some(v) => v.1 += weight,
         None => votes.push((i, weight)),
     };
+    // The strips do not vote: they only ever pull points forward (`choose_peak`), and would crowd out the windows'
+    // depths as candidates. Their own coarse peaks are searched below when they lie in front.
+    let mut strip_peaks: Vec<i32> = Vec::new();
     for (m, mode) in linears.iter().enumerate() {
-        if let Some((j, _)) = argmax(curve_linear(&coarse, m)).filter(|_| !mode.is_strip()) {
-            vote(coarse_idx[j], n_pts.max(1));
+        if let Some((j, _)) = argmax(curve_linear(&coarse, m)) {
+            if mode.is_strip() {
+                strip_peaks.push(coarse_idx[j]);
+            } else {
+                vote(coarse_idx[j], n_pts.max(1));
+            }
         }
     }
     for k in 0..n_pts {
@@ -232,18 +239,9 @@ pub fn match_segment(master: &View, slaves: &[View], walls: &[WallPlane], seg: &
         .filter(|v| 4 * v.1 >= top)
         .map(|v| v.0)
         .collect();
-    // A strip's own peak is searched too when it lies in front of the leading depth, within reach: the strips
-    // only ever pull points forward (`choose_peak`), and would crowd out the windows' depths as candidates.
     if let Some(&lead) = candidates.first() {
         let reach = (p.front_reach_m / depth_step).ceil() as i32 + cf;
-        for (m, mode) in linears.iter().enumerate() {
-            if let Some((j, _)) = argmax(curve_linear(&coarse, m)).filter(|_| mode.is_strip()) {
-                let c = coarse_idx[j];
-                if c > lead && c <= lead + reach {
-                    candidates.push(c);
-                }
-            }
-        }
+        candidates.extend(strip_peaks.iter().filter(|&&c| c > lead && c <= lead + reach));
     }
     let mut fine_idx: Vec<i32> = candidates
         .iter()
@@ -533,9 +531,7 @@ fn score_depth(
     let (first, last) = (0.min(end_col), 0.max(end_col));
     for m in linears {
         let (_, rows) = m.window(0, 0, h);
-        // A strip keeps to the segment: past its ends lie the corners, whose structure would anchor any depth.
-        let cols = if m.is_strip() { (first, last) } else { (first - h, last + h) };
-        s.windows.push(window(cols, rows, &mut s.bands));
+        s.windows.push(window(m.linear_cols(first, last, h), rows, &mut s.bands));
     }
     s.bands.seal();
     let (along, across) = (line.along * cell, line.across * cell);
@@ -580,7 +576,7 @@ fn score_depth(
     let linear = s.windows[spots.len() * n_single..]
         .iter()
         .zip(linears)
-        .map(|(&w, m)| sncc(w, if m.is_strip() { STRIP_MIN_VARIANCE } else { MIN_VARIANCE }))
+        .map(|(&w, m)| sncc(w, m.min_variance()))
         .collect();
     DepthScores {
         point,

@@ -487,3 +487,19 @@ fn nest_openings(vertices: &[Vertex], faces: &mut [Face], params: &ModelParams) 
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use lineflow_messages::FaceVertex;
+
+    #[test]
+    fn kind_codes_follow_the_message_contract() {
+        assert_eq!(SurfaceKind::Window.code(), FaceVertex::KIND_WINDOW);
+        assert_eq!(SurfaceKind::Door.code(), FaceVertex::KIND_DOOR);
+        for k in SurfaceKind::ALL {
+            assert_eq!(SurfaceKind::from_code(k.code()), Some(k));
+        }
+        assert_eq!(SurfaceKind::from_code(6), None);
+    }
+}
