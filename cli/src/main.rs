@@ -340,9 +340,11 @@ fn eval(results: &std::path::Path, gt: &std::path::Path, out: Option<PathBuf>) -
     if let Some(l) = &evaluation.lines3d {
         let all = &l.classes[0];
         println!(
-            "3-D lines: {} estimated, success rate {:.1} %",
+            "3-D lines: {} estimated, success rate {:.1} % ({:.1} % of the {} edges the images resolve)",
             all.n_estimated,
-            100.0 * all.success_rate
+            100.0 * all.success_rate,
+            100.0 * all.success_resolvable,
+            all.n_resolvable
         );
     }
     println!("report: {}", report.display());

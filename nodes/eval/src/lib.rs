@@ -7,6 +7,7 @@ pub mod model;
 pub mod orientation;
 mod plot;
 pub mod report;
+pub mod resolvable;
 
 use std::path::{Path, PathBuf};
 

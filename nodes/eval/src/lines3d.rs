@@ -2,10 +2,11 @@
 //! the success rate, and LIMAP-style precision and recall at several tolerances, against the true edges and
 //! against the true surfaces, for all, horizontal and vertical edges.
 use lineflow_formats::Line3Row;
-use lineflow_photogrammetry::Vec3;
+use lineflow_photogrammetry::{Pose, Vec3};
 use rayon::prelude::*;
 
 use crate::geometry::{bounds, classify, polygon_distance, Class, Grid, Seg};
+use crate::resolvable::resolvable;
 use crate::Truth;
 
 /// Samples per segment for the coverage metrics.
@@ -37,6 +38,10 @@ pub struct ClassScores {
     pub n_estimated: usize,
     /// Share of true edges of at least 0.5 m that are recovered (see `docs/eval.md`).
     pub success_rate: f64,
+    /// True edges of at least 0.5 m that the images resolve from their parallel neighbours ([`crate::resolvable`]).
+    pub n_resolvable: usize,
+    /// Share of those that are recovered.
+    pub success_resolvable: f64,
     pub at: Vec<AtTolerance>,
 }
 
@@ -66,7 +71,7 @@ pub fn tolerances(gsd_m: f64) -> Vec<(String, f64)> {
 }
 
 /// Segments indexed for distance queries up to `reach`.
-fn segment_grid(set: &[Seg], reach: f64, region: (Vec3, Vec3)) -> Grid {
+pub(crate) fn segment_grid(set: &[Seg], reach: f64, region: (Vec3, Vec3)) -> Grid {
     let mut grid = Grid::new(reach.max(0.25), region.0, region.1);
     for (i, s) in set.iter().enumerate() {
         let (lo, hi) = bounds([&s.a, &s.b]);
@@ -85,6 +90,8 @@ pub fn evaluate(truth: &Truth, rows: &[Line3Row]) -> Lines3dReport {
     let est: Vec<Seg> = rows.iter().map(|r| Seg::new(r.start, r.end)).collect();
     let gt: Vec<Seg> = truth.lines.iter().map(|r| Seg::new(r.start, r.end)).collect();
     let faces: Vec<Vec<Vec3>> = truth.scene.building.faces.iter().map(|f| f.corners()).collect();
+    let poses: Vec<Pose> = truth.poses.iter().map(|p| p.pose).collect();
+    let resolved = resolvable(truth.scene.camera(), &poses, &gt);
 
     // Match each estimate to the nearby, nearly parallel true edge its endpoints lie closest to.
     let match_reach = (5.0 * gsd).max(0.1);
@@ -204,16 +211,17 @@ pub fn evaluate(truth: &Truth, rows: &[Line3Row]) -> Lines3dReport {
             })
             .collect();
         let long: Vec<usize> = gi.iter().copied().filter(|&i| gt[i].length() >= 0.5).collect();
-        let recovered = long.iter().filter(|&&i| recovered(&gt[i], &est, &est_grid, reach, gsd)).count();
+        let found: Vec<bool> = long.iter().map(|&i| recovered(&gt[i], &est, &est_grid, reach, gsd)).collect();
+        let share = |n: usize, of: usize| if of == 0 { f64::NAN } else { n as f64 / of as f64 };
+        let n_resolvable = long.iter().filter(|&&i| resolved[i]).count();
+        let found_resolvable = long.iter().zip(&found).filter(|(&i, &f)| f && resolved[i]).count();
         ClassScores {
             class: name,
             n_true: gi.len(),
             n_estimated: ei.len(),
-            success_rate: if long.is_empty() {
-                f64::NAN
-            } else {
-                recovered as f64 / long.len() as f64
-            },
+            success_rate: share(found.iter().filter(|&&f| f).count(), long.len()),
+            n_resolvable,
+            success_resolvable: share(found_resolvable, n_resolvable),
             at,
         }
     })

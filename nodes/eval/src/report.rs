@@ -141,11 +141,15 @@ pub fn write(truth: &Truth, results: &Path, eval: &Evaluation, out: &Path) -> Re
             for c in &l.classes {
                 let _ = writeln!(
                     md,
-                    "### {} edges ({} true, {} estimated); success rate {}\n\n| τ | P_τ (segments) | precision (length) | recall (length) | precision vs surfaces |\n|---|---|---|---|---|",
+                    "### {} edges ({} true, {} estimated); success rate {}\n\nOver the {} edges of at least 0.5 m that at least {} images show {} px or more from every parallel true edge beside them: {}.\n\n| τ | P_τ (segments) | precision (length) | recall (length) | precision vs surfaces |\n|---|---|---|---|---|",
                     c.class,
                     c.n_true,
                     c.n_estimated,
-                    pct(c.success_rate)
+                    pct(c.success_rate),
+                    c.n_resolvable,
+                    crate::resolvable::RESOLVE_VIEWS,
+                    crate::resolvable::RESOLVE_PX,
+                    pct(c.success_resolvable)
                 );
                 for a in &c.at {
                     let _ = writeln!(

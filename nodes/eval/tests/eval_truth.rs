@@ -92,6 +92,11 @@ fn the_truth_scores_perfectly_and_known_shifts_score_as_expected() {
     assert!(l3.endpoint_m.iter().all(|d| *d < 1e-5));
     for c in &l3.classes {
         assert!((c.success_rate - 1.0).abs() < 1e-12, "{}: success {}", c.class, c.success_rate);
+        assert!(
+            c.n_resolvable > 0 && (c.success_resolvable - 1.0).abs() < 1e-12,
+            "{}: {c:?}",
+            c.class
+        );
         for a in &c.at {
             assert!(
                 a.segment_precision == 1.0 && a.length_recall > 0.999 && a.surface_precision > 0.999,
