@@ -459,7 +459,7 @@ pub fn build_with_images(lines: &[ModelLine], params: &ModelParams, viewpoint: O
         }
     }
     diagnostics.chains_completed = occlusion::complete(&mut vertices, &mut edges, params, viewpoint);
-    let faces = faces::find(&vertices, &edges, params, viewpoint);
+    let faces = faces::find(&mut vertices, &mut edges, params, viewpoint);
     Model {
         vertices,
         edges,
