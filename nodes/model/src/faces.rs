@@ -73,7 +73,7 @@ pub(crate) struct Plane {
 /// The faces of a wire-frame. `viewpoint` (e.g. the mean camera centre) decides which side is outside; without
 /// one the centroid of the vertices is taken as inside.
 ///
-/// Openings inferred from what is seen through them ([`openings_from_recesses`]) add their corners to `vertices` and their outline,
+/// Openings inferred from what is seen through them ([`crate::openings`]) add their corners to `vertices` and their outline,
 /// as completed edges, to `edges`.
 pub fn find(vertices: &mut Vec<Vertex>, edges_out: &mut Vec<Edge>, params: &ModelParams, viewpoint: Option<Vec3>) -> Vec<Face> {
     if vertices.is_empty() {
@@ -121,10 +121,10 @@ pub fn find(vertices: &mut Vec<Vertex>, edges_out: &mut Vec<Edge>, params: &Mode
     }
     if viewpoint.is_some() {
         recessed_openings(vertices, &incident, edges, &mut faces);
-        for inferred in openings_from_recesses(vertices, edges, &planes, &faces, tol, params, inside_ref) {
+        for inferred in crate::openings::infer(vertices, edges, &planes, &faces, tol, params, inside_ref) {
             match inferred {
-                Inferred::Mark(j) => faces[j].kind = SurfaceKind::Window,
-                Inferred::New(corners, normal) => {
+                crate::openings::Inferred::Mark(j) => faces[j].kind = SurfaceKind::Window,
+                crate::openings::Inferred::New(corners, normal) => {
                     let first = vertices.len();
                     vertices.extend(corners);
                     let ring: Vec<usize> = (first..vertices.len()).collect();
@@ -373,7 +373,7 @@ fn cycles(vertices: &[Vertex], edges: &[&Edge], normal: Vec3) -> Vec<Vec<usize>>
     out
 }
 
-fn signed_area(p: &[[f64; 2]]) -> f64 {
+pub(crate) fn signed_area(p: &[[f64; 2]]) -> f64 {
     let n = p.len();
     (0..n)
         .map(|i| p[i][0] * p[(i + 1) % n][1] - p[(i + 1) % n][0] * p[i][1])
@@ -381,7 +381,7 @@ fn signed_area(p: &[[f64; 2]]) -> f64 {
         / 2.0
 }
 
-fn point_in_polygon(q: [f64; 2], poly: &[[f64; 2]]) -> bool {
+pub(crate) fn point_in_polygon(q: [f64; 2], poly: &[[f64; 2]]) -> bool {
     let mut inside = false;
     let n = poly.len();
     for i in 0..n {
@@ -426,183 +426,6 @@ fn recessed_openings(vertices: &[Vertex], incident: &[Vec<usize>], edges: &[Edge
 
 /// The smallest opening found by its reveals alone, metres (a cellar window; a sill's front is 6 cm tall).
 const MIN_OPENING_M: f64 = 0.25;
-/// How far behind its wall a recessed face may lie to make an opening in it, metres: from a glazing bar's 4 cm (a
-/// pane inside its frame, not an opening in the wall) up to half a metre.
-const RECESS_M: (f64, f64) = (0.06, 0.5);
-/// The smallest opening inferred from a recessed face, metres: smaller, the panes of a frame would pass for
-/// openings wherever the frame itself did not close.
-const MIN_RECESSED_OPENING_M: f64 = 0.8;
-/// Edges a plane must carry to count as the wall an opening is cut into.
-const MIN_WALL_EDGES: usize = 8;
-
-/// What [`openings_from_recesses`] does to the faces.
-enum Inferred {
-    /// A face in the wall plane is the opening.
-    Mark(usize),
-    /// A new opening face on these new corners.
-    New(Vec<Vertex>, Vec3),
-}
-
-/// A vertical face at least [`MIN_RECESSED_OPENING_M`] across lying parallel to a wall and [`RECESS_M`] behind it
-/// (the plane of that orientation in front of it with the most edges, more than the face's own plane has) is what
-/// one sees through an opening: a
-/// window's frame, a door leaf, the back of a loggia. Where no opening lies in front of it, because the outline
-/// on the wall did not close on its own account or closed without reveals to show it is a hole (the sill hides
-/// an opening's foot from a street-level camera; the reveals run along the line of sight and are seldom matched),
-/// the wall has an opening there: the face of the wall plane around it of about its size, or else the recessed
-/// face's outline carried onto the wall plane (new corners with the recessed corners' σ). Reveals are taken as
-/// square to the wall, as they are on almost every façade. A recessed face inside a larger one (a pane inside its
-/// frame) adds nothing.
-fn openings_from_recesses(
-    vertices: &[Vertex],
-    edges: &[Edge],
-    planes: &[Plane],
-    faces: &[Face],
-    tol: f64,
-    params: &ModelParams,
-    viewpoint: Vec3,
-) -> Vec<Inferred> {
-    let cos_par = params.plane_angle_deg.to_radians().cos();
-    let centroid = |f: &Face| f.ring.iter().map(|&k| vertices[k].point).sum::<Vec3>() / f.ring.len() as f64;
-    let flat = |f: &Face, normal: Vec3| -> Vec<[f64; 2]> {
-        let (u, v) = plane_basis(normal);
-        f.ring
-            .iter()
-            .map(|&k| [vertices[k].point.dot(&u), vertices[k].point.dot(&v)])
-            .collect()
-    };
-    let support: Vec<usize> = planes
-        .iter()
-        .map(|p| {
-            let on = |v: usize| (p.normal.dot(&vertices[v].point) - p.offset).abs() < tol;
-            edges.iter().filter(|e| on(e.a) && on(e.b)).count()
-        })
-        .collect();
-    // Candidates, largest first: (face, wall plane, depth behind it).
-    let mut candidates: Vec<(usize, usize, f64)> = faces
-        .iter()
-        .enumerate()
-        .filter(|(_, f)| {
-            f.kind == SurfaceKind::Wall && f.normal.z.abs() < 0.2 && smaller_side(vertices, &f.ring, f.normal) >= MIN_RECESSED_OPENING_M
-        })
-        .filter_map(|(i, f)| {
-            let c = centroid(f);
-            // A face on the façade's main plane is not behind it, whatever lies in front (sills, cornices).
-            let own = planes
-                .iter()
-                .zip(&support)
-                .filter(|(p, _)| f.ring.iter().all(|&w| (p.normal.dot(&vertices[w].point) - p.offset).abs() < tol))
-                .map(|(_, &n)| n)
-                .max()
-                .unwrap_or(0);
-            planes
-                .iter()
-                .enumerate()
-                .filter_map(|(k, p)| {
-                    let along = p.normal.dot(&f.normal);
-                    // Distance of the face behind the plane, along the face's outward normal.
-                    let depth = (p.normal.dot(&c) - p.offset) / along;
-                    (along.abs() > cos_par && (RECESS_M.0..=RECESS_M.1).contains(&-depth) && support[k] >= MIN_WALL_EDGES.max(own + 1))
-                        .then_some((support[k], k, -depth))
-                })
-                .max_by(|a, b| a.0.cmp(&b.0).then(b.1.cmp(&a.1)))
-                .map(|(_, k, depth)| (i, k, depth))
-        })
-        .collect();
-    let areas: Vec<f64> = faces.iter().map(|f| signed_area(&flat(f, f.normal)).abs()).collect();
-    candidates.sort_by(|a, b| areas[b.0].total_cmp(&areas[a.0]).then(a.0.cmp(&b.0)));
-    let mut taken: Vec<usize> = Vec::new();
-    let mut out = Vec::new();
-    for &(i, k, _) in &candidates {
-        let f = &faces[i];
-        let (u, v) = plane_basis(f.normal);
-        let c = centroid(f);
-        let at = [c.dot(&u), c.dot(&v)];
-        if taken.iter().any(|&t| point_in_polygon(at, &flat(&faces[t], f.normal))) {
-            continue;
-        }
-        taken.push(i);
-        let plane = &planes[k];
-        let in_wall = |g: &Face| {
-            g.ring
-                .iter()
-                .all(|&w| (plane.normal.dot(&vertices[w].point) - plane.offset).abs() < tol)
-        };
-        let outline = (0..faces.len()).find(|&j| {
-            let g = &faces[j];
-            g.normal.dot(&f.normal) > cos_par
-                && in_wall(g)
-                && areas[j] < 2.0 * areas[i]
-                && areas[j] > 0.5 * areas[i]
-                && point_in_polygon(at, &flat(g, f.normal))
-        });
-        match outline {
-            Some(j) if faces[j].kind == SurfaceKind::Wall => out.push(Inferred::Mark(j)),
-            Some(_) => {}
-            None => {
-                if let Some(corners) = opening_behind(vertices, f, plane, viewpoint) {
-                    out.push(Inferred::New(corners, f.normal));
-                }
-            }
-        }
-    }
-    out
-}
-
-/// The opening in `wall` through which the rectangular recessed face `f` is seen from `viewpoint`, as corners on
-/// the wall plane. The sides that face the cameras are the recessed face's own (a camera below sees the soffit and
-/// the frame's top edge above it); the side turned away from them is hidden behind the opening's edge, and what the
-/// 3-D lines hold there is that edge's line of sight meeting the recessed plane: a window 11 m above a camera 19 m
-/// away, 20 cm deep, shows its frame's foot 11 cm too high. That side is moved back along the line of sight. Only
-/// the vertical is corrected: a strip sees the sides of an opening from both left and right.
-fn opening_behind(vertices: &[Vertex], f: &Face, wall: &Plane, viewpoint: Vec3) -> Option<Vec<Vertex>> {
-    let n = f.normal;
-    let across = Vec3::z().cross(&n).try_normalize(1e-9)?;
-    let points: Vec<Vec3> = f.ring.iter().map(|&w| vertices[w].point).collect();
-    let (xs, zs): (Vec<f64>, Vec<f64>) = points.iter().map(|p| (p.dot(&across), p.z)).unzip();
-    let range = |v: &[f64]| {
-        (
-            v.iter().copied().fold(f64::INFINITY, f64::min),
-            v.iter().copied().fold(f64::NEG_INFINITY, f64::max),
-        )
-    };
-    let ((x0, x1), (mut z0, mut z1)) = (range(&xs), range(&zs));
-    let box_area = (x1 - x0) * (z1 - z0);
-    let area = signed_area(&points.iter().map(|p| [p.dot(&across), p.z]).collect::<Vec<_>>()).abs();
-    if area < 0.8 * box_area {
-        return None;
-    }
-    let c = points.iter().sum::<Vec3>() / points.len() as f64;
-    let to_wall = |p: &Vec3| (wall.offset - wall.normal.dot(p)) / wall.normal.dot(&n);
-    let depth = to_wall(&c);
-    let distance = (c - viewpoint).dot(&-n);
-    if distance <= depth {
-        return None;
-    }
-    // A height z on the wall is seen at the recessed depth at vz + (z − vz)·(D + depth)/D, D the wall's distance.
-    let on_wall = |z: f64| viewpoint.z + (z - viewpoint.z) * (distance - depth) / distance;
-    if z0 > viewpoint.z {
-        z0 = on_wall(z0);
-    }
-    if z1 < viewpoint.z {
-        z1 = on_wall(z1);
-    }
-    let sigma = f.ring.iter().find_map(|&w| vertices[w].sigma);
-    let base = c - across * c.dot(&across);
-    Some(
-        [(x0, z0), (x1, z0), (x1, z1), (x0, z1)]
-            .iter()
-            .map(|&(x, z)| {
-                let p = Vec3::new(base.x, base.y, z) + across * x;
-                Vertex {
-                    point: p + n * to_wall(&p),
-                    sigma,
-                }
-            })
-            .collect(),
-    )
-}
-
 /// The smaller side of the bounding rectangle of the vertices `points` in the plane of `normal`.
 pub(crate) fn smaller_side(vertices: &[Vertex], points: &[usize], normal: Vec3) -> f64 {
     let (u, v) = plane_basis(normal);
@@ -706,78 +529,5 @@ mod tests {
             assert_eq!(SurfaceKind::from_code(k.code()), Some(k));
         }
         assert_eq!(SurfaceKind::from_code(6), None);
-    }
-
-    /// A wall y = 0 facing −y (outline and four brick joints) and, 20 cm behind it, a window frame 1.4 × 1.7 m whose
-    /// foot the 3-D lines put where the line of sight over the opening's foot meets the frame: cameras below see
-    /// the frame's top edge through the soffit, but not its foot. With `outline`, the opening's own outline on the
-    /// wall is there too.
-    fn recessed_frame(outline: bool) -> (Vec<Vertex>, Vec<Edge>, Vec3) {
-        let viewpoint = Vec3::new(1.7, -19.0, 1.6);
-        let foot = viewpoint.z + (2.0 - viewpoint.z) * 19.2 / 19.0;
-        let mut points = vec![[-1.0, 0.0, 0.0], [5.0, 0.0, 0.0], [5.0, 0.0, 6.0], [-1.0, 0.0, 6.0]];
-        points.extend([[1.0, 0.2, foot], [2.4, 0.2, foot], [2.4, 0.2, 3.7], [1.0, 0.2, 3.7]]);
-        for k in 0..4 {
-            let z = 4.2 + 0.3 * k as f64;
-            points.extend([[0.0, 0.0, z], [4.0, 0.0, z]]);
-        }
-        if outline {
-            points.extend([[1.0, 0.0, 2.0], [2.4, 0.0, 2.0], [2.4, 0.0, 3.7], [1.0, 0.0, 3.7]]);
-        }
-        let vertices: Vec<Vertex> = points
-            .iter()
-            .map(|&p| Vertex {
-                point: Vec3::from(p),
-                sigma: Some(Vec3::repeat(0.002)),
-            })
-            .collect();
-        let edge = |a: usize, b: usize| Edge {
-            a,
-            b,
-            line: a,
-            completed: false,
-        };
-        let ring = |first: usize| (0..4).map(move |k| edge(first + k, first + (k + 1) % 4));
-        let mut edges: Vec<Edge> = ring(0).chain(ring(4)).collect();
-        edges.extend((0..4).map(|k| edge(8 + 2 * k, 9 + 2 * k)));
-        if outline {
-            edges.extend(ring(16));
-        }
-        (vertices, edges, viewpoint)
-    }
-
-    #[test]
-    fn a_frame_behind_a_wall_whose_outline_did_not_close_makes_the_opening_in_it() {
-        let (mut vertices, mut edges, viewpoint) = recessed_frame(false);
-        let faces = find(&mut vertices, &mut edges, &ModelParams::default(), Some(viewpoint));
-        // The opening on new corners; the frame behind it takes its kind.
-        let n = 16;
-        assert_eq!(vertices.len(), n + 4);
-        let opening = faces.iter().find(|f| f.ring.iter().all(|&k| k >= n)).expect("an opening");
-        assert_eq!(opening.kind, SurfaceKind::Window);
-        assert_eq!(faces.iter().filter(|f| f.kind == SurfaceKind::Window).count(), 2, "{faces:?}");
-        let mut corners: Vec<[f64; 3]> = opening.ring.iter().map(|&k| vertices[k].point.into()).collect();
-        corners.sort_by(|a, b| a[2].total_cmp(&b[2]).then(a[0].total_cmp(&b[0])));
-        let expected = [[1.0, 0.0, 2.0], [2.4, 0.0, 2.0], [1.0, 0.0, 3.7], [2.4, 0.0, 3.7]];
-        for (c, e) in corners.iter().zip(expected) {
-            assert!((Vec3::from(*c) - Vec3::from(e)).norm() < 1e-9, "{corners:?}");
-        }
-        // The new outline is completed (not observed) and cut into the wall.
-        assert_eq!(edges.iter().filter(|e| e.completed).count(), 4);
-        let wall = faces
-            .iter()
-            .find(|f| f.kind == SurfaceKind::Wall && f.ring.contains(&0))
-            .expect("wall");
-        assert_eq!(wall.holes.len(), 1);
-    }
-
-    #[test]
-    fn a_frame_behind_an_outline_that_closed_adds_nothing() {
-        let (mut vertices, mut edges, viewpoint) = recessed_frame(true);
-        let n = vertices.len();
-        let faces = find(&mut vertices, &mut edges, &ModelParams::default(), Some(viewpoint));
-        assert_eq!(vertices.len(), n);
-        let windows: Vec<&Face> = faces.iter().filter(|f| f.kind == SurfaceKind::Window).collect();
-        assert!(windows.iter().any(|f| f.ring.iter().all(|&k| k >= 16)), "{faces:?}");
     }
 }

@@ -23,6 +23,7 @@ pub mod faces;
 mod grid;
 pub mod junction;
 pub mod occlusion;
+mod openings;
 pub mod refine;
 
 use lineflow_photogrammetry::{Camera, Vec3};

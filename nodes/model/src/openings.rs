@@ -1,0 +1,658 @@
+//! Openings inferred from what is seen through them. A street-level strip rarely closes an opening's outline on
+//! the wall: the sill hides its foot, and its reveals run along the line of sight and are seldom matched. What it
+//! does see are the frame, door leaf or loggia behind the opening, parallel to the wall. Two rules turn them into
+//! the opening in the wall, each only where no opening is there yet:
+//!
+//! - a closed recessed face ([`from_recesses`]);
+//! - a rectangle of edges behind the wall, two sides standing and two lying ([`from_rectangles`]), where the
+//!   recessed face did not close (a corner junction missed, a side a centimetre off its plane).
+//!
+//! Reveals are taken as square to the wall, as they are on almost every façade. The side of the recessed outline
+//! turned away from the cameras is hidden behind the opening's edge: a camera below sees a frame's top edge through
+//! the soffit but not its foot, and the 3-D lines put that foot where the line of sight over the opening's foot
+//! meets the frame plane (a window 11 m above a camera 19 m away, 20 cm deep: 11 cm too high). That side is moved
+//! back along the line of sight ([`opening_corners`]); only the vertical is corrected, since a strip sees an
+//! opening's sides from both left and right.
+use lineflow_photogrammetry::Vec3;
+
+use crate::faces::{plane_basis, point_in_polygon, signed_area, smaller_side, Face, Plane, SurfaceKind};
+use crate::{Edge, ModelParams, Vertex};
+
+/// How far behind its wall a recessed face may lie to make an opening in it, metres: from a glazing bar's 4 cm (a
+/// pane inside its frame, not an opening in the wall) up to half a metre.
+const RECESS_M: (f64, f64) = (0.06, 0.5);
+/// The smallest opening inferred from what is behind it, metres: smaller, the panes of a frame would pass for
+/// openings wherever the frame itself was not found.
+const MIN_OPENING_M: f64 = 0.8;
+/// The largest, metres.
+const MAX_OPENING_M: f64 = 4.0;
+/// Pieces of one side leave gaps of at most this, metres.
+const MAX_SIDE_GAP_M: f64 = 0.3;
+/// Edges a plane must carry to count as the wall an opening is cut into…
+const MIN_WALL_EDGES: usize = 8;
+/// …spread over at least this much across and up, metres (the reveals of a column of windows share a plane too).
+const MIN_WALL_SPAN_M: f64 = 2.0;
+/// Sides of one rectangle: positions across within this, metres…
+const SIDE_TOLERANCE_M: f64 = 0.015;
+/// …depths within this, metres…
+const DEPTH_TOLERANCE_M: f64 = 0.03;
+/// …the standing sides covered by their edges over at least this share (a frame's sides are often seen only in
+/// part)…
+const MIN_STANDING_COVER: f64 = 0.5;
+/// …and the lying ones over this much: they run the whole width, and a lower share lets the tops of two
+/// neighbouring windows at one height pass for one wide opening.
+const MIN_LYING_COVER: f64 = 0.8;
+
+/// What the inference does to the faces.
+pub(crate) enum Inferred {
+    /// A face in the wall plane is the opening.
+    Mark(usize),
+    /// A new opening face on these new corners, with this outward normal.
+    New(Vec<Vertex>, Vec3),
+}
+
+/// A wall plane with coordinates along it (`x`), up (`z`) and behind it (`depth`, along −`out`).
+struct Wall {
+    plane: Plane,
+    /// Outward unit normal (towards the cameras).
+    out: Vec3,
+    /// Horizontal unit vector in the wall.
+    across: Vec3,
+}
+
+impl Wall {
+    fn new(plane: Plane, out: Vec3) -> Option<Wall> {
+        let out = if plane.normal.dot(&out) >= 0.0 {
+            plane.normal
+        } else {
+            -plane.normal
+        };
+        let across = Vec3::z().cross(&out).try_normalize(1e-9)?;
+        Some(Wall { plane, out, across })
+    }
+
+    /// How far behind the wall `p` lies (negative in front).
+    fn depth(&self, p: &Vec3) -> f64 {
+        (self.plane.offset - self.plane.normal.dot(p)) / self.plane.normal.dot(&self.out)
+    }
+
+    /// The point of the wall plane at `x` along it and height `z`.
+    fn point(&self, x: f64, z: f64, near: &Vec3) -> Vec3 {
+        let base = near - self.across * near.dot(&self.across);
+        let p = Vec3::new(base.x, base.y, z) + self.across * x;
+        p + self.out * self.depth(&p)
+    }
+}
+
+/// Openings inferred from recessed faces and from rectangles of recessed edges, for a model whose cameras stand
+/// around `viewpoint`. `edges` are those the faces were traced on.
+pub(crate) fn infer(
+    vertices: &[Vertex],
+    edges: &[Edge],
+    planes: &[Plane],
+    faces: &[Face],
+    tol: f64,
+    params: &ModelParams,
+    viewpoint: Vec3,
+) -> Vec<Inferred> {
+    // Per plane: its edges, and whether they spread over a wall's extent both across and up.
+    let (support, spread): (Vec<usize>, Vec<bool>) = planes
+        .iter()
+        .map(|p| {
+            let on = |v: usize| (p.normal.dot(&vertices[v].point) - p.offset).abs() < tol;
+            let ends: Vec<Vec3> = edges
+                .iter()
+                .filter(|e| on(e.a) && on(e.b))
+                .flat_map(|e| [vertices[e.a].point, vertices[e.b].point])
+                .collect();
+            let across = Vec3::z().cross(&p.normal).try_normalize(1e-9).unwrap_or(Vec3::x());
+            let span = |f: &dyn Fn(&Vec3) -> f64| {
+                let v: Vec<f64> = ends.iter().map(f).collect();
+                max(&v) - min(&v)
+            };
+            (
+                ends.len() / 2,
+                span(&|q| q.dot(&across)) >= MIN_WALL_SPAN_M && span(&|q| q.z) >= MIN_WALL_SPAN_M,
+            )
+        })
+        .unzip();
+    let areas: Vec<f64> = faces
+        .iter()
+        .map(|f| {
+            let (u, v) = plane_basis(f.normal);
+            signed_area(
+                &f.ring
+                    .iter()
+                    .map(|&k| [vertices[k].point.dot(&u), vertices[k].point.dot(&v)])
+                    .collect::<Vec<_>>(),
+            )
+            .abs()
+        })
+        .collect();
+    let mut out = from_recesses(vertices, planes, &support, faces, &areas, tol, params, viewpoint);
+    // Rectangles where neither an opening nor a recessed face already made one.
+    let mut found: Vec<(Vec3, Vec<Vec3>)> = faces
+        .iter()
+        .filter(|f| matches!(f.kind, SurfaceKind::Window | SurfaceKind::Door))
+        .map(|f| (f.normal, f.ring.iter().map(|&k| vertices[k].point).collect()))
+        .collect();
+    for inferred in &out {
+        match inferred {
+            Inferred::Mark(j) => found.push((faces[*j].normal, faces[*j].ring.iter().map(|&k| vertices[k].point).collect())),
+            Inferred::New(corners, normal) => found.push((*normal, corners.iter().map(|v| v.point).collect())),
+        }
+    }
+    let cos_par = params.plane_angle_deg.to_radians().cos();
+    // Walls: vertical planes that carry more edges than any parallel plane within reach behind or in front of them
+    // (a row of sill fronts or a cornice is no wall, and the wall's own lines are not recessed behind it).
+    let parallel_near = |a: &Plane, b: &Plane| {
+        let along = a.normal.dot(&b.normal);
+        along.abs() > cos_par && (a.offset - b.offset * along.signum()).abs() <= RECESS_M.1
+    };
+    let mut walls: Vec<(usize, &Plane)> = support
+        .iter()
+        .copied()
+        .zip(planes)
+        .enumerate()
+        .filter(|&(k, (n, p))| {
+            n >= MIN_WALL_EDGES
+                && spread[k]
+                && p.normal.z.abs() < 0.2
+                && planes
+                    .iter()
+                    .zip(&support)
+                    .enumerate()
+                    .all(|(j, (q, &m))| j == k || !parallel_near(p, q) || m < n)
+        })
+        .map(|(_, w)| w)
+        .collect();
+    walls.sort_by_key(|w| std::cmp::Reverse(w.0));
+    for (_, plane) in walls {
+        let Some(wall) = Wall::new(*plane, viewpoint - plane.normal * plane.offset) else {
+            continue;
+        };
+        if wall.depth(&viewpoint) >= 0.0 {
+            continue;
+        }
+        for (rect, depth, sigma) in from_rectangles(&wall, vertices, edges) {
+            let centre = wall.point((rect[0] + rect[1]) / 2.0, (rect[2] + rect[3]) / 2.0, &viewpoint);
+            let taken = found.iter().any(|(normal, ring)| {
+                let (u, v) = plane_basis(*normal);
+                let flat: Vec<[f64; 2]> = ring.iter().map(|p| [p.dot(&u), p.dot(&v)]).collect();
+                normal.dot(&wall.out).abs() > cos_par && point_in_polygon([centre.dot(&u), centre.dot(&v)], &flat)
+            });
+            if taken {
+                continue;
+            }
+            let corners = opening_corners(&wall, rect, depth, viewpoint, sigma, &centre);
+            let area = (rect[1] - rect[0]) * (rect[3] - rect[2]);
+            let ring = match outline_on_wall(vertices, faces, &areas, wall.plane, tol, cos_par, &centre, area) {
+                // The outline closed on the wall without being taken for an opening (nothing nests it yet).
+                Some(j) if faces[j].kind == SurfaceKind::Wall => {
+                    out.push(Inferred::Mark(j));
+                    faces[j].ring.iter().map(|&k| vertices[k].point).collect()
+                }
+                Some(_) => continue,
+                None => {
+                    let ring = corners.iter().map(|v| v.point).collect();
+                    out.push(Inferred::New(corners, wall.out));
+                    ring
+                }
+            };
+            found.push((wall.out, ring));
+        }
+    }
+    out
+}
+
+/// A vertical face at least [`MIN_OPENING_M`] across lying parallel to a wall and [`RECESS_M`] behind it (the
+/// plane of that orientation in front of it with the most edges, more than the face's own plane has), with no
+/// opening of about its size in front of it, is what one sees through an opening. The wall-plane face around it
+/// of about its size becomes the opening, or else its bounding rectangle is carried onto the wall plane. A
+/// recessed face inside a larger one (a pane inside its frame) adds nothing.
+#[allow(clippy::too_many_arguments)]
+fn from_recesses(
+    vertices: &[Vertex],
+    planes: &[Plane],
+    support: &[usize],
+    faces: &[Face],
+    areas: &[f64],
+    tol: f64,
+    params: &ModelParams,
+    viewpoint: Vec3,
+) -> Vec<Inferred> {
+    let cos_par = params.plane_angle_deg.to_radians().cos();
+    let centroid = |f: &Face| f.ring.iter().map(|&k| vertices[k].point).sum::<Vec3>() / f.ring.len() as f64;
+    let flat = |f: &Face, normal: Vec3| -> Vec<[f64; 2]> {
+        let (u, v) = plane_basis(normal);
+        f.ring
+            .iter()
+            .map(|&k| [vertices[k].point.dot(&u), vertices[k].point.dot(&v)])
+            .collect()
+    };
+    // Candidates, largest first: (face, wall plane).
+    let mut candidates: Vec<(usize, usize)> = faces
+        .iter()
+        .enumerate()
+        .filter(|(_, f)| {
+            f.kind == SurfaceKind::Wall && f.normal.z.abs() < 0.2 && smaller_side(vertices, &f.ring, f.normal) >= MIN_OPENING_M
+        })
+        .filter_map(|(i, f)| {
+            let c = centroid(f);
+            // A face on the façade's main plane is not behind it, whatever lies in front (sills, cornices).
+            let own = planes
+                .iter()
+                .zip(support)
+                .filter(|(p, _)| f.ring.iter().all(|&w| (p.normal.dot(&vertices[w].point) - p.offset).abs() < tol))
+                .map(|(_, &n)| n)
+                .max()
+                .unwrap_or(0);
+            planes
+                .iter()
+                .enumerate()
+                .filter_map(|(k, p)| {
+                    let along = p.normal.dot(&f.normal);
+                    let behind = -(p.normal.dot(&c) - p.offset) / along;
+                    (along.abs() > cos_par && (RECESS_M.0..=RECESS_M.1).contains(&behind) && support[k] >= MIN_WALL_EDGES.max(own + 1))
+                        .then_some((support[k], k))
+                })
+                .max_by(|a, b| a.0.cmp(&b.0).then(b.1.cmp(&a.1)))
+                .map(|(_, k)| (i, k))
+        })
+        .collect();
+    candidates.sort_by(|a, b| areas[b.0].total_cmp(&areas[a.0]).then(a.0.cmp(&b.0)));
+    let mut taken: Vec<usize> = Vec::new();
+    let mut out = Vec::new();
+    for &(i, k) in &candidates {
+        let f = &faces[i];
+        let (u, v) = plane_basis(f.normal);
+        let c = centroid(f);
+        let at = [c.dot(&u), c.dot(&v)];
+        if taken.iter().any(|&t| point_in_polygon(at, &flat(&faces[t], f.normal))) {
+            continue;
+        }
+        taken.push(i);
+        let plane = &planes[k];
+        match outline_on_wall(vertices, faces, areas, *plane, tol, cos_par, &c, areas[i]) {
+            Some(j) if faces[j].kind == SurfaceKind::Wall => out.push(Inferred::Mark(j)),
+            Some(_) => {}
+            None => {
+                let Some(wall) = Wall::new(*plane, f.normal) else {
+                    continue;
+                };
+                let points: Vec<Vec3> = f.ring.iter().map(|&w| vertices[w].point).collect();
+                let (xs, zs): (Vec<f64>, Vec<f64>) = points.iter().map(|p| (p.dot(&wall.across), p.z)).unzip();
+                let rect = [min(&xs), max(&xs), min(&zs), max(&zs)];
+                // Only a rectangle is carried over as its box.
+                if areas[i] < 0.8 * (rect[1] - rect[0]) * (rect[3] - rect[2]) {
+                    continue;
+                }
+                let sigma = f.ring.iter().find_map(|&w| vertices[w].sigma);
+                let corners = opening_corners(&wall, rect, wall.depth(&c), viewpoint, sigma, &c);
+                out.push(Inferred::New(corners, f.normal));
+            }
+        }
+    }
+    out
+}
+
+/// The face on `wall` (every corner within `tol` of it) parallel to it, of about `area` (within a factor 2), that
+/// contains `centre`: an opening's own outline.
+#[allow(clippy::too_many_arguments)]
+fn outline_on_wall(
+    vertices: &[Vertex],
+    faces: &[Face],
+    areas: &[f64],
+    wall: Plane,
+    tol: f64,
+    cos_par: f64,
+    centre: &Vec3,
+    area: f64,
+) -> Option<usize> {
+    (0..faces.len()).find(|&j| {
+        let g = &faces[j];
+        let (u, v) = plane_basis(g.normal);
+        let flat: Vec<[f64; 2]> = g
+            .ring
+            .iter()
+            .map(|&k| [vertices[k].point.dot(&u), vertices[k].point.dot(&v)])
+            .collect();
+        g.normal.dot(&wall.normal).abs() > cos_par
+            && g.ring
+                .iter()
+                .all(|&w| (wall.normal.dot(&vertices[w].point) - wall.offset).abs() < tol)
+            && areas[j] < 2.0 * area
+            && areas[j] > 0.5 * area
+            && point_in_polygon([centre.dot(&u), centre.dot(&v)], &flat)
+    })
+}
+
+fn min(v: &[f64]) -> f64 {
+    v.iter().copied().fold(f64::INFINITY, f64::min)
+}
+
+fn max(v: &[f64]) -> f64 {
+    v.iter().copied().fold(f64::NEG_INFINITY, f64::max)
+}
+
+/// A side of a candidate rectangle: edges behind the wall along one direction, gathered at one position across
+/// it and one depth.
+#[derive(Debug, Clone)]
+struct Side {
+    /// Position across the direction (x of a standing side, z of a lying one), length-weighted.
+    at: f64,
+    depth: f64,
+    /// Intervals covered along the direction.
+    spans: Vec<(f64, f64)>,
+    /// The σ of a vertex of one of its edges.
+    sigma: Option<Vec3>,
+}
+
+impl Side {
+    fn extent(&self) -> (f64, f64) {
+        (
+            min(&self.spans.iter().map(|s| s.0).collect::<Vec<_>>()),
+            max(&self.spans.iter().map(|s| s.1).collect::<Vec<_>>()),
+        )
+    }
+
+    /// Share of [lo, hi] its spans cover.
+    fn cover(&self, lo: f64, hi: f64) -> f64 {
+        let mut spans: Vec<(f64, f64)> = self
+            .spans
+            .iter()
+            .map(|&(a, b)| (a.max(lo), b.min(hi)))
+            .filter(|(a, b)| b > a)
+            .collect();
+        spans.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let (mut covered, mut end) = (0.0, lo);
+        for (a, b) in spans {
+            let a = a.max(end);
+            if b > a {
+                covered += b - a;
+                end = b;
+            }
+        }
+        covered / (hi - lo).max(1e-9)
+    }
+}
+
+/// The observed edges behind `wall` by [`RECESS_M`], parallel to it, standing (`upright`) or lying, gathered into
+/// sides. Completed edges are left out: they run along occluders, not along what was seen.
+fn sides(wall: &Wall, vertices: &[Vertex], edges: &[Edge], upright: bool) -> Vec<Side> {
+    let mut pieces: Vec<(f64, f64, f64, f64, Option<Vec3>)> = edges
+        .iter()
+        .filter(|e| !e.completed)
+        .filter_map(|e| {
+            let (p, q) = (vertices[e.a].point, vertices[e.b].point);
+            let d = q - p;
+            let len = d.norm();
+            let (dp, dq) = (wall.depth(&p), wall.depth(&q));
+            let within = |x: f64| (RECESS_M.0..=RECESS_M.1).contains(&x);
+            if len < 0.05 || !within(dp) || !within(dq) || (dp - dq).abs() > DEPTH_TOLERANCE_M {
+                return None;
+            }
+            let along = if upright { d.z.abs() } else { d.dot(&wall.across).abs() };
+            if along < len * 5f64.to_radians().cos() {
+                return None;
+            }
+            let (cross, a, b) = if upright {
+                ((p.dot(&wall.across) + q.dot(&wall.across)) / 2.0, p.z.min(q.z), p.z.max(q.z))
+            } else {
+                let (s, t) = (p.dot(&wall.across), q.dot(&wall.across));
+                ((p.z + q.z) / 2.0, s.min(t), s.max(t))
+            };
+            Some((cross, (dp + dq) / 2.0, a, b, vertices[e.a].sigma.or(vertices[e.b].sigma)))
+        })
+        .collect();
+    pieces.sort_by(|x, y| x.0.total_cmp(&y.0).then(x.1.total_cmp(&y.1)).then(x.2.total_cmp(&y.2)));
+    // Greedy gathering in order across: a piece joins the first side within the tolerances.
+    let mut out: Vec<(Side, f64)> = Vec::new();
+    for (cross, depth, a, b, sigma) in pieces {
+        let w = b - a;
+        match out
+            .iter_mut()
+            .rev()
+            .take_while(|(s, _)| cross - s.at <= 2.0 * SIDE_TOLERANCE_M)
+            .find(|(s, _)| (cross - s.at).abs() <= SIDE_TOLERANCE_M && (depth - s.depth).abs() <= DEPTH_TOLERANCE_M)
+        {
+            Some((side, weight)) => {
+                side.at = (side.at * *weight + cross * w) / (*weight + w);
+                side.depth = (side.depth * *weight + depth * w) / (*weight + w);
+                side.spans.push((a, b));
+                *weight += w;
+            }
+            None => out.push((
+                Side {
+                    at: cross,
+                    depth,
+                    spans: vec![(a, b)],
+                    sigma,
+                },
+                w,
+            )),
+        }
+    }
+    // A side ends at a gap: the frames of windows stacked one above the other share their sides' line.
+    out.into_iter()
+        .flat_map(|(mut side, _)| {
+            side.spans.sort_by(|a, b| a.0.total_cmp(&b.0));
+            let mut runs: Vec<Side> = Vec::new();
+            for &(a, b) in &side.spans {
+                match runs.last_mut() {
+                    Some(run) if a <= run.extent().1 + MAX_SIDE_GAP_M => run.spans.push((a, b)),
+                    _ => runs.push(Side {
+                        spans: vec![(a, b)],
+                        ..side.clone()
+                    }),
+                }
+            }
+            runs
+        })
+        .collect()
+}
+
+/// Rectangles of edges behind `wall`: two standing sides [`MIN_OPENING_M`] to [`MAX_OPENING_M`] apart and two
+/// lying ones at their ends, at one depth, covered by their edges over [`MIN_STANDING_COVER`] and [`MIN_LYING_COVER`] of their length. Largest first; one
+/// inside another already taken (the panes of a frame) is left out. Each as [x0, x1, z0, z1], its depth and a σ.
+fn from_rectangles(wall: &Wall, vertices: &[Vertex], edges: &[Edge]) -> Vec<([f64; 4], f64, Option<Vec3>)> {
+    let standing = sides(wall, vertices, edges, true);
+    let lying = sides(wall, vertices, edges, false);
+    let mut found: Vec<([f64; 4], f64, Option<Vec3>)> = Vec::new();
+    for (i, l) in standing.iter().enumerate() {
+        for r in &standing[i + 1..] {
+            let width = r.at - l.at;
+            if !(MIN_OPENING_M..=MAX_OPENING_M).contains(&width) || (r.depth - l.depth).abs() > DEPTH_TOLERANCE_M {
+                continue;
+            }
+            let depth = (l.depth + r.depth) / 2.0;
+            let ((l0, l1), (r0, r1)) = (l.extent(), r.extent());
+            let at_depth = |s: &&Side| (s.depth - depth).abs() <= DEPTH_TOLERANCE_M && s.cover(l.at, r.at) >= MIN_LYING_COVER;
+            let near = |z: f64| move |s: &&Side| (s.at - z).abs() <= 3.0 * SIDE_TOLERANCE_M;
+            let (Some(top), Some(bottom)) = (
+                lying.iter().filter(at_depth).find(near(l1.max(r1))),
+                lying.iter().filter(at_depth).find(near(l0.min(r0))),
+            ) else {
+                continue;
+            };
+            let (z0, z1) = (bottom.at, top.at);
+            if !(MIN_OPENING_M..=MAX_OPENING_M).contains(&(z1 - z0))
+                || l.cover(z0, z1) < MIN_STANDING_COVER
+                || r.cover(z0, z1) < MIN_STANDING_COVER
+            {
+                continue;
+            }
+            found.push(([l.at, r.at, z0, z1], depth, l.sigma.or(r.sigma)));
+        }
+    }
+    found.sort_by(|a, b| {
+        let area = |r: &[f64; 4]| (r[1] - r[0]) * (r[3] - r[2]);
+        area(&b.0)
+            .total_cmp(&area(&a.0))
+            .then(a.0[0].total_cmp(&b.0[0]))
+            .then(a.0[2].total_cmp(&b.0[2]))
+    });
+    let mut kept: Vec<([f64; 4], f64, Option<Vec3>)> = Vec::new();
+    for candidate in found {
+        let [x0, x1, z0, z1] = candidate.0;
+        let (cx, cz) = ((x0 + x1) / 2.0, (z0 + z1) / 2.0);
+        if !kept.iter().any(|(k, _, _)| k[0] <= cx && cx <= k[1] && k[2] <= cz && cz <= k[3]) {
+            kept.push(candidate);
+        }
+    }
+    kept
+}
+
+/// The corners on the wall plane of the opening through which the rectangle `[x0, x1, z0, z1]`, `depth` behind
+/// the wall, is seen from `viewpoint`: the side turned away from the cameras moved back along the line of sight.
+fn opening_corners(
+    wall: &Wall,
+    [x0, x1, mut z0, mut z1]: [f64; 4],
+    depth: f64,
+    viewpoint: Vec3,
+    sigma: Option<Vec3>,
+    near: &Vec3,
+) -> Vec<Vertex> {
+    let distance = -wall.depth(&viewpoint);
+    // A height z on the wall is seen at the recessed depth at vz + (z − vz)·(D + depth)/D, D the wall's distance.
+    let on_wall = |z: f64| viewpoint.z + (z - viewpoint.z) * distance / (distance + depth);
+    if distance > 0.0 {
+        if z0 > viewpoint.z {
+            z0 = on_wall(z0);
+        }
+        if z1 < viewpoint.z {
+            z1 = on_wall(z1);
+        }
+    }
+    [(x0, z0), (x1, z0), (x1, z1), (x0, z1)]
+        .iter()
+        .map(|&(x, z)| Vertex {
+            point: wall.point(x, z, near),
+            sigma,
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::faces::find;
+
+    /// Brick joints drawn on the wall (a wall carries more edges than anything behind it).
+    const JOINTS: usize = 8;
+    /// First point of the frame's sides.
+    const FRAME: usize = 4 + 2 * JOINTS;
+
+    /// A wall y = 0 facing −y (its outline and [`JOINTS`] brick joints) and, 20 cm behind it, a window frame 1.4 × 1.7 m
+    /// whose foot the 3-D lines put where the line of sight over the opening's foot meets the frame: cameras below
+    /// see the frame's top edge through the soffit, but not its foot. With `overshoot` > 0 each side of the frame is
+    /// its own line running that far past the corners (no junction found, no face); with `outline`, the opening's
+    /// own outline on the wall is there too.
+    fn scene(overshoot: f64, outline: bool) -> (Vec<Vertex>, Vec<Edge>, Vec3) {
+        let viewpoint = Vec3::new(1.7, -19.0, 1.6);
+        let foot = viewpoint.z + (2.0 - viewpoint.z) * 19.2 / 19.0;
+        let o = overshoot;
+        let mut points = vec![[-1.0, 0.0, 0.0], [5.0, 0.0, 0.0], [5.0, 0.0, 6.0], [-1.0, 0.0, 6.0]];
+        for k in 0..JOINTS {
+            let z = 4.2 + 0.2 * k as f64;
+            points.extend([[0.0, 0.0, z], [4.0, 0.0, z]]);
+        }
+        points.extend([
+            [1.0 - o, 0.2, foot],
+            [2.4 + o, 0.2, foot],
+            [2.4, 0.2, foot - o],
+            [2.4, 0.2, 3.7 + o],
+        ]);
+        points.extend([[2.4 + o, 0.2, 3.7], [1.0 - o, 0.2, 3.7], [1.0, 0.2, 3.7 + o], [1.0, 0.2, foot - o]]);
+        if outline {
+            points.extend([[1.0, 0.0, 2.0], [2.4, 0.0, 2.0], [2.4, 0.0, 3.7], [1.0, 0.0, 3.7]]);
+        }
+        let vertices = points
+            .iter()
+            .map(|&p| Vertex {
+                point: Vec3::from(p),
+                sigma: Some(Vec3::repeat(0.002)),
+            })
+            .collect();
+        let edge = |a: usize, b: usize| Edge {
+            a,
+            b,
+            line: a,
+            completed: false,
+        };
+        let ring = |first: usize| (0..4).map(move |k| edge(first + k, first + (k + 1) % 4));
+        let mut edges: Vec<Edge> = ring(0).collect();
+        edges.extend((0..JOINTS).map(|k| edge(4 + 2 * k, 5 + 2 * k)));
+        let f = FRAME;
+        if overshoot > 0.0 {
+            edges.extend((0..4).map(|k| edge(f + 2 * k, f + 1 + 2 * k)));
+        } else {
+            // Without overshoot the sides meet: one closed frame.
+            edges.extend([edge(f, f + 1), edge(f + 1, f + 4), edge(f + 4, f + 5), edge(f + 5, f)]);
+        }
+        if outline {
+            edges.extend(ring(FRAME + 8));
+        }
+        (vertices, edges, viewpoint)
+    }
+
+    #[test]
+    fn a_frame_behind_a_wall_whose_outline_did_not_close_makes_the_opening_in_it() {
+        // Closed, the frame is a recessed face; open at its corners, a rectangle of edges.
+        for overshoot in [0.0, 0.03] {
+            let (mut vertices, mut edges, viewpoint) = scene(overshoot, false);
+            let n = vertices.len();
+            let faces = find(&mut vertices, &mut edges, &ModelParams::default(), Some(viewpoint));
+            assert_eq!(vertices.len(), n + 4, "overshoot {overshoot}: {faces:?}");
+            let opening = faces.iter().find(|f| f.ring.iter().all(|&k| k >= n)).expect("an opening");
+            assert_eq!(opening.kind, SurfaceKind::Window);
+            let mut corners: Vec<[f64; 3]> = opening.ring.iter().map(|&k| vertices[k].point.into()).collect();
+            corners.sort_by(|a, b| a[2].total_cmp(&b[2]).then(a[0].total_cmp(&b[0])));
+            let expected = [[1.0, 0.0, 2.0], [2.4, 0.0, 2.0], [1.0, 0.0, 3.7], [2.4, 0.0, 3.7]];
+            for (c, e) in corners.iter().zip(expected) {
+                assert!((Vec3::from(*c) - Vec3::from(e)).norm() < 1e-9, "overshoot {overshoot}: {corners:?}");
+            }
+            // Its outline is completed (not observed) and cut into the wall.
+            assert_eq!(edges.iter().filter(|e| e.completed).count(), 4);
+            let wall = faces.iter().find(|f| f.ring.contains(&0)).expect("wall");
+            assert_eq!((wall.kind, wall.holes.len()), (SurfaceKind::Wall, 1));
+        }
+    }
+
+    #[test]
+    fn a_frame_behind_an_outline_that_closed_adds_nothing() {
+        for overshoot in [0.0, 0.03] {
+            let (mut vertices, mut edges, viewpoint) = scene(overshoot, true);
+            let n = vertices.len();
+            let faces = find(&mut vertices, &mut edges, &ModelParams::default(), Some(viewpoint));
+            assert_eq!(vertices.len(), n, "overshoot {overshoot}");
+            let outline = faces
+                .iter()
+                .find(|f| f.ring.iter().all(|&k| k >= FRAME + 8))
+                .expect("the outline's face");
+            assert_eq!(outline.kind, SurfaceKind::Window);
+        }
+    }
+
+    #[test]
+    fn a_pane_on_its_own_makes_no_opening() {
+        // A 0.6 m pane behind the wall, its frame not found: smaller than any opening inferred this way.
+        let (mut vertices, mut edges, viewpoint) = scene(0.0, false);
+        let base = vertices.len();
+        for p in [[3.0, 0.2, 4.0], [3.6, 0.2, 4.0], [3.6, 0.2, 5.0], [3.0, 0.2, 5.0]] {
+            vertices.push(Vertex {
+                point: Vec3::from(p),
+                sigma: Some(Vec3::repeat(0.002)),
+            });
+        }
+        edges.extend((0..4).map(|k| Edge {
+            a: base + k,
+            b: base + (k + 1) % 4,
+            line: base + k,
+            completed: false,
+        }));
+        find(&mut vertices, &mut edges, &ModelParams::default(), Some(viewpoint));
+        // Only the frame's opening is new.
+        assert_eq!(vertices.len(), base + 4 + 4);
+    }
+}
