@@ -438,7 +438,7 @@ pub(crate) fn smaller_side(vertices: &[Vertex], points: &[usize], normal: Vec3) 
 
 /// A face lying inside a larger wall or roof face of the same plane, sharing no vertex with it, is that face's
 /// opening (the innermost container wins): a window, or a door when it reaches within 0.3 m of the container's
-/// foot (of the lowest face, for an opening found by its reveals alone). Faces
+/// foot (of the model's lowest point, for an opening no wall face holds). Faces
 /// behind an opening (reveals excepted: frames and glass parallel to it, within 0.5 m) take the opening's kind.
 fn nest_openings(vertices: &[Vertex], faces: &mut [Face], params: &ModelParams) {
     let cos_par = params.plane_angle_deg.to_radians().cos();
@@ -474,7 +474,8 @@ fn nest_openings(vertices: &[Vertex], faces: &mut [Face], params: &ModelParams) 
         parent[i] = best.map(|(_, j)| j);
     }
     let foot = |f: &Face| f.ring.iter().map(|&k| vertices[k].point.z).fold(f64::INFINITY, f64::min);
-    let ground = faces.iter().map(foot).fold(f64::INFINITY, f64::min);
+    // The ground: the lowest point of the model (a wall's lines reach further down than its closed faces).
+    let ground = vertices.iter().map(|v| v.point.z).fold(f64::INFINITY, f64::min);
     for i in 0..faces.len() {
         let door_level = match parent[i] {
             Some(p) if faces[p].kind == SurfaceKind::Wall => foot(&faces[p]),
