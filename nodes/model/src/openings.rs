@@ -26,6 +26,10 @@ const RECESS_M: (f64, f64) = (0.06, 0.5);
 const MIN_OPENING_M: f64 = 0.8;
 /// The largest, metres.
 const MAX_OPENING_M: f64 = 4.0;
+/// A frame's outer edges lie this far outside its glazing, metres…
+const FRAME_M: (f64, f64) = (0.02, 0.15);
+/// …and run along at least this share of the glazing's height.
+const MIN_OUTER_COVER: f64 = 0.8;
 /// Pieces of one side leave gaps of at most this, metres.
 const MAX_SIDE_GAP_M: f64 = 0.3;
 /// Edges a plane must carry to count as the wall an opening is cut into…
@@ -129,7 +133,7 @@ pub(crate) fn infer(
             .abs()
         })
         .collect();
-    let mut out = from_recesses(vertices, planes, &support, faces, &areas, tol, params, viewpoint);
+    let mut out = from_recesses(vertices, edges, planes, &support, faces, &areas, tol, params, viewpoint);
     // Rectangles where neither an opening nor a recessed face already made one.
     let mut found: Vec<(Vec3, Vec<Vec3>)> = faces
         .iter()
@@ -213,6 +217,7 @@ pub(crate) fn infer(
 #[allow(clippy::too_many_arguments)]
 fn from_recesses(
     vertices: &[Vertex],
+    edges: &[Edge],
     planes: &[Plane],
     support: &[usize],
     faces: &[Face],
@@ -287,8 +292,10 @@ fn from_recesses(
                 if areas[i] < 0.8 * (rect[1] - rect[0]) * (rect[3] - rect[2]) {
                     continue;
                 }
+                let depth = wall.depth(&c);
+                let rect = widened_to_frame(rect, depth, &sides(&wall, vertices, edges, true)).unwrap_or(rect);
                 let sigma = f.ring.iter().find_map(|&w| vertices[w].sigma);
-                let corners = opening_corners(&wall, rect, wall.depth(&c), viewpoint, sigma, &c);
+                let corners = opening_corners(&wall, rect, depth, viewpoint, sigma, &c);
                 out.push(Inferred::New(corners, f.normal));
             }
         }
@@ -493,7 +500,8 @@ fn from_rectangles(wall: &Wall, vertices: &[Vertex], edges: &[Edge]) -> Vec<([f6
             .then(a.0[2].total_cmp(&b.0[2]))
     });
     let mut kept: Vec<([f64; 4], f64, Option<Vec3>)> = Vec::new();
-    for candidate in found {
+    for (rect, depth, sigma) in found {
+        let candidate = (widened_to_frame(rect, depth, &standing).unwrap_or(rect), depth, sigma);
         let [x0, x1, z0, z1] = candidate.0;
         let (cx, cz) = ((x0 + x1) / 2.0, (z0 + z1) / 2.0);
         if !kept.iter().any(|(k, _, _)| k[0] <= cx && cx <= k[1] && k[2] <= cz && cz <= k[3]) {
@@ -501,6 +509,25 @@ fn from_rectangles(wall: &Wall, vertices: &[Vertex], edges: &[Edge]) -> Vec<([f6
         }
     }
     kept
+}
+
+/// Where the frame's outer standing edges lie just outside a rectangle (within [`FRAME_M`], at its depth, as long
+/// as it), the rectangle is the glazing inside the frame: a ground-floor frame's top and foot lie a pixel from the
+/// opening's outline in every image of a street-level strip, and only the glazing's outline is found. The opening
+/// is then the rectangle of those outer edges, from where both start to where both end (within 5 cm of each
+/// other). None where either is missing.
+fn widened_to_frame([x0, x1, z0, z1]: [f64; 4], depth: f64, standing: &[Side]) -> Option<[f64; 4]> {
+    let outer = |from: f64, outward: f64| {
+        standing
+            .iter()
+            .filter(|s| (s.depth - depth).abs() <= DEPTH_TOLERANCE_M && s.cover(z0, z1) >= MIN_OUTER_COVER)
+            .map(|s| (s, (s.at - from) * outward))
+            .filter(|(_, d)| (FRAME_M.0..=FRAME_M.1).contains(d))
+            .min_by(|a, b| a.1.total_cmp(&b.1))
+            .map(|(s, _)| (s.at, s.extent()))
+    };
+    let ((l, (l0, l1)), (r, (r0, r1))) = (outer(x0, -1.0)?, outer(x1, 1.0)?);
+    ((l0 - r0).abs() <= 0.05 && (l1 - r1).abs() <= 0.05).then(|| [l, r, (l0 + r0) / 2.0, (l1 + r1) / 2.0])
 }
 
 /// The corners on the wall plane of the opening through which the rectangle `[x0, x1, z0, z1]`, `depth` behind
@@ -631,6 +658,51 @@ mod tests {
                 .find(|f| f.ring.iter().all(|&k| k >= FRAME + 8))
                 .expect("the outline's face");
             assert_eq!(outline.kind, SurfaceKind::Window);
+        }
+    }
+
+    #[test]
+    fn a_glazing_outline_inside_its_frame_is_widened_to_the_frame() {
+        // Only the frame's outer sides (no top, no foot) and, 6 cm inside, the glazing's outline: closed (a recessed
+        // face) or its sides apart at the corners (a rectangle).
+        for overshoot in [0.0, 0.03] {
+            let (mut vertices, mut edges, viewpoint) = scene(0.0, false);
+            edges.retain(|e| e.a < FRAME);
+            let n = vertices.len();
+            let foot = vertices[FRAME].point.z;
+            let o = overshoot;
+            let (x0, x1, z0, z1) = (1.06, 2.34, foot + 0.06, 3.64);
+            let mut points = vec![[1.0, 0.2, foot], [1.0, 0.2, 3.7], [2.4, 0.2, foot], [2.4, 0.2, 3.7]];
+            points.extend([[x0 - o, 0.2, z0], [x1 + o, 0.2, z0], [x1, 0.2, z0 - o], [x1, 0.2, z1 + o]]);
+            points.extend([[x1 + o, 0.2, z1], [x0 - o, 0.2, z1], [x0, 0.2, z1 + o], [x0, 0.2, z0 - o]]);
+            for p in points {
+                vertices.push(Vertex {
+                    point: Vec3::from(p),
+                    sigma: Some(Vec3::repeat(0.002)),
+                });
+            }
+            let edge = |a: usize, b: usize| Edge {
+                a,
+                b,
+                line: a,
+                completed: false,
+            };
+            edges.extend([edge(n, n + 1), edge(n + 2, n + 3)]);
+            let g = n + 4;
+            if overshoot > 0.0 {
+                edges.extend((0..4).map(|k| edge(g + 2 * k, g + 1 + 2 * k)));
+            } else {
+                edges.extend([edge(g, g + 1), edge(g + 1, g + 4), edge(g + 4, g + 5), edge(g + 5, g)]);
+            }
+            let before = vertices.len();
+            let faces = find(&mut vertices, &mut edges, &ModelParams::default(), Some(viewpoint));
+            let opening = faces.iter().find(|f| f.ring.iter().all(|&k| k >= before)).expect("an opening");
+            let mut corners: Vec<[f64; 3]> = opening.ring.iter().map(|&k| vertices[k].point.into()).collect();
+            corners.sort_by(|a, b| a[2].total_cmp(&b[2]).then(a[0].total_cmp(&b[0])));
+            let expected = [[1.0, 0.0, 2.0], [2.4, 0.0, 2.0], [1.0, 0.0, 3.7], [2.4, 0.0, 3.7]];
+            for (c, e) in corners.iter().zip(expected) {
+                assert!((Vec3::from(*c) - Vec3::from(e)).norm() < 1e-9, "overshoot {overshoot}: {corners:?}");
+            }
         }
     }
 
