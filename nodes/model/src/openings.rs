@@ -570,6 +570,34 @@ mod tests {
     /// First point of the frame's sides.
     const FRAME: usize = 4 + 2 * JOINTS;
 
+    fn vertex(p: [f64; 3]) -> Vertex {
+        Vertex {
+            point: Vec3::from(p),
+            sigma: Some(Vec3::repeat(0.002)),
+        }
+    }
+
+    fn edge(a: usize, b: usize) -> Edge {
+        Edge {
+            a,
+            b,
+            line: a,
+            completed: false,
+        }
+    }
+
+    /// The face on the vertices from `first` on: the opening of the true outline, x 1–2.4 m, z 2–3.7 m.
+    fn assert_true_opening(vertices: &[Vertex], faces: &[Face], first: usize, case: &str) {
+        let opening = faces.iter().find(|f| f.ring.iter().all(|&k| k >= first)).expect("an opening");
+        assert_eq!(opening.kind, SurfaceKind::Window, "{case}");
+        let mut corners: Vec<[f64; 3]> = opening.ring.iter().map(|&k| vertices[k].point.into()).collect();
+        corners.sort_by(|a, b| a[2].total_cmp(&b[2]).then(a[0].total_cmp(&b[0])));
+        let expected = [[1.0, 0.0, 2.0], [2.4, 0.0, 2.0], [1.0, 0.0, 3.7], [2.4, 0.0, 3.7]];
+        for (c, e) in corners.iter().zip(expected) {
+            assert!((Vec3::from(*c) - Vec3::from(e)).norm() < 1e-9, "{case}: {corners:?}");
+        }
+    }
+
     /// A wall y = 0 facing −y (its outline and [`JOINTS`] brick joints) and, 20 cm behind it, a window frame 1.4 × 1.7 m
     /// whose foot the 3-D lines put where the line of sight over the opening's foot meets the frame: cameras below
     /// see the frame's top edge through the soffit, but not its foot. With `overshoot` > 0 each side of the frame is
@@ -594,19 +622,7 @@ mod tests {
         if outline {
             points.extend([[1.0, 0.0, 2.0], [2.4, 0.0, 2.0], [2.4, 0.0, 3.7], [1.0, 0.0, 3.7]]);
         }
-        let vertices = points
-            .iter()
-            .map(|&p| Vertex {
-                point: Vec3::from(p),
-                sigma: Some(Vec3::repeat(0.002)),
-            })
-            .collect();
-        let edge = |a: usize, b: usize| Edge {
-            a,
-            b,
-            line: a,
-            completed: false,
-        };
+        let vertices = points.into_iter().map(vertex).collect();
         let ring = |first: usize| (0..4).map(move |k| edge(first + k, first + (k + 1) % 4));
         let mut edges: Vec<Edge> = ring(0).collect();
         edges.extend((0..JOINTS).map(|k| edge(4 + 2 * k, 5 + 2 * k)));
@@ -631,14 +647,7 @@ mod tests {
             let n = vertices.len();
             let faces = find(&mut vertices, &mut edges, &ModelParams::default(), Some(viewpoint));
             assert_eq!(vertices.len(), n + 4, "overshoot {overshoot}: {faces:?}");
-            let opening = faces.iter().find(|f| f.ring.iter().all(|&k| k >= n)).expect("an opening");
-            assert_eq!(opening.kind, SurfaceKind::Window);
-            let mut corners: Vec<[f64; 3]> = opening.ring.iter().map(|&k| vertices[k].point.into()).collect();
-            corners.sort_by(|a, b| a[2].total_cmp(&b[2]).then(a[0].total_cmp(&b[0])));
-            let expected = [[1.0, 0.0, 2.0], [2.4, 0.0, 2.0], [1.0, 0.0, 3.7], [2.4, 0.0, 3.7]];
-            for (c, e) in corners.iter().zip(expected) {
-                assert!((Vec3::from(*c) - Vec3::from(e)).norm() < 1e-9, "overshoot {overshoot}: {corners:?}");
-            }
+            assert_true_opening(&vertices, &faces, n, &format!("overshoot {overshoot}"));
             // Its outline is completed (not observed) and cut into the wall.
             assert_eq!(edges.iter().filter(|e| e.completed).count(), 4);
             let wall = faces.iter().find(|f| f.ring.contains(&0)).expect("wall");
@@ -675,18 +684,7 @@ mod tests {
             let mut points = vec![[1.0, 0.2, foot], [1.0, 0.2, 3.7], [2.4, 0.2, foot], [2.4, 0.2, 3.7]];
             points.extend([[x0 - o, 0.2, z0], [x1 + o, 0.2, z0], [x1, 0.2, z0 - o], [x1, 0.2, z1 + o]]);
             points.extend([[x1 + o, 0.2, z1], [x0 - o, 0.2, z1], [x0, 0.2, z1 + o], [x0, 0.2, z0 - o]]);
-            for p in points {
-                vertices.push(Vertex {
-                    point: Vec3::from(p),
-                    sigma: Some(Vec3::repeat(0.002)),
-                });
-            }
-            let edge = |a: usize, b: usize| Edge {
-                a,
-                b,
-                line: a,
-                completed: false,
-            };
+            vertices.extend(points.into_iter().map(vertex));
             edges.extend([edge(n, n + 1), edge(n + 2, n + 3)]);
             let g = n + 4;
             if overshoot > 0.0 {
@@ -696,13 +694,7 @@ mod tests {
             }
             let before = vertices.len();
             let faces = find(&mut vertices, &mut edges, &ModelParams::default(), Some(viewpoint));
-            let opening = faces.iter().find(|f| f.ring.iter().all(|&k| k >= before)).expect("an opening");
-            let mut corners: Vec<[f64; 3]> = opening.ring.iter().map(|&k| vertices[k].point.into()).collect();
-            corners.sort_by(|a, b| a[2].total_cmp(&b[2]).then(a[0].total_cmp(&b[0])));
-            let expected = [[1.0, 0.0, 2.0], [2.4, 0.0, 2.0], [1.0, 0.0, 3.7], [2.4, 0.0, 3.7]];
-            for (c, e) in corners.iter().zip(expected) {
-                assert!((Vec3::from(*c) - Vec3::from(e)).norm() < 1e-9, "overshoot {overshoot}: {corners:?}");
-            }
+            assert_true_opening(&vertices, &faces, before, &format!("glazing, overshoot {overshoot}"));
         }
     }
 
@@ -711,18 +703,8 @@ mod tests {
         // A 0.6 m pane behind the wall, its frame not found: smaller than any opening inferred this way.
         let (mut vertices, mut edges, viewpoint) = scene(0.0, false);
         let base = vertices.len();
-        for p in [[3.0, 0.2, 4.0], [3.6, 0.2, 4.0], [3.6, 0.2, 5.0], [3.0, 0.2, 5.0]] {
-            vertices.push(Vertex {
-                point: Vec3::from(p),
-                sigma: Some(Vec3::repeat(0.002)),
-            });
-        }
-        edges.extend((0..4).map(|k| Edge {
-            a: base + k,
-            b: base + (k + 1) % 4,
-            line: base + k,
-            completed: false,
-        }));
+        vertices.extend([[3.0, 0.2, 4.0], [3.6, 0.2, 4.0], [3.6, 0.2, 5.0], [3.0, 0.2, 5.0]].map(vertex));
+        edges.extend((0..4).map(|k| edge(base + k, base + (k + 1) % 4)));
         find(&mut vertices, &mut edges, &ModelParams::default(), Some(viewpoint));
         // Only the frame's opening is new.
         assert_eq!(vertices.len(), base + 4 + 4);
