@@ -73,15 +73,15 @@ pub(crate) struct Plane {
 /// The faces of a wire-frame. `viewpoint` (e.g. the mean camera centre) decides which side is outside; without
 /// one the centroid of the vertices is taken as inside.
 ///
-/// Openings inferred from what is seen through them ([`crate::openings`]) add their corners to `vertices` and their outline,
-/// as completed edges, to `edges`.
-pub fn find(vertices: &mut Vec<Vertex>, edges_out: &mut Vec<Edge>, params: &ModelParams, viewpoint: Option<Vec3>) -> Vec<Face> {
+/// Openings inferred from what is seen through them ([`crate::openings`]) add their corners to `vertices` and
+/// their outlines, as completed edges, to `edges`.
+pub fn find(vertices: &mut Vec<Vertex>, edges: &mut Vec<Edge>, params: &ModelParams, viewpoint: Option<Vec3>) -> Vec<Face> {
     if vertices.is_empty() {
         return Vec::new();
     }
-    let mut new_edges = Vec::new();
     let tol = plane_tolerance(vertices, params);
-    let merged = merge_close(vertices, edges_out, tol);
+    let merged = merge_close(vertices, edges, tol);
+    let edges_out = edges;
     let edges = &merged[..];
     let incident = incident_edges(vertices.len(), edges);
     let planes = plane_hypotheses(vertices, edges, &incident, params, tol);
@@ -121,33 +121,10 @@ pub fn find(vertices: &mut Vec<Vertex>, edges_out: &mut Vec<Edge>, params: &Mode
     }
     if viewpoint.is_some() {
         recessed_openings(vertices, &incident, edges, &mut faces);
-        for inferred in crate::openings::infer(vertices, edges, &planes, &faces, tol, params, inside_ref) {
-            match inferred {
-                crate::openings::Inferred::Mark(j) => faces[j].kind = SurfaceKind::Window,
-                crate::openings::Inferred::New(corners, normal) => {
-                    let first = vertices.len();
-                    vertices.extend(corners);
-                    let ring: Vec<usize> = (first..vertices.len()).collect();
-                    for (k, &a) in ring.iter().enumerate() {
-                        new_edges.push(Edge {
-                            a,
-                            b: ring[(k + 1) % ring.len()],
-                            line: usize::MAX,
-                            completed: true,
-                        });
-                    }
-                    faces.push(Face {
-                        ring,
-                        holes: Vec::new(),
-                        normal,
-                        kind: SurfaceKind::Window,
-                    });
-                }
-            }
-        }
+        let inferred = crate::openings::infer(vertices, edges, &planes, &faces, tol, params, inside_ref);
+        crate::openings::add(inferred, vertices, edges_out, &mut faces);
     }
     nest_openings(vertices, &mut faces, params);
-    edges_out.extend(new_edges);
     faces
 }
 
@@ -426,6 +403,7 @@ fn recessed_openings(vertices: &[Vertex], incident: &[Vec<usize>], edges: &[Edge
 
 /// The smallest opening found by its reveals alone, metres (a cellar window; a sill's front is 6 cm tall).
 const MIN_OPENING_M: f64 = 0.25;
+
 /// The smaller side of the bounding rectangle of the vertices `points` in the plane of `normal`.
 pub(crate) fn smaller_side(vertices: &[Vertex], points: &[usize], normal: Vec3) -> f64 {
     let (u, v) = plane_basis(normal);

@@ -209,6 +209,33 @@ pub(crate) fn infer(
     out
 }
 
+/// Adds the inferred openings to the model: marked faces become windows, new ones get their corners, their
+/// outline as completed edges and a window face (`nest_openings` then cuts them into their walls and tells doors).
+pub(crate) fn add(inferred: Vec<Inferred>, vertices: &mut Vec<Vertex>, edges: &mut Vec<Edge>, faces: &mut Vec<Face>) {
+    for opening in inferred {
+        match opening {
+            Inferred::Mark(j) => faces[j].kind = SurfaceKind::Window,
+            Inferred::New(corners, normal) => {
+                let first = vertices.len();
+                vertices.extend(corners);
+                let ring: Vec<usize> = (first..vertices.len()).collect();
+                edges.extend(ring.iter().enumerate().map(|(k, &a)| Edge {
+                    a,
+                    b: ring[(k + 1) % ring.len()],
+                    line: usize::MAX,
+                    completed: true,
+                }));
+                faces.push(Face {
+                    ring,
+                    holes: Vec::new(),
+                    normal,
+                    kind: SurfaceKind::Window,
+                });
+            }
+        }
+    }
+}
+
 /// A vertical face at least [`MIN_OPENING_M`] across lying parallel to a wall and [`RECESS_M`] behind it (the
 /// plane of that orientation in front of it with the most edges, more than the face's own plane has), with no
 /// opening of about its size in front of it, is what one sees through an opening. The wall-plane face around it
