@@ -538,11 +538,12 @@ fn from_rectangles(wall: &Wall, vertices: &[Vertex], edges: &[Edge]) -> Vec<([f6
     kept
 }
 
-/// Where the frame's outer standing edges lie just outside a rectangle (within [`FRAME_M`], at its depth, as long
-/// as it), the rectangle is the glazing inside the frame: a ground-floor frame's top and foot lie a pixel from the
-/// opening's outline in every image of a street-level strip, and only the glazing's outline is found. The opening
-/// is then the rectangle of those outer edges, from where both start to where both end (within 5 cm of each
-/// other). None where either is missing.
+/// Where the frame's outer standing edges lie just outside a rectangle (within [`FRAME_M`], at its depth, along
+/// [`MIN_OUTER_COVER`] of its height), the rectangle is the glazing inside the frame, or part of it: a
+/// ground-floor frame's top and foot lie a pixel from the opening's outline in every image of a street-level strip,
+/// and only the glazing's outline is found. Each side found outside moves the rectangle's side out to it, and the
+/// rectangle then runs from where the outer sides start to where they end (both within 5 cm of each other where
+/// there are two). None where neither is found.
 fn widened_to_frame([x0, x1, z0, z1]: [f64; 4], depth: f64, standing: &[Side]) -> Option<[f64; 4]> {
     let outer = |from: f64, outward: f64| {
         standing
@@ -553,8 +554,14 @@ fn widened_to_frame([x0, x1, z0, z1]: [f64; 4], depth: f64, standing: &[Side]) -
             .min_by(|a, b| a.1.total_cmp(&b.1))
             .map(|(s, _)| (s.at, s.extent()))
     };
-    let ((l, (l0, l1)), (r, (r0, r1))) = (outer(x0, -1.0)?, outer(x1, 1.0)?);
-    ((l0 - r0).abs() <= 0.05 && (l1 - r1).abs() <= 0.05).then(|| [l, r, (l0 + r0) / 2.0, (l1 + r1) / 2.0])
+    let (z0, z1) = match (outer(x0, -1.0), outer(x1, 1.0)) {
+        (None, None) => return None,
+        (Some((_, (l0, l1))), Some((_, (r0, r1)))) if (l0 - r0).abs() > 0.05 || (l1 - r1).abs() > 0.05 => return None,
+        (Some((_, (l0, l1))), Some((_, (r0, r1)))) => ((l0 + r0) / 2.0, (l1 + r1) / 2.0),
+        (Some((_, ends)), None) | (None, Some((_, ends))) => ends,
+    };
+    let side = |found: Option<(f64, (f64, f64))>, at: f64| found.map_or(at, |(x, _)| x);
+    Some([side(outer(x0, -1.0), x0), side(outer(x1, 1.0), x1), z0, z1])
 }
 
 /// The corners on the wall plane of the opening through which the rectangle `[x0, x1, z0, z1]`, `depth` behind
@@ -615,11 +622,16 @@ mod tests {
 
     /// The face on the vertices from `first` on: the opening of the true outline, x 1–2.4 m, z 2–3.7 m.
     fn assert_true_opening(vertices: &[Vertex], faces: &[Face], first: usize, case: &str) {
+        assert_opening(vertices, faces, first, 2.4, case);
+    }
+
+    /// The face on the vertices from `first` on: the opening x 1–`x1` m, z 2–3.7 m.
+    fn assert_opening(vertices: &[Vertex], faces: &[Face], first: usize, x1: f64, case: &str) {
         let opening = faces.iter().find(|f| f.ring.iter().all(|&k| k >= first)).expect("an opening");
         assert_eq!(opening.kind, SurfaceKind::Window, "{case}");
         let mut corners: Vec<[f64; 3]> = opening.ring.iter().map(|&k| vertices[k].point.into()).collect();
         corners.sort_by(|a, b| a[2].total_cmp(&b[2]).then(a[0].total_cmp(&b[0])));
-        let expected = [[1.0, 0.0, 2.0], [2.4, 0.0, 2.0], [1.0, 0.0, 3.7], [2.4, 0.0, 3.7]];
+        let expected = [[1.0, 0.0, 2.0], [x1, 0.0, 2.0], [1.0, 0.0, 3.7], [x1, 0.0, 3.7]];
         for (c, e) in corners.iter().zip(expected) {
             assert!((Vec3::from(*c) - Vec3::from(e)).norm() < 1e-9, "{case}: {corners:?}");
         }
@@ -699,9 +711,9 @@ mod tests {
 
     #[test]
     fn a_glazing_outline_inside_its_frame_is_widened_to_the_frame() {
-        // Only the frame's outer sides (no top, no foot) and, 6 cm inside, the glazing's outline: closed (a recessed
-        // face) or its sides apart at the corners (a rectangle).
-        for overshoot in [0.0, 0.03] {
+        // Only the frame's outer sides (no top, no foot; or only its left one) and, 6 cm inside, the glazing's
+        // outline: closed (a recessed face) or its sides apart at the corners (a rectangle).
+        for (overshoot, both) in [(0.0, true), (0.03, true), (0.0, false), (0.03, false)] {
             let (mut vertices, mut edges, viewpoint) = scene(0.0, false);
             edges.retain(|e| e.a < FRAME);
             let n = vertices.len();
@@ -712,7 +724,10 @@ mod tests {
             points.extend([[x0 - o, 0.2, z0], [x1 + o, 0.2, z0], [x1, 0.2, z0 - o], [x1, 0.2, z1 + o]]);
             points.extend([[x1 + o, 0.2, z1], [x0 - o, 0.2, z1], [x0, 0.2, z1 + o], [x0, 0.2, z0 - o]]);
             vertices.extend(points.into_iter().map(vertex));
-            edges.extend([edge(n, n + 1), edge(n + 2, n + 3)]);
+            edges.push(edge(n, n + 1));
+            if both {
+                edges.push(edge(n + 2, n + 3));
+            }
             let g = n + 4;
             if overshoot > 0.0 {
                 edges.extend((0..4).map(|k| edge(g + 2 * k, g + 1 + 2 * k)));
@@ -721,7 +736,15 @@ mod tests {
             }
             let before = vertices.len();
             let faces = find(&mut vertices, &mut edges, &ModelParams::default(), Some(viewpoint));
-            assert_true_opening(&vertices, &faces, before, &format!("glazing, overshoot {overshoot}"));
+            // With one outer side, the other side stays the glazing's.
+            let x1 = if both { 2.4 } else { x1 };
+            assert_opening(
+                &vertices,
+                &faces,
+                before,
+                x1,
+                &format!("glazing, overshoot {overshoot}, both sides {both}"),
+            );
         }
     }
 
