@@ -41,8 +41,8 @@ fn resolved(camera: &Camera, poses: &[Pose], truth: &[Seg], grid: &Grid, i: usiz
     let beside: Vec<Vec3> = grid
         .near(&mid)
         .iter()
+        .filter(|&&j| j as usize != i)
         .map(|&j| &truth[j as usize])
-        .filter(|other| !std::ptr::eq(*other, edge))
         .filter(|other| other.angle_deg(edge) <= PARALLEL_DEG && other.line_distance(&mid) <= NEIGHBOUR_M)
         .filter_map(|other| {
             let t = other.param(&mid);

@@ -89,10 +89,15 @@ pub fn find(vertices: &mut Vec<Vertex>, edges: &mut Vec<Edge>, params: &ModelPar
     let outward_from_centroid = viewpoint.is_none();
     let mut faces = Vec::new();
     let mut seen_rings = std::collections::HashSet::new();
-    for plane in &planes {
-        let on_plane = |v: usize| (plane.normal.dot(&vertices[v].point) - plane.offset).abs() < tol;
-        let in_plane: Vec<&Edge> = edges.iter().filter(|e| on_plane(e.a) && on_plane(e.b)).collect();
-        for ring in cycles(vertices, &in_plane, plane.normal) {
+    let plane_edges: Vec<Vec<&Edge>> = planes
+        .iter()
+        .map(|plane| {
+            let on_plane = |v: usize| (plane.normal.dot(&vertices[v].point) - plane.offset).abs() < tol;
+            edges.iter().filter(|e| on_plane(e.a) && on_plane(e.b)).collect()
+        })
+        .collect();
+    for (plane, in_plane) in planes.iter().zip(&plane_edges) {
+        for ring in cycles(vertices, in_plane, plane.normal) {
             let mut key = ring.clone();
             key.sort_unstable();
             if !seen_rings.insert(key) {
@@ -121,7 +126,7 @@ pub fn find(vertices: &mut Vec<Vertex>, edges: &mut Vec<Edge>, params: &ModelPar
     }
     if viewpoint.is_some() {
         recessed_openings(vertices, &incident, edges, &mut faces);
-        let inferred = crate::openings::infer(vertices, edges, &planes, &faces, tol, params, inside_ref);
+        let inferred = crate::openings::infer(vertices, edges, &planes, &plane_edges, &faces, tol, params, inside_ref);
         crate::openings::add(inferred, vertices, edges_out, &mut faces);
     }
     nest_openings(vertices, &mut faces, params);

@@ -65,12 +65,13 @@ struct Wall {
 }
 
 impl Wall {
-    fn new(plane: Plane, out: Vec3) -> Option<Wall> {
-        let out = if plane.normal.dot(&out) >= 0.0 {
-            plane.normal
-        } else {
-            -plane.normal
-        };
+    /// The plane as a wall seen from `viewpoint`; none when the viewpoint lies in it.
+    fn facing(plane: Plane, viewpoint: &Vec3) -> Option<Wall> {
+        let side = plane.normal.dot(viewpoint) - plane.offset;
+        if side.abs() < 1e-9 {
+            return None;
+        }
+        let out = plane.normal * side.signum();
         let across = Vec3::z().cross(&out).try_normalize(1e-9)?;
         Some(Wall { plane, out, across })
     }
@@ -88,122 +89,117 @@ impl Wall {
     }
 }
 
+/// A wall with the observed edges behind it gathered into sides.
+struct WallView {
+    wall: Wall,
+    standing: Vec<Side>,
+    lying: Vec<Side>,
+}
+
+/// A ring flattened in its plane, for containment tests.
+struct Outline {
+    normal: Vec3,
+    centroid: Vec3,
+    basis: (Vec3, Vec3),
+    polygon: Vec<[f64; 2]>,
+    area: f64,
+}
+
+impl Outline {
+    fn of(points: &[Vec3], normal: Vec3) -> Outline {
+        let basis = plane_basis(normal);
+        let polygon: Vec<[f64; 2]> = points.iter().map(|p| [p.dot(&basis.0), p.dot(&basis.1)]).collect();
+        Outline {
+            normal,
+            centroid: points.iter().sum::<Vec3>() / points.len().max(1) as f64,
+            basis,
+            area: signed_area(&polygon).abs(),
+            polygon,
+        }
+    }
+
+    /// Whether `p`, moved along the normal into the ring's plane, lies inside it.
+    fn contains(&self, p: &Vec3) -> bool {
+        point_in_polygon([p.dot(&self.basis.0), p.dot(&self.basis.1)], &self.polygon)
+    }
+}
+
+/// A rectangle behind a wall proposed as an opening: [x0, x1, z0, z1] in the wall's coordinates, its depth behind
+/// the wall and the σ of its corners.
+struct Proposal {
+    wall: usize,
+    rect: [f64; 4],
+    depth: f64,
+    sigma: Option<Vec3>,
+}
+
 /// Openings inferred from recessed faces and from rectangles of recessed edges, for a model whose cameras stand
-/// around `viewpoint`. `edges` are those the faces were traced on.
+/// around `viewpoint`. `edges` are those the faces were traced on, `plane_edges` those lying in each plane.
+#[allow(clippy::too_many_arguments)]
 pub(crate) fn infer(
     vertices: &[Vertex],
     edges: &[Edge],
     planes: &[Plane],
+    plane_edges: &[Vec<&Edge>],
     faces: &[Face],
     tol: f64,
     params: &ModelParams,
     viewpoint: Vec3,
 ) -> Vec<Inferred> {
-    // Per plane: its edges, and whether they spread over a wall's extent both across and up.
-    let (support, spread): (Vec<usize>, Vec<bool>) = planes
-        .iter()
-        .map(|p| {
-            let on = |v: usize| (p.normal.dot(&vertices[v].point) - p.offset).abs() < tol;
-            let ends: Vec<Vec3> = edges
-                .iter()
-                .filter(|e| on(e.a) && on(e.b))
-                .flat_map(|e| [vertices[e.a].point, vertices[e.b].point])
-                .collect();
-            let across = Vec3::z().cross(&p.normal).try_normalize(1e-9).unwrap_or(Vec3::x());
-            let span = |f: &dyn Fn(&Vec3) -> f64| {
-                let v: Vec<f64> = ends.iter().map(f).collect();
-                max(&v) - min(&v)
-            };
-            (
-                ends.len() / 2,
-                span(&|q| q.dot(&across)) >= MIN_WALL_SPAN_M && span(&|q| q.z) >= MIN_WALL_SPAN_M,
-            )
-        })
-        .unzip();
-    let areas: Vec<f64> = faces
-        .iter()
-        .map(|f| {
-            let (u, v) = plane_basis(f.normal);
-            signed_area(
-                &f.ring
-                    .iter()
-                    .map(|&k| [vertices[k].point.dot(&u), vertices[k].point.dot(&v)])
-                    .collect::<Vec<_>>(),
-            )
-            .abs()
-        })
-        .collect();
-    let mut out = from_recesses(vertices, edges, planes, &support, faces, &areas, tol, params, viewpoint);
-    // Rectangles where neither an opening nor a recessed face already made one.
-    let mut found: Vec<(Vec3, Vec<Vec3>)> = faces
+    let cos_par = params.plane_angle_deg.to_radians().cos();
+    let ring = |r: &[usize]| r.iter().map(|&k| vertices[k].point).collect::<Vec<_>>();
+    let outlines: Vec<Outline> = faces.iter().map(|f| Outline::of(&ring(&f.ring), f.normal)).collect();
+    let walls = walls(vertices, edges, planes, plane_edges, cos_par, &viewpoint);
+    // Recessed faces first, then rectangles; each only where no opening is on the wall there yet.
+    let mut proposals = from_recesses(vertices, faces, &outlines, &walls, cos_par);
+    for (k, w) in walls.iter().enumerate() {
+        proposals.extend(
+            from_rectangles(&w.standing, &w.lying)
+                .into_iter()
+                .map(|(rect, depth, sigma)| Proposal {
+                    wall: k,
+                    rect,
+                    depth,
+                    sigma,
+                }),
+        );
+    }
+    let mut found: Vec<Outline> = faces
         .iter()
         .filter(|f| matches!(f.kind, SurfaceKind::Window | SurfaceKind::Door))
-        .map(|f| (f.normal, f.ring.iter().map(|&k| vertices[k].point).collect()))
+        .map(|f| Outline::of(&ring(&f.ring), f.normal))
         .collect();
-    for inferred in &out {
-        match inferred {
-            Inferred::Mark(j) => found.push((faces[*j].normal, faces[*j].ring.iter().map(|&k| vertices[k].point).collect())),
-            Inferred::New(corners, normal) => found.push((*normal, corners.iter().map(|v| v.point).collect())),
-        }
-    }
-    let cos_par = params.plane_angle_deg.to_radians().cos();
-    // Walls: vertical planes that carry more edges than any parallel plane within reach behind or in front of them
-    // (a row of sill fronts or a cornice is no wall, and the wall's own lines are not recessed behind it).
-    let parallel_near = |a: &Plane, b: &Plane| {
-        let along = a.normal.dot(&b.normal);
-        along.abs() > cos_par && (a.offset - b.offset * along.signum()).abs() <= RECESS_M.1
-    };
-    let mut walls: Vec<(usize, &Plane)> = support
-        .iter()
-        .copied()
-        .zip(planes)
-        .enumerate()
-        .filter(|&(k, (n, p))| {
-            n >= MIN_WALL_EDGES
-                && spread[k]
-                && p.normal.z.abs() < 0.2
-                && planes
-                    .iter()
-                    .zip(&support)
-                    .enumerate()
-                    .all(|(j, (q, &m))| j == k || !parallel_near(p, q) || m < n)
-        })
-        .map(|(_, w)| w)
-        .collect();
-    walls.sort_by_key(|w| std::cmp::Reverse(w.0));
-    for (_, plane) in walls {
-        let Some(wall) = Wall::new(*plane, viewpoint - plane.normal * plane.offset) else {
-            continue;
-        };
-        if wall.depth(&viewpoint) >= 0.0 {
+    let mut out = Vec::new();
+    for p in proposals {
+        let wall = &walls[p.wall].wall;
+        let [x0, x1, z0, z1] = p.rect;
+        let centre = wall.point((x0 + x1) / 2.0, (z0 + z1) / 2.0, &viewpoint);
+        let on_wall_here =
+            |o: &Outline| o.normal.dot(&wall.out).abs() > cos_par && wall.depth(&o.centroid).abs() < RECESS_M.0 && o.contains(&centre);
+        if found.iter().any(on_wall_here) {
             continue;
         }
-        for (rect, depth, sigma) in from_rectangles(&wall, vertices, edges) {
-            let centre = wall.point((rect[0] + rect[1]) / 2.0, (rect[2] + rect[3]) / 2.0, &viewpoint);
-            let taken = found.iter().any(|(normal, ring)| {
-                let (u, v) = plane_basis(*normal);
-                let flat: Vec<[f64; 2]> = ring.iter().map(|p| [p.dot(&u), p.dot(&v)]).collect();
-                normal.dot(&wall.out).abs() > cos_par && point_in_polygon([centre.dot(&u), centre.dot(&v)], &flat)
-            });
-            if taken {
-                continue;
+        // An outline of about its size on the wall that closed without being taken for an opening (nothing nests
+        // it yet) is the opening.
+        let area = (x1 - x0) * (z1 - z0);
+        let outline = (0..faces.len()).find(|&j| {
+            let o = &outlines[j];
+            on_wall_here(o)
+                && faces[j].ring.iter().all(|&w| wall.depth(&vertices[w].point).abs() < tol)
+                && o.area < 2.0 * area
+                && o.area > 0.5 * area
+        });
+        match outline {
+            Some(j) if faces[j].kind == SurfaceKind::Wall => {
+                out.push(Inferred::Mark(j));
+                found.push(Outline::of(&ring(&faces[j].ring), faces[j].normal));
             }
-            let corners = opening_corners(&wall, rect, depth, viewpoint, sigma, &centre);
-            let area = (rect[1] - rect[0]) * (rect[3] - rect[2]);
-            let ring = match outline_on_wall(vertices, faces, &areas, wall.plane, tol, cos_par, &centre, area) {
-                // The outline closed on the wall without being taken for an opening (nothing nests it yet).
-                Some(j) if faces[j].kind == SurfaceKind::Wall => {
-                    out.push(Inferred::Mark(j));
-                    faces[j].ring.iter().map(|&k| vertices[k].point).collect()
-                }
-                Some(_) => continue,
-                None => {
-                    let ring = corners.iter().map(|v| v.point).collect();
-                    out.push(Inferred::New(corners, wall.out));
-                    ring
-                }
-            };
-            found.push((wall.out, ring));
+            Some(_) => {}
+            None => {
+                let corners = opening_corners(wall, p.rect, p.depth, viewpoint, p.sigma, &centre);
+                found.push(Outline::of(&corners.iter().map(|v| v.point).collect::<Vec<_>>(), wall.out));
+                out.push(Inferred::New(corners, wall.out));
+            }
         }
     }
     out
@@ -236,129 +232,92 @@ pub(crate) fn add(inferred: Vec<Inferred>, vertices: &mut Vec<Vertex>, edges: &m
     }
 }
 
-/// A vertical face at least [`MIN_OPENING_M`] across lying parallel to a wall and [`RECESS_M`] behind it (the
-/// plane of that orientation in front of it with the most edges, more than the face's own plane has), with no
-/// opening of about its size in front of it, is what one sees through an opening. The wall-plane face around it
-/// of about its size becomes the opening, or else its bounding rectangle is carried onto the wall plane. A
-/// recessed face inside a larger one (a pane inside its frame) adds nothing.
-#[allow(clippy::too_many_arguments)]
-fn from_recesses(
+/// The walls, most edges first: vertical planes whose edges (at least [`MIN_WALL_EDGES`]) spread
+/// [`MIN_WALL_SPAN_M`] across and up and outnumber those of every parallel plane within [`RECESS_M`] of them (a row
+/// of sill fronts, the reveals of a column of windows or a frame's own plane are no wall), each with the observed
+/// edges behind it gathered into sides.
+fn walls(
     vertices: &[Vertex],
     edges: &[Edge],
     planes: &[Plane],
-    support: &[usize],
-    faces: &[Face],
-    areas: &[f64],
-    tol: f64,
-    params: &ModelParams,
-    viewpoint: Vec3,
-) -> Vec<Inferred> {
-    let cos_par = params.plane_angle_deg.to_radians().cos();
-    let centroid = |f: &Face| f.ring.iter().map(|&k| vertices[k].point).sum::<Vec3>() / f.ring.len() as f64;
-    let flat = |f: &Face, normal: Vec3| -> Vec<[f64; 2]> {
-        let (u, v) = plane_basis(normal);
-        f.ring
-            .iter()
-            .map(|&k| [vertices[k].point.dot(&u), vertices[k].point.dot(&v)])
-            .collect()
+    plane_edges: &[Vec<&Edge>],
+    cos_par: f64,
+    viewpoint: &Vec3,
+) -> Vec<WallView> {
+    let spread = |p: &Plane, on: &[&Edge]| {
+        let across = Vec3::z().cross(&p.normal).try_normalize(1e-9).unwrap_or(Vec3::x());
+        let ends: Vec<Vec3> = on.iter().flat_map(|e| [vertices[e.a].point, vertices[e.b].point]).collect();
+        let span = |f: &dyn Fn(&Vec3) -> f64| {
+            let v: Vec<f64> = ends.iter().map(f).collect();
+            max(&v) - min(&v)
+        };
+        span(&|q| q.dot(&across)) >= MIN_WALL_SPAN_M && span(&|q| q.z) >= MIN_WALL_SPAN_M
     };
-    // Candidates, largest first: (face, wall plane).
-    let mut candidates: Vec<(usize, usize)> = faces
-        .iter()
-        .enumerate()
-        .filter(|(_, f)| {
-            f.kind == SurfaceKind::Wall && f.normal.z.abs() < 0.2 && smaller_side(vertices, &f.ring, f.normal) >= MIN_OPENING_M
+    let parallel_near = |a: &Plane, b: &Plane| {
+        let along = a.normal.dot(&b.normal);
+        along.abs() > cos_par && (a.offset - b.offset * along.signum()).abs() <= RECESS_M.1
+    };
+    let mut chosen: Vec<(usize, usize)> = (0..planes.len())
+        .filter(|&k| {
+            let (p, n) = (&planes[k], plane_edges[k].len());
+            n >= MIN_WALL_EDGES
+                && p.normal.z.abs() < 0.2
+                && (0..planes.len()).all(|j| j == k || !parallel_near(p, &planes[j]) || plane_edges[j].len() < n)
+                && spread(p, &plane_edges[k])
         })
-        .filter_map(|(i, f)| {
-            let c = centroid(f);
-            // A face on the façade's main plane is not behind it, whatever lies in front (sills, cornices).
-            let own = planes
-                .iter()
-                .zip(support)
-                .filter(|(p, _)| f.ring.iter().all(|&w| (p.normal.dot(&vertices[w].point) - p.offset).abs() < tol))
-                .map(|(_, &n)| n)
-                .max()
-                .unwrap_or(0);
-            planes
-                .iter()
-                .enumerate()
-                .filter_map(|(k, p)| {
-                    let along = p.normal.dot(&f.normal);
-                    let behind = -(p.normal.dot(&c) - p.offset) / along;
-                    (along.abs() > cos_par && (RECESS_M.0..=RECESS_M.1).contains(&behind) && support[k] >= MIN_WALL_EDGES.max(own + 1))
-                        .then_some((support[k], k))
-                })
-                .max_by(|a, b| a.0.cmp(&b.0).then(b.1.cmp(&a.1)))
-                .map(|(_, k)| (i, k))
-        })
+        .map(|k| (plane_edges[k].len(), k))
         .collect();
-    candidates.sort_by(|a, b| areas[b.0].total_cmp(&areas[a.0]).then(a.0.cmp(&b.0)));
-    let mut taken: Vec<usize> = Vec::new();
-    let mut out = Vec::new();
-    for &(i, k) in &candidates {
-        let f = &faces[i];
-        let (u, v) = plane_basis(f.normal);
-        let c = centroid(f);
-        let at = [c.dot(&u), c.dot(&v)];
-        if taken.iter().any(|&t| point_in_polygon(at, &flat(&faces[t], f.normal))) {
-            continue;
-        }
-        taken.push(i);
-        let plane = &planes[k];
-        match outline_on_wall(vertices, faces, areas, *plane, tol, cos_par, &c, areas[i]) {
-            Some(j) if faces[j].kind == SurfaceKind::Wall => out.push(Inferred::Mark(j)),
-            Some(_) => {}
-            None => {
-                let Some(wall) = Wall::new(*plane, f.normal) else {
-                    continue;
-                };
-                let points: Vec<Vec3> = f.ring.iter().map(|&w| vertices[w].point).collect();
-                let (xs, zs): (Vec<f64>, Vec<f64>) = points.iter().map(|p| (p.dot(&wall.across), p.z)).unzip();
-                let rect = [min(&xs), max(&xs), min(&zs), max(&zs)];
-                // Only a rectangle is carried over as its box.
-                if areas[i] < 0.8 * (rect[1] - rect[0]) * (rect[3] - rect[2]) {
-                    continue;
-                }
-                let depth = wall.depth(&c);
-                let rect = widened_to_frame(rect, depth, &sides(&wall, vertices, edges, true)).unwrap_or(rect);
-                let sigma = f.ring.iter().find_map(|&w| vertices[w].sigma);
-                let corners = opening_corners(&wall, rect, depth, viewpoint, sigma, &c);
-                out.push(Inferred::New(corners, f.normal));
-            }
-        }
-    }
-    out
+    chosen.sort_by(|a, b| b.0.cmp(&a.0).then(a.1.cmp(&b.1)));
+    chosen
+        .into_iter()
+        .filter_map(|(_, k)| {
+            let wall = Wall::facing(planes[k], viewpoint)?;
+            Some(WallView {
+                standing: sides(&wall, vertices, edges, true),
+                lying: sides(&wall, vertices, edges, false),
+                wall,
+            })
+        })
+        .collect()
 }
 
-/// The face on `wall` (every corner within `tol` of it) parallel to it, of about `area` (within a factor 2), that
-/// contains `centre`: an opening's own outline.
-#[allow(clippy::too_many_arguments)]
-fn outline_on_wall(
-    vertices: &[Vertex],
-    faces: &[Face],
-    areas: &[f64],
-    wall: Plane,
-    tol: f64,
-    cos_par: f64,
-    centre: &Vec3,
-    area: f64,
-) -> Option<usize> {
-    (0..faces.len()).find(|&j| {
-        let g = &faces[j];
-        let (u, v) = plane_basis(g.normal);
-        let flat: Vec<[f64; 2]> = g
-            .ring
-            .iter()
-            .map(|&k| [vertices[k].point.dot(&u), vertices[k].point.dot(&v)])
-            .collect();
-        g.normal.dot(&wall.normal).abs() > cos_par
-            && g.ring
+/// A vertical wall-kind face at least [`MIN_OPENING_M`] across, nearly a rectangle, parallel to a wall and
+/// [`RECESS_M`] behind it, is what one sees through an opening: its bounding rectangle, widened to the frame
+/// ([`widened_to_frame`]). Largest first, so that a frame comes before its panes.
+fn from_recesses(vertices: &[Vertex], faces: &[Face], outlines: &[Outline], walls: &[WallView], cos_par: f64) -> Vec<Proposal> {
+    let mut order: Vec<usize> = (0..faces.len()).collect();
+    order.sort_by(|&a, &b| outlines[b].area.total_cmp(&outlines[a].area).then(a.cmp(&b)));
+    order
+        .into_iter()
+        .filter(|&i| {
+            let f = &faces[i];
+            f.kind == SurfaceKind::Wall && f.normal.z.abs() < 0.2 && smaller_side(vertices, &f.ring, f.normal) >= MIN_OPENING_M
+        })
+        .filter_map(|i| {
+            let (f, c) = (&faces[i], outlines[i].centroid);
+            let k = walls
                 .iter()
-                .all(|&w| (wall.normal.dot(&vertices[w].point) - wall.offset).abs() < tol)
-            && areas[j] < 2.0 * area
-            && areas[j] > 0.5 * area
-            && point_in_polygon([centre.dot(&u), centre.dot(&v)], &flat)
-    })
+                .position(|w| w.wall.out.dot(&f.normal) > cos_par && (RECESS_M.0..=RECESS_M.1).contains(&w.wall.depth(&c)))?;
+            let wall = &walls[k].wall;
+            let (xs, zs): (Vec<f64>, Vec<f64>) = f
+                .ring
+                .iter()
+                .map(|&w| (vertices[w].point.dot(&wall.across), vertices[w].point.z))
+                .unzip();
+            let rect = [min(&xs), max(&xs), min(&zs), max(&zs)];
+            // Only a rectangle is carried over as its box.
+            if outlines[i].area < 0.8 * (rect[1] - rect[0]) * (rect[3] - rect[2]) {
+                return None;
+            }
+            let depth = wall.depth(&c);
+            Some(Proposal {
+                wall: k,
+                rect: widened_to_frame(rect, depth, &walls[k].standing).unwrap_or(rect),
+                depth,
+                sigma: f.ring.iter().find_map(|&w| vertices[w].sigma),
+            })
+        })
+        .collect()
 }
 
 fn min(v: &[f64]) -> f64 {
@@ -384,10 +343,9 @@ struct Side {
 
 impl Side {
     fn extent(&self) -> (f64, f64) {
-        (
-            min(&self.spans.iter().map(|s| s.0).collect::<Vec<_>>()),
-            max(&self.spans.iter().map(|s| s.1).collect::<Vec<_>>()),
-        )
+        self.spans
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), s| (lo.min(s.0), hi.max(s.1)))
     }
 
     /// Share of [lo, hi] its spans cover.
@@ -486,12 +444,10 @@ fn sides(wall: &Wall, vertices: &[Vertex], edges: &[Edge], upright: bool) -> Vec
         .collect()
 }
 
-/// Rectangles of edges behind `wall`: two standing sides [`MIN_OPENING_M`] to [`MAX_OPENING_M`] apart and two
+/// Rectangles of the edges behind a wall: two standing sides [`MIN_OPENING_M`] to [`MAX_OPENING_M`] apart and two
 /// lying ones at their ends, at one depth, covered by their edges over [`MIN_STANDING_COVER`] and [`MIN_LYING_COVER`] of their length. Largest first; one
 /// inside another already taken (the panes of a frame) is left out. Each as [x0, x1, z0, z1], its depth and a σ.
-fn from_rectangles(wall: &Wall, vertices: &[Vertex], edges: &[Edge]) -> Vec<([f64; 4], f64, Option<Vec3>)> {
-    let standing = sides(wall, vertices, edges, true);
-    let lying = sides(wall, vertices, edges, false);
+fn from_rectangles(standing: &[Side], lying: &[Side]) -> Vec<([f64; 4], f64, Option<Vec3>)> {
     let mut found: Vec<([f64; 4], f64, Option<Vec3>)> = Vec::new();
     for (i, l) in standing.iter().enumerate() {
         for r in &standing[i + 1..] {
@@ -528,7 +484,7 @@ fn from_rectangles(wall: &Wall, vertices: &[Vertex], edges: &[Edge]) -> Vec<([f6
     });
     let mut kept: Vec<([f64; 4], f64, Option<Vec3>)> = Vec::new();
     for (rect, depth, sigma) in found {
-        let candidate = (widened_to_frame(rect, depth, &standing).unwrap_or(rect), depth, sigma);
+        let candidate = (widened_to_frame(rect, depth, standing).unwrap_or(rect), depth, sigma);
         let [x0, x1, z0, z1] = candidate.0;
         let (cx, cz) = ((x0 + x1) / 2.0, (z0 + z1) / 2.0);
         if !kept.iter().any(|(k, _, _)| k[0] <= cx && cx <= k[1] && k[2] <= cz && cz <= k[3]) {
@@ -554,14 +510,14 @@ fn widened_to_frame([x0, x1, z0, z1]: [f64; 4], depth: f64, standing: &[Side]) -
             .min_by(|a, b| a.1.total_cmp(&b.1))
             .map(|(s, _)| (s.at, s.extent()))
     };
-    let (z0, z1) = match (outer(x0, -1.0), outer(x1, 1.0)) {
+    let (left, right) = (outer(x0, -1.0), outer(x1, 1.0));
+    let (z0, z1) = match (left, right) {
         (None, None) => return None,
         (Some((_, (l0, l1))), Some((_, (r0, r1)))) if (l0 - r0).abs() > 0.05 || (l1 - r1).abs() > 0.05 => return None,
         (Some((_, (l0, l1))), Some((_, (r0, r1)))) => ((l0 + r0) / 2.0, (l1 + r1) / 2.0),
         (Some((_, ends)), None) | (None, Some((_, ends))) => ends,
     };
-    let side = |found: Option<(f64, (f64, f64))>, at: f64| found.map_or(at, |(x, _)| x);
-    Some([side(outer(x0, -1.0), x0), side(outer(x1, 1.0), x1), z0, z1])
+    Some([left.map_or(x0, |s| s.0), right.map_or(x1, |s| s.0), z0, z1])
 }
 
 /// The corners on the wall plane of the opening through which the rectangle `[x0, x1, z0, z1]`, `depth` behind
