@@ -494,30 +494,77 @@ fn from_rectangles(standing: &[Side], lying: &[Side]) -> Vec<([f64; 4], f64, Opt
     kept
 }
 
-/// Where the frame's outer standing edges lie just outside a rectangle (within [`FRAME_M`], at its depth, along
-/// [`MIN_OUTER_COVER`] of its height), the rectangle is the glazing inside the frame, or part of it: a
-/// ground-floor frame's top and foot lie a pixel from the opening's outline in every image of a street-level strip,
-/// and only the glazing's outline is found. Each side found outside moves the rectangle's side out to it, and the
-/// rectangle then runs from where the outer sides start to where they end (both within 5 cm of each other where
-/// there are two). None where neither is found.
-fn widened_to_frame([x0, x1, z0, z1]: [f64; 4], depth: f64, standing: &[Side]) -> Option<[f64; 4]> {
-    let outer = |from: f64, outward: f64| {
+/// What a standing side of a rectangle is, told by the frame's other standing edge beside it.
+enum FrameSide {
+    /// The glazing: the frame's outer edge lies this far outside, at this position, from and to these heights.
+    Glazing { width: f64, outer: f64, ends: (f64, f64) },
+    /// Already the frame's outer edge: the glazing lies inside.
+    Outer,
+    /// Nothing beside it tells.
+    Unknown,
+}
+
+/// What the side of a rectangle at `at` is, looking `outward` (±1 along the wall) for the frame's outer edge and
+/// inward for its glazing: standing edges within [`FRAME_M`] of it, at its depth, along [`MIN_OUTER_COVER`] of the
+/// rectangle's height `[z0, z1]`, the nearest first.
+fn frame_side(at: f64, outward: f64, depth: f64, [z0, z1]: [f64; 2], standing: &[Side]) -> FrameSide {
+    let nearest = |direction: f64| {
         standing
             .iter()
             .filter(|s| (s.depth - depth).abs() <= DEPTH_TOLERANCE_M && s.cover(z0, z1) >= MIN_OUTER_COVER)
-            .map(|s| (s, (s.at - from) * outward))
+            .map(|s| (s, (s.at - at) * direction))
             .filter(|(_, d)| (FRAME_M.0..=FRAME_M.1).contains(d))
             .min_by(|a, b| a.1.total_cmp(&b.1))
-            .map(|(s, _)| (s.at, s.extent()))
     };
-    let (left, right) = (outer(x0, -1.0), outer(x1, 1.0));
-    let (z0, z1) = match (left, right) {
-        (None, None) => return None,
-        (Some((_, (l0, l1))), Some((_, (r0, r1)))) if (l0 - r0).abs() > 0.05 || (l1 - r1).abs() > 0.05 => return None,
-        (Some((_, (l0, l1))), Some((_, (r0, r1)))) => ((l0 + r0) / 2.0, (l1 + r1) / 2.0),
-        (Some((_, ends)), None) | (None, Some((_, ends))) => ends,
+    if let Some((s, width)) = nearest(outward) {
+        FrameSide::Glazing {
+            width,
+            outer: s.at,
+            ends: s.extent(),
+        }
+    } else if nearest(-outward).is_some() {
+        FrameSide::Outer
+    } else {
+        FrameSide::Unknown
+    }
+}
+
+/// Where the frame's outer standing edges lie just outside a rectangle, the rectangle is the glazing inside the
+/// frame, or part of it: a ground-floor frame's top and foot lie a pixel from the opening's outline in every image
+/// of a street-level strip, and only the glazing's outline is found. Each side found to be glazing ([`frame_side`])
+/// moves out to the frame's outer edge. A side that nothing beside it tells (a window beyond a strip's end shows
+/// one outer edge; the reveal hides the other) moves out by the frame's width found on the other side, a frame
+/// being as wide on both sides. The rectangle then runs from where the outer sides start to where they end (both
+/// within 5 cm of each other where there are two). None where nothing moves.
+fn widened_to_frame([x0, x1, z0, z1]: [f64; 4], depth: f64, standing: &[Side]) -> Option<[f64; 4]> {
+    use FrameSide::{Glazing, Outer, Unknown};
+    let left = frame_side(x0, -1.0, depth, [z0, z1], standing);
+    let right = frame_side(x1, 1.0, depth, [z0, z1], standing);
+    // Only a glazing side tells the frame's width for the other: a side already on the frame's outer edge whose
+    // neighbour shows no glazing is as likely the outer edge too, its glazing edge unseen.
+    let width = |side: &FrameSide| match side {
+        Glazing { width, .. } => Some(*width),
+        Outer | Unknown => None,
     };
-    Some([left.map_or(x0, |s| s.0), right.map_or(x1, |s| s.0), z0, z1])
+    let moved = |side: &FrameSide, from: f64, outward: f64, other_width: Option<f64>| match side {
+        Glazing { outer, .. } => Some(*outer),
+        Outer => Some(from),
+        Unknown => other_width.map(|w| from + outward * w),
+    };
+    let (Some(l), Some(r)) = (moved(&left, x0, -1.0, width(&right)), moved(&right, x1, 1.0, width(&left))) else {
+        return None;
+    };
+    let (z0, z1) = match (&left, &right) {
+        (Glazing { ends: (l0, l1), .. }, Glazing { ends: (r0, r1), .. }) => {
+            if (l0 - r0).abs() > 0.05 || (l1 - r1).abs() > 0.05 {
+                return None;
+            }
+            ((l0 + r0) / 2.0, (l1 + r1) / 2.0)
+        }
+        (Glazing { ends, .. }, _) | (_, Glazing { ends, .. }) => *ends,
+        _ => (z0, z1),
+    };
+    (l != x0 || r != x1).then_some([l, r, z0, z1])
 }
 
 /// The corners on the wall plane of the opening through which the rectangle `[x0, x1, z0, z1]`, `depth` behind
@@ -692,16 +739,45 @@ mod tests {
             }
             let before = vertices.len();
             let faces = find(&mut vertices, &mut edges, &ModelParams::default(), Some(viewpoint));
-            // With one outer side, the other side stays the glazing's.
-            let x1 = if both { 2.4 } else { x1 };
-            assert_opening(
+            // With one outer side, the other moves out by the frame's width found on it.
+            assert_true_opening(
                 &vertices,
                 &faces,
                 before,
-                x1,
                 &format!("glazing, overshoot {overshoot}, both sides {both}"),
             );
         }
+    }
+
+    #[test]
+    fn a_rectangle_already_on_the_frame_on_one_side_is_widened_on_the_other_only() {
+        // The rectangle runs from the frame's outer left edge (the glazing's left edge 6 cm inside it) to the
+        // glazing's right edge (the frame's outer right edge 6 cm outside it).
+        let (mut vertices, mut edges, viewpoint) = scene(0.0, false);
+        edges.retain(|e| e.a < FRAME);
+        let n = vertices.len();
+        let foot = vertices[FRAME].point.z;
+        let (z0, z1) = (foot + 0.06, 3.64);
+        vertices.extend(
+            [
+                [1.0, 0.2, z0],
+                [2.34, 0.2, z0],
+                [2.34, 0.2, z1],
+                [1.0, 0.2, z1],
+                [1.06, 0.2, z0],
+                [1.06, 0.2, z1],
+                [2.4, 0.2, foot],
+                [2.4, 0.2, 3.7],
+            ]
+            .map(vertex),
+        );
+        edges.extend((0..4).map(|k| edge(n + k, n + (k + 1) % 4)));
+        edges.extend([edge(n + 4, n + 5), edge(n + 6, n + 7)]);
+        let before = vertices.len();
+        let faces = find(&mut vertices, &mut edges, &ModelParams::default(), Some(viewpoint));
+        let opening = faces.iter().find(|f| f.ring.iter().all(|&k| k >= before)).expect("an opening");
+        let xs: Vec<f64> = opening.ring.iter().map(|&k| vertices[k].point.x).collect();
+        assert!(xs.iter().all(|x| (x - 1.0).abs() < 1e-9 || (x - 2.4).abs() < 1e-9), "{xs:?}");
     }
 
     #[test]
