@@ -89,11 +89,14 @@ impl Wall {
     }
 }
 
-/// A wall with the observed edges behind it gathered into sides.
+/// A wall with the observed edges behind it and on it gathered into sides.
 struct WallView {
     wall: Wall,
     standing: Vec<Side>,
     lying: Vec<Side>,
+    /// The standing and lying sides on the wall itself: an opening's own edges.
+    standing_on_wall: Vec<Side>,
+    lying_on_wall: Vec<Side>,
 }
 
 /// A ring flattened in its plane, for containment tests.
@@ -124,11 +127,27 @@ impl Outline {
     }
 }
 
-/// A rectangle behind a wall proposed as an opening: [x0, x1, z0, z1] in the wall's coordinates, its depth behind
-/// the wall and the σ of its corners.
+/// A rectangle in a wall's coordinates: `bounds` [x0, x1, z0, z1], and which of those four sides lie on the wall
+/// itself (the opening's own edge, seen where the frame's edge behind it is hidden) rather than behind it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Rect {
+    bounds: [f64; 4],
+    on_wall: [bool; 4],
+}
+
+impl Rect {
+    fn behind(bounds: [f64; 4]) -> Rect {
+        Rect {
+            bounds,
+            on_wall: [false; 4],
+        }
+    }
+}
+
+/// A rectangle behind a wall proposed as an opening, its depth behind the wall and the σ of its corners.
 struct Proposal {
     wall: usize,
-    rect: [f64; 4],
+    rect: Rect,
     depth: f64,
     sigma: Option<Vec3>,
 }
@@ -153,16 +172,12 @@ pub(crate) fn infer(
     // Recessed faces first, then rectangles; each only where no opening is on the wall there yet.
     let mut proposals = from_recesses(vertices, faces, &outlines, &walls, cos_par);
     for (k, w) in walls.iter().enumerate() {
-        proposals.extend(
-            from_rectangles(&w.standing, &w.lying)
-                .into_iter()
-                .map(|(rect, depth, sigma)| Proposal {
-                    wall: k,
-                    rect,
-                    depth,
-                    sigma,
-                }),
-        );
+        proposals.extend(from_rectangles(w).into_iter().map(|(rect, depth, sigma)| Proposal {
+            wall: k,
+            rect,
+            depth,
+            sigma,
+        }));
     }
     let mut found: Vec<Outline> = faces
         .iter()
@@ -172,7 +187,7 @@ pub(crate) fn infer(
     let mut out = Vec::new();
     for p in proposals {
         let wall = &walls[p.wall].wall;
-        let [x0, x1, z0, z1] = p.rect;
+        let [x0, x1, z0, z1] = p.rect.bounds;
         let centre = wall.point((x0 + x1) / 2.0, (z0 + z1) / 2.0, &viewpoint);
         let on_wall_here =
             |o: &Outline| o.normal.dot(&wall.out).abs() > cos_par && wall.depth(&o.centroid).abs() < RECESS_M.0 && o.contains(&centre);
@@ -272,9 +287,12 @@ fn walls(
         .into_iter()
         .filter_map(|(_, k)| {
             let wall = Wall::facing(planes[k], viewpoint)?;
+            let on_wall = (-DEPTH_TOLERANCE_M, DEPTH_TOLERANCE_M);
             Some(WallView {
-                standing: sides(&wall, vertices, edges, true),
-                lying: sides(&wall, vertices, edges, false),
+                standing: sides(&wall, vertices, edges, true, RECESS_M),
+                lying: sides(&wall, vertices, edges, false, RECESS_M),
+                standing_on_wall: sides(&wall, vertices, edges, true, on_wall),
+                lying_on_wall: sides(&wall, vertices, edges, false, on_wall),
                 wall,
             })
         })
@@ -304,15 +322,16 @@ fn from_recesses(vertices: &[Vertex], faces: &[Face], outlines: &[Outline], wall
                 .iter()
                 .map(|&w| (vertices[w].point.dot(&wall.across), vertices[w].point.z))
                 .unzip();
-            let rect = [min(&xs), max(&xs), min(&zs), max(&zs)];
+            let rect = Rect::behind([min(&xs), max(&xs), min(&zs), max(&zs)]);
+            let [x0, x1, z0, z1] = rect.bounds;
             // Only a rectangle is carried over as its box.
-            if outlines[i].area < 0.8 * (rect[1] - rect[0]) * (rect[3] - rect[2]) {
+            if outlines[i].area < 0.8 * (x1 - x0) * (z1 - z0) {
                 return None;
             }
             let depth = wall.depth(&c);
             Some(Proposal {
                 wall: k,
-                rect: widened_to_frame(rect, depth, &walls[k].standing).unwrap_or(rect),
+                rect: widened_to_frame(rect, depth, &walls[k].standing, &walls[k].lying).unwrap_or(rect),
                 depth,
                 sigma: f.ring.iter().find_map(|&w| vertices[w].sigma),
             })
@@ -369,9 +388,9 @@ impl Side {
     }
 }
 
-/// The observed edges behind `wall` by [`RECESS_M`], parallel to it, standing (`upright`) or lying, gathered into
-/// sides. Completed edges are left out: they run along occluders, not along what was seen.
-fn sides(wall: &Wall, vertices: &[Vertex], edges: &[Edge], upright: bool) -> Vec<Side> {
+/// The observed edges parallel to `wall` with both ends `depths` behind it, standing (`upright`) or lying,
+/// gathered into sides. Completed edges are left out: they run along occluders, not along what was seen.
+fn sides(wall: &Wall, vertices: &[Vertex], edges: &[Edge], upright: bool, depths: (f64, f64)) -> Vec<Side> {
     let mut pieces: Vec<(f64, f64, f64, f64, Option<Vec3>)> = edges
         .iter()
         .filter(|e| !e.completed)
@@ -380,7 +399,7 @@ fn sides(wall: &Wall, vertices: &[Vertex], edges: &[Edge], upright: bool) -> Vec
             let d = q - p;
             let len = d.norm();
             let (dp, dq) = (wall.depth(&p), wall.depth(&q));
-            let within = |x: f64| (RECESS_M.0..=RECESS_M.1).contains(&x);
+            let within = |x: f64| (depths.0..=depths.1).contains(&x);
             if len < 0.05 || !within(dp) || !within(dq) || (dp - dq).abs() > DEPTH_TOLERANCE_M {
                 return None;
             }
@@ -445,49 +464,92 @@ fn sides(wall: &Wall, vertices: &[Vertex], edges: &[Edge], upright: bool) -> Vec
 }
 
 /// Rectangles of the edges behind a wall: two standing sides [`MIN_OPENING_M`] to [`MAX_OPENING_M`] apart and two
-/// lying ones at their ends, at one depth, covered by their edges over [`MIN_STANDING_COVER`] and [`MIN_LYING_COVER`] of their length. Largest first; one
-/// inside another already taken (the panes of a frame) is left out. Each as [x0, x1, z0, z1], its depth and a σ.
-fn from_rectangles(standing: &[Side], lying: &[Side]) -> Vec<([f64; 4], f64, Option<Vec3>)> {
-    let mut found: Vec<([f64; 4], f64, Option<Vec3>)> = Vec::new();
+/// lying ones at their ends, at one depth, covered by their edges over [`MIN_STANDING_COVER`] and
+/// [`MIN_LYING_COVER`] of their length. Where the frame's edge on one side is hidden (beyond a strip's end the
+/// reveal hides the side away from the cameras, and a sill the foot of an opening above them), the opening's own
+/// edge on the wall may stand in for it, if at least one standing and one lying side lie behind the wall: brick
+/// courses on the wall alone would make openings anywhere. Those wholly behind the wall first, then largest first;
+/// one inside another already taken (the panes of a frame) is left out. Each with its depth and a σ.
+fn from_rectangles(view: &WallView) -> Vec<(Rect, f64, Option<Vec3>)> {
+    let on_wall = |s: &Side| s.depth < RECESS_M.0;
+    let mut standing: Vec<&Side> = view.standing.iter().chain(&view.standing_on_wall).collect();
+    standing.sort_by(|a, b| a.at.total_cmp(&b.at).then(a.depth.total_cmp(&b.depth)));
+    let lying: Vec<&Side> = view.lying.iter().chain(&view.lying_on_wall).collect();
+    let mut found: Vec<(Rect, f64, Option<Vec3>)> = Vec::new();
     for (i, l) in standing.iter().enumerate() {
         for r in &standing[i + 1..] {
             let width = r.at - l.at;
-            if !(MIN_OPENING_M..=MAX_OPENING_M).contains(&width) || (r.depth - l.depth).abs() > DEPTH_TOLERANCE_M {
+            let depth = match (on_wall(l), on_wall(r)) {
+                (false, false) if (r.depth - l.depth).abs() <= DEPTH_TOLERANCE_M => (l.depth + r.depth) / 2.0,
+                (false, true) => l.depth,
+                (true, false) => r.depth,
+                _ => continue,
+            };
+            if !(MIN_OPENING_M..=MAX_OPENING_M).contains(&width) {
                 continue;
             }
-            let depth = (l.depth + r.depth) / 2.0;
-            let ((l0, l1), (r0, r1)) = (l.extent(), r.extent());
-            let at_depth = |s: &&Side| (s.depth - depth).abs() <= DEPTH_TOLERANCE_M && s.cover(l.at, r.at) >= MIN_LYING_COVER;
-            let near = |z: f64| move |s: &&Side| (s.at - z).abs() <= 3.0 * SIDE_TOLERANCE_M;
-            let (Some(top), Some(bottom)) = (
-                lying.iter().filter(at_depth).find(near(l1.max(r1))),
-                lying.iter().filter(at_depth).find(near(l0.min(r0))),
-            ) else {
+            // A lying side behind the wall ends where the standing sides behind it end (a hidden foot is seen
+            // higher on the frame than on the wall); one on the wall, where any does. Behind the wall preferred:
+            // the wall's own lying sides may be brick courses or a sill's back edge beside the opening's edge.
+            let ends = |from: &[&Side]| {
+                let (lo, hi) = from
+                    .iter()
+                    .map(|s| s.extent())
+                    .fold((f64::INFINITY, f64::NEG_INFINITY), |a, e| (a.0.min(e.0), a.1.max(e.1)));
+                (lo, hi)
+            };
+            let recessed: Vec<&Side> = [*l, *r].into_iter().filter(|s| !on_wall(s)).collect();
+            let (behind_ends, all_ends) = (ends(&recessed), ends(&[*l, *r]));
+            let end = |top: bool| {
+                let pick = |e: (f64, f64)| if top { e.1 } else { e.0 };
+                let near =
+                    |at: f64| move |s: &&&Side| (s.at - at).abs() <= 3.0 * SIDE_TOLERANCE_M && s.cover(l.at, r.at) >= MIN_LYING_COVER;
+                let behind = |s: &&&Side| !on_wall(s) && (s.depth - depth).abs() <= DEPTH_TOLERANCE_M;
+                let on = |s: &&&Side| on_wall(s);
+                (lying.iter().filter(near(pick(behind_ends))).find(behind)).or_else(|| lying.iter().filter(near(pick(all_ends))).find(on))
+            };
+            let (Some(top), Some(bottom)) = (end(true), end(false)) else {
                 continue;
             };
             let (z0, z1) = (bottom.at, top.at);
-            if !(MIN_OPENING_M..=MAX_OPENING_M).contains(&(z1 - z0))
+            if (on_wall(top) && on_wall(bottom))
+                || !(MIN_OPENING_M..=MAX_OPENING_M).contains(&(z1 - z0))
                 || l.cover(z0, z1) < MIN_STANDING_COVER
                 || r.cover(z0, z1) < MIN_STANDING_COVER
             {
                 continue;
             }
-            found.push(([l.at, r.at, z0, z1], depth, l.sigma.or(r.sigma)));
+            let rect = Rect {
+                bounds: [l.at, r.at, z0, z1],
+                on_wall: [on_wall(l), on_wall(r), on_wall(bottom), on_wall(top)],
+            };
+            found.push((rect, depth, l.sigma.or(r.sigma)));
         }
     }
+    // Wholly behind the wall first: the opening's edge on the wall stands in only where the frame's is hidden.
     found.sort_by(|a, b| {
+        let (p, q) = (&a.0.bounds, &b.0.bounds);
         let area = |r: &[f64; 4]| (r[1] - r[0]) * (r[3] - r[2]);
-        area(&b.0)
-            .total_cmp(&area(&a.0))
-            .then(a.0[0].total_cmp(&b.0[0]))
-            .then(a.0[2].total_cmp(&b.0[2]))
+        let sides_on_wall = |r: &Rect| r.on_wall.iter().filter(|&&w| w).count();
+        area(q)
+            .total_cmp(&area(p))
+            .then(sides_on_wall(&a.0).cmp(&sides_on_wall(&b.0)))
+            .then(p[0].total_cmp(&q[0]))
+            .then(p[2].total_cmp(&q[2]))
     });
-    let mut kept: Vec<([f64; 4], f64, Option<Vec3>)> = Vec::new();
+    let mut kept: Vec<(Rect, f64, Option<Vec3>)> = Vec::new();
     for (rect, depth, sigma) in found {
-        let candidate = (widened_to_frame(rect, depth, standing).unwrap_or(rect), depth, sigma);
-        let [x0, x1, z0, z1] = candidate.0;
+        let candidate = (
+            widened_to_frame(rect, depth, &view.standing, &view.lying).unwrap_or(rect),
+            depth,
+            sigma,
+        );
+        let [x0, x1, z0, z1] = candidate.0.bounds;
         let (cx, cz) = ((x0 + x1) / 2.0, (z0 + z1) / 2.0);
-        if !kept.iter().any(|(k, _, _)| k[0] <= cx && cx <= k[1] && k[2] <= cz && cz <= k[3]) {
+        if !kept.iter().any(|(k, _, _)| {
+            let k = k.bounds;
+            k[0] <= cx && cx <= k[1] && k[2] <= cz && cz <= k[3]
+        }) {
             kept.push(candidate);
         }
     }
@@ -534,12 +596,20 @@ fn frame_side(at: f64, outward: f64, depth: f64, [z0, z1]: [f64; 2], standing: &
 /// of a street-level strip, and only the glazing's outline is found. Each side found to be glazing ([`frame_side`])
 /// moves out to the frame's outer edge. A side that nothing beside it tells (a window beyond a strip's end shows
 /// one outer edge; the reveal hides the other) moves out by the frame's width found on the other side, a frame
-/// being as wide on both sides. The rectangle then runs from where the outer sides start to where they end (both
-/// within 5 cm of each other where there are two). None where nothing moves.
-fn widened_to_frame([x0, x1, z0, z1]: [f64; 4], depth: f64, standing: &[Side]) -> Option<[f64; 4]> {
+/// being as wide on both sides; a side on the wall is the opening's edge already. The rectangle's sides behind
+/// the wall then run from where the outer sides start to where they end (both within 5 cm of each other where
+/// there are two). None where nothing moves.
+fn widened_to_frame(rect: Rect, depth: f64, standing: &[Side], lying: &[Side]) -> Option<Rect> {
     use FrameSide::{Glazing, Outer, Unknown};
-    let left = frame_side(x0, -1.0, depth, [z0, z1], standing);
-    let right = frame_side(x1, 1.0, depth, [z0, z1], standing);
+    let [x0, x1, z0, z1] = rect.bounds;
+    let side = |k: usize, at: f64, outward: f64| {
+        if rect.on_wall[k] {
+            Outer
+        } else {
+            frame_side(at, outward, depth, [z0, z1], standing)
+        }
+    };
+    let (left, right) = (side(0, x0, -1.0), side(1, x1, 1.0));
     // Only a glazing side tells the frame's width for the other: a side already on the frame's outer edge whose
     // neighbour shows no glazing is as likely the outer edge too, its glazing edge unseen.
     let width = |side: &FrameSide| match side {
@@ -547,14 +617,12 @@ fn widened_to_frame([x0, x1, z0, z1]: [f64; 4], depth: f64, standing: &[Side]) -
         Outer | Unknown => None,
     };
     let moved = |side: &FrameSide, from: f64, outward: f64, other_width: Option<f64>| match side {
-        Glazing { outer, .. } => Some(*outer),
-        Outer => Some(from),
-        Unknown => other_width.map(|w| from + outward * w),
+        Glazing { outer, .. } => *outer,
+        Outer => from,
+        Unknown => other_width.map_or(from, |w| from + outward * w),
     };
-    let (Some(l), Some(r)) = (moved(&left, x0, -1.0, width(&right)), moved(&right, x1, 1.0, width(&left))) else {
-        return None;
-    };
-    let (z0, z1) = match (&left, &right) {
+    let (l, r) = (moved(&left, x0, -1.0, width(&right)), moved(&right, x1, 1.0, width(&left)));
+    let (ends0, ends1) = match (&left, &right) {
         (Glazing { ends: (l0, l1), .. }, Glazing { ends: (r0, r1), .. }) => {
             if (l0 - r0).abs() > 0.05 || (l1 - r1).abs() > 0.05 {
                 return None;
@@ -564,14 +632,26 @@ fn widened_to_frame([x0, x1, z0, z1]: [f64; 4], depth: f64, standing: &[Side]) -
         (Glazing { ends, .. }, _) | (_, Glazing { ends, .. }) => *ends,
         _ => (z0, z1),
     };
-    (l != x0 || r != x1).then_some([l, r, z0, z1])
+    // A lying side behind the wall with the frame's outer edge just beyond it is the glazing's too.
+    let lying_side = |k: usize, at: f64, outward: f64| match (rect.on_wall[k], frame_side(at, outward, depth, [l, r], lying)) {
+        (false, Glazing { outer, .. }) => outer,
+        _ => at,
+    };
+    let z0 = if rect.on_wall[2] { z0 } else { lying_side(2, ends0, -1.0) };
+    let z1 = if rect.on_wall[3] { z1 } else { lying_side(3, ends1, 1.0) };
+    let bounds = [l, r, z0, z1];
+    (bounds != rect.bounds).then_some(Rect { bounds, ..rect })
 }
 
-/// The corners on the wall plane of the opening through which the rectangle `[x0, x1, z0, z1]`, `depth` behind
-/// the wall, is seen from `viewpoint`: the side turned away from the cameras moved back along the line of sight.
+/// The corners on the wall plane of the opening through which the rectangle `rect`, `depth` behind the wall, is
+/// seen from `viewpoint`: the side turned away from the cameras, where it lies behind the wall, moved back along
+/// the line of sight.
 fn opening_corners(
     wall: &Wall,
-    [x0, x1, mut z0, mut z1]: [f64; 4],
+    Rect {
+        bounds: [x0, x1, mut z0, mut z1],
+        on_wall,
+    }: Rect,
     depth: f64,
     viewpoint: Vec3,
     sigma: Option<Vec3>,
@@ -579,13 +659,13 @@ fn opening_corners(
 ) -> Vec<Vertex> {
     let distance = -wall.depth(&viewpoint);
     // A height z on the wall is seen at the recessed depth at vz + (z − vz)·(D + depth)/D, D the wall's distance.
-    let on_wall = |z: f64| viewpoint.z + (z - viewpoint.z) * distance / (distance + depth);
+    let seen_on_wall = |z: f64| viewpoint.z + (z - viewpoint.z) * distance / (distance + depth);
     if distance > 0.0 {
-        if z0 > viewpoint.z {
-            z0 = on_wall(z0);
+        if z0 > viewpoint.z && !on_wall[2] {
+            z0 = seen_on_wall(z0);
         }
-        if z1 < viewpoint.z {
-            z1 = on_wall(z1);
+        if z1 < viewpoint.z && !on_wall[3] {
+            z1 = seen_on_wall(z1);
         }
     }
     [(x0, z0), (x1, z0), (x1, z1), (x0, z1)]
@@ -694,6 +774,27 @@ mod tests {
             assert_eq!(edges.iter().filter(|e| e.completed).count(), 4);
             let wall = faces.iter().find(|f| f.ring.contains(&0)).expect("wall");
             assert_eq!((wall.kind, wall.holes.len()), (SurfaceKind::Wall, 1));
+        }
+    }
+
+    #[test]
+    fn the_openings_own_edge_on_the_wall_stands_in_for_a_hidden_side_of_its_frame() {
+        // The frame's right side hidden behind the reveal (a window beyond the strip's end): alone, the other three
+        // make no opening; with the opening's right edge seen on the wall, they do.
+        for seen_on_wall in [false, true] {
+            let (mut vertices, mut edges, viewpoint) = scene(0.03, false);
+            edges.retain(|e| e.a != FRAME + 2);
+            if seen_on_wall {
+                vertices.extend([[2.4, 0.0, 2.0], [2.4, 0.0, 3.7]].map(vertex));
+                edges.push(edge(vertices.len() - 2, vertices.len() - 1));
+            }
+            let n = vertices.len();
+            let faces = find(&mut vertices, &mut edges, &ModelParams::default(), Some(viewpoint));
+            if seen_on_wall {
+                assert_true_opening(&vertices, &faces, n, "right side on the wall");
+            } else {
+                assert_eq!(vertices.len(), n, "three sides: {faces:?}");
+            }
         }
     }
 
