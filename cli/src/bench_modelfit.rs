@@ -92,7 +92,7 @@ pub fn bench_modelfit(args: Args) -> Result<ExitCode> {
     let sigma = sigma_gsd * gsd;
     let input = noisy_input(&truth, sigma);
     let mut model = Model::default();
-    let t_build = median_time(reps, || model = build(&input.lines, &input.params, Some(input.viewpoint)));
+    let t_build = median_time(reps, || model = build(&input.lines, &input.params, &input.cameras));
     let vertices: Vec<Vec3> = model.vertices.iter().map(|v| v.point).collect();
     let edges: Vec<[usize; 2]> = model.observed_edges();
     let faces = face_planes(&model);

@@ -8,7 +8,9 @@ use anyhow::{Context, Result};
 use lineflow_capture::synth::{rng::Rng, Synthetic};
 use lineflow_formats::{read_lines2d, read_lines3d, read_poses, Line3Row, PoseRow};
 use lineflow_model::refine::{Endpoints, ImageLines};
-use lineflow_model::{build, build_with_images, export, junction, lines_from_rows, Images, Model, ModelLine, ModelParams, SurfaceKind};
+use lineflow_model::{
+    build, build_with_images, export, junction, lines_from_rows, Cameras, Images, Model, ModelLine, ModelParams, SurfaceKind,
+};
 use lineflow_photogrammetry::Vec3;
 
 use crate::bench_util::median_time;
@@ -64,7 +66,7 @@ pub fn model(lines: &Path, poses: Option<&Path>, refine: Option<RefineInputs>, o
     let params = params_with(set)?;
     let rows = read_lines3d(lines)?;
     let poses = poses.map(read_poses).transpose()?.unwrap_or_default();
-    let viewpoint = (!poses.is_empty()).then(|| poses.iter().map(|p| p.pose.center).sum::<Vec3>() / poses.len() as f64);
+    let cameras = Cameras::new(poses.iter().map(|p| p.pose.center).collect());
     let images = match &refine {
         Some(inputs) if poses.is_empty() => {
             anyhow::bail!("refining with {} needs the images' poses: give --poses", inputs.lines2d.display())
@@ -80,9 +82,9 @@ pub fn model(lines: &Path, poses: Option<&Path>, refine: Option<RefineInputs>, o
                 lines: lines_2d,
                 params: params.refine_params(),
             };
-            build_with_images(&lines_from_rows(&rows, &params), &params, viewpoint, Some(&images))
+            build_with_images(&lines_from_rows(&rows, &params), &params, &cameras, Some(&images))
         }
-        None => build(&lines_from_rows(&rows, &params), &params, viewpoint),
+        None => build(&lines_from_rows(&rows, &params), &params, &cameras),
     };
     let elapsed = started.elapsed().as_secs_f64();
     let out = out.unwrap_or_else(|| lines.parent().map(Path::to_path_buf).unwrap_or_default());
@@ -97,12 +99,12 @@ pub fn model(lines: &Path, poses: Option<&Path>, refine: Option<RefineInputs>, o
 }
 
 /// The model stage's input from a preset's true edges with noise σ (seed 1): the noisy rows, the lines and
-/// parameters built from them, and the mean camera centre (the side the walls face).
+/// parameters built from them, and the camera centres.
 pub struct NoisyInput {
     pub rows: Vec<Line3Row>,
     pub lines: Vec<ModelLine>,
     pub params: ModelParams,
-    pub viewpoint: Vec3,
+    pub cameras: Cameras,
 }
 
 pub fn noisy_input(truth: &lineflow_eval::Truth, sigma_m: f64) -> NoisyInput {
@@ -112,12 +114,12 @@ pub fn noisy_input(truth: &lineflow_eval::Truth, sigma_m: f64) -> NoisyInput {
         ..ModelParams::default()
     };
     let lines = lines_from_rows(&rows, &params);
-    let viewpoint = truth.poses.iter().map(|p| p.pose.center).sum::<Vec3>() / truth.poses.len() as f64;
+    let cameras = Cameras::new(truth.poses.iter().map(|p| p.pose.center).collect());
     NoisyInput {
         rows,
         lines,
         params,
-        viewpoint,
+        cameras,
     }
 }
 
@@ -158,10 +160,10 @@ pub fn bench_model(preset: &str, sigmas_gsd: &[f64], reps: usize, out: Option<&P
             rows,
             lines,
             params,
-            viewpoint,
+            cameras,
         } = noisy_input(&truth, sigma);
         let mut model = Model::default();
-        let t_build = median_time(reps, || model = build(&lines, &params, Some(viewpoint)));
+        let t_build = median_time(reps, || model = build(&lines, &params, &cameras));
         let t_pairs = median_time(reps, || {
             std::hint::black_box(junction::candidates_all_pairs(&lines, &params));
         });

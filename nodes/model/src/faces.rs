@@ -6,7 +6,7 @@ use std::collections::BTreeMap;
 use lineflow_photogrammetry::Vec3;
 
 use crate::disjoint::Disjoint;
-use crate::{Edge, ModelParams, Vertex};
+use crate::{Cameras, Edge, ModelParams, Vertex};
 
 /// The CityJSON semantic surface of a face.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
@@ -70,12 +70,13 @@ pub(crate) struct Plane {
     pub offset: f64,
 }
 
-/// The faces of a wire-frame. `viewpoint` (e.g. the mean camera centre) decides which side is outside; without
-/// one the centroid of the vertices is taken as inside.
+/// The faces of a wire-frame. The `cameras`' mean centre decides which side is outside; without cameras the
+/// centroid of the vertices is taken as inside.
 ///
 /// Openings inferred from what is seen through them ([`crate::openings`]) add their corners to `vertices` and
 /// their outlines, as completed edges, to `edges`.
-pub fn find(vertices: &mut Vec<Vertex>, edges: &mut Vec<Edge>, params: &ModelParams, viewpoint: Option<Vec3>) -> Vec<Face> {
+pub fn find(vertices: &mut Vec<Vertex>, edges: &mut Vec<Edge>, params: &ModelParams, cameras: &Cameras) -> Vec<Face> {
+    let viewpoint = cameras.mean();
     if vertices.is_empty() {
         return Vec::new();
     }
@@ -126,7 +127,7 @@ pub fn find(vertices: &mut Vec<Vertex>, edges: &mut Vec<Edge>, params: &ModelPar
     }
     if viewpoint.is_some() {
         recessed_openings(vertices, &incident, edges, &mut faces);
-        let inferred = crate::openings::infer(vertices, edges, &planes, &plane_edges, &faces, tol, params, inside_ref);
+        let inferred = crate::openings::infer(vertices, edges, &planes, &plane_edges, &faces, tol, params, cameras);
         crate::openings::add(inferred, vertices, edges_out, &mut faces);
     }
     nest_openings(vertices, &mut faces, params);

@@ -301,10 +301,39 @@ impl Model {
     }
 }
 
-/// Construct and Shape: the wire-frame of `lines`, then its faces, oriented towards `viewpoint` (e.g. the mean
-/// camera centre) when given. Deterministic for a given line order.
-pub fn build(lines: &[ModelLine], params: &ModelParams, viewpoint: Option<Vec3>) -> Model {
-    build_with_images(lines, params, viewpoint, None)
+/// Where the images were taken from: the camera centres. Their mean tells a wall's front from its back; their
+/// spread, which side of an opening no camera could see.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Cameras {
+    centres: Vec<Vec3>,
+}
+
+impl Cameras {
+    pub fn new(centres: Vec<Vec3>) -> Cameras {
+        Cameras { centres }
+    }
+
+    /// The mean centre; none without cameras.
+    pub fn mean(&self) -> Option<Vec3> {
+        (!self.centres.is_empty()).then(|| self.centres.iter().sum::<Vec3>() / self.centres.len() as f64)
+    }
+
+    pub fn centres(&self) -> &[Vec3] {
+        &self.centres
+    }
+}
+
+/// One viewpoint standing for all the cameras.
+impl From<Vec3> for Cameras {
+    fn from(centre: Vec3) -> Cameras {
+        Cameras { centres: vec![centre] }
+    }
+}
+
+/// Construct and Shape: the wire-frame of `lines`, then its faces, oriented towards the `cameras` when there are
+/// any. Deterministic for a given line order.
+pub fn build(lines: &[ModelLine], params: &ModelParams, cameras: &Cameras) -> Model {
+    build_with_images(lines, params, cameras, None)
 }
 
 /// The oriented images' 2-D lines for Refine.
@@ -317,7 +346,7 @@ pub struct Images<'a> {
 
 /// [`build`] with Refine when `images` are given: every adjusted edge is measured again in the images' 2-D lines
 /// and its corners adjusted from both observations.
-pub fn build_with_images(lines: &[ModelLine], params: &ModelParams, viewpoint: Option<Vec3>, images: Option<&Images>) -> Model {
+pub fn build_with_images(lines: &[ModelLine], params: &ModelParams, cameras: &Cameras, images: Option<&Images>) -> Model {
     let kept: Vec<usize> = (0..lines.len())
         .filter(|&k| {
             lines[k].length() >= params.min_length_m.max(1e-6) && lines[k].start.iter().chain(lines[k].end.iter()).all(|v| v.is_finite())
@@ -459,8 +488,8 @@ pub fn build_with_images(lines: &[ModelLine], params: &ModelParams, viewpoint: O
             }
         }
     }
-    diagnostics.chains_completed = occlusion::complete(&mut vertices, &mut edges, params, viewpoint);
-    let faces = faces::find(&mut vertices, &mut edges, params, viewpoint);
+    diagnostics.chains_completed = occlusion::complete(&mut vertices, &mut edges, params, cameras.mean());
+    let faces = faces::find(&mut vertices, &mut edges, params, cameras);
     Model {
         vertices,
         edges,

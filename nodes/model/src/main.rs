@@ -6,7 +6,7 @@ use anyhow::{bail, Context, Result};
 use lineflow_formats::Line3Row;
 use lineflow_messages::{kinds, FaceVertex, Line3, ModelFacesHeader, Pose, Stamp, WireEdge, WireframeHeader};
 use lineflow_model::refine::{Endpoints, ImageLines};
-use lineflow_model::{build_with_images, export, lines_from_rows, Images, Model, ModelParams, SurfaceKind};
+use lineflow_model::{build_with_images, export, lines_from_rows, Cameras, Images, Model, ModelParams, SurfaceKind};
 use lineflow_photogrammetry::{Camera, Vec3};
 use lineflow_runtime::{Flow, NodeContext, Output};
 
@@ -139,7 +139,7 @@ fn body() -> Result<()> {
     let faces_out = ctx.optional_output::<kinds::ModelFaces>("faces")?;
     ctx.connect()?;
 
-    let mut viewpoint: Option<Vec3> = None;
+    let mut cameras = Cameras::default();
     let mut model = Model::default();
     let mut latest: Option<Vec<Line3Row>> = None;
     let mut published = std::collections::HashSet::new();
@@ -159,7 +159,7 @@ fn body() -> Result<()> {
             while let Some(m) = poses.receive()? {
                 let oriented: Vec<&Pose> = m.payload().iter().filter(|p: &&Pose| p.flags & 1 != 0).collect();
                 if !oriented.is_empty() {
-                    viewpoint = Some(oriented.iter().map(|p| Vec3::from(p.center_m)).sum::<Vec3>() / oriented.len() as f64);
+                    cameras = Cameras::new(oriented.iter().map(|p| Vec3::from(p.center_m)).collect());
                 }
                 image_lines.poses = oriented.iter().map(|p| (p.frame, p.exterior())).collect();
             }
@@ -194,7 +194,7 @@ fn body() -> Result<()> {
                 },
                 _ => None,
             };
-            model = build_with_images(&lines, &params, viewpoint, images.as_ref());
+            model = build_with_images(&lines, &params, &cameras, images.as_ref());
             let d = &model.diagnostics;
             tracing::debug!(
                 frame = stamp.frame,

@@ -474,7 +474,7 @@ fn add_path(vertices: &mut Vec<Vertex>, edges: &mut Vec<Edge>, chain: &Chain, pa
 
 #[cfg(test)]
 mod tests {
-    use crate::{build, Model, ModelLine, ModelParams, SurfaceKind};
+    use crate::{build, Cameras, Model, ModelLine, ModelParams, SurfaceKind};
     use lineflow_photogrammetry::Vec3;
 
     fn lines(segments: &[([f64; 3], [f64; 3])]) -> Vec<ModelLine> {
@@ -506,7 +506,7 @@ mod tests {
             segs.push(([a[0], a[1], 9.0], [b[0], b[1], 9.0]));
         }
         let params = ModelParams::default();
-        let model = build(&lines(&segs), &params, Some(Vec3::new(4.0, 3.0, 300.0)));
+        let model = build(&lines(&segs), &params, &Vec3::new(4.0, 3.0, 300.0).into());
         assert_eq!(model.diagnostics.chains_completed, 1, "{}", model.summary());
         let completed: Vec<_> = model.edges.iter().filter(|e| e.completed).collect();
         assert_eq!(completed.len(), 2, "(0, 2) → (2, 2) → (2, 6)");
@@ -524,7 +524,7 @@ mod tests {
             occlusion_reach_m: 0.0,
             ..params
         };
-        let open = build(&lines(&segs), &off, Some(Vec3::new(4.0, 3.0, 300.0)));
+        let open = build(&lines(&segs), &off, &Vec3::new(4.0, 3.0, 300.0).into());
         assert!(open.faces.iter().all(|f| f.kind != SurfaceKind::Roof));
         assert_eq!(open.diagnostics.chains_completed, 0);
     }
@@ -549,7 +549,7 @@ mod tests {
 
     #[test]
     fn a_wall_hidden_by_a_block_in_front_is_closed_along_the_block() {
-        let camera = Some(Vec3::new(5.0, -20.0, 1.5));
+        let camera = &Cameras::from(Vec3::new(5.0, -20.0, 1.5));
         let model = build(&facade(-3.0), &ModelParams::default(), camera);
         assert_eq!(model.diagnostics.chains_completed, 1, "{}", model.summary());
         let wall = model
@@ -564,13 +564,13 @@ mod tests {
 
     #[test]
     fn nothing_is_completed_without_an_occluder_in_front() {
-        let camera = Some(Vec3::new(5.0, -20.0, 1.5));
+        let camera = &Cameras::from(Vec3::new(5.0, -20.0, 1.5));
         // The block behind the wall hides nothing.
         let behind = build(&facade(3.0), &ModelParams::default(), camera);
         assert_eq!(behind.diagnostics.chains_completed, 0);
         assert!(behind.edges.iter().all(|e| !e.completed));
         // No viewpoint: a wall has no known front.
-        let blind = build(&facade(-3.0), &ModelParams::default(), None);
+        let blind = build(&facade(-3.0), &ModelParams::default(), &Cameras::default());
         assert_eq!(blind.diagnostics.chains_completed, 0);
         // The wall alone.
         let alone = build(&facade(-3.0)[..3], &ModelParams::default(), camera);
@@ -601,7 +601,7 @@ mod relief_tests {
     }
 
     fn window_faces(lines: &[ModelLine], camera: Vec3) -> (usize, usize) {
-        let model = build(lines, &ModelParams::default(), Some(camera));
+        let model = build(lines, &ModelParams::default(), &camera.into());
         // The only face reaches the lowest foot, so it is called a door.
         let windows = model.count(&[SurfaceKind::Window, SurfaceKind::Door]);
         (model.diagnostics.chains_completed, windows)
@@ -612,7 +612,7 @@ mod relief_tests {
         let below = Vec3::new(1.7, -12.0, 1.5);
         let (closed, windows) = window_faces(&window_over_a_sill(-0.06, 9.97), below);
         assert_eq!((closed, windows), (1, 1), "closed along the chord, an opening by its reveals");
-        let model = build(&window_over_a_sill(-0.06, 9.97), &ModelParams::default(), Some(below));
+        let model = build(&window_over_a_sill(-0.06, 9.97), &ModelParams::default(), &below.into());
         let hidden: Vec<_> = model.edges.iter().filter(|e| e.completed).collect();
         assert_eq!(hidden.len(), 1);
         let (a, b) = (model.vertices[hidden[0].a].point, model.vertices[hidden[0].b].point);

@@ -16,7 +16,7 @@
 use lineflow_photogrammetry::Vec3;
 
 use crate::faces::{plane_basis, point_in_polygon, signed_area, smaller_side, Face, Plane, SurfaceKind};
-use crate::{Edge, ModelParams, Vertex};
+use crate::{Cameras, Edge, ModelParams, Vertex};
 
 /// How far behind its wall a recessed face may lie to make an opening in it, metres: from a glazing bar's 4 cm (a
 /// pane inside its frame, not an opening in the wall) up to half a metre.
@@ -152,8 +152,8 @@ struct Proposal {
     sigma: Option<Vec3>,
 }
 
-/// Openings inferred from recessed faces and from rectangles of recessed edges, for a model whose cameras stand
-/// around `viewpoint`. `edges` are those the faces were traced on, `plane_edges` those lying in each plane.
+/// Openings inferred from recessed faces and from rectangles of recessed edges, for a model seen from `cameras`.
+/// `edges` are those the faces were traced on, `plane_edges` those lying in each plane.
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn infer(
     vertices: &[Vertex],
@@ -163,16 +163,20 @@ pub(crate) fn infer(
     faces: &[Face],
     tol: f64,
     params: &ModelParams,
-    viewpoint: Vec3,
+    cameras: &Cameras,
 ) -> Vec<Inferred> {
+    let Some(viewpoint) = cameras.mean() else {
+        return Vec::new();
+    };
+    let centres = cameras.centres();
     let cos_par = params.plane_angle_deg.to_radians().cos();
     let ring = |r: &[usize]| r.iter().map(|&k| vertices[k].point).collect::<Vec<_>>();
     let outlines: Vec<Outline> = faces.iter().map(|f| Outline::of(&ring(&f.ring), f.normal)).collect();
     let walls = walls(vertices, edges, planes, plane_edges, cos_par, &viewpoint);
     // Recessed faces first, then rectangles; each only where no opening is on the wall there yet.
-    let mut proposals = from_recesses(vertices, faces, &outlines, &walls, cos_par);
+    let mut proposals = from_recesses(vertices, faces, &outlines, &walls, cos_par, centres);
     for (k, w) in walls.iter().enumerate() {
-        proposals.extend(from_rectangles(w).into_iter().map(|(rect, depth, sigma)| Proposal {
+        proposals.extend(from_rectangles(w, centres).into_iter().map(|(rect, depth, sigma)| Proposal {
             wall: k,
             rect,
             depth,
@@ -211,7 +215,7 @@ pub(crate) fn infer(
             }
             Some(_) => {}
             None => {
-                let corners = opening_corners(wall, p.rect, p.depth, viewpoint, p.sigma, &centre);
+                let corners = opening_corners(wall, p.rect, p.depth, centres, p.sigma, &centre);
                 found.push(Outline::of(&corners.iter().map(|v| v.point).collect::<Vec<_>>(), wall.out));
                 out.push(Inferred::New(corners, wall.out));
             }
@@ -302,7 +306,14 @@ fn walls(
 /// A vertical wall-kind face at least [`MIN_OPENING_M`] across, nearly a rectangle, parallel to a wall and
 /// [`RECESS_M`] behind it, is what one sees through an opening: its bounding rectangle, widened to the frame
 /// ([`widened_to_frame`]). Largest first, so that a frame comes before its panes.
-fn from_recesses(vertices: &[Vertex], faces: &[Face], outlines: &[Outline], walls: &[WallView], cos_par: f64) -> Vec<Proposal> {
+fn from_recesses(
+    vertices: &[Vertex],
+    faces: &[Face],
+    outlines: &[Outline],
+    walls: &[WallView],
+    cos_par: f64,
+    centres: &[Vec3],
+) -> Vec<Proposal> {
     let mut order: Vec<usize> = (0..faces.len()).collect();
     order.sort_by(|&a, &b| outlines[b].area.total_cmp(&outlines[a].area).then(a.cmp(&b)));
     order
@@ -331,7 +342,7 @@ fn from_recesses(vertices: &[Vertex], faces: &[Face], outlines: &[Outline], wall
             let depth = wall.depth(&c);
             Some(Proposal {
                 wall: k,
-                rect: widened_to_frame(rect, depth, &walls[k].standing, &walls[k].lying).unwrap_or(rect),
+                rect: widened_to_frame(rect, depth, &walls[k], centres).unwrap_or(rect),
                 depth,
                 sigma: f.ring.iter().find_map(|&w| vertices[w].sigma),
             })
@@ -470,7 +481,7 @@ fn sides(wall: &Wall, vertices: &[Vertex], edges: &[Edge], upright: bool, depths
 /// edge on the wall may stand in for it, if at least one standing and one lying side lie behind the wall: brick
 /// courses on the wall alone would make openings anywhere. Those wholly behind the wall first, then largest first;
 /// one inside another already taken (the panes of a frame) is left out. Each with its depth and a σ.
-fn from_rectangles(view: &WallView) -> Vec<(Rect, f64, Option<Vec3>)> {
+fn from_rectangles(view: &WallView, centres: &[Vec3]) -> Vec<(Rect, f64, Option<Vec3>)> {
     let on_wall = |s: &Side| s.depth < RECESS_M.0;
     let mut standing: Vec<&Side> = view.standing.iter().chain(&view.standing_on_wall).collect();
     standing.sort_by(|a, b| a.at.total_cmp(&b.at).then(a.depth.total_cmp(&b.depth)));
@@ -539,11 +550,7 @@ fn from_rectangles(view: &WallView) -> Vec<(Rect, f64, Option<Vec3>)> {
     });
     let mut kept: Vec<(Rect, f64, Option<Vec3>)> = Vec::new();
     for (rect, depth, sigma) in found {
-        let candidate = (
-            widened_to_frame(rect, depth, &view.standing, &view.lying).unwrap_or(rect),
-            depth,
-            sigma,
-        );
+        let candidate = (widened_to_frame(rect, depth, view, centres).unwrap_or(rect), depth, sigma);
         let [x0, x1, z0, z1] = candidate.0.bounds;
         let (cx, cz) = ((x0 + x1) / 2.0, (z0 + z1) / 2.0);
         if !kept.iter().any(|(k, _, _)| {
@@ -560,8 +567,8 @@ fn from_rectangles(view: &WallView) -> Vec<(Rect, f64, Option<Vec3>)> {
 enum FrameSide {
     /// The glazing: the frame's outer edge lies this far outside, at this position, from and to these heights.
     Glazing { width: f64, outer: f64, ends: (f64, f64) },
-    /// Already the frame's outer edge: the glazing lies inside.
-    Outer,
+    /// Already the frame's outer edge: the glazing lies this far inside.
+    Outer { width: f64 },
     /// Nothing beside it tells.
     Unknown,
 }
@@ -584,8 +591,8 @@ fn frame_side(at: f64, outward: f64, depth: f64, [z0, z1]: [f64; 2], standing: &
             outer: s.at,
             ends: s.extent(),
         }
-    } else if nearest(-outward).is_some() {
-        FrameSide::Outer
+    } else if let Some((_, width)) = nearest(-outward) {
+        FrameSide::Outer { width }
     } else {
         FrameSide::Unknown
     }
@@ -594,34 +601,39 @@ fn frame_side(at: f64, outward: f64, depth: f64, [z0, z1]: [f64; 2], standing: &
 /// Where the frame's outer standing edges lie just outside a rectangle, the rectangle is the glazing inside the
 /// frame, or part of it: a ground-floor frame's top and foot lie a pixel from the opening's outline in every image
 /// of a street-level strip, and only the glazing's outline is found. Each side found to be glazing ([`frame_side`])
-/// moves out to the frame's outer edge. A side that nothing beside it tells (a window beyond a strip's end shows
-/// one outer edge; the reveal hides the other) moves out by the frame's width found on the other side, a frame
-/// being as wide on both sides; a side on the wall is the opening's edge already. The rectangle's sides behind
-/// the wall then run from where the outer sides start to where they end (both within 5 cm of each other where
-/// there are two). None where nothing moves.
-fn widened_to_frame(rect: Rect, depth: f64, standing: &[Side], lying: &[Side]) -> Option<Rect> {
+/// moves out to the frame's outer edge. A side that nothing beside it tells moves out by the frame's width found
+/// on the other side, a frame being as wide on both sides: where the other side is glazing, or where no camera
+/// could see that side's outer edge (beyond a strip's end the reveal hides it, [`hidden_sides`]). A side on the
+/// wall is the opening's edge already. The rectangle's sides behind the wall then run from where the outer sides
+/// start to where they end (both within 5 cm of each other where there are two). None where nothing moves.
+fn widened_to_frame(rect: Rect, depth: f64, view: &WallView, centres: &[Vec3]) -> Option<Rect> {
     use FrameSide::{Glazing, Outer, Unknown};
     let [x0, x1, z0, z1] = rect.bounds;
+    let hidden = hidden_sides(&view.wall, rect.bounds, centres);
     let side = |k: usize, at: f64, outward: f64| {
         if rect.on_wall[k] {
-            Outer
+            Outer { width: 0.0 }
         } else {
-            frame_side(at, outward, depth, [z0, z1], standing)
+            frame_side(at, outward, depth, [z0, z1], &view.standing)
         }
     };
     let (left, right) = (side(0, x0, -1.0), side(1, x1, 1.0));
-    // Only a glazing side tells the frame's width for the other: a side already on the frame's outer edge whose
-    // neighbour shows no glazing is as likely the outer edge too, its glazing edge unseen.
-    let width = |side: &FrameSide| match side {
+    // A side already on the frame's outer edge tells the frame's width only for a side whose outer edge no camera
+    // saw: elsewhere a neighbour showing no glazing is as likely the outer edge too, its glazing edge unseen.
+    let width = |side: &FrameSide, other_hidden: bool| match side {
         Glazing { width, .. } => Some(*width),
-        Outer | Unknown => None,
+        Outer { width } if other_hidden && *width > 0.0 => Some(*width),
+        Outer { .. } | Unknown => None,
     };
     let moved = |side: &FrameSide, from: f64, outward: f64, other_width: Option<f64>| match side {
         Glazing { outer, .. } => *outer,
-        Outer => from,
+        Outer { .. } => from,
         Unknown => other_width.map_or(from, |w| from + outward * w),
     };
-    let (l, r) = (moved(&left, x0, -1.0, width(&right)), moved(&right, x1, 1.0, width(&left)));
+    let (l, r) = (
+        moved(&left, x0, -1.0, width(&right, hidden[0])),
+        moved(&right, x1, 1.0, width(&left, hidden[1])),
+    );
     let (ends0, ends1) = match (&left, &right) {
         (Glazing { ends: (l0, l1), .. }, Glazing { ends: (r0, r1), .. }) => {
             if (l0 - r0).abs() > 0.05 || (l1 - r1).abs() > 0.05 {
@@ -632,41 +644,73 @@ fn widened_to_frame(rect: Rect, depth: f64, standing: &[Side], lying: &[Side]) -
         (Glazing { ends, .. }, _) | (_, Glazing { ends, .. }) => *ends,
         _ => (z0, z1),
     };
-    // A lying side behind the wall with the frame's outer edge just beyond it is the glazing's too.
-    let lying_side = |k: usize, at: f64, outward: f64| match (rect.on_wall[k], frame_side(at, outward, depth, [l, r], lying)) {
-        (false, Glazing { outer, .. }) => outer,
-        _ => at,
+    // A lying side behind the wall with the frame's outer edge just beyond it is the glazing's too. Where no
+    // camera saw that outer edge (a foot above them all: the sill hides the frame's foot rail), the opening's own
+    // edge on the wall a frame's width beyond it is the foot.
+    let frame_width = [&left, &right].into_iter().find_map(|s| match s {
+        Glazing { width, .. } => Some(*width),
+        Outer { width } if *width > 0.0 => Some(*width),
+        _ => None,
+    });
+    let mut on_wall = rect.on_wall;
+    let mut lying_side = |k: usize, at: f64, outward: f64| {
+        if on_wall[k] {
+            return at;
+        }
+        if let Glazing { outer, .. } = frame_side(at, outward, depth, [l, r], &view.lying) {
+            return outer;
+        }
+        let wall_edge = frame_width.filter(|_| hidden[k]).and_then(|w| {
+            view.lying_on_wall
+                .iter()
+                .filter(|s| (s.at - (at + outward * w)).abs() <= SIDE_TOLERANCE_M && s.cover(l, r) >= MIN_LYING_COVER)
+                .min_by(|a, b| (a.at - at).abs().total_cmp(&(b.at - at).abs()))
+        });
+        match wall_edge {
+            Some(s) => {
+                on_wall[k] = true;
+                s.at
+            }
+            None => at,
+        }
     };
-    let z0 = if rect.on_wall[2] { z0 } else { lying_side(2, ends0, -1.0) };
-    let z1 = if rect.on_wall[3] { z1 } else { lying_side(3, ends1, 1.0) };
+    let z0 = lying_side(2, ends0, -1.0);
+    let z1 = lying_side(3, ends1, 1.0);
     let bounds = [l, r, z0, z1];
-    (bounds != rect.bounds).then_some(Rect { bounds, ..rect })
+    (bounds != rect.bounds).then_some(Rect { bounds, on_wall })
+}
+
+/// Which sides of the rectangle `[x0, x1, z0, z1]` behind `wall` no camera saw the frame's outer edge of, as
+/// [left, right, foot, top]: a camera sees a recessed frame's left outer edge only from the right of it (the
+/// reveal hides it from the left), its foot only from above it, and so on.
+fn hidden_sides(wall: &Wall, [x0, x1, z0, z1]: [f64; 4], centres: &[Vec3]) -> [bool; 4] {
+    let all = |seen_from: &dyn Fn(f64, f64) -> bool| !centres.is_empty() && centres.iter().all(|c| seen_from(c.dot(&wall.across), c.z));
+    [all(&|x, _| x < x0), all(&|x, _| x > x1), all(&|_, z| z < z0), all(&|_, z| z > z1)]
 }
 
 /// The corners on the wall plane of the opening through which the rectangle `rect`, `depth` behind the wall, is
-/// seen from `viewpoint`: the side turned away from the cameras, where it lies behind the wall, moved back along
-/// the line of sight.
-fn opening_corners(
-    wall: &Wall,
-    Rect {
-        bounds: [x0, x1, mut z0, mut z1],
-        on_wall,
-    }: Rect,
-    depth: f64,
-    viewpoint: Vec3,
-    sigma: Option<Vec3>,
-    near: &Vec3,
-) -> Vec<Vertex> {
-    let distance = -wall.depth(&viewpoint);
-    // A height z on the wall is seen at the recessed depth at vz + (z − vz)·(D + depth)/D, D the wall's distance.
-    let seen_on_wall = |z: f64| viewpoint.z + (z - viewpoint.z) * distance / (distance + depth);
-    if distance > 0.0 {
-        if z0 > viewpoint.z && !on_wall[2] {
-            z0 = seen_on_wall(z0);
+/// seen from the cameras at `centres`. A foot behind the wall that every camera sees from below is where the line
+/// of sight over the opening's foot meets the frame: it is moved back along the line of sight of the camera that
+/// sees most of it, the highest; a top that every camera sees from above, likewise.
+fn opening_corners(wall: &Wall, rect: Rect, depth: f64, centres: &[Vec3], sigma: Option<Vec3>, near: &Vec3) -> Vec<Vertex> {
+    let [x0, x1, mut z0, mut z1] = rect.bounds;
+    let hidden = hidden_sides(wall, rect.bounds, centres);
+    // A height z on the wall is seen at the recessed depth at cz + (z − cz)·(D + depth)/D, D the wall's distance.
+    let seen_on_wall = |z: f64, camera: &Vec3| {
+        let distance = -wall.depth(camera);
+        if distance > 0.0 {
+            camera.z + (z - camera.z) * distance / (distance + depth)
+        } else {
+            z
         }
-        if z1 < viewpoint.z && !on_wall[3] {
-            z1 = seen_on_wall(z1);
-        }
+    };
+    let highest = centres.iter().max_by(|a, b| a.z.total_cmp(&b.z));
+    let lowest = centres.iter().min_by(|a, b| a.z.total_cmp(&b.z));
+    if let (true, false, Some(camera)) = (hidden[2], rect.on_wall[2], highest) {
+        z0 = seen_on_wall(z0, camera);
+    }
+    if let (true, false, Some(camera)) = (hidden[3], rect.on_wall[3], lowest) {
+        z1 = seen_on_wall(z1, camera);
     }
     [(x0, z0), (x1, z0), (x1, z1), (x0, z1)]
         .iter()
@@ -767,7 +811,7 @@ mod tests {
         for overshoot in [0.0, 0.03] {
             let (mut vertices, mut edges, viewpoint) = scene(overshoot, false);
             let n = vertices.len();
-            let faces = find(&mut vertices, &mut edges, &ModelParams::default(), Some(viewpoint));
+            let faces = find(&mut vertices, &mut edges, &ModelParams::default(), &viewpoint.into());
             assert_eq!(vertices.len(), n + 4, "overshoot {overshoot}: {faces:?}");
             assert_true_opening(&vertices, &faces, n, &format!("overshoot {overshoot}"));
             // Its outline is completed (not observed) and cut into the wall.
@@ -789,7 +833,7 @@ mod tests {
                 edges.push(edge(vertices.len() - 2, vertices.len() - 1));
             }
             let n = vertices.len();
-            let faces = find(&mut vertices, &mut edges, &ModelParams::default(), Some(viewpoint));
+            let faces = find(&mut vertices, &mut edges, &ModelParams::default(), &viewpoint.into());
             if seen_on_wall {
                 assert_true_opening(&vertices, &faces, n, "right side on the wall");
             } else {
@@ -798,12 +842,106 @@ mod tests {
         }
     }
 
+    /// The bounds [x0, x1, z0, z1] of the opening on the vertices from `first` on, on the wall plane y = 0.
+    fn opening_bounds(vertices: &[Vertex], faces: &[Face], first: usize) -> [f64; 4] {
+        let opening = faces.iter().find(|f| f.ring.iter().all(|&k| k >= first)).expect("an opening");
+        let p: Vec<Vec3> = opening.ring.iter().map(|&k| vertices[k].point).collect();
+        assert!(p.iter().all(|q| q.y.abs() < 1e-9), "{p:?}");
+        let (xs, zs): (Vec<f64>, Vec<f64>) = p.iter().map(|q| (q.x, q.z)).unzip();
+        [min(&xs), max(&xs), min(&zs), max(&zs)]
+    }
+
+    fn assert_bounds(found: [f64; 4], expected: [f64; 4], case: &str) {
+        assert!(
+            found.iter().zip(expected).all(|(a, b)| (a - b).abs() < 1e-9),
+            "{case}: {found:?}, expected {expected:?}"
+        );
+    }
+
+    /// The wall and its joints of [`scene`], a frame 20 cm behind it whose edges are `frame` (pairs of ends), and
+    /// `on_wall` edges on the wall.
+    fn frame_behind_wall(frame: &[([f64; 2], [f64; 2])], upright: &[bool], on_wall: &[([f64; 3], [f64; 3])]) -> (Vec<Vertex>, Vec<Edge>) {
+        let (mut vertices, mut edges, _) = scene(0.0, false);
+        edges.retain(|e| e.a < FRAME);
+        vertices.truncate(FRAME);
+        for (&(a, b), &up) in frame.iter().zip(upright) {
+            // (x, z from, z to) standing or (z, x from, x to) lying.
+            let (p, q) = if up {
+                ([a[0], 0.2, a[1]], [b[0], 0.2, b[1]])
+            } else {
+                ([a[1], 0.2, a[0]], [b[1], 0.2, b[0]])
+            };
+            vertices.extend([p, q].map(vertex));
+            edges.push(edge(vertices.len() - 2, vertices.len() - 1));
+        }
+        for &(p, q) in on_wall {
+            vertices.extend([p, q].map(vertex));
+            edges.push(edge(vertices.len() - 2, vertices.len() - 1));
+        }
+        (vertices, edges)
+    }
+
+    #[test]
+    fn a_side_no_camera_saw_the_outer_edge_of_is_widened_by_the_frame_found_on_the_other() {
+        // The glazing's left edge at 1.06, the frame's outer right edge at 2.4 with the glazing's 6 cm inside it,
+        // top and foot at 3.7 and 2.0 (cameras between them see both). Cameras all left of 1.06 cannot see the
+        // frame's outer left edge (the reveal hides it): it is a frame's width out. With a camera right of it,
+        // which would have seen it, nothing says so.
+        let frame = [
+            ([1.06, 2.0], [1.06, 3.7]),
+            ([2.4, 2.0], [2.4, 3.7]),
+            ([2.34, 2.06], [2.34, 3.64]),
+            ([3.7, 1.06], [3.7, 2.4]),
+            ([2.0, 1.06], [2.0, 2.4]),
+        ];
+        let upright = [true, true, true, false, false];
+        for (xs, x0) in [([-1.5, -1.0], 1.0), ([-1.0, 1.5], 1.06)] {
+            let (mut vertices, mut edges) = frame_behind_wall(&frame, &upright, &[]);
+            let cameras = Cameras::new(xs.iter().map(|&x| Vec3::new(x, -19.0, 3.0)).collect());
+            let n = vertices.len();
+            let faces = find(&mut vertices, &mut edges, &ModelParams::default(), &cameras);
+            assert_bounds(
+                opening_bounds(&vertices, &faces, n),
+                [x0, 2.4, 2.0, 3.7],
+                &format!("cameras at x {xs:?}"),
+            );
+        }
+    }
+
+    #[test]
+    fn a_foot_above_every_camera_is_the_openings_own_edge_on_the_wall_a_frames_width_below_the_glazing() {
+        // Cameras below the foot see the glazing's foot (2.06) over the sill, not the frame's (2.0); the frame's
+        // outer sides at 1.0 and 2.4 (the glazing 6 cm inside the right one) tell its width. The opening's foot on
+        // the wall, seen, is the foot; without it the glazing's foot is moved back along the line of sight only.
+        let frame = [
+            ([1.0, 2.06], [1.0, 3.7]),
+            ([2.4, 2.06], [2.4, 3.7]),
+            ([2.34, 2.06], [2.34, 3.64]),
+            ([3.7, 1.0], [3.7, 2.4]),
+            ([2.06, 1.06], [2.06, 2.34]),
+        ];
+        let upright = [true, true, true, false, false];
+        let camera = Cameras::from(Vec3::new(1.7, -19.0, 1.6));
+        for with_wall_foot in [true, false] {
+            let foot = [([1.0, 0.0, 2.0], [2.4, 0.0, 2.0])];
+            let (mut vertices, mut edges) = frame_behind_wall(&frame, &upright, if with_wall_foot { &foot } else { &[] });
+            let n = vertices.len();
+            let faces = find(&mut vertices, &mut edges, &ModelParams::default(), &camera);
+            let expected_foot = if with_wall_foot { 2.0 } else { 1.6 + (2.06 - 1.6) * 19.0 / 19.2 };
+            assert_bounds(
+                opening_bounds(&vertices, &faces, n),
+                [1.0, 2.4, expected_foot, 3.7],
+                &format!("foot on the wall {with_wall_foot}"),
+            );
+        }
+    }
+
     #[test]
     fn a_frame_behind_an_outline_that_closed_adds_nothing() {
         for overshoot in [0.0, 0.03] {
             let (mut vertices, mut edges, viewpoint) = scene(overshoot, true);
             let n = vertices.len();
-            let faces = find(&mut vertices, &mut edges, &ModelParams::default(), Some(viewpoint));
+            let faces = find(&mut vertices, &mut edges, &ModelParams::default(), &viewpoint.into());
             assert_eq!(vertices.len(), n, "overshoot {overshoot}");
             let outline = faces
                 .iter()
@@ -839,7 +977,7 @@ mod tests {
                 edges.extend([edge(g, g + 1), edge(g + 1, g + 4), edge(g + 4, g + 5), edge(g + 5, g)]);
             }
             let before = vertices.len();
-            let faces = find(&mut vertices, &mut edges, &ModelParams::default(), Some(viewpoint));
+            let faces = find(&mut vertices, &mut edges, &ModelParams::default(), &viewpoint.into());
             // With one outer side, the other moves out by the frame's width found on it.
             assert_true_opening(
                 &vertices,
@@ -875,7 +1013,7 @@ mod tests {
         edges.extend((0..4).map(|k| edge(n + k, n + (k + 1) % 4)));
         edges.extend([edge(n + 4, n + 5), edge(n + 6, n + 7)]);
         let before = vertices.len();
-        let faces = find(&mut vertices, &mut edges, &ModelParams::default(), Some(viewpoint));
+        let faces = find(&mut vertices, &mut edges, &ModelParams::default(), &viewpoint.into());
         let opening = faces.iter().find(|f| f.ring.iter().all(|&k| k >= before)).expect("an opening");
         let xs: Vec<f64> = opening.ring.iter().map(|&k| vertices[k].point.x).collect();
         assert!(xs.iter().all(|x| (x - 1.0).abs() < 1e-9 || (x - 2.4).abs() < 1e-9), "{xs:?}");
@@ -888,7 +1026,7 @@ mod tests {
         let base = vertices.len();
         vertices.extend([[3.0, 0.2, 4.0], [3.6, 0.2, 4.0], [3.6, 0.2, 5.0], [3.0, 0.2, 5.0]].map(vertex));
         edges.extend((0..4).map(|k| edge(base + k, base + (k + 1) % 4)));
-        find(&mut vertices, &mut edges, &ModelParams::default(), Some(viewpoint));
+        find(&mut vertices, &mut edges, &ModelParams::default(), &viewpoint.into());
         // Only the frame's opening is new.
         assert_eq!(vertices.len(), base + 4 + 4);
     }

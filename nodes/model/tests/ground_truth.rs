@@ -2,7 +2,7 @@
 //! scores it (targets of issue #8: vertex RMSE ≤ 1 GSD, edge precision and recall ≥ 95 %).
 use lineflow_capture::synth::{rng::Rng, Synthetic};
 use lineflow_eval::{model::evaluate, Truth};
-use lineflow_model::{build, export, Model, ModelLine, ModelParams, SurfaceKind};
+use lineflow_model::{build, export, Cameras, Model, ModelLine, ModelParams, SurfaceKind};
 use lineflow_photogrammetry::Vec3;
 
 fn noisy_lines(truth: &Truth, sigma: f64) -> Vec<ModelLine> {
@@ -22,8 +22,8 @@ fn score(truth: &Truth, model: &Model) -> lineflow_eval::model::ModelReport {
 }
 
 /// The a55 preset's truth, and its true edges with `sigma_gsd` GSD of noise per coordinate with the parameters
-/// that say so, and the mean camera centre.
-fn a55_noisy(sigma_gsd: f64) -> (Truth, ModelParams, Vec<ModelLine>, Vec3) {
+/// that say so, and the camera centres.
+fn a55_noisy(sigma_gsd: f64) -> (Truth, ModelParams, Vec<ModelLine>, Cameras) {
     let truth = Truth::from_scene(Synthetic::new("a55-two-strips", 1.0, 1).unwrap());
     let sigma = sigma_gsd * truth.gsd_m();
     let params = ModelParams {
@@ -31,7 +31,7 @@ fn a55_noisy(sigma_gsd: f64) -> (Truth, ModelParams, Vec<ModelLine>, Vec3) {
         ..ModelParams::default()
     };
     let lines = noisy_lines(&truth, sigma);
-    let cameras = truth.poses.iter().map(|p| p.pose.center).sum::<Vec3>() / truth.poses.len() as f64;
+    let cameras = Cameras::new(truth.poses.iter().map(|p| p.pose.center).collect());
     (truth, params, lines, cameras)
 }
 
@@ -39,7 +39,7 @@ fn a55_noisy(sigma_gsd: f64) -> (Truth, ModelParams, Vec<ModelLine>, Vec3) {
 fn a55_true_edges_with_half_a_gsd_of_noise_give_the_model_within_one_gsd() {
     let (truth, params, lines, cameras) = a55_noisy(0.5);
     let gsd = truth.gsd_m();
-    let model = build(&lines, &params, Some(cameras));
+    let model = build(&lines, &params, &cameras);
     let r = score(&truth, &model);
     assert!(
         r.vertex_rmse_m < gsd,
@@ -66,7 +66,7 @@ fn a55_true_edges_with_half_a_gsd_of_noise_give_the_model_within_one_gsd() {
     assert!(model.faces.iter().any(|f| f.kind == SurfaceKind::Door), "no door");
 
     // Same lines, same bytes.
-    let again = build(&lines, &params, Some(cameras));
+    let again = build(&lines, &params, &cameras);
     assert_eq!(export::obj_text(&model), export::obj_text(&again));
 }
 
@@ -81,7 +81,7 @@ fn noise_free_rectangles_in_any_order_give_the_same_corners() {
     lines.extend(rect(2.0, 1.0, 3.5, 2.5));
     let params = ModelParams::default();
     let corners = |lines: &[ModelLine]| {
-        let m = build(lines, &params, None);
+        let m = build(lines, &params, &Cameras::default());
         let mut c: Vec<[i64; 3]> = m
             .vertices
             .iter()
@@ -103,20 +103,20 @@ fn noise_free_rectangles_in_any_order_give_the_same_corners() {
 #[test]
 fn bad_input_gives_an_empty_or_loose_model_without_panicking() {
     let params = ModelParams::default();
-    assert_eq!(build(&[], &params, None), Model::default());
+    assert_eq!(build(&[], &params, &Cameras::default()), Model::default());
     let nan = Vec3::new(f64::NAN, 0.0, 0.0);
     let degenerate = vec![
         ModelLine::new(nan, Vec3::new(1.0, 0.0, 0.0), 0.01),
         ModelLine::new(Vec3::zeros(), Vec3::zeros(), 0.01),
     ];
-    let m = build(&degenerate, &params, None);
+    let m = build(&degenerate, &params, &Cameras::default());
     assert!(m.vertices.is_empty() && m.faces.is_empty());
     // Two parallel lines: no corner, no face, both kept as loose edges.
     let parallel = vec![
         ModelLine::new(Vec3::zeros(), Vec3::new(1.0, 0.0, 0.0), 0.01),
         ModelLine::new(Vec3::new(0.0, 0.0, 1.0), Vec3::new(1.0, 0.0, 1.0), 0.01),
     ];
-    let m = build(&parallel, &params, None);
+    let m = build(&parallel, &params, &Cameras::default());
     assert_eq!((m.edges.len(), m.faces.len(), m.diagnostics.lines_used), (2, 0, 0));
     assert!(export::cityjson(&m)["CityObjects"].as_object().unwrap().is_empty());
 }
@@ -164,14 +164,14 @@ fn refine_with_the_images_lines_pins_the_corners_where_the_images_see_sharply() 
     // 3-D lines with 1 GSD of noise per coordinate give corners 1.5 GSD off (docs/model.md); the true edges as
     // 2-D lines (0.3 px of noise) in the 26 images are intersected through their interpretation planes.
     let (truth, params, lines, cameras) = a55_noisy(1.0);
-    let shaped = build(&lines, &params, Some(cameras));
+    let shaped = build(&lines, &params, &cameras);
     let image_lines = true_image_lines(&truth, 0.3);
     let images = lineflow_model::Images {
         camera: truth.scene.camera(),
         lines: &image_lines,
         params: lineflow_model::refine::RefineParams::default(),
     };
-    let refined = lineflow_model::build_with_images(&lines, &params, Some(cameras), Some(&images));
+    let refined = lineflow_model::build_with_images(&lines, &params, &cameras, Some(&images));
     let (before, after) = (score(&truth, &shaped), score(&truth, &refined));
     let (axes_before, axes_after) = (axis_rms(&truth, &shaped), axis_rms(&truth, &refined));
     eprintln!(

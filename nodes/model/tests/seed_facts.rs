@@ -41,7 +41,7 @@ fn b2_a_gable_roof_is_one_object_with_three_line_ridge_corners() {
         (at(e0, 10.0), at(r, 10.0)),
         (at(e1, 10.0), at(r, 10.0)),
     ];
-    let m = build(&lines(&segs), &ModelParams::default(), Some(Vec3::new(5.0, -20.0, 40.0)));
+    let m = build(&lines(&segs), &ModelParams::default(), &Vec3::new(5.0, -20.0, 40.0).into());
     assert_eq!(m.diagnostics.objects, 1, "{}", m.summary());
     let c = corners(&m);
     assert_eq!(c.len(), 6, "{c:?}");
@@ -60,7 +60,7 @@ fn b2_a_gable_roof_is_one_object_with_three_line_ridge_corners() {
 fn two_buildings(x0: f64, z: f64) -> Vec<Vec3> {
     let mut segs = flat_roof(0.0, 10.0, 5.0);
     segs.extend(flat_roof(x0, 20.0, z));
-    let m = build(&lines(&segs), &ModelParams::default(), Some(Vec3::new(10.0, 3.0, 100.0)));
+    let m = build(&lines(&segs), &ModelParams::default(), &Vec3::new(10.0, 3.0, 100.0).into());
     assert_eq!(m.diagnostics.objects, 2, "{}", m.summary());
     assert_eq!(m.faces.len(), 2);
     let c = corners(&m);
