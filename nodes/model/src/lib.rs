@@ -21,6 +21,7 @@ mod disjoint;
 pub mod export;
 pub mod faces;
 mod grid;
+mod inside;
 pub mod junction;
 pub mod occlusion;
 mod openings;
@@ -30,6 +31,7 @@ use lineflow_photogrammetry::{Camera, Vec3};
 use serde::Deserialize;
 
 pub use faces::{Face, SurfaceKind};
+pub use inside::Inside;
 use junction::Resolution;
 
 /// A 3-D line given to the model.
@@ -247,6 +249,11 @@ pub struct Model {
     pub vertices: Vec<Vertex>,
     pub edges: Vec<Edge>,
     pub faces: Vec<Face>,
+    /// The objects Construct grouped the lines into, each as its corners (indices into `vertices`).
+    pub objects: Vec<Vec<usize>>,
+    /// Objects inside another in plan (seed 003 §3.4.3: a stair tower or penthouse on a roof), by index into
+    /// `objects`.
+    pub inside: Vec<Inside>,
     pub diagnostics: Diagnostics,
 }
 
@@ -280,7 +287,7 @@ impl Model {
     pub fn summary(&self) -> String {
         let d = &self.diagnostics;
         format!(
-            "{} of {} lines used, {} objects, {} vertices, {} edges, {} faces ({} walls, {} window/door, {} roof), ends resolved by stage 1/2/3: {}/{}/{}, free {}, median sigma0 {}, {} edges refined by image lines, {} occluded boundaries completed",
+            "{} of {} lines used, {} objects, {} vertices, {} edges, {} faces ({} walls, {} window/door, {} roof), ends resolved by stage 1/2/3: {}/{}/{}, free {}, median sigma0 {}, {} edges refined by image lines, {} occluded boundaries completed, {} objects inside another in plan",
             d.lines_used,
             d.lines_in,
             d.objects,
@@ -296,7 +303,8 @@ impl Model {
             d.ends_by_stage[3],
             d.median_sigma0.map_or("-".into(), |s| format!("{s:.2}")),
             d.lines_refined,
-            d.chains_completed
+            d.chains_completed,
+            self.inside.len()
         )
     }
 }
@@ -488,12 +496,20 @@ pub fn build_with_images(lines: &[ModelLine], params: &ModelParams, cameras: &Ca
             }
         }
     }
+    // The objects' edges between their corners, before completion and inference add edges of no object.
+    let mut object_edges: Vec<Vec<[Vec3; 2]>> = vec![Vec::new(); n_objects];
+    for e in edges.iter().filter(|e| e.a < corners.len() && e.b < corners.len()) {
+        object_edges[object_of[corners[e.a].lines[0]]].push([vertices[e.a].point, vertices[e.b].point]);
+    }
+    let inside = inside::objects_inside(&object_edges);
     diagnostics.chains_completed = occlusion::complete(&mut vertices, &mut edges, params, cameras.mean());
     let faces = faces::find(&mut vertices, &mut edges, params, cameras);
     Model {
         vertices,
         edges,
         faces,
+        objects: corners_of,
+        inside,
         diagnostics,
     }
 }

@@ -517,7 +517,10 @@ fn from_rectangles(view: &WallView, centres: &[Vec3]) -> Vec<(Rect, f64, Option<
                     |at: f64| move |s: &&&Side| (s.at - at).abs() <= 3.0 * SIDE_TOLERANCE_M && s.cover(l.at, r.at) >= MIN_LYING_COVER;
                 let behind = |s: &&&Side| !on_wall(s) && (s.depth - depth).abs() <= DEPTH_TOLERANCE_M;
                 let on = |s: &&&Side| on_wall(s);
-                (lying.iter().filter(near(pick(behind_ends))).find(behind)).or_else(|| lying.iter().filter(near(pick(all_ends))).find(on))
+                let nearest = |at: f64| move |a: &&&Side, b: &&&Side| (a.at - at).abs().total_cmp(&(b.at - at).abs());
+                let (b, w) = (pick(behind_ends), pick(all_ends));
+                (lying.iter().filter(near(b)).filter(behind).min_by(nearest(b)))
+                    .or_else(|| lying.iter().filter(near(w)).filter(on).min_by(nearest(w)))
             };
             let (Some(top), Some(bottom)) = (end(true), end(false)) else {
                 continue;

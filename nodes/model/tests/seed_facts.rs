@@ -1,4 +1,4 @@
-//! Seed 003's acceptance facts B2–B4 (`../shared/docs/seeds/003_spec.md` §5) on noise-free roof lines.
+//! Seed 003's acceptance facts B2–B4 and B6 (`../shared/docs/seeds/003_spec.md` §5) on noise-free roof lines.
 use lineflow_model::{build, Model, ModelLine, ModelParams, SurfaceKind};
 use lineflow_photogrammetry::Vec3;
 
@@ -11,7 +11,12 @@ fn lines(segments: &[([f64; 3], [f64; 3])]) -> Vec<ModelLine> {
 
 /// A flat roof outline at height `z` over the rectangle [x0, x1] × [0, 6].
 fn flat_roof(x0: f64, x1: f64, z: f64) -> Vec<([f64; 3], [f64; 3])> {
-    let c = [[x0, 0.0, z], [x1, 0.0, z], [x1, 6.0, z], [x0, 6.0, z]];
+    roof_outline([x0, x1], [0.0, 6.0], z)
+}
+
+/// A flat roof outline at height `z` over the rectangle `x` × `y`.
+fn roof_outline(x: [f64; 2], y: [f64; 2], z: f64) -> Vec<([f64; 3], [f64; 3])> {
+    let c = [[x[0], y[0], z], [x[1], y[0], z], [x[1], y[1], z], [x[0], y[1], z]];
     (0..4).map(|k| (c[k], c[(k + 1) % 4])).collect()
 }
 
@@ -62,6 +67,7 @@ fn two_buildings(x0: f64, z: f64) -> Vec<Vec3> {
     segs.extend(flat_roof(x0, 20.0, z));
     let m = build(&lines(&segs), &ModelParams::default(), &Vec3::new(10.0, 3.0, 100.0).into());
     assert_eq!(m.diagnostics.objects, 2, "{}", m.summary());
+    assert!(m.inside.is_empty(), "neighbours, not one inside the other: {:?}", m.inside);
     assert_eq!(m.faces.len(), 2);
     let c = corners(&m);
     assert_eq!(c.len(), 8, "{c:?}");
@@ -82,4 +88,19 @@ fn b4_a_narrow_gap_keeps_two_buildings_apart() {
     for x in [0.0, 10.0, 10.3, 20.0] {
         assert_eq!(c.iter().filter(|p| (p.x - x).abs() < 1e-6).count(), 2, "two corners at x = {x}");
     }
+}
+
+/// B6: a penthouse's roof (3 × 3 m at 12.5 m) on a flat roof (20 × 12 m at 10 m) is its own object, flagged inside
+/// the roof around it (every edge, extended, runs into that roof's outline), and not the other way round.
+#[test]
+fn b6_a_roof_structure_inside_a_larger_roof_is_flagged_inside() {
+    let mut segs = roof_outline([0.0, 20.0], [0.0, 12.0], 10.0);
+    segs.extend(roof_outline([8.0, 11.0], [4.0, 7.0], 12.5));
+    let m = build(&lines(&segs), &ModelParams::default(), &Vec3::new(10.0, 6.0, 100.0).into());
+    assert_eq!(m.diagnostics.objects, 2, "{}", m.summary());
+    assert_eq!(m.inside.len(), 1, "{:?}", m.inside);
+    let heights = |object: usize| m.objects[object].iter().map(|&v| m.vertices[v].point.z).collect::<Vec<f64>>();
+    let (inner, outer) = (heights(m.inside[0].object), heights(m.inside[0].container));
+    assert!(inner.len() == 4 && inner.iter().all(|&z| (z - 12.5).abs() < 1e-6), "{inner:?}");
+    assert!(outer.len() == 4 && outer.iter().all(|&z| (z - 10.0).abs() < 1e-6), "{outer:?}");
 }
