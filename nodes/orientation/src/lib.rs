@@ -38,6 +38,9 @@ pub struct OrientationParams {
     /// `essential`: polish each linear relative orientation by minimising the Sampson distances (from the linear
     /// solution and from the strip's motion, keeping the better); `false` is the seed's linear method alone.
     pub refine_relative: bool,
+    /// `bundle`: the check points' image measurements take part in the adjustment as tie points (their surveyed
+    /// coordinates never do), as in classical aerial triangulation: long, precise tracks.
+    pub check_points_as_ties: bool,
 }
 
 impl OrientationParams {
@@ -69,6 +72,7 @@ impl Default for OrientationParams {
             min_angle_deg: 1.0,
             window: 10,
             refine_relative: true,
+            check_points_as_ties: true,
         }
     }
 }
@@ -503,9 +507,23 @@ impl Block {
         }
         if self.georeferenced {
             for (id, t) in &self.targets {
-                let Some(s) = self.surveyed.get(id).filter(|s| s.control) else {
+                let Some(s) = self.surveyed.get(id) else {
                     continue;
                 };
+                if !s.control {
+                    // A check point: its measurements as a tie point's, its coordinates left free.
+                    let obs = observed(t, points.len(), target_sigma);
+                    let x = self.triangulate(t);
+                    if let (true, Some(x)) = (
+                        self.params.check_points_as_ties && obs.len() >= 2 && t.obs.iter().any(|(f, _)| in_window(f)),
+                        x,
+                    ) {
+                        observations.extend(obs);
+                        points.push(x);
+                        ids.push(None);
+                    }
+                    continue;
+                }
                 let obs = observed(t, points.len(), target_sigma);
                 if obs.is_empty() {
                     continue;
@@ -626,5 +644,59 @@ impl Block {
                 Some((id.clone(), self.triangulate(t)? - s.xyz))
             })
             .collect()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use lineflow_photogrammetry::look_at;
+
+    /// Two frames in the control frame facing a wall, each measuring a control and a check target.
+    fn two_frames(check_points_as_ties: bool) -> Block {
+        let camera = Camera::pinhole(1000, 800, 0.01, 20.0);
+        let params = OrientationParams {
+            check_points_as_ties,
+            ..OrientationParams::default()
+        };
+        let mut block = Block::new(params, camera);
+        let targets = [("C1", Vec3::new(0.5, 0.0, 1.0), true), ("K1", Vec3::new(1.5, 0.0, 1.8), false)];
+        block.set_surveyed(
+            targets
+                .iter()
+                .map(|&(id, xyz, control)| {
+                    let s = Surveyed {
+                        xyz,
+                        sigma_m: [0.002; 3],
+                        control,
+                    };
+                    (id.to_owned(), s)
+                })
+                .collect(),
+        );
+        for (frame, x) in [(0u64, 0.0), (1, 2.0)] {
+            let center = Vec3::new(x, -10.0, 1.5);
+            let pose = Pose {
+                center,
+                rotation: look_at(&center, &Vec3::new(1.0, 0.0, 1.5), &Vec3::z()),
+            };
+            block.add_supplied(frame, pose, None);
+            for (id, xyz, _) in &targets {
+                block.add_target(id, frame, pose.project(&camera, xyz).expect("in view"));
+            }
+        }
+        block
+    }
+
+    #[test]
+    fn check_points_join_the_adjustment_as_tie_points_and_their_coordinates_never_do() {
+        for ties in [true, false] {
+            let (p, _, _) = two_frames(ties).problem(None);
+            // The control point with its prior; the check point, with `ties`, as a free point of two observations.
+            assert_eq!(p.priors.len(), 1, "ties {ties}");
+            assert_eq!(p.points.len(), 1 + usize::from(ties), "ties {ties}");
+            assert_eq!(p.observations.len(), 2 + 2 * usize::from(ties), "ties {ties}");
+            assert!(p.priors.iter().all(|prior| (prior.xyz - Vec3::new(0.5, 0.0, 1.0)).norm() < 1e-12));
+        }
     }
 }
