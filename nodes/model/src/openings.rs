@@ -281,7 +281,10 @@ fn walls(
             let (p, n) = (&planes[k], plane_edges[k].len());
             n >= MIN_WALL_EDGES
                 && p.normal.z.abs() < 0.2
-                && (0..planes.len()).all(|j| j == k || !parallel_near(p, &planes[j]) || plane_edges[j].len() < n)
+                // Of two hypotheses that converged on one plane (as many edges), the first stands for both.
+                && (0..planes.len()).all(|j| {
+                    j == k || !parallel_near(p, &planes[j]) || plane_edges[j].len() < n || (plane_edges[j].len() == n && j > k)
+                })
                 && spread(p, &plane_edges[k])
         })
         .map(|k| (plane_edges[k].len(), k))
@@ -479,8 +482,8 @@ fn sides(wall: &Wall, vertices: &[Vertex], edges: &[Edge], upright: bool, depths
 /// [`MIN_LYING_COVER`] of their length. Where the frame's edge on one side is hidden (beyond a strip's end the
 /// reveal hides the side away from the cameras, and a sill the foot of an opening above them), the opening's own
 /// edge on the wall may stand in for it, if at least one standing and one lying side lie behind the wall: brick
-/// courses on the wall alone would make openings anywhere. Those wholly behind the wall first, then largest first;
-/// one inside another already taken (the panes of a frame) is left out. Each with its depth and a σ.
+/// courses on the wall alone would make openings anywhere. Largest first (of one size, those with fewer sides on the
+/// wall); one inside another already taken (the panes of a frame) is left out. Each with its depth and a σ.
 fn from_rectangles(view: &WallView, centres: &[Vec3]) -> Vec<(Rect, f64, Option<Vec3>)> {
     let on_wall = |s: &Side| s.depth < RECESS_M.0;
     let mut standing: Vec<&Side> = view.standing.iter().chain(&view.standing_on_wall).collect();
@@ -503,11 +506,9 @@ fn from_rectangles(view: &WallView, centres: &[Vec3]) -> Vec<(Rect, f64, Option<
             // higher on the frame than on the wall); one on the wall, where any does. Behind the wall preferred:
             // the wall's own lying sides may be brick courses or a sill's back edge beside the opening's edge.
             let ends = |from: &[&Side]| {
-                let (lo, hi) = from
-                    .iter()
+                from.iter()
                     .map(|s| s.extent())
-                    .fold((f64::INFINITY, f64::NEG_INFINITY), |a, e| (a.0.min(e.0), a.1.max(e.1)));
-                (lo, hi)
+                    .fold((f64::INFINITY, f64::NEG_INFINITY), |a, e| (a.0.min(e.0), a.1.max(e.1)))
             };
             let recessed: Vec<&Side> = [*l, *r].into_iter().filter(|s| !on_wall(s)).collect();
             let (behind_ends, all_ends) = (ends(&recessed), ends(&[*l, *r]));
@@ -540,7 +541,6 @@ fn from_rectangles(view: &WallView, centres: &[Vec3]) -> Vec<(Rect, f64, Option<
             found.push((rect, depth, l.sigma.or(r.sigma)));
         }
     }
-    // Wholly behind the wall first: the opening's edge on the wall stands in only where the frame's is hidden.
     found.sort_by(|a, b| {
         let (p, q) = (&a.0.bounds, &b.0.bounds);
         let area = |r: &[f64; 4]| (r[1] - r[0]) * (r[3] - r[2]);
@@ -572,6 +572,8 @@ enum FrameSide {
     Glazing { width: f64, outer: f64, ends: (f64, f64) },
     /// Already the frame's outer edge: the glazing lies this far inside.
     Outer { width: f64 },
+    /// The opening's own edge on the wall.
+    OnWall,
     /// Nothing beside it tells.
     Unknown,
 }
@@ -610,12 +612,12 @@ fn frame_side(at: f64, outward: f64, depth: f64, [z0, z1]: [f64; 2], standing: &
 /// wall is the opening's edge already. The rectangle's sides behind the wall then run from where the outer sides
 /// start to where they end (both within 5 cm of each other where there are two). None where nothing moves.
 fn widened_to_frame(rect: Rect, depth: f64, view: &WallView, centres: &[Vec3]) -> Option<Rect> {
-    use FrameSide::{Glazing, Outer, Unknown};
+    use FrameSide::{Glazing, OnWall, Outer, Unknown};
     let [x0, x1, z0, z1] = rect.bounds;
     let hidden = hidden_sides(&view.wall, rect.bounds, centres);
     let side = |k: usize, at: f64, outward: f64| {
         if rect.on_wall[k] {
-            Outer { width: 0.0 }
+            OnWall
         } else {
             frame_side(at, outward, depth, [z0, z1], &view.standing)
         }
@@ -625,12 +627,12 @@ fn widened_to_frame(rect: Rect, depth: f64, view: &WallView, centres: &[Vec3]) -
     // saw: elsewhere a neighbour showing no glazing is as likely the outer edge too, its glazing edge unseen.
     let width = |side: &FrameSide, other_hidden: bool| match side {
         Glazing { width, .. } => Some(*width),
-        Outer { width } if other_hidden && *width > 0.0 => Some(*width),
-        Outer { .. } | Unknown => None,
+        Outer { width } if other_hidden => Some(*width),
+        Outer { .. } | OnWall | Unknown => None,
     };
     let moved = |side: &FrameSide, from: f64, outward: f64, other_width: Option<f64>| match side {
         Glazing { outer, .. } => *outer,
-        Outer { .. } => from,
+        Outer { .. } | OnWall => from,
         Unknown => other_width.map_or(from, |w| from + outward * w),
     };
     let (l, r) = (
@@ -651,9 +653,8 @@ fn widened_to_frame(rect: Rect, depth: f64, view: &WallView, centres: &[Vec3]) -
     // camera saw that outer edge (a foot above them all: the sill hides the frame's foot rail), the opening's own
     // edge on the wall a frame's width beyond it is the foot.
     let frame_width = [&left, &right].into_iter().find_map(|s| match s {
-        Glazing { width, .. } => Some(*width),
-        Outer { width } if *width > 0.0 => Some(*width),
-        _ => None,
+        Glazing { width, .. } | Outer { width } => Some(*width),
+        OnWall | Unknown => None,
     });
     let mut on_wall = rect.on_wall;
     let mut lying_side = |k: usize, at: f64, outward: f64| {
@@ -664,10 +665,11 @@ fn widened_to_frame(rect: Rect, depth: f64, view: &WallView, centres: &[Vec3]) -
             return outer;
         }
         let wall_edge = frame_width.filter(|_| hidden[k]).and_then(|w| {
+            let expected = at + outward * w;
             view.lying_on_wall
                 .iter()
-                .filter(|s| (s.at - (at + outward * w)).abs() <= SIDE_TOLERANCE_M && s.cover(l, r) >= MIN_LYING_COVER)
-                .min_by(|a, b| (a.at - at).abs().total_cmp(&(b.at - at).abs()))
+                .filter(|s| (s.at - expected).abs() <= SIDE_TOLERANCE_M && s.cover(l, r) >= MIN_LYING_COVER)
+                .min_by(|a, b| (a.at - expected).abs().total_cmp(&(b.at - expected).abs()))
         });
         match wall_edge {
             Some(s) => {
@@ -1020,6 +1022,21 @@ mod tests {
         let opening = faces.iter().find(|f| f.ring.iter().all(|&k| k >= before)).expect("an opening");
         let xs: Vec<f64> = opening.ring.iter().map(|&k| vertices[k].point.x).collect();
         assert!(xs.iter().all(|x| (x - 1.0).abs() < 1e-9 || (x - 2.4).abs() < 1e-9), "{xs:?}");
+    }
+
+    #[test]
+    fn two_hypotheses_of_one_wall_plane_make_one_wall() {
+        // Plane hypotheses from different corners can converge on the same plane, with the same edges: each must
+        // not disqualify the other as "a parallel plane with as many edges".
+        let (vertices, edges, viewpoint) = scene(0.0, false);
+        let wall = Plane {
+            normal: Vec3::new(0.0, 1.0, 0.0),
+            offset: 0.0,
+        };
+        let in_wall: Vec<&Edge> = edges.iter().filter(|e| e.a < FRAME).collect();
+        let cos_par = ModelParams::default().plane_angle_deg.to_radians().cos();
+        let found = walls(&vertices, &edges, &[wall, wall], &[in_wall.clone(), in_wall], cos_par, &viewpoint);
+        assert_eq!(found.len(), 1);
     }
 
     #[test]
