@@ -16,7 +16,7 @@ use std::collections::{BTreeMap, BTreeSet};
 
 use lineflow_photogrammetry::bundle::{adjust, resect, BundleOptions, BundleProblem, BundleReport, ImageObservation, PointPrior};
 use lineflow_photogrammetry::epipolar::{verify, Ransac, Ray};
-use lineflow_photogrammetry::intersect::{intersect_collinearity, intersect_rays, similarity};
+use lineflow_photogrammetry::intersect::{intersect_rays, similarity};
 use lineflow_photogrammetry::{Camera, Mat3, Pose, Vec3};
 
 /// Settings.
@@ -668,19 +668,13 @@ impl Block {
         self.georeferenced = true;
     }
 
-    /// Check points intersected from the oriented frames: (id, estimated − surveyed). The rays' closest point,
-    /// refined by least squares on the collinearity equations: a target beyond a short strip's end is seen along
-    /// rays that all come from one side, and their closest point in space is not the one closest in the images.
+    /// Check points intersected from the oriented frames: (id, estimated − surveyed).
     pub fn check_points(&self) -> Vec<(String, Vec3)> {
         self.targets
             .iter()
             .filter_map(|(id, t)| {
                 let s = self.surveyed.get(id).filter(|s| !s.control)?;
-                let closest = self.triangulate(t)?;
-                let (poses, ideal): (Vec<Pose>, Vec<[f64; 2]>) =
-                    t.obs.iter().filter_map(|(f, i)| self.poses.get(f).map(|p| (*p, *i))).unzip();
-                let x = intersect_collinearity(self.camera.focal_mm, &poses, &ideal).unwrap_or(closest);
-                Some((id.clone(), x - s.xyz))
+                Some((id.clone(), self.triangulate(t)? - s.xyz))
             })
             .collect()
     }
