@@ -194,10 +194,12 @@ impl ModelParams {
     }
 
     /// The endpoint σ of a fitted line: the RMS of its points about it, shrunk by the points' number as the end
-    /// of a least-squares line is (≈ 2 RMS / √n), never below `min_sigma_m`; `sigma_m` when unknown.
+    /// of a least-squares line is (≈ 2 RMS / √n), never below `min_sigma_m`; `sigma_m` when unknown. An RMS below
+    /// a nanometre is unknown too: points placed exactly on their line (by the slaves' 2-D lines) say nothing of
+    /// its precision, and `lines3d.csv` writes such an RMS as 0, so the model of the file and the live one agree.
     pub fn line_sigma(&self, rms_m: Option<f64>, n_points: Option<u32>) -> f64 {
         match (rms_m, n_points) {
-            (Some(rms), Some(n)) if rms.is_finite() && rms > 0.0 && n > 0 => (2.0 * rms / (n as f64).sqrt()).max(self.min_sigma_m),
+            (Some(rms), Some(n)) if rms.is_finite() && rms > 1e-9 && n > 0 => (2.0 * rms / (n as f64).sqrt()).max(self.min_sigma_m),
             _ => self.sigma_m,
         }
     }
@@ -575,4 +577,22 @@ pub fn lines_from_rows(rows: &[lineflow_formats::Line3Row], params: &ModelParams
     rows.iter()
         .map(|r| ModelLine::new(r.start, r.end, params.line_sigma(r.rms_m, r.n_points)))
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_line_sigma_comes_from_its_rms_and_points_and_a_zero_rms_says_nothing() {
+        let p = ModelParams::default();
+        // 2 · 1 cm / √16 = 5 mm.
+        assert!((p.line_sigma(Some(0.01), Some(16)) - 0.005).abs() < 1e-12);
+        assert_eq!(p.line_sigma(Some(0.001), Some(400)), p.min_sigma_m);
+        // Points placed exactly on their line (an RMS of 1e-15, written 0.000000 in lines3d.csv): unknown, live and
+        // from the file alike.
+        for rms in [None, Some(0.0), Some(1e-15), Some(f64::NAN)] {
+            assert_eq!(p.line_sigma(rms, Some(12)), p.sigma_m, "{rms:?}");
+        }
+    }
 }
