@@ -632,8 +632,8 @@ impl Block {
     /// The tie points' variance component: their a-priori σ scaled by the adjustment's σ̂0 (which the thousands of
     /// tie observations dominate) and the block adjusted again, until σ̂0 is within 5 % of 1. The targets keep
     /// theirs, so the ties' weight against the control and check targets becomes what their residuals say: with
-    /// least-squares matched ties of 0.15 px and 0.3 px targets, the 0.5 px default made the targets count as
-    /// if they were three times as precise as the ties.
+    /// least-squares matched ties of 0.15 px and 0.3 px targets, the 0.5 px default weighted a target as about
+    /// three ties, where a tie in fact deserves about four times a target's weight.
     fn estimate_tie_sigma(&mut self) {
         for _ in 0..3 {
             let s0 = self.report.sigma0;
