@@ -10,6 +10,9 @@
 //! plan, where the extension test means nothing.
 use lineflow_photogrammetry::Vec3;
 
+use crate::faces::signed_area;
+use crate::refine::{cross, sub};
+
 /// An object's footprint must cover at least this much in plan, m².
 const MIN_FOOTPRINT_M2: f64 = 0.25;
 /// Edges shorter than this in plan (vertical edges) are not extended, metres.
@@ -66,7 +69,7 @@ impl Plan {
                 .filter(|[a, b]| (b.x - a.x).hypot(b.y - a.y) >= MIN_PLAN_LENGTH_M)
                 .copied()
                 .collect(),
-            area: polygon_area(&hull),
+            area: signed_area(&hull).abs(),
             hull,
             corners,
             foot: edges.iter().flatten().map(|p| p.z).fold(f64::INFINITY, f64::min),
@@ -82,7 +85,7 @@ impl Plan {
             && inner.corners.iter().all(|&c| strictly_inside(c, &self.hull))
             && inner.edges.iter().all(|&[a, b]| {
                 let (a, b) = ([a.x, a.y], [b.x, b.y]);
-                self.hit_ahead(a, [a[0] - b[0], a[1] - b[1]], below) && self.hit_ahead(b, [b[0] - a[0], b[1] - a[1]], below)
+                self.hit_ahead(a, sub(a, b), below) && self.hit_ahead(b, sub(b, a), below)
             })
     }
 
@@ -90,21 +93,17 @@ impl Plan {
     fn hit_ahead(&self, from: [f64; 2], dir: [f64; 2], below: f64) -> bool {
         self.edges.iter().any(|&[p3, q3]| {
             let (p, q) = ([p3.x, p3.y], [q3.x, q3.y]);
-            let e = [q[0] - p[0], q[1] - p[1]];
+            let e = sub(q, p);
             let denom = cross(dir, e);
             if denom.abs() < 1e-12 {
                 return false;
             }
-            let w = [p[0] - from[0], p[1] - from[1]];
+            let w = sub(p, from);
             let t = cross(w, e) / denom;
             let s = cross(w, dir) / denom;
             t > 0.0 && (0.0..=1.0).contains(&s) && p3.z + s * (q3.z - p3.z) <= below
         })
     }
-}
-
-fn cross(a: [f64; 2], b: [f64; 2]) -> f64 {
-    a[0] * b[1] - a[1] * b[0]
 }
 
 /// The convex hull, counter-clockwise (Andrew's monotone chain).
@@ -115,11 +114,12 @@ fn convex_hull(points: &[[f64; 2]]) -> Vec<[f64; 2]> {
     if p.len() < 3 {
         return p;
     }
-    let turn = |o: [f64; 2], a: [f64; 2], b: [f64; 2]| cross([a[0] - o[0], a[1] - o[1]], [b[0] - o[0], b[1] - o[1]]);
+    let turn = |o: [f64; 2], a: [f64; 2], b: [f64; 2]| cross(sub(a, o), sub(b, o));
+    let reversed: Vec<[f64; 2]> = p.iter().rev().copied().collect();
     let mut hull: Vec<[f64; 2]> = Vec::new();
-    for pass in 0..2 {
+    // The lower chain left to right, then the upper one back.
+    for ordered in [&p, &reversed] {
         let start = hull.len();
-        let ordered: Box<dyn Iterator<Item = &[f64; 2]>> = if pass == 0 { Box::new(p.iter()) } else { Box::new(p.iter().rev()) };
         for &q in ordered {
             while hull.len() >= start + 2 && turn(hull[hull.len() - 2], hull[hull.len() - 1], q) <= 0.0 {
                 hull.pop();
@@ -131,23 +131,12 @@ fn convex_hull(points: &[[f64; 2]]) -> Vec<[f64; 2]> {
     hull
 }
 
-fn polygon_area(ring: &[[f64; 2]]) -> f64 {
-    if ring.len() < 3 {
-        return 0.0;
-    }
-    (0..ring.len())
-        .map(|k| cross(ring[k], ring[(k + 1) % ring.len()]))
-        .sum::<f64>()
-        .abs()
-        / 2.0
-}
-
 /// Whether `p` lies inside the counter-clockwise convex `hull`, off its boundary.
 fn strictly_inside(p: [f64; 2], hull: &[[f64; 2]]) -> bool {
     hull.len() >= 3
         && (0..hull.len()).all(|k| {
             let (a, b) = (hull[k], hull[(k + 1) % hull.len()]);
-            cross([b[0] - a[0], b[1] - a[1]], [p[0] - a[0], p[1] - a[1]]) > 1e-9
+            cross(sub(b, a), sub(p, a)) > 1e-9
         })
 }
 

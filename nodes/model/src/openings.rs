@@ -100,6 +100,7 @@ struct WallView {
 }
 
 /// A ring flattened in its plane, for containment tests.
+#[derive(Clone)]
 struct Outline {
     normal: Vec3,
     centroid: Vec3,
@@ -185,8 +186,9 @@ pub(crate) fn infer(
     }
     let mut found: Vec<Outline> = faces
         .iter()
-        .filter(|f| matches!(f.kind, SurfaceKind::Window | SurfaceKind::Door))
-        .map(|f| Outline::of(&ring(&f.ring), f.normal))
+        .zip(&outlines)
+        .filter(|(f, _)| matches!(f.kind, SurfaceKind::Window | SurfaceKind::Door))
+        .map(|(_, o)| o.clone())
         .collect();
     let mut out = Vec::new();
     for p in proposals {
@@ -211,7 +213,7 @@ pub(crate) fn infer(
         match outline {
             Some(j) if faces[j].kind == SurfaceKind::Wall => {
                 out.push(Inferred::Mark(j));
-                found.push(Outline::of(&ring(&faces[j].ring), faces[j].normal));
+                found.push(outlines[j].clone());
             }
             Some(_) => {}
             None => {
@@ -652,10 +654,7 @@ fn widened_to_frame(rect: Rect, depth: f64, view: &WallView, centres: &[Vec3]) -
     // A lying side behind the wall with the frame's outer edge just beyond it is the glazing's too. Where no
     // camera saw that outer edge (a foot above them all: the sill hides the frame's foot rail), the opening's own
     // edge on the wall a frame's width beyond it is the foot.
-    let frame_width = [&left, &right].into_iter().find_map(|s| match s {
-        Glazing { width, .. } | Outer { width } => Some(*width),
-        OnWall | Unknown => None,
-    });
+    let frame_width = width(&left, true).or(width(&right, true));
     let mut on_wall = rect.on_wall;
     let mut lying_side = |k: usize, at: f64, outward: f64| {
         if on_wall[k] {

@@ -520,12 +520,11 @@ impl Block {
                 };
                 if !s.control {
                     // A check point: its measurements as a tie point's, its coordinates left free.
+                    if !self.params.check_points_as_ties || !t.obs.iter().any(|(f, _)| in_window(f)) {
+                        continue;
+                    }
                     let obs = observed(t, points.len(), target_sigma);
-                    let x = self.triangulate(t);
-                    if let (true, Some(x)) = (
-                        self.params.check_points_as_ties && obs.len() >= 2 && t.obs.iter().any(|(f, _)| in_window(f)),
-                        x,
-                    ) {
+                    if let (true, Some(x)) = (obs.len() >= 2, self.triangulate(t)) {
                         observations.extend(obs);
                         points.push(x);
                         ids.push(None);
