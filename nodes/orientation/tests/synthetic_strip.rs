@@ -131,8 +131,15 @@ fn a_strip_is_oriented_as_it_arrives_by_both_methods_and_the_bundle_meets_the_ch
     // The tie points' σ re-estimated from the adjustment: least-squares matched ties are far more precise than the
     // 0.5 px a priori (σ̂0 0.25 with it), and the estimate brings σ̂0 near 1.
     let estimated = blocks[0].tie_sigma_px;
-    assert!(estimated < 0.5 * OrientationParams::default().tie_sigma_px, "tie σ estimated {estimated} px");
-    assert!((blocks[0].report.sigma0 - 1.0).abs() < 0.3, "σ0 {} after the estimate", blocks[0].report.sigma0);
+    assert!(
+        estimated < 0.5 * OrientationParams::default().tie_sigma_px,
+        "tie σ estimated {estimated} px"
+    );
+    assert!(
+        (blocks[0].report.sigma0 - 1.0).abs() < 0.3,
+        "σ0 {} after the estimate",
+        blocks[0].report.sigma0
+    );
     assert!(rmse.iter().all(|&r| r < gsd), "check-point RMSE {rmse:?}");
     // The chained relative orientations (polished, with nothing adjusting the chain) drift along the strip, but far
     // less than the linear essential matrices alone, which put centres metres off on this nearly flat façade
