@@ -107,6 +107,9 @@ pub enum BenchCmd {
         /// Repetitions per timing.
         #[arg(long, default_value_t = 3)]
         reps: usize,
+        /// Override a model parameter, PARAM=VALUE (VALUE as TOML; `sigma_m` is the noise level's). Repeatable.
+        #[arg(long = "set", value_name = "PARAM=VALUE")]
+        set: Vec<String>,
         /// Also write, per noise level, the noisy lines, the true lines and the model into this folder.
         #[arg(long)]
         out: Option<std::path::PathBuf>,
@@ -407,8 +410,9 @@ pub fn bench(cmd: BenchCmd) -> Result<ExitCode> {
             preset,
             sigma_gsd,
             reps,
+            set,
             out,
-        } => crate::model_cmd::bench_model(&preset, &sigma_gsd, reps, out.as_deref()),
+        } => crate::model_cmd::bench_model(&preset, &sigma_gsd, reps, &set, out.as_deref()),
         BenchCmd::Modelfit {
             preset,
             sigma_gsd,

@@ -90,7 +90,7 @@ pub fn bench_modelfit(args: Args) -> Result<ExitCode> {
     eprintln!();
 
     let sigma = sigma_gsd * gsd;
-    let input = noisy_input(&truth, sigma);
+    let input = noisy_input(&truth, sigma, &lineflow_model::ModelParams::default());
     let mut model = Model::default();
     let t_build = median_time(reps, || model = build(&input.lines, &input.params, &input.cameras));
     let vertices: Vec<Vec3> = model.vertices.iter().map(|v| v.point).collect();

@@ -107,11 +107,11 @@ pub struct NoisyInput {
     pub cameras: Cameras,
 }
 
-pub fn noisy_input(truth: &lineflow_eval::Truth, sigma_m: f64) -> NoisyInput {
+pub fn noisy_input(truth: &lineflow_eval::Truth, sigma_m: f64, base: &ModelParams) -> NoisyInput {
     let rows = noisy(&truth.lines, sigma_m, 1);
     let params = ModelParams {
         sigma_m: sigma_m.max(1e-4),
-        ..ModelParams::default()
+        ..base.clone()
     };
     let lines = lines_from_rows(&rows, &params);
     let cameras = Cameras::new(truth.poses.iter().map(|p| p.pose.center).collect());
@@ -140,8 +140,10 @@ pub fn noisy(lines: &[Line3Row], sigma_m: f64, seed: u64) -> Vec<Line3Row> {
 }
 
 /// `lineflow bench model`: for each noise level, the model of the preset's true edges with noise, scored against
-/// the truth, and its time beside the seed's all-pairs junction search measured on the same lines.
-pub fn bench_model(preset: &str, sigmas_gsd: &[f64], reps: usize, out: Option<&Path>) -> Result<ExitCode> {
+/// the truth, and its time beside the seed's all-pairs junction search measured on the same lines. `set` overrides
+/// model parameters as `--set` does for `lineflow model`.
+pub fn bench_model(preset: &str, sigmas_gsd: &[f64], reps: usize, set: &[String], out: Option<&Path>) -> Result<ExitCode> {
+    let base = params_with(set)?;
     let truth = lineflow_eval::Truth::from_scene(Synthetic::new(preset, 1.0, 1)?);
     let gsd = truth.gsd_m();
     let true_openings = truth.scene.building.openings.len();
@@ -161,7 +163,7 @@ pub fn bench_model(preset: &str, sigmas_gsd: &[f64], reps: usize, out: Option<&P
             lines,
             params,
             cameras,
-        } = noisy_input(&truth, sigma);
+        } = noisy_input(&truth, sigma, &base);
         let mut model = Model::default();
         let t_build = median_time(reps, || model = build(&lines, &params, &cameras));
         let t_pairs = median_time(reps, || {

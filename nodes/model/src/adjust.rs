@@ -40,6 +40,10 @@ impl LineObservation {
             // First-order propagation of isotropic endpoint errors (σ per coordinate) into (a, b); the cross term
             // vanishes at the midpoint.
             cov[m] = Matrix2::new(s2 * (1.0 + b * b) / 2.0, 0.0, 0.0, 2.0 * s2 * (1.0 + b * b) / (len_k * len_k));
+            if l.regular.fixes(j) {
+                // A slope made exact by regularisation: held, not freed (a zero would make N_bb singular).
+                cov[m][(1, 1)] *= 1e-8;
+            }
         }
         LineObservation {
             axis,

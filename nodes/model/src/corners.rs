@@ -35,15 +35,45 @@ impl DisjointSets {
 }
 
 /// Single-linkage clusters of the accepted junctions: two junctions are one corner when they are closer than
-/// `radius_k` times their joint standard deviation.
+/// `radius_k` times their joint standard deviation, unless that would put both ends of one line into one corner
+/// (a reveal a few σ deep has its two ends at two corners, however close). Pairs are merged nearest first, so
+/// which of two conflicting merges wins does not depend on the junctions' order.
 pub fn cluster(junctions: &[Junction], accepted: &[usize], radius_k: f64) -> Vec<Corner> {
-    let mut sets = DisjointSets::new(accepted.len());
+    let mut pairs = Vec::new();
     for a in 0..accepted.len() {
         for b in a + 1..accepted.len() {
             let (ja, jb) = (&junctions[accepted[a]], &junctions[accepted[b]]);
             let radius = radius_k * ja.sigma.hypot(jb.sigma);
-            if (ja.point - jb.point).norm() < radius {
-                sets.union(a, b);
+            let d = (ja.point - jb.point).norm();
+            if d < radius {
+                pairs.push((d / radius, a, b));
+            }
+        }
+    }
+    pairs.sort_by(|x, y| x.0.total_cmp(&y.0).then(x.1.cmp(&y.1)).then(x.2.cmp(&y.2)));
+    // The line ends each cluster holds, by its representative.
+    let mut ends: Vec<Vec<(usize, usize)>> = accepted
+        .iter()
+        .map(|&k| {
+            let j = &junctions[k];
+            [(j.i, j.ends[0]), (j.j, j.ends[1])]
+                .into_iter()
+                .filter_map(|(l, e)| e.map(|e| (l, e)))
+                .collect()
+        })
+        .collect();
+    let mut sets = DisjointSets::new(accepted.len());
+    for (_, a, b) in pairs {
+        let (ra, rb) = (sets.find(a), sets.find(b));
+        if ra == rb || ends[ra].iter().any(|&(l, e)| ends[rb].contains(&(l, 1 - e))) {
+            continue;
+        }
+        sets.union(ra, rb);
+        let (keep, gone) = (ra.min(rb), ra.max(rb));
+        let moved = std::mem::take(&mut ends[gone]);
+        for end in moved {
+            if !ends[keep].contains(&end) {
+                ends[keep].push(end);
             }
         }
     }
@@ -81,4 +111,46 @@ pub fn objects(n_lines: usize, corners: &[Corner]) -> Vec<usize> {
             *numbering.entry(*r).or_insert(next)
         })
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn junction(i: usize, j: usize, point: [f64; 3], ends: [Option<usize>; 2]) -> Junction {
+        Junction {
+            i,
+            j,
+            point: Vec3::from(point),
+            t: [0.0, 0.0],
+            sigma: 0.01,
+            ends,
+        }
+    }
+
+    #[test]
+    fn a_reveal_shallower_than_the_cluster_radius_keeps_its_two_corners() {
+        // Line 0 is a 4 cm reveal from the frame (line 1) back to the glazing (line 2); 3 σ of the pair is 4.2 cm.
+        let junctions = [
+            junction(0, 1, [0.0, 0.0, 0.0], [Some(0), Some(1)]),
+            junction(0, 2, [0.0, 0.04, 0.0], [Some(1), Some(1)]),
+        ];
+        let corners = cluster(&junctions, &[0, 1], 3.0);
+        assert_eq!(corners.len(), 2);
+        assert_eq!((corners[0].lines.clone(), corners[1].lines.clone()), (vec![0, 1], vec![0, 2]));
+    }
+
+    #[test]
+    fn junctions_of_one_corner_merge_and_the_nearest_pair_wins_a_conflict() {
+        // Lines 1 and 3 both end where line 0 starts (1 cm apart); line 2 ends at line 0's other end, 3 cm away:
+        // close enough for single linkage to chain all three, but it would hold both ends of line 0.
+        let junctions = [
+            junction(0, 1, [0.0, 0.0, 0.0], [Some(0), Some(1)]),
+            junction(0, 2, [0.0, 0.03, 0.0], [Some(1), Some(1)]),
+            junction(0, 3, [0.0, 0.01, 0.0], [Some(0), Some(0)]),
+        ];
+        let corners = cluster(&junctions, &[0, 1, 2], 3.0);
+        let lines: Vec<Vec<usize>> = corners.iter().map(|c| c.lines.clone()).collect();
+        assert_eq!(lines, vec![vec![0, 1, 3], vec![0, 2]]);
+    }
 }

