@@ -3,6 +3,7 @@
 use lineflow_photogrammetry::Vec3;
 
 use crate::junction::Junction;
+use crate::ModelLine;
 
 /// A corner before adjustment.
 #[derive(Debug, Clone)]
@@ -11,6 +12,8 @@ pub struct Corner {
     pub point: Vec3,
     /// The lines through it, ascending.
     pub lines: Vec<usize>,
+    /// The line ends it holds, (line, end), ascending; a line it holds deep inside (a T) has none.
+    pub ends: Vec<(usize, usize)>,
 }
 
 /// Disjoint sets over `0..n`, smallest member as representative so that results do not depend on merge order.
@@ -35,10 +38,25 @@ impl DisjointSets {
 }
 
 /// Single-linkage clusters of the accepted junctions: two junctions are one corner when they are closer than
-/// `radius_k` times their joint standard deviation, unless that would put both ends of one line into one corner
-/// (a reveal a few σ deep has its two ends at two corners, however close). Pairs are merged nearest first, so
-/// which of two conflicting merges wins does not depend on the junctions' order.
-pub fn cluster(junctions: &[Junction], accepted: &[usize], radius_k: f64) -> Vec<Corner> {
+/// `radius_k` times their joint standard deviation, unless that would put into one corner both ends of one line
+/// (a reveal a few σ deep has its two ends at two corners, however close) or the ends of two parallel lines
+/// leaving it the same way (a frame's edge and the glazing's a few centimetres behind it each end at their own
+/// corner; angles below `min_angle_deg` count as parallel). Pairs are merged nearest first, so which of two
+/// conflicting merges wins does not depend on the junctions' order.
+pub fn cluster(junctions: &[Junction], accepted: &[usize], lines: &[ModelLine], radius_k: f64, min_angle_deg: f64) -> Vec<Corner> {
+    let cos_parallel = min_angle_deg.to_radians().cos();
+    let inward = |(l, e): (usize, usize)| if e == 0 { lines[l].direction() } else { -lines[l].direction() };
+    let conflict = |a: &[(usize, usize)], b: &[(usize, usize)]| {
+        a.iter().any(|&x| {
+            b.iter().any(|&y| {
+                if x.0 == y.0 {
+                    x.1 != y.1
+                } else {
+                    inward(x).dot(&inward(y)) > cos_parallel
+                }
+            })
+        })
+    };
     let mut pairs = Vec::new();
     for a in 0..accepted.len() {
         for b in a + 1..accepted.len() {
@@ -65,7 +83,7 @@ pub fn cluster(junctions: &[Junction], accepted: &[usize], radius_k: f64) -> Vec
     let mut sets = DisjointSets::new(accepted.len());
     for (_, a, b) in pairs {
         let (ra, rb) = (sets.find(a), sets.find(b));
-        if ra == rb || ends[ra].iter().any(|&(l, e)| ends[rb].contains(&(l, 1 - e))) {
+        if ra == rb || conflict(&ends[ra], &ends[rb]) {
             continue;
         }
         sets.union(ra, rb);
@@ -81,16 +99,54 @@ pub fn cluster(junctions: &[Junction], accepted: &[usize], radius_k: f64) -> Vec
     for (a, &junction) in accepted.iter().enumerate() {
         groups.entry(sets.find(a)).or_default().push(junction);
     }
-    groups
-        .into_values()
-        .map(|members| {
+    let mut corners: Vec<Corner> = groups
+        .into_iter()
+        .map(|(rep, members)| {
             let point = members.iter().map(|&k| junctions[k].point).sum::<Vec3>() / members.len() as f64;
             let mut lines: Vec<usize> = members.iter().flat_map(|&k| [junctions[k].i, junctions[k].j]).collect();
             lines.sort_unstable();
             lines.dedup();
-            Corner { point, lines }
+            let mut ends = std::mem::take(&mut ends[rep]);
+            ends.sort_unstable();
+            Corner { point, lines, ends }
         })
-        .collect()
+        .collect();
+    one_corner_per_end(&mut corners, lines, cos_parallel);
+    corners
+}
+
+/// A line end held by two corners (each too far from the other, or in conflict with it, to be one) stays with the
+/// nearer and leaves the other: a line has one corner at each end, and one end tied to two corners binds them in
+/// Shape. A corner left without two lines at an angle is dropped.
+fn one_corner_per_end(corners: &mut Vec<Corner>, lines: &[ModelLine], cos_parallel: f64) {
+    let endpoint = |(l, e): (usize, usize)| if e == 0 { lines[l].start } else { lines[l].end };
+    let mut holders: std::collections::BTreeMap<(usize, usize), Vec<usize>> = Default::default();
+    for (c, corner) in corners.iter().enumerate() {
+        for &end in &corner.ends {
+            holders.entry(end).or_default().push(c);
+        }
+    }
+    for (end, cs) in holders.into_iter().filter(|(_, cs)| cs.len() > 1) {
+        let distance = |c: usize| (corners[c].point - endpoint(end)).norm();
+        let nearest = cs
+            .iter()
+            .copied()
+            .min_by(|&a, &b| distance(a).total_cmp(&distance(b)))
+            .unwrap_or(cs[0]);
+        for c in cs.into_iter().filter(|&c| c != nearest) {
+            let corner = &mut corners[c];
+            corner.ends.retain(|&x| x != end);
+            // A corner holding the line deep inside (a T) as well as at this end cannot: its ends say which.
+            corner.lines.retain(|&l| l != end.0);
+        }
+    }
+    corners.retain(|corner| {
+        corner.lines.iter().enumerate().any(|(k, &a)| {
+            corner.lines[k + 1..]
+                .iter()
+                .any(|&b| lines[a].direction().dot(&lines[b].direction()).abs() < cos_parallel)
+        })
+    });
 }
 
 /// Objects: the lines connected through corners. Returns, per line, its object's index (objects numbered by their
@@ -117,6 +173,10 @@ pub fn objects(n_lines: usize, corners: &[Corner]) -> Vec<usize> {
 mod tests {
     use super::*;
 
+    fn line(a: [f64; 3], b: [f64; 3]) -> ModelLine {
+        ModelLine::new(Vec3::from(a), Vec3::from(b), 0.01)
+    }
+
     fn junction(i: usize, j: usize, point: [f64; 3], ends: [Option<usize>; 2]) -> Junction {
         Junction {
             i,
@@ -135,7 +195,12 @@ mod tests {
             junction(0, 1, [0.0, 0.0, 0.0], [Some(0), Some(1)]),
             junction(0, 2, [0.0, 0.04, 0.0], [Some(1), Some(1)]),
         ];
-        let corners = cluster(&junctions, &[0, 1], 3.0);
+        let lines = [
+            line([0.0, 0.0, 0.0], [0.0, 0.04, 0.0]),
+            line([-1.0, 0.0, 0.0], [0.0, 0.0, 0.0]),
+            line([-1.0, 0.04, 0.0], [0.0, 0.04, 0.0]),
+        ];
+        let corners = cluster(&junctions, &[0, 1], &lines, 3.0, 5.0);
         assert_eq!(corners.len(), 2);
         assert_eq!((corners[0].lines.clone(), corners[1].lines.clone()), (vec![0, 1], vec![0, 2]));
     }
@@ -149,8 +214,36 @@ mod tests {
             junction(0, 2, [0.0, 0.03, 0.0], [Some(1), Some(1)]),
             junction(0, 3, [0.0, 0.01, 0.0], [Some(0), Some(0)]),
         ];
-        let corners = cluster(&junctions, &[0, 1, 2], 3.0);
+        let lines = [
+            line([0.0, 0.0, 0.0], [0.0, 0.03, 0.0]),
+            line([-1.0, 0.0, 0.0], [0.0, 0.0, 0.0]),
+            line([0.0, 0.03, 1.0], [0.0, 0.03, 0.0]),
+            line([0.0, 0.01, 0.0], [0.0, 0.01, 1.0]),
+        ];
+        let corners = cluster(&junctions, &[0, 1, 2], &lines, 3.0, 5.0);
         let lines: Vec<Vec<usize>> = corners.iter().map(|c| c.lines.clone()).collect();
         assert_eq!(lines, vec![vec![0, 1, 3], vec![0, 2]]);
+    }
+
+    #[test]
+    fn parallel_lines_leaving_the_same_way_are_not_one_corner_and_an_end_keeps_the_nearer() {
+        // A frame's sill (line 0) and the glazing's 3 cm behind it (line 1) both reach the jamb's end (line 2): the
+        // glazing's junction is within reach of the frame's corner but not the same corner, and the jamb's end
+        // stays with the corner it lies at, which leaves the glazing's end free.
+        let lines = [
+            line([-1.0, 0.0, 0.0], [0.0, 0.0, 0.0]),
+            line([-1.0, 0.03, 0.0], [0.0, 0.03, 0.0]),
+            line([0.0, 0.0, 0.0], [0.0, 0.0, 1.0]),
+        ];
+        let junctions = [
+            junction(0, 2, [0.0, 0.0, 0.0], [Some(1), Some(0)]),
+            junction(1, 2, [0.0, 0.015, 0.0], [Some(1), Some(0)]),
+        ];
+        let corners = cluster(&junctions, &[0, 1], &lines, 3.0, 5.0);
+        assert_eq!(corners.len(), 1);
+        assert_eq!(
+            (corners[0].lines.clone(), corners[0].ends.clone()),
+            (vec![0, 2], vec![(0, 1), (2, 0)])
+        );
     }
 }

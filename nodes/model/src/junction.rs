@@ -116,22 +116,23 @@ fn intersect(i: usize, a: &ModelLine, j: usize, b: &ModelLine, params: &ModelPar
     // Distance gate: not far beyond either segment, and near an end of at least one (else it is a crossing).
     let overshoot = |s: f64, l: f64| (-s).max(s - l).max(0.0);
     let to_end = |s: f64, l: f64| s.abs().min((l - s).abs());
-    if overshoot(sa, la) > params.max_reach_m || overshoot(sb, lb) > params.max_reach_m {
-        return None;
-    }
-    if to_end(sa, la).min(to_end(sb, lb)) > params.max_reach_m {
-        return None;
-    }
-    let end = |s: f64, l: f64| (to_end(s, l) <= params.max_reach_m || overshoot(s, l) > 0.0).then_some(usize::from(s >= l / 2.0));
     // Intersection of two lines, each known to σ across itself: the point moves by σ / sin(angle).
     let sigma = a.sigma_m.max(b.sigma_m) / sin;
+    let (reach_a, reach_b) = (a.reach(b.sigma_m / sin, params), b.reach(a.sigma_m / sin, params));
+    if overshoot(sa, la) > reach_a || overshoot(sb, lb) > reach_b {
+        return None;
+    }
+    if to_end(sa, la) > reach_a && to_end(sb, lb) > reach_b {
+        return None;
+    }
+    let end = |s: f64, l: f64, reach: f64| (to_end(s, l) <= reach || overshoot(s, l) > 0.0).then_some(usize::from(s >= l / 2.0));
     Some(Junction {
         i,
         j,
         point: (pa + pb) * 0.5,
         t: [sa / la, sb / lb],
         sigma,
-        ends: [end(sa, la), end(sb, lb)],
+        ends: [end(sa, la, reach_a), end(sb, lb, reach_b)],
     })
 }
 

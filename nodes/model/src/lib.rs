@@ -47,6 +47,9 @@ pub struct ModelLine {
     pub sigma_axes_m: Option<Vec3>,
     /// Which of its slopes regularisation made exact ([`regular`]).
     pub regular: regular::Regularity,
+    /// Standard deviation of its endpoints along it, metres, where known (lines whose endpoints carry the
+    /// isotropic `sigma_m`); a fitted line's σ says how well its position is known, not where it ends.
+    pub sigma_end_m: Option<f64>,
 }
 
 impl ModelLine {
@@ -57,6 +60,7 @@ impl ModelLine {
             sigma_m,
             sigma_axes_m: None,
             regular: regular::Regularity::Free,
+            sigma_end_m: None,
         }
     }
     /// The standard deviation of each endpoint coordinate along object axis `axis`, metres.
@@ -68,6 +72,14 @@ impl ModelLine {
     }
     pub fn direction(&self) -> Vec3 {
         (self.end - self.start).normalize()
+    }
+    /// How far a junction may lie beyond this line's end, or inside it and still belong to the end, metres:
+    /// `reach_k` joint σ of the end and of the other line's position along this one (`other_sigma_m`), at most
+    /// `max_reach_m`.
+    pub fn reach(&self, other_sigma_m: f64, params: &ModelParams) -> f64 {
+        self.sigma_end_m.map_or(params.max_reach_m, |s| {
+            (params.reach_k * s.hypot(other_sigma_m)).min(params.max_reach_m)
+        })
     }
     pub fn midpoint(&self) -> Vec3 {
         (self.start + self.end) * 0.5
@@ -88,6 +100,8 @@ pub struct ModelParams {
     /// Distance gate: a junction may lie at most this far beyond a segment, and must lie this close to an end of
     /// one of the two lines, metres.
     pub max_reach_m: f64,
+    /// The distance gate of a line whose endpoints' σ is known (one without RMS, at `sigma_m`), in joint σ.
+    pub reach_k: f64,
     /// Gap gate: two lines meet when their common perpendicular is shorter than this many joint σ.
     pub gap_k: f64,
     /// Smallest angle between two lines that are intersected, degrees (the seed's 3σ gate is clamped to
@@ -129,6 +143,7 @@ impl Default for ModelParams {
             min_sigma_m: 0.002,
             min_length_m: 0.02,
             max_reach_m: 0.05,
+            reach_k: 3.0,
             gap_k: 3.0,
             min_angle_deg: 5.0,
             corner_k: 3.0,
@@ -175,6 +190,7 @@ impl ModelParams {
             ("sigma_m", self.sigma_m),
             ("min_sigma_m", self.min_sigma_m),
             ("max_reach_m", self.max_reach_m),
+            ("reach_k", self.reach_k),
             ("gap_k", self.gap_k),
             ("corner_k", self.corner_k),
             ("plane_angle_deg", self.plane_angle_deg),
@@ -404,7 +420,7 @@ pub fn build_with_images(lines: &[ModelLine], params: &ModelParams, cameras: &Ca
     };
     let candidates = junction::candidates(&used_lines, params);
     let accepted = junction::accept(&used_lines, &candidates, params);
-    let corners = corners::cluster(&candidates, &accepted.junctions, params.corner_k);
+    let corners = corners::cluster(&candidates, &accepted.junctions, &used_lines, params.corner_k, params.min_angle_deg);
     let object_of = corners::objects(used_lines.len(), &corners);
 
     let mut diagnostics = Diagnostics {
@@ -452,10 +468,11 @@ pub fn build_with_images(lines: &[ModelLine], params: &ModelParams, cameras: &Ca
             .collect();
         let sub_lines: Vec<ModelLine> = object_lines.iter().map(|&l| used_lines[l].clone()).collect();
         let start: Vec<Vec3> = object_corners.iter().map(|&c| corners[c].point).collect();
-        // The seed's conditions are singular where three or more corners share a line (more conditions than the
-        // line has parameters). Such an object keeps its junctions' means: measured on all three presets, that
-        // beats both the mixed model (the incidences as observations of a tiny σ) and dropping the worst
-        // incidences of crowded lines, because the third corner on a line is usually a wrong incidence.
+        // Where the normal equations are singular (three or more corners on one line give more conditions than
+        // the line has parameters; a reveal a few σ long gives a direction that is noise), the object keeps its
+        // junctions' means. Measured on all three presets, that beats the mixed model (the incidences as
+        // observations of a tiny σ) and dropping the worst incidences of crowded lines: such objects usually hold
+        // a wrong incidence.
         let Some(mut r) = adjust::adjust(&sub_lines, &start, &incidences) else {
             diagnostics.objects_unadjusted += 1;
             continue;
@@ -499,6 +516,7 @@ pub fn build_with_images(lines: &[ModelLine], params: &ModelParams, cameras: &Ca
             on_line[l].push(c);
         }
     }
+    let held_ends: std::collections::HashSet<(usize, usize)> = corners.iter().flat_map(|c| c.ends.iter().copied()).collect();
     let mut edges = Vec::new();
     // Two fragments of one edge reach the same corners: one edge.
     let mut seen = std::collections::HashSet::new();
@@ -513,7 +531,8 @@ pub fn build_with_images(lines: &[ModelLine], params: &ModelParams, cameras: &Ca
         // A free end beyond the outermost corner by more than the noise is kept as a vertex: the edge goes on.
         let gate = (3.0 * line.sigma_m).max(0.02);
         for (end, p) in [(0, line.start), (1, line.end)] {
-            if accepted.ends[l][end] != Resolution::Free {
+            // An end is free when no junction was accepted for it, or when its corner went to another end.
+            if accepted.ends[l][end] != Resolution::Free && held_ends.contains(&(l, end)) {
                 continue;
             }
             let tp = t(&p);
@@ -619,7 +638,13 @@ fn refine_object(
 /// σ its statistics give.
 pub fn lines_from_rows(rows: &[lineflow_formats::Line3Row], params: &ModelParams) -> Vec<ModelLine> {
     rows.iter()
-        .map(|r| ModelLine::new(r.start, r.end, params.line_sigma(r.rms_m, r.n_points)))
+        .map(|r| {
+            let sigma = params.line_sigma(r.rms_m, r.n_points);
+            ModelLine {
+                sigma_end_m: (sigma == params.sigma_m).then_some(sigma),
+                ..ModelLine::new(r.start, r.end, sigma)
+            }
+        })
         .collect()
 }
 
