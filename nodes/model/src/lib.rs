@@ -16,6 +16,7 @@
 //!
 //! Model-image fitting (LSMIF, seed 004) is the `modelfit` stage.
 pub mod adjust;
+pub mod align;
 pub mod corners;
 mod disjoint;
 pub mod export;
@@ -134,6 +135,13 @@ pub struct ModelParams {
     pub regular_k: f64,
     /// The most a line is turned by regularisation, degrees.
     pub regular_max_deg: f64,
+    /// Move regularised lines onto the depths, heights and positions along the wall they share with others
+    /// ([`align`]); only where the building has one pair of plan directions.
+    pub align: bool,
+    /// Alignment's gate, in the line's own position σ.
+    pub align_k: f64,
+    /// The fewest lines that make a shared value.
+    pub align_min_lines: usize,
 }
 
 impl Default for ModelParams {
@@ -159,6 +167,9 @@ impl Default for ModelParams {
             regularise: true,
             regular_k: 3.0,
             regular_max_deg: 15.0,
+            align: true,
+            align_k: 2.0,
+            align_min_lines: 3,
         }
     }
 }
@@ -172,6 +183,14 @@ impl ModelParams {
             min_image_line_px: self.refine_min_image_line_px,
             min_plane_angle_deg: self.refine_min_plane_angle_deg,
             ..refine::RefineParams::default()
+        }
+    }
+
+    /// Alignment's parameters.
+    pub fn align_params(&self) -> align::AlignParams {
+        align::AlignParams {
+            k: self.align_k,
+            min_lines: self.align_min_lines.max(2),
         }
     }
 
@@ -197,6 +216,7 @@ impl ModelParams {
             ("refine_k", self.refine_k),
             ("refine_image_sigma_px", self.refine_image_sigma_px),
             ("regular_k", self.regular_k),
+            ("align_k", self.align_k),
         ];
         for (name, v) in positive {
             if !(v.is_finite() && v > 0.0) {
@@ -287,6 +307,8 @@ pub struct Diagnostics {
     pub chains_completed: usize,
     /// Lines turned onto the building's directions.
     pub regularised: regular::RegularCounts,
+    /// Line coordinates moved onto shared values.
+    pub aligned: align::AlignCounts,
 }
 
 /// The wire-frame model.
@@ -333,7 +355,7 @@ impl Model {
     pub fn summary(&self) -> String {
         let d = &self.diagnostics;
         format!(
-            "{} of {} lines used, {} objects ({} left unadjusted), {} vertices, {} edges, {} faces ({} walls, {} window/door, {} roof), ends resolved by stage 1/2/3: {}/{}/{}, free {}, median sigma0 {}, {} edges refined by image lines, {} occluded boundaries completed, {} objects inside another in plan, lines turned plumb/level/level on a plan direction/sloped on one: {}/{}/{}/{} ({} plan directions)",
+            "{} of {} lines used, {} objects ({} left unadjusted), {} vertices, {} edges, {} faces ({} walls, {} window/door, {} roof), ends resolved by stage 1/2/3: {}/{}/{}, free {}, median sigma0 {}, {} edges refined by image lines, {} occluded boundaries completed, {} objects inside another in plan, lines turned plumb/level/level on a plan direction/sloped on one: {}/{}/{}/{} ({} plan directions), line coordinates aligned along/across the wall/in height: {}/{}/{} ({}/{}/{} shared values)",
             d.lines_used,
             d.lines_in,
             d.objects,
@@ -356,7 +378,13 @@ impl Model {
             d.regularised.level,
             d.regularised.level_on_axis,
             d.regularised.sloped_on_axis,
-            d.regularised.plan_directions
+            d.regularised.plan_directions,
+            d.aligned.moved[0],
+            d.aligned.moved[1],
+            d.aligned.moved[2],
+            d.aligned.modes[0],
+            d.aligned.modes[1],
+            d.aligned.modes[2]
         )
     }
 }
@@ -413,10 +441,14 @@ pub fn build_with_images(lines: &[ModelLine], params: &ModelParams, cameras: &Ca
         })
         .collect();
     let mut used_lines: Vec<ModelLine> = kept.iter().map(|&k| lines[k].clone()).collect();
-    let regularised = if params.regularise {
+    let (regularised, plan_azimuths) = if params.regularise {
         regular::regularise(&mut used_lines, &params.regular_params())
     } else {
-        regular::RegularCounts::default()
+        Default::default()
+    };
+    let aligned = match plan_azimuths[..] {
+        [azimuth] if params.align => align::align(&mut used_lines, azimuth, &params.align_params()),
+        _ => align::AlignCounts::default(),
     };
     let candidates = junction::candidates(&used_lines, params);
     let accepted = junction::accept(&used_lines, &candidates, params);
@@ -428,6 +460,7 @@ pub fn build_with_images(lines: &[ModelLine], params: &ModelParams, cameras: &Ca
         junction_candidates: candidates.len(),
         junctions_accepted: accepted.junctions.len(),
         regularised,
+        aligned,
         ..Default::default()
     };
     for r in accepted.ends.iter().flatten() {

@@ -145,7 +145,8 @@ fn turned(line: &ModelLine, dir: Vec3, regular: Regularity) -> ModelLine {
 }
 
 /// Turns every line that lies within its gate of plumb, level or one of the building's plan directions onto it.
-pub fn regularise(lines: &mut [ModelLine], p: &RegularParams) -> RegularCounts {
+/// Returns what it did and the plan directions (azimuths modulo 90°, radians).
+pub fn regularise(lines: &mut [ModelLine], p: &RegularParams) -> (RegularCounts, Vec<f64>) {
     let mut counts = RegularCounts::default();
     let up = Vec3::z();
     // Plumb and level first; the plan directions come from the level lines.
@@ -193,7 +194,7 @@ pub fn regularise(lines: &mut [ModelLine], p: &RegularParams) -> RegularCounts {
             counts.sloped_on_axis += 1;
         }
     }
-    counts
+    (counts, modes)
 }
 
 #[cfg(test)]
@@ -230,7 +231,7 @@ mod tests {
             ModelLine::new(Vec3::zeros(), Vec3::new(0.0, 0.0, 0.0) + (along + across) * 2.0, 0.005),
         ];
         let before: Vec<Vec3> = lines.iter().map(|l| l.midpoint()).collect();
-        let c = regularise(&mut lines, &params());
+        let (c, _) = regularise(&mut lines, &params());
         assert_eq!((c.plumb, c.level_on_axis, c.sloped_on_axis, c.level), (1, 3, 1, 1), "{c:?}");
         for (l, m) in lines.iter().zip(&before) {
             assert!((l.midpoint() - m).norm() < 1e-12, "a line moved: {l:?}");
@@ -252,7 +253,7 @@ mod tests {
     fn a_tilt_beyond_the_lines_own_noise_stays() {
         // 1 cm lean over 3 m of a line known to 1 mm: real, not noise.
         let mut lines = vec![ModelLine::new(Vec3::zeros(), Vec3::new(0.01, 0.0, 3.0), 0.001)];
-        let c = regularise(&mut lines, &params());
+        let (c, _) = regularise(&mut lines, &params());
         assert_eq!(c, RegularCounts::default());
         assert_eq!(lines[0].end, Vec3::new(0.01, 0.0, 3.0));
     }
