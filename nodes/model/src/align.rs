@@ -47,15 +47,17 @@ fn frame(azimuth: f64) -> [Vec3; 3] {
     ]
 }
 
-/// Which frame axis a regularised line runs along, if it runs along one.
-fn running_axis(line: &ModelLine, axes: &[Vec3; 3]) -> Option<usize> {
+/// Which coordinates of the building frame a regularised line holds constant, by frame axis.
+fn constant_coordinates(line: &ModelLine, axes: &[Vec3; 3]) -> [bool; 3] {
     let d = line.direction();
-    let along = |k: usize| d.dot(&axes[k]).abs() > 1.0 - 1e-9;
     match line.regular {
-        Regularity::Fixed => (0..3).find(|&k| along(k)),
+        Regularity::Fixed => match (0..3).find(|&k| d.dot(&axes[k]).abs() > 1.0 - 1e-9) {
+            Some(runs) => [runs != 0, runs != 1, runs != 2],
+            None => [false; 3],
+        },
         // A level line off the plan directions still keeps its height.
-        Regularity::Level => Some(usize::MAX),
-        _ => None,
+        Regularity::Level => [false, false, true],
+        _ => [false; 3],
     }
 }
 
@@ -121,18 +123,12 @@ fn modes(values: &[Value], p: &AlignParams) -> Vec<(f64, Vec<usize>)> {
 pub fn align(lines: &mut [ModelLine], azimuth: f64, p: &AlignParams) -> AlignCounts {
     let axes = frame(azimuth);
     let mut counts = AlignCounts::default();
-    let running: Vec<Option<usize>> = lines.iter().map(|l| running_axis(l, &axes)).collect();
-    for family in 0..3 {
-        // A line holds coordinate `family` constant when it runs along another axis (a level line off the plan
-        // directions only its height).
-        let mut values: Vec<Value> = running
+    let constant: Vec<[bool; 3]> = lines.iter().map(|l| constant_coordinates(l, &axes)).collect();
+    for (family, axis) in axes.iter().enumerate() {
+        let mut values: Vec<Value> = constant
             .iter()
             .enumerate()
-            .filter(|(_, r)| match r {
-                Some(usize::MAX) => family == 2,
-                Some(a) => *a != family,
-                None => false,
-            })
+            .filter(|(_, c)| c[family])
             .map(|(l, _)| {
                 let line = &lines[l];
                 // The line's position from two endpoints: σ / √2 per coordinate.
@@ -142,7 +138,7 @@ pub fn align(lines: &mut [ModelLine], azimuth: f64, p: &AlignParams) -> AlignCou
                 } / std::f64::consts::SQRT_2;
                 Value {
                     line: l,
-                    at: line.midpoint().dot(&axes[family]),
+                    at: line.midpoint().dot(axis),
                     sigma: sigma.max(1e-9),
                 }
             })
@@ -153,7 +149,7 @@ pub fn align(lines: &mut [ModelLine], azimuth: f64, p: &AlignParams) -> AlignCou
         for (mode, members) in found {
             for k in members {
                 let v = values[k];
-                let shift = axes[family] * (mode - v.at);
+                let shift = axis * (mode - v.at);
                 let line = &mut lines[v.line];
                 line.start += shift;
                 line.end += shift;
