@@ -136,7 +136,8 @@ fn one_corner_per_end(corners: &mut Vec<Corner>, lines: &[ModelLine], cos_parall
         for c in cs.into_iter().filter(|&c| c != nearest) {
             let corner = &mut corners[c];
             corner.ends.retain(|&x| x != end);
-            // A corner holding the line deep inside (a T) as well as at this end cannot: its ends say which.
+            // The corner lets go of the line altogether: it cannot hold one end of it and, beside it, the line's
+            // inside as a T.
             corner.lines.retain(|&l| l != end.0);
         }
     }

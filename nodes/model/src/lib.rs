@@ -190,7 +190,7 @@ impl ModelParams {
     pub fn align_params(&self) -> align::AlignParams {
         align::AlignParams {
             k: self.align_k,
-            min_lines: self.align_min_lines.max(2),
+            min_lines: self.align_min_lines,
         }
     }
 
@@ -226,6 +226,9 @@ impl ModelParams {
         if !(0.0..45.0).contains(&self.min_angle_deg) {
             return Err(format!("min_angle_deg must be in [0, 45), got {}", self.min_angle_deg));
         }
+        if self.align_min_lines < 2 {
+            return Err(format!("align_min_lines must be at least 2, got {}", self.align_min_lines));
+        }
         if !(0.0..45.0).contains(&self.regular_max_deg) {
             return Err(format!("regular_max_deg must be in [0, 45), got {}", self.regular_max_deg));
         }
@@ -260,9 +263,14 @@ impl ModelParams {
     /// a nanometre is unknown too: points placed exactly on their line (by the slaves' 2-D lines) say nothing of
     /// its precision, and `lines3d.csv` writes such an RMS as 0, so the model of the file and the live one agree.
     pub fn line_sigma(&self, rms_m: Option<f64>, n_points: Option<u32>) -> f64 {
+        self.fitted_sigma(rms_m, n_points).unwrap_or(self.sigma_m)
+    }
+
+    /// A fitted line's σ from its statistics, if they say anything (an RMS below a nanometre does not).
+    fn fitted_sigma(&self, rms_m: Option<f64>, n_points: Option<u32>) -> Option<f64> {
         match (rms_m, n_points) {
-            (Some(rms), Some(n)) if rms.is_finite() && rms > 1e-9 && n > 0 => (2.0 * rms / (n as f64).sqrt()).max(self.min_sigma_m),
-            _ => self.sigma_m,
+            (Some(rms), Some(n)) if rms.is_finite() && rms > 1e-9 && n > 0 => Some((2.0 * rms / (n as f64).sqrt()).max(self.min_sigma_m)),
+            _ => None,
         }
     }
 }
@@ -671,12 +679,13 @@ fn refine_object(
 /// σ its statistics give.
 pub fn lines_from_rows(rows: &[lineflow_formats::Line3Row], params: &ModelParams) -> Vec<ModelLine> {
     rows.iter()
-        .map(|r| {
-            let sigma = params.line_sigma(r.rms_m, r.n_points);
-            ModelLine {
-                sigma_end_m: (sigma == params.sigma_m).then_some(sigma),
-                ..ModelLine::new(r.start, r.end, sigma)
-            }
+        .map(|r| match params.fitted_sigma(r.rms_m, r.n_points) {
+            Some(sigma) => ModelLine::new(r.start, r.end, sigma),
+            // Without statistics the endpoints themselves carry `sigma_m`, along the line too.
+            None => ModelLine {
+                sigma_end_m: Some(params.sigma_m),
+                ..ModelLine::new(r.start, r.end, params.sigma_m)
+            },
         })
         .collect()
 }

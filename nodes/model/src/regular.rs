@@ -54,7 +54,7 @@ pub struct RegularCounts {
     pub level: usize,
     pub level_on_axis: usize,
     pub sloped_on_axis: usize,
-    /// The building's plan directions found (each with its perpendicular), degrees in [0, 90).
+    /// How many plan directions of the building were found (each with its perpendicular).
     pub plan_directions: usize,
 }
 
@@ -81,7 +81,8 @@ fn quarter_gap(a: f64, b: f64) -> f64 {
 }
 
 /// The building's plan directions modulo 90°: the modes of the level lines' azimuths, each weighed by length,
-/// found one after another among the lines no earlier mode took (within `width`). Deterministic: a 0.05° grid.
+/// found one after another among the lines no earlier mode took (each within its own gate). Deterministic: a 0.05°
+/// grid.
 fn plan_directions(levels: &[(f64, f64, f64)], p: &RegularParams) -> Vec<f64> {
     let total: f64 = levels.iter().map(|l| l.1).sum();
     let mut left: Vec<(f64, f64, f64)> = levels.to_vec();
