@@ -297,6 +297,27 @@ mod tests {
     }
 
     #[test]
+    fn a_gap_beyond_the_endpoints_noise_is_no_junction_where_that_noise_is_known() {
+        // A pane's jamb stopping 4 cm below the transom: within max_reach_m (5 cm), but 5.7 joint σ at 5 mm.
+        let jamb = line([0.0, 0.0, 0.0], [0.0, 0.0, 1.0]);
+        let transom = line([-0.5, 0.0, 1.04], [0.5, 0.0, 1.04]);
+        let params = ModelParams::default();
+        assert_eq!(
+            candidates(&[jamb.clone(), transom.clone()], &params).len(),
+            1,
+            "a fitted line keeps the full reach"
+        );
+        let known = |l: ModelLine| ModelLine {
+            sigma_end_m: Some(0.005),
+            ..l
+        };
+        assert!(candidates(&[known(jamb.clone()), known(transom.clone())], &params).is_empty());
+        // 1 cm short is within the noise.
+        let closer = line([0.0, 0.0, 0.03], [0.0, 0.0, 1.03]);
+        assert_eq!(candidates(&[known(closer), known(transom)], &params).len(), 1);
+    }
+
+    #[test]
     fn the_grid_finds_exactly_the_junctions_of_all_pairs() {
         // A lattice of horizontal and vertical lines with gaps, long and short, in two planes.
         let mut lines = Vec::new();
