@@ -94,6 +94,10 @@ fn modes(values: &[Value], p: &AlignParams) -> Vec<(f64, Vec<usize>)> {
                 sw += w;
                 swx += w * values[k].at;
             }
+            // Weights of values many of their own σ away underflow; with none left the centre stays.
+            if sw <= 0.0 {
+                break;
+            }
             let next = swx / sw;
             let moved = (next - centre).abs();
             centre = next;

@@ -2,6 +2,7 @@
 //! scattered by random error), and lines grouped into objects through their corners (§3.3.2).
 use lineflow_photogrammetry::Vec3;
 
+use crate::disjoint::Disjoint;
 use crate::junction::Junction;
 use crate::ModelLine;
 
@@ -14,27 +15,6 @@ pub struct Corner {
     pub lines: Vec<usize>,
     /// The line ends it holds, (line, end), ascending; a line it holds deep inside (a T) has none.
     pub ends: Vec<(usize, usize)>,
-}
-
-/// Disjoint sets over `0..n`, smallest member as representative so that results do not depend on merge order.
-pub struct DisjointSets(Vec<usize>);
-
-impl DisjointSets {
-    pub fn new(n: usize) -> Self {
-        DisjointSets((0..n).collect())
-    }
-    pub fn find(&mut self, mut x: usize) -> usize {
-        while self.0[x] != x {
-            self.0[x] = self.0[self.0[x]];
-            x = self.0[x];
-        }
-        x
-    }
-    pub fn union(&mut self, a: usize, b: usize) {
-        let (a, b) = (self.find(a), self.find(b));
-        let (lo, hi) = (a.min(b), a.max(b));
-        self.0[hi] = lo;
-    }
 }
 
 /// Single-linkage clusters of the accepted junctions: two junctions are one corner when they are closer than
@@ -80,13 +60,13 @@ pub fn cluster(junctions: &[Junction], accepted: &[usize], lines: &[ModelLine], 
                 .collect()
         })
         .collect();
-    let mut sets = DisjointSets::new(accepted.len());
+    let mut sets = Disjoint::new(accepted.len());
     for (_, a, b) in pairs {
-        let (ra, rb) = (sets.find(a), sets.find(b));
+        let (ra, rb) = (sets.root(a), sets.root(b));
         if ra == rb || conflict(&ends[ra], &ends[rb]) {
             continue;
         }
-        sets.union(ra, rb);
+        sets.join(ra, rb);
         let (keep, gone) = (ra.min(rb), ra.max(rb));
         let moved = std::mem::take(&mut ends[gone]);
         for end in moved {
@@ -97,7 +77,7 @@ pub fn cluster(junctions: &[Junction], accepted: &[usize], lines: &[ModelLine], 
     }
     let mut groups: std::collections::BTreeMap<usize, Vec<usize>> = Default::default();
     for (a, &junction) in accepted.iter().enumerate() {
-        groups.entry(sets.find(a)).or_default().push(junction);
+        groups.entry(sets.root(a)).or_default().push(junction);
     }
     let mut corners: Vec<Corner> = groups
         .into_iter()
@@ -153,13 +133,13 @@ fn one_corner_per_end(corners: &mut Vec<Corner>, lines: &[ModelLine], cos_parall
 /// Objects: the lines connected through corners. Returns, per line, its object's index (objects numbered by their
 /// smallest line, so the numbering does not depend on input order beyond the lines' own order).
 pub fn objects(n_lines: usize, corners: &[Corner]) -> Vec<usize> {
-    let mut sets = DisjointSets::new(n_lines);
+    let mut sets = Disjoint::new(n_lines);
     for c in corners {
         for w in c.lines.windows(2) {
-            sets.union(w[0], w[1]);
+            sets.join(w[0], w[1]);
         }
     }
-    let roots: Vec<usize> = (0..n_lines).map(|l| sets.find(l)).collect();
+    let roots: Vec<usize> = (0..n_lines).map(|l| sets.root(l)).collect();
     let mut numbering = std::collections::BTreeMap::new();
     roots
         .iter()

@@ -471,14 +471,21 @@ pub fn build_with_images(lines: &[ModelLine], params: &ModelParams, cameras: &Ca
         aligned,
         ..Default::default()
     };
-    for r in accepted.ends.iter().flatten() {
-        let slot = match r {
-            Resolution::Logic => 0,
-            Resolution::Distance => 1,
-            Resolution::Topology => 2,
-            Resolution::Free => 3,
-        };
-        diagnostics.ends_by_stage[slot] += 1;
+    // The ends that stay free: none of their junctions was accepted, or their corner went to another line's end
+    // (`corners::cluster`).
+    let held_ends: std::collections::HashSet<(usize, usize)> = corners.iter().flat_map(|c| c.ends.iter().copied()).collect();
+    let free_end = |l: usize, end: usize| accepted.ends[l][end] == Resolution::Free || !held_ends.contains(&(l, end));
+    for (l, ends) in accepted.ends.iter().enumerate() {
+        for (end, r) in ends.iter().enumerate() {
+            let slot = match r {
+                _ if free_end(l, end) => 3,
+                Resolution::Logic => 0,
+                Resolution::Distance => 1,
+                Resolution::Topology => 2,
+                Resolution::Free => 3,
+            };
+            diagnostics.ends_by_stage[slot] += 1;
+        }
     }
 
     // Shape, object by object.
@@ -557,7 +564,6 @@ pub fn build_with_images(lines: &[ModelLine], params: &ModelParams, cameras: &Ca
             on_line[l].push(c);
         }
     }
-    let held_ends: std::collections::HashSet<(usize, usize)> = corners.iter().flat_map(|c| c.ends.iter().copied()).collect();
     let mut edges = Vec::new();
     // Two fragments of one edge reach the same corners: one edge.
     let mut seen = std::collections::HashSet::new();
@@ -572,8 +578,7 @@ pub fn build_with_images(lines: &[ModelLine], params: &ModelParams, cameras: &Ca
         // A free end beyond the outermost corner by more than the noise is kept as a vertex: the edge goes on.
         let gate = (3.0 * line.sigma_m).max(0.02);
         for (end, p) in [(0, line.start), (1, line.end)] {
-            // An end is free when no junction was accepted for it, or when its corner went to another end.
-            if accepted.ends[l][end] != Resolution::Free && held_ends.contains(&(l, end)) {
+            if !free_end(l, end) {
                 continue;
             }
             let tp = t(&p);
