@@ -106,7 +106,7 @@ pub fn bench_linematch(preset: &str, scale: f64, reps: usize) -> Result<ExitCode
         .iter()
         .filter(|s| (s.end_px[0] - s.start_px[0]).hypot(s.end_px[1] - s.start_px[1]) >= p.min_length_px)
         .count();
-    let matched = match_master(&views[0], &views[1..], &walls, &segments, &p);
+    let matched = match_master(&views[0], &views[1..], &walls, &segments, &p).matches;
     let points: usize = matched.iter().map(|m| m.points.len()).sum();
     let line_depths: usize = matched.iter().map(|m| m.n_line_depths).sum();
     println!(

@@ -16,7 +16,7 @@ use lineflow_photogrammetry::{Camera, Pose, Vec3};
 use rayon::prelude::*;
 use serde::Deserialize;
 
-pub use search::{match_segment, MatchedPoint, SegmentInput, SegmentMatch};
+pub use search::{match_segment, MatchedPoint, SegmentInput, SegmentMatch, Unmatched};
 pub use slave_lines::{FrameSegments, SlaveSegments};
 pub use view::{DistortionLut, View};
 pub use wall::{fit_wall, wall_of_ray, WallPlane};
@@ -281,13 +281,88 @@ impl MatchParams {
     }
 }
 
-/// Matches every segment of one master (in parallel, results in segment order) and returns those with points.
-pub fn match_master(master: &View, slaves: &[View], walls: &[WallPlane], segments: &[SegmentInput], p: &MatchParams) -> Vec<SegmentMatch> {
-    segments
-        .par_iter()
-        .filter_map(|s| match_segment(master, slaves, walls, s, p))
-        .filter(|m| !m.points.is_empty())
-        .collect()
+/// The matches of one master and how many segments gave none, by reason.
+#[derive(Debug, Clone, Default)]
+pub struct MasterMatch {
+    /// Segments with points, in segment order.
+    pub matches: Vec<SegmentMatch>,
+    /// Segments without, by reason.
+    pub unmatched: UnmatchedCounts,
+}
+
+/// How many of a master's segments gave no points, by [`Unmatched`] reason.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct UnmatchedCounts {
+    /// [`Unmatched::TooShort`].
+    pub too_short: usize,
+    /// [`Unmatched::OutsideWalls`].
+    pub outside_walls: usize,
+    /// [`Unmatched::NoSlave`].
+    pub no_slave: usize,
+    /// [`Unmatched::NoDepth`].
+    pub no_depth: usize,
+}
+
+/// Masters with fewer long segments than this on their walls are not worth a warning when none of them matches.
+const MIN_SEGMENTS_TO_WARN: usize = 10;
+
+impl UnmatchedCounts {
+    fn add(&mut self, why: Unmatched) {
+        match why {
+            Unmatched::TooShort => self.too_short += 1,
+            Unmatched::OutsideWalls => self.outside_walls += 1,
+            Unmatched::NoSlave => self.no_slave += 1,
+            Unmatched::NoDepth => self.no_depth += 1,
+        }
+    }
+
+    /// What is wrong with a master whose segments mostly lie outside the walls, whose walls no slave sees, or
+    /// whose searched segments found no depth at all (`matched` of them did); `None` for an ordinary master.
+    pub fn warning(&self, matched: usize) -> Option<String> {
+        let long = matched + self.outside_walls + self.no_slave + self.no_depth;
+        let on_walls = long - self.outside_walls;
+        if long >= MIN_SEGMENTS_TO_WARN && 2 * self.outside_walls > long {
+            return Some(format!(
+                "{} of its {long} long segments lie outside every wall: the site model (or the walls fitted to the \
+                 tie points) does not cover this view",
+                self.outside_walls
+            ));
+        }
+        if on_walls >= MIN_SEGMENTS_TO_WARN && self.no_slave == on_walls {
+            return Some(format!("no slave sees the walls of its {on_walls} segments on walls"));
+        }
+        let searched = on_walls - self.no_slave;
+        if searched >= MIN_SEGMENTS_TO_WARN && matched == 0 {
+            return Some(format!(
+                "none of its {searched} searched segments found a depth: nothing to correlate (glass, a uniform \
+                 wall) or the poses are off"
+            ));
+        }
+        None
+    }
+}
+
+impl std::fmt::Display for UnmatchedCounts {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "unmatched: {} too short, {} outside every wall, {} seen by too few slaves, {} without an accepted depth",
+            self.too_short, self.outside_walls, self.no_slave, self.no_depth
+        )
+    }
+}
+
+/// Matches every segment of one master (in parallel, results in segment order).
+pub fn match_master(master: &View, slaves: &[View], walls: &[WallPlane], segments: &[SegmentInput], p: &MatchParams) -> MasterMatch {
+    let results: Vec<Result<SegmentMatch, Unmatched>> = segments.par_iter().map(|s| match_segment(master, slaves, walls, s, p)).collect();
+    let mut out = MasterMatch::default();
+    for r in results {
+        match r {
+            Ok(m) => out.matches.push(m),
+            Err(why) => out.unmatched.add(why),
+        }
+    }
+    out
 }
 
 /// The share of a master's image whose wall points (a 7×5 grid of pixels, cut with the wall their ray meets)

@@ -7,7 +7,8 @@ use std::collections::BTreeMap;
 
 use anyhow::{bail, Result};
 use lineflow_linematch::{
-    choose_slaves, fit_wall, match_master, DistortionLut, FrameSegments, MatchParams, SegmentInput, SegmentMatch, View, WallPlane,
+    choose_slaves, fit_wall, match_master, DistortionLut, FrameSegments, MasterMatch, MatchParams, SegmentInput, SegmentMatch, View,
+    WallPlane,
 };
 use lineflow_messages::{kinds, Point3, PointGroup, Points3DHeader, Pose as PoseMsg, Segment2, Stamp, StampFlags};
 use lineflow_photogrammetry::intersect::intersect_rays;
@@ -390,15 +391,18 @@ fn match_and_publish(
         .collect();
     let started = std::time::Instant::now();
     let slave_views: Vec<View> = slaves.iter().map(|&f| view(f)).collect();
-    let matches = match_master(&view(master), &slave_views, &walls, &segments, params);
+    let MasterMatch { matches, unmatched } = match_master(&view(master), &slave_views, &walls, &segments, params);
     let points: usize = matches.iter().map(|m| m.points.len()).sum();
     let line_depths: usize = matches.iter().map(|m| m.n_line_depths).sum();
     tracing::info!(
-        "frame {master}: {} of {} segments matched, {points} points ({line_depths} placed by the slaves' lines), slaves {slaves:?}, {:.2} s",
+        "frame {master}: {} of {} segments matched, {points} points ({line_depths} placed by the slaves' lines), slaves {slaves:?}, {:.2} s; {unmatched}",
         matches.len(),
         segments.len(),
         started.elapsed().as_secs_f64()
     );
+    if let Some(why) = unmatched.warning(matches.len()) {
+        tracing::warn!("frame {master}: {why}");
+    }
     st.revision += 1;
     publish(
         output,

@@ -103,22 +103,47 @@ struct Scratch {
 /// A window on the lattice: its row band and inclusive columns (lattice indices), `None` when it leaves the lattice.
 type Window = Option<(usize, (usize, usize))>;
 
-/// Matches one master segment against the slaves; `None` when it is too short, belongs to no visible wall or no
-/// slave sees its wall.
-pub fn match_segment(master: &View, slaves: &[View], walls: &[WallPlane], seg: &SegmentInput, p: &MatchParams) -> Option<SegmentMatch> {
+/// Why a segment gave no 3-D points: reported per master, so that a wrong site model (lines outside every wall) or
+/// a wall with nothing to correlate (glass) shows in the log instead of as silently missing lines.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Unmatched {
+    /// Shorter than `min_length_px` in the image or `min_length_m` on its wall, or without a chain.
+    TooShort,
+    /// Its midpoint ray meets no wall whose front the master sees (within `wall_margin_m` of the polygon).
+    OutsideWalls,
+    /// Fewer than `min_slaves` slaves see its wall.
+    NoSlave,
+    /// Searched, but no point passed the robust tests: no texture to correlate (glass, a uniform wall), ambiguous
+    /// or below `min_sncc`.
+    NoDepth,
+}
+
+/// Matches one master segment against the slaves.
+pub fn match_segment(
+    master: &View,
+    slaves: &[View],
+    walls: &[WallPlane],
+    seg: &SegmentInput,
+    p: &MatchParams,
+) -> Result<SegmentMatch, Unmatched> {
     let len_px = (seg.end_px[0] - seg.start_px[0]).hypot(seg.end_px[1] - seg.start_px[1]);
     if len_px < p.min_length_px || seg.chain.is_empty() {
-        return None;
+        return Err(Unmatched::TooShort);
     }
     let cam = &master.camera;
     let center = master.pose.center;
     let ray = |px: [f64; 2]| master.pose.ray_of_pixel(cam, px);
     let (start_ray, end_ray) = (ray(seg.start_px), ray(seg.end_px));
     let mid_ray = (start_ray + end_ray).normalize();
-    let wall_index = wall_of_ray(walls, &center, &mid_ray, p.wall_margin_m)?;
+    let wall_index = wall_of_ray(walls, &center, &mid_ray, p.wall_margin_m).ok_or(Unmatched::OutsideWalls)?;
     let wall = &walls[wall_index];
-    // The interpretation plane cuts every wall-parallel plane along the same direction.
-    let mut along = start_ray.cross(&end_ray).cross(&wall.normal).try_normalize(1e-9)?;
+    // The interpretation plane cuts every wall-parallel plane along the same direction; where it is parallel to the
+    // wall (the wall seen edge-on) the line has no extent on it.
+    let mut along = start_ray
+        .cross(&end_ray)
+        .cross(&wall.normal)
+        .try_normalize(1e-9)
+        .ok_or(Unmatched::TooShort)?;
     let probe = Line {
         wall,
         center,
@@ -130,13 +155,13 @@ pub fn match_segment(master: &View, slaves: &[View], walls: &[WallPlane], seg: &
     };
     let (a0, b0) = (probe.at(&start_ray, 0.0), probe.at(&end_ray, 0.0));
     if !(a0.iter().all(|v| v.is_finite()) && b0.iter().all(|v| v.is_finite())) {
-        return None;
+        return Err(Unmatched::OutsideWalls);
     }
     if (b0 - a0).dot(&along) < 0.0 {
         along = -along;
     }
     if (b0 - a0).norm() < p.min_length_m {
-        return None;
+        return Err(Unmatched::TooShort);
     }
     let mid0 = (a0 + b0) / 2.0;
     let seen: Vec<&View> = slaves
@@ -145,7 +170,7 @@ pub fn match_segment(master: &View, slaves: &[View], walls: &[WallPlane], seg: &
         .filter(|s| s.pose.project(&s.camera, &mid0).is_some_and(|px| s.camera.contains(px, 0.0)))
         .collect();
     if seen.len() < p.min_slaves {
-        return None;
+        return Err(Unmatched::NoSlave);
     }
     let step = (seg.chain.len() as f64 * p.spacing_px / len_px.max(1.0)).max(1.0);
     let pixels: Vec<[f64; 2]> = (0..)
@@ -316,7 +341,10 @@ pub fn match_segment(master: &View, slaves: &[View], walls: &[WallPlane], seg: &
     let rays: Vec<Vec3> = points.iter().map(|q| master.pose.ray_of_ideal(cam, q.ideal)).collect();
     let n_line_depths = refine_depths(cam, &center, wall, &mut points, &rays, &slave_segments, p);
     let points = snap_parallel(points, &line, depth_step, p.parallel_snap_m, p.line_max_shift_m);
-    Some(SegmentMatch {
+    if points.is_empty() {
+        return Err(Unmatched::NoDepth);
+    }
+    Ok(SegmentMatch {
         segment_id: seg.id,
         wall: wall_index,
         n_views: views.len() as u32,

@@ -127,7 +127,7 @@ fn matched_points_lie_on_the_true_edges() {
     let segments = segments(&chains);
     let params = MatchParams::default();
     let t = std::time::Instant::now();
-    let matches = match_master(master_view, slave_views, walls, &segments, &params);
+    let matches = match_master(master_view, slave_views, walls, &segments, &params).matches;
     eprintln!(
         "{} segments -> {} matched in {:.2} s",
         segments.len(),
@@ -213,7 +213,7 @@ fn sill_fronts_are_matched_on_the_sill_not_on_the_wall_behind() {
     // Median distance of each matched edge's points from the true edge, metres.
     let placed = |edges: &[Edge], params: &MatchParams| -> Vec<f64> {
         let chains = chains(syn, scene.master, edges.iter());
-        let matches = match_master(&views[0], &views[1..], &scene.walls, &segments(&chains), params);
+        let matches = match_master(&views[0], &views[1..], &scene.walls, &segments(&chains), params).matches;
         matches
             .iter()
             .map(|m| {
@@ -251,4 +251,64 @@ fn sill_fronts_are_matched_on_the_sill_not_on_the_wall_behind() {
         openings.len()
     );
     assert!(on_edge(&ours) >= on_edge(&theirs), "the front-most choice lost opening edges");
+}
+
+/// The bad input, each beside the same master matched normally: lines outside every wall (a site model of
+/// another building), an all-glass façade (uniform images), a master with no neighbour, and too few tie points for
+/// a wall. Each gives its reason and a warning, and no 3-D points are invented.
+#[test]
+fn bad_input_is_named_and_invents_no_points() {
+    let scene = Scene::new("d2x-strip", 0.2, 16);
+    let syn = &scene.syn;
+    let edges: Vec<Edge> = syn
+        .seen_edges()
+        .into_iter()
+        .filter(|e| e.frames.contains(&scene.master))
+        .map(|e| e.edge)
+        .collect();
+    let chains = chains(syn, scene.master, edges.iter());
+    let segments = segments(&chains);
+    let params = MatchParams::default();
+    let views = scene.views();
+
+    let normal = match_master(&views[0], &views[1..], &scene.walls, &segments, &params);
+    assert!(normal.matches.len() >= 50, "{} matched; {}", normal.matches.len(), normal.unmatched);
+    assert_eq!(normal.unmatched.warning(normal.matches.len()), None);
+
+    // Another building's site model, 200 m along the street.
+    let elsewhere: Vec<WallPlane> = syn
+        .approximate_walls()
+        .iter()
+        .filter_map(|(name, c)| {
+            let moved: Vec<Vec3> = c.iter().map(|&p| Vec3::from(p) + Vec3::new(200.0, 200.0, 0.0)).collect();
+            WallPlane::from_corners(name, &moved)
+        })
+        .collect();
+    let outside = match_master(&views[0], &views[1..], &elsewhere, &segments, &params);
+    assert!(outside.matches.is_empty());
+    assert!(outside.unmatched.outside_walls >= normal.matches.len(), "{}", outside.unmatched);
+    let why = outside.unmatched.warning(0).expect("a warning");
+    assert!(why.contains("outside every wall"), "{why}");
+
+    // Glass everywhere: nothing to correlate.
+    let flat = vec![128u8; scene.images[0].1.len()];
+    let glass: Vec<View> = views.iter().map(|v| View { gray: &flat, ..v.clone() }).collect();
+    let glassy = match_master(&glass[0], &glass[1..], &scene.walls, &segments, &params);
+    assert!(glassy.matches.is_empty(), "{} matched on uniform images", glassy.matches.len());
+    assert!(glassy.unmatched.no_depth >= normal.matches.len(), "{}", glassy.unmatched);
+    let why = glassy.unmatched.warning(0).expect("a warning");
+    assert!(why.contains("found a depth"), "{why}");
+
+    // No neighbours.
+    let alone = match_master(&views[0], &[], &scene.walls, &segments, &params);
+    assert!(alone.matches.is_empty());
+    assert!(alone.unmatched.no_slave >= normal.matches.len(), "{}", alone.unmatched);
+    assert!(alone.unmatched.warning(0).expect("a warning").contains("no slave"));
+    let pose = |f: u64| syn.poses()[f as usize];
+    let far: Vec<(u64, _)> = [(0u64, pose(0)), (32, pose(32))].into();
+    assert!(choose_slaves(syn.camera(), (16, &pose(16)), &far, &scene.walls, 6, 0.3).is_empty());
+
+    // Too few tie points for a wall.
+    let ties: Vec<Vec3> = (0..20).map(|k| Vec3::new(k as f64 * 0.5, 0.0, (k % 4) as f64)).collect();
+    assert!(lineflow_linematch::fit_wall(&ties, &pose(16).center, 0.05, 50).is_none());
 }
