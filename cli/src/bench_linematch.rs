@@ -5,7 +5,9 @@ use std::process::ExitCode;
 
 use anyhow::{bail, Result};
 use lineflow_capture::synth::Synthetic;
-use lineflow_linematch::{choose_slaves, match_master, DistortionLut, MasterMatch, FrameSegments, MatchParams, Mode, SegmentInput, View, WallPlane};
+use lineflow_linematch::{
+    choose_slaves, match_master, DistortionLut, FrameSegments, MasterMatch, MatchParams, Mode, SegmentInput, View, WallPlane,
+};
 use lineflow_lines2d::{trace_measured_at, MeasuredSegment, TraceParams};
 use lineflow_messages::{Encoding, Segment2};
 use lineflow_photogrammetry::Vec3;
@@ -106,7 +108,10 @@ pub fn bench_linematch(preset: &str, scale: f64, reps: usize) -> Result<ExitCode
         .iter()
         .filter(|s| (s.end_px[0] - s.start_px[0]).hypot(s.end_px[1] - s.start_px[1]) >= p.min_length_px)
         .count();
-    let MasterMatch { matches: matched, unmatched } = match_master(&views[0], &views[1..], &walls, &segments, &p);
+    let MasterMatch {
+        matches: matched,
+        unmatched,
+    } = match_master(&views[0], &views[1..], &walls, &segments, &p);
     let points: usize = matched.iter().map(|m| m.points.len()).sum();
     let line_depths: usize = matched.iter().map(|m| m.n_line_depths).sum();
     println!(

@@ -19,7 +19,7 @@ use serde::Deserialize;
 pub use search::{match_segment, MatchedPoint, SegmentInput, SegmentMatch, Unmatched};
 pub use slave_lines::{FrameSegments, SlaveSegments};
 pub use view::{DistortionLut, View};
-pub use wall::{fit_wall, wall_of_ray, WallPlane};
+pub use wall::{fit_wall, fit_walls, wall_of_ray, NoWall, WallPlane, WALL_MIN_POINTS};
 
 /// A correlation window (seed 000 §2.12), in the line's own lattice: "along" follows the line, "across" is its
 /// normal in the wall plane. For the horizontal and vertical lines of a façade these are the thesis's windows.

@@ -7,8 +7,8 @@ use std::collections::BTreeMap;
 
 use anyhow::{bail, Result};
 use lineflow_linematch::{
-    choose_slaves, fit_wall, match_master, DistortionLut, FrameSegments, MasterMatch, MatchParams, SegmentInput, SegmentMatch, View,
-    WallPlane,
+    choose_slaves, fit_walls, match_master, DistortionLut, FrameSegments, MasterMatch, MatchParams, NoWall, SegmentInput, SegmentMatch,
+    View, WallPlane, WALL_MIN_POINTS,
 };
 use lineflow_messages::{kinds, Point3, PointGroup, Points3DHeader, Pose as PoseMsg, Segment2, Stamp, StampFlags};
 use lineflow_photogrammetry::intersect::intersect_rays;
@@ -42,6 +42,10 @@ struct State {
     /// Tie points (track → observations), for walls fitted when there is no site model.
     ties: BTreeMap<u64, Vec<(u64, [f64; 2])>>,
     fitted: Option<Vec<WallPlane>>,
+    /// The fitted walls are in the survey's frame (fitted from georeferenced poses).
+    fitted_georeferenced: bool,
+    /// Why no wall could be fitted yet, and whether that was warned (once; again at the end if it stays so).
+    no_walls: Option<(bool, String)>,
     /// The site topic said there is no site model.
     site_absent: bool,
     /// Matched masters, kept for re-estimation with the final poses.
@@ -68,10 +72,37 @@ impl State {
         self.site.clone().or_else(|| self.fitted.clone())
     }
 
-    /// Up to four planes, each fitted by RANSAC to the tie points the previous ones left.
-    fn fit_walls(&self) -> Option<Vec<WallPlane>> {
-        let (camera, _) = self.camera.as_ref()?;
-        let mut points: Vec<Vec3> = self
+    /// Why not one master was matched, for the warning at the end.
+    fn why_no_master(&self) -> String {
+        let oriented = self.poses.values().filter(|s| settled(s)).count();
+        let georeferenced = self
+            .poses
+            .values()
+            .filter(|s| settled(s) && s.flags & PoseMsg::GEOREFERENCED != 0)
+            .count();
+        if self.lines.is_empty() {
+            "no 2-D lines arrived".into()
+        } else if oriented == 0 {
+            format!("none of the {} frames with 2-D lines was oriented", self.lines.len())
+        } else if self.site.is_some() && georeferenced == 0 {
+            format!("{oriented} frames were oriented but none georeferenced, and the site model needs the survey's frame (control points)")
+        } else if let (None, Some((_, why))) = (self.walls(), &self.no_walls) {
+            why.clone()
+        } else if !self.skipped.is_empty() {
+            "every master was skipped (above)".into()
+        } else {
+            format!("{oriented} frames were oriented, but no master had its slaves")
+        }
+    }
+
+    /// Walls fitted to the tie points intersected from the settled (and, with `georeferenced`, georeferenced) poses
+    /// ([`fit_walls`]).
+    fn walls_from_ties(&self, georeferenced: bool) -> Result<Vec<WallPlane>, NoWall> {
+        let usable = |s: &PoseState| settled(s) && (!georeferenced || s.flags & PoseMsg::GEOREFERENCED != 0);
+        let Some((camera, _)) = self.camera.as_ref() else {
+            return Err(NoWall { intersected: 0 });
+        };
+        let points: Vec<Vec3> = self
             .ties
             .values()
             .filter_map(|obs| {
@@ -81,23 +112,17 @@ impl State {
                     .filter_map(|(f, px)| {
                         self.poses
                             .get(f)
-                            .filter(|s| settled(s))
+                            .filter(|s| usable(s))
                             .map(|s| (s.pose.center, s.pose.ray_of_pixel(camera, *px)))
                     })
                     .collect();
                 (rays.len() >= 2).then(|| intersect_rays(&rays)).flatten().map(|(x, _)| x)
             })
             .collect();
-        let viewpoint = self.poses.values().next()?.pose.center;
-        let mut walls = Vec::new();
-        while walls.len() < 4 {
-            let Some(w) = fit_wall(&points, &viewpoint, 0.05, 50.max(points.len() / 10)) else {
-                break;
-            };
-            points.retain(|p| w.depth_of(p).abs() > 0.05);
-            walls.push(w);
-        }
-        (!walls.is_empty()).then_some(walls)
+        let Some(viewpoint) = self.poses.values().find(|s| usable(s)).map(|s| s.pose.center) else {
+            return Err(NoWall { intersected: 0 });
+        };
+        fit_walls(&points, &viewpoint)
     }
 }
 
@@ -244,6 +269,9 @@ fn body() -> Result<()> {
     for (frame, why) in &st.skipped {
         tracing::warn!("frame {frame} was not matched: {why}");
     }
+    if masters == 0 {
+        tracing::warn!("no 3-D lines: {}", st.why_no_master());
+    }
     output.end_of_stream()?;
     ctx.finish();
     Ok(())
@@ -274,7 +302,19 @@ enum Step {
 /// with `max_slaves` such frames overlapping it — or, after the last snapshot (`at_end`), with any.
 fn step(st: &mut State, params: &MatchParams, ended: &Ended, at_end: bool) -> Step {
     let Some((camera, _)) = st.camera.as_ref() else { return Step::Wait };
-    let georeferenced_needed = st.site.is_some();
+    let georeferenced_seen = st.poses.values().any(|s| s.flags & PoseMsg::GEOREFERENCED != 0);
+    // Without a site model the walls are fitted in whatever frame the poses are in. When the orientation
+    // georeferences the block, that frame changes (scale, rotation, shift): walls fitted before, and the depths
+    // searched against them in unscaled units, are void.
+    if st.site.is_none() && georeferenced_seen && st.fitted.is_some() && !st.fitted_georeferenced {
+        tracing::info!(
+            "the poses are georeferenced now: walls fitted again in the survey's frame, the {} frames matched before matched again",
+            st.matched.len()
+        );
+        st.fitted = None;
+        st.matched.clear();
+    }
+    let georeferenced_needed = st.site.is_some() || georeferenced_seen;
     let candidates: Vec<(u64, Pose)> = st
         .poses
         .iter()
@@ -289,9 +329,24 @@ fn step(st: &mut State, params: &MatchParams, ended: &Ended, at_end: bool) -> St
         if !ended.ties && st.ties_through.is_none_or(|f| f < st.snapshot_frame) {
             return Step::Wait;
         }
-        st.fitted = st.fit_walls();
-        if st.fitted.is_none() {
-            tracing::warn!("no site model and no wall plane in the tie points yet");
+        match st.walls_from_ties(georeferenced_needed) {
+            Ok(walls) => {
+                tracing::info!("{} walls fitted to the tie points", walls.len());
+                st.fitted = Some(walls);
+                st.fitted_georeferenced = georeferenced_needed;
+                st.no_walls = None;
+            }
+            Err(e) => {
+                // Too few tie points is the normal start of a stream; enough of them on no plane is news.
+                if e.intersected >= WALL_MIN_POINTS && !st.no_walls.as_ref().is_some_and(|(warned, _)| *warned) {
+                    tracing::warn!("{e}; trying again as frames arrive");
+                    st.no_walls = Some((true, e.to_string()));
+                } else {
+                    tracing::debug!("{e}");
+                    let warned = st.no_walls.as_ref().is_some_and(|(w, _)| *w);
+                    st.no_walls = Some((warned, e.to_string()));
+                }
+            }
         }
     }
     let Some(walls) = st.walls() else {

@@ -166,6 +166,49 @@ pub fn fit_wall(points: &[Vec3], viewpoint: &Vec3, tolerance: f64, min_inliers: 
     Some(WallPlane::from_plane("fitted", normal, centroid))
 }
 
+/// Tie points within this distance of a fitted wall's plane count as on it, metres.
+pub const WALL_TOLERANCE_M: f64 = 0.05;
+/// A fitted wall needs at least this many tie points on it (or a tenth of those left, if more).
+pub const WALL_MIN_POINTS: usize = 50;
+
+/// No wall plane among the intersected tie points.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct NoWall {
+    /// How many tie points there were.
+    pub intersected: usize,
+}
+
+impl std::fmt::Display for NoWall {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "no site model, and no wall plane among the {} tie points intersected so far (a wall needs {WALL_MIN_POINTS} \
+             within {:.0} cm of a plane)",
+            self.intersected,
+            WALL_TOLERANCE_M * 100.0
+        )
+    }
+}
+
+/// The walls of a scene without a site model: up to four planes, each fitted ([`fit_wall`]) to the intersected tie
+/// points the previous ones left, normals towards `viewpoint`.
+pub fn fit_walls(points: &[Vec3], viewpoint: &Vec3) -> Result<Vec<WallPlane>, NoWall> {
+    let mut left = points.to_vec();
+    let mut walls = Vec::new();
+    while walls.len() < 4 {
+        let Some(w) = fit_wall(&left, viewpoint, WALL_TOLERANCE_M, WALL_MIN_POINTS.max(left.len() / 10)) else {
+            break;
+        };
+        left.retain(|p| w.depth_of(p).abs() > WALL_TOLERANCE_M);
+        walls.push(w);
+    }
+    if walls.is_empty() {
+        Err(NoWall { intersected: points.len() })
+    } else {
+        Ok(walls)
+    }
+}
+
 /// Least-squares plane: centroid and the unit normal (smallest principal axis).
 fn plane_of(points: &[Vec3]) -> Option<(Vec3, Vec3)> {
     let c = points.iter().sum::<Vec3>() / points.len() as f64;
@@ -227,5 +270,28 @@ mod tests {
         let w = fit_wall(&pts, &Vec3::new(5.0, -20.0, 1.6), 0.01, 50).unwrap();
         assert!(w.normal.dot(&Vec3::new(0.0, -1.0, 0.0)) > 0.9999, "{:?}", w.normal);
         assert!(w.depth_of(&Vec3::new(3.0, 0.0, 1.0)).abs() < 0.002);
+    }
+
+    #[test]
+    fn two_walls_are_found_and_too_few_points_are_named() {
+        // A corner of two walls, 120 points each, seen from the street.
+        let mut pts = Vec::new();
+        for i in 0..12 {
+            for j in 0..10 {
+                let (s, z) = (i as f64 * 0.8, j as f64 * 0.5);
+                pts.push(Vec3::new(s, 0.0, z));
+                pts.push(Vec3::new(0.0, -0.5 - s, z));
+            }
+        }
+        let walls = fit_walls(&pts, &Vec3::new(10.0, -20.0, 1.6)).unwrap();
+        assert_eq!(walls.len(), 2);
+        let normals: Vec<Vec3> = walls.iter().map(|w| w.normal).collect();
+        assert!(normals.iter().any(|n| n.dot(&-Vec3::y()) > 0.999), "{normals:?}");
+        assert!(normals.iter().any(|n| n.dot(&Vec3::x()) > 0.999), "{normals:?}");
+
+        let e = fit_walls(&pts[..30], &Vec3::new(10.0, -20.0, 1.6)).unwrap_err();
+        assert_eq!(e.intersected, 30);
+        assert!(e.to_string().contains("among the 30 tie points"), "{e}");
+        assert!(fit_walls(&[], &Vec3::zeros()).is_err());
     }
 }

@@ -254,8 +254,8 @@ fn sill_fronts_are_matched_on_the_sill_not_on_the_wall_behind() {
 }
 
 /// The bad input, each beside the same master matched normally: lines outside every wall (a site model of
-/// another building), an all-glass façade (uniform images), a master with no neighbour, and too few tie points for
-/// a wall. Each gives its reason and a warning, and no 3-D points are invented.
+/// another building), an all-glass façade (uniform images) and a master with no neighbour (too few tie points for a
+/// wall: `wall::tests`). Each gives its reason and a warning, and no 3-D points are invented.
 #[test]
 fn bad_input_is_named_and_invents_no_points() {
     let scene = Scene::new("d2x-strip", 0.2, 16);
@@ -307,8 +307,4 @@ fn bad_input_is_named_and_invents_no_points() {
     let pose = |f: u64| syn.poses()[f as usize];
     let far: Vec<(u64, _)> = [(0u64, pose(0)), (32, pose(32))].into();
     assert!(choose_slaves(syn.camera(), (16, &pose(16)), &far, &scene.walls, 6, 0.3).is_empty());
-
-    // Too few tie points for a wall.
-    let ties: Vec<Vec3> = (0..20).map(|k| Vec3::new(k as f64 * 0.5, 0.0, (k % 4) as f64)).collect();
-    assert!(lineflow_linematch::fit_wall(&ties, &pose(16).center, 0.05, 50).is_none());
 }
