@@ -19,6 +19,10 @@ use lineflow_photogrammetry::epipolar::{verify, Ransac, Ray};
 use lineflow_photogrammetry::intersect::{intersect_rays, similarity};
 use lineflow_photogrammetry::{Camera, Mat3, Pose, Vec3};
 
+/// A frame oriented only at the end of the stream must lie within this many median frame spacings of a frame
+/// beside it in the sequence ([`Block::near_a_neighbour`]); a hand-held strip varies its spacing by less.
+const MAX_NEIGHBOUR_SPACINGS: f64 = 2.5;
+
 /// Settings.
 #[derive(Debug, Clone, serde::Deserialize)]
 #[serde(deny_unknown_fields, default)]
@@ -603,11 +607,16 @@ impl Block {
     /// Orients what is still unoriented now that the block is complete, then the final adjustment.
     pub fn finish(&mut self) {
         let pending: Vec<u64> = self.frames.iter().filter(|f| !self.poses.contains_key(f)).copied().collect();
+        let spacing = self.median_spacing();
         for f in pending {
             let oriented = match self.method {
                 Method::Bundle => self.resect_frame(f),
                 Method::Essential => self.orient_relative(f),
             };
+            if oriented && !self.near_a_neighbour(f, spacing) {
+                self.poses.remove(&f);
+                continue;
+            }
             if oriented {
                 self.intersect_new();
             }
@@ -626,6 +635,48 @@ impl Block {
             }
         }
         self.finished = true;
+    }
+
+    /// The median distance between the centres of consecutive oriented frames (`None` for fewer than three).
+    fn median_spacing(&self) -> Option<f64> {
+        let mut d: Vec<f64> = self
+            .poses
+            .iter()
+            .zip(self.poses.iter().skip(1))
+            .filter(|((a, _), (b, _))| *b - *a == 1)
+            .map(|((_, p), (_, q))| (p.center - q.center).norm())
+            .collect();
+        if d.len() < 2 {
+            return None;
+        }
+        d.sort_by(f64::total_cmp);
+        Some(d[d.len() / 2])
+    }
+
+    /// Whether frame `f`, oriented only when the block was complete (it matched no neighbour while the photos
+    /// arrived), lies within [`MAX_NEIGHBOUR_SPACINGS`] median spacings of an oriented frame next to it in the
+    /// sequence. A façade's repeated bays can be matched one bay off as consistently as in truth, and a frame
+    /// resected from such tie points fits them well but lies metres away, spoiling every point it observes; a
+    /// frame with no oriented sequence neighbour, or a block too small for a spacing, is not judged.
+    fn near_a_neighbour(&self, f: u64, spacing: Option<f64>) -> bool {
+        let (Some(spacing), Some(pose)) = (spacing, self.poses.get(&f)) else {
+            return true;
+        };
+        let neighbours: Vec<(u64, f64)> = [f.checked_sub(1), f.checked_add(1)]
+            .into_iter()
+            .flatten()
+            .filter_map(|n| self.poses.get(&n).map(|q| (n, (q.center - pose.center).norm())))
+            .collect();
+        let near = neighbours.is_empty() || neighbours.iter().any(|(_, d)| *d <= MAX_NEIGHBOUR_SPACINGS * spacing);
+        if !near {
+            let (n, d) = neighbours[0];
+            tracing::warn!(
+                "frame {f}: resected {d:.2} m from frame {n} beside it in the sequence, {:.1} times the median spacing \
+                 of {spacing:.2} m (repeated façade structure matched a bay off?); left unoriented",
+                d / spacing
+            );
+        }
+        near
     }
 
     /// The tie points' variance component: their a-priori σ scaled by the adjustment's σ̂0 (which the thousands of
@@ -730,5 +781,34 @@ mod tests {
             assert_eq!(p.observations.len(), 2 + 2 * usize::from(ties), "ties {ties}");
             assert!(p.priors.iter().all(|prior| (prior.xyz - Vec3::new(0.5, 0.0, 1.0)).norm() < 1e-12));
         }
+    }
+
+    #[test]
+    fn a_frame_resected_a_bay_off_its_sequence_is_left_unoriented() {
+        let camera = Camera::pinhole(1000, 800, 0.01, 20.0);
+        let mut block = Block::new(OrientationParams::default(), camera);
+        let at = |x: f64| {
+            let center = Vec3::new(x, -10.0, 1.5);
+            Pose {
+                center,
+                rotation: look_at(&center, &Vec3::new(x, 0.0, 1.5), &Vec3::z()),
+            }
+        };
+        // A strip at 2 m spacing, its first frame (0) not yet oriented.
+        for frame in 1..=5u64 {
+            block.add_supplied(frame, at(2.0 * frame as f64), None);
+        }
+        let spacing = block.median_spacing();
+        assert!((spacing.unwrap() - 2.0).abs() < 1e-12);
+        // Where it belongs, and one spacing off: kept.
+        for x in [0.0, 4.0] {
+            block.poses.insert(0, at(x));
+            assert!(block.near_a_neighbour(0, spacing), "x {x}");
+        }
+        // Between frames 3 and 4, as repeated bays matched one bay off put it: refused.
+        block.poses.insert(0, at(7.5));
+        assert!(!block.near_a_neighbour(0, spacing));
+        // A strip too short for a spacing judges nothing.
+        assert!(block.near_a_neighbour(0, None));
     }
 }
