@@ -338,14 +338,14 @@ fn step(st: &mut State, params: &MatchParams, ended: &Ended, at_end: bool) -> St
             }
             Err(e) => {
                 // Too few tie points is the normal start of a stream; enough of them on no plane is news.
-                if e.intersected >= WALL_MIN_POINTS && !st.no_walls.as_ref().is_some_and(|(warned, _)| *warned) {
+                let warned = st.no_walls.as_ref().is_some_and(|(w, _)| *w);
+                let warn = !warned && e.intersected >= WALL_MIN_POINTS;
+                if warn {
                     tracing::warn!("{e}; trying again as frames arrive");
-                    st.no_walls = Some((true, e.to_string()));
                 } else {
                     tracing::debug!("{e}");
-                    let warned = st.no_walls.as_ref().is_some_and(|(w, _)| *w);
-                    st.no_walls = Some((warned, e.to_string()));
                 }
+                st.no_walls = Some((warned || warn, e.to_string()));
             }
         }
     }
