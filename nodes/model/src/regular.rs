@@ -58,7 +58,8 @@ pub struct RegularCounts {
     pub plan_directions: usize,
 }
 
-/// The direction σ of a line across object axis `axis`, radians: two endpoints of σ each, `length` apart.
+/// The direction σ of a line across object axes `axes` (the largest endpoint σ among them), radians: two endpoints
+/// of σ each, `length` apart.
 fn direction_sigma(line: &ModelLine, axes: &[usize]) -> f64 {
     let s = axes.iter().map(|&a| line.sigma_along(a)).fold(0.0, f64::max);
     std::f64::consts::SQRT_2 * s / line.length().max(1e-9)
@@ -75,9 +76,7 @@ fn azimuth_mod_quarter(d: &Vec3) -> f64 {
 
 /// The smallest angle between two azimuths modulo 90°, radians.
 fn quarter_gap(a: f64, b: f64) -> f64 {
-    let q = std::f64::consts::FRAC_PI_2;
-    let d = (a - b).rem_euclid(q);
-    d.min(q - d)
+    signed_quarter(a - b).abs()
 }
 
 /// The building's plan directions modulo 90°: the modes of the level lines' azimuths, each weighed by length,

@@ -613,13 +613,22 @@ impl Block {
                 Method::Bundle => self.resect_frame(f),
                 Method::Essential => self.orient_relative(f),
             };
-            if oriented && !self.near_a_neighbour(f, spacing) {
-                self.poses.remove(&f);
+            if !oriented {
                 continue;
             }
-            if oriented {
-                self.intersect_new();
+            if let (false, Some(spacing)) = (self.near_a_neighbour(f, spacing), spacing) {
+                // Not near one: there is a neighbour, and it is far.
+                let (n, d) = self.neighbour_distances(f)[0];
+                tracing::warn!(
+                    "frame {f}: resected {d:.2} m from frame {n} beside it in the sequence, {:.1} times the median \
+                     spacing of {spacing:.2} m (repeated façade structure matched a bay off?); left unoriented",
+                    d / spacing
+                );
+                self.poses.remove(&f);
+                self.states.remove(&f);
+                continue;
             }
+            self.intersect_new();
         }
         match self.method {
             Method::Bundle => {
@@ -659,24 +668,20 @@ impl Block {
     /// resected from such tie points fits them well but lies metres away, spoiling every point it observes; a
     /// frame with no oriented sequence neighbour, or a block too small for a spacing, is not judged.
     fn near_a_neighbour(&self, f: u64, spacing: Option<f64>) -> bool {
-        let (Some(spacing), Some(pose)) = (spacing, self.poses.get(&f)) else {
-            return true;
-        };
-        let neighbours: Vec<(u64, f64)> = [f.checked_sub(1), f.checked_add(1)]
+        let Some(spacing) = spacing else { return true };
+        let neighbours = self.neighbour_distances(f);
+        neighbours.is_empty() || neighbours.iter().any(|(_, d)| *d <= MAX_NEIGHBOUR_SPACINGS * spacing)
+    }
+
+    /// The oriented frames beside `f` in the sequence (before, then after), with their distances from it, metres;
+    /// none when `f` itself is not oriented.
+    fn neighbour_distances(&self, f: u64) -> Vec<(u64, f64)> {
+        let Some(pose) = self.poses.get(&f) else { return Vec::new() };
+        [f.checked_sub(1), f.checked_add(1)]
             .into_iter()
             .flatten()
             .filter_map(|n| self.poses.get(&n).map(|q| (n, (q.center - pose.center).norm())))
-            .collect();
-        let near = neighbours.is_empty() || neighbours.iter().any(|(_, d)| *d <= MAX_NEIGHBOUR_SPACINGS * spacing);
-        if !near {
-            let (n, d) = neighbours[0];
-            tracing::warn!(
-                "frame {f}: resected {d:.2} m from frame {n} beside it in the sequence, {:.1} times the median spacing \
-                 of {spacing:.2} m (repeated façade structure matched a bay off?); left unoriented",
-                d / spacing
-            );
-        }
-        near
+            .collect()
     }
 
     /// The tie points' variance component: their a-priori σ scaled by the adjustment's σ̂0 (which the thousands of
