@@ -684,13 +684,10 @@ fn refine_object(
 /// σ its statistics give.
 pub fn lines_from_rows(rows: &[lineflow_formats::Line3Row], params: &ModelParams) -> Vec<ModelLine> {
     rows.iter()
-        .map(|r| match params.fitted_sigma(r.rms_m, r.n_points) {
-            Some(sigma) => ModelLine::new(r.start, r.end, sigma),
+        .map(|r| ModelLine {
             // Without statistics the endpoints themselves carry `sigma_m`, along the line too.
-            None => ModelLine {
-                sigma_end_m: Some(params.sigma_m),
-                ..ModelLine::new(r.start, r.end, params.sigma_m)
-            },
+            sigma_end_m: params.fitted_sigma(r.rms_m, r.n_points).is_none().then_some(params.sigma_m),
+            ..ModelLine::new(r.start, r.end, params.line_sigma(r.rms_m, r.n_points))
         })
         .collect()
 }
