@@ -1,21 +1,9 @@
 //! `lineflow`: run launch graphs, process project folders, inspect running graphs, benchmark the transport.
 mod attach;
-mod bench;
-mod bench_bundle;
-mod bench_edges;
-mod bench_features;
-mod bench_linematch;
-mod bench_lines2d;
-mod bench_modelfit;
-mod bench_record;
-mod bench_stream;
-mod bench_util;
 mod doctor;
 mod model_cmd;
 mod recordings;
 mod run;
-mod seed001;
-mod seed004;
 mod synth;
 
 use std::path::PathBuf;
@@ -225,7 +213,7 @@ enum Cmd {
     /// Benchmarks.
     Bench {
         #[command(subcommand)]
-        what: bench::BenchCmd,
+        what: lineflow_bench::BenchCmd,
     },
 }
 
@@ -296,16 +284,16 @@ fn main() -> ExitCode {
         }
         Cmd::Experiment { name, trials, seed } => match name.as_str() {
             "seed001" => {
-                print!("{}", seed001::experiment(trials.unwrap_or(500).max(1), seed));
+                print!("{}", lineflow_bench::seed001::experiment(trials.unwrap_or(500).max(1), seed));
                 Ok(ExitCode::SUCCESS)
             }
             "seed004" => {
-                print!("{}", seed004::experiment(trials.unwrap_or(20).max(1) as usize));
+                print!("{}", lineflow_bench::seed004::experiment(trials.unwrap_or(20).max(1) as usize));
                 Ok(ExitCode::SUCCESS)
             }
             other => Err(anyhow::anyhow!("unknown experiment '{other}' (available: seed001, seed004)")),
         },
-        Cmd::Bench { what } => bench::bench(what),
+        Cmd::Bench { what } => lineflow_bench::bench(what),
     };
     match result {
         Ok(code) => code,

@@ -7,9 +7,9 @@ use anyhow::{bail, Context, Result};
 use lineflow_formats::{Line2Row, Line3Row, PoseRow};
 use lineflow_messages::schema::{decode, decode_view, read_elements, read_pod, Decoded};
 use lineflow_messages::{parts, EdgeMapHeader, Encoding, ImageHeader, Line3, Lines2DHeader, MessageKind, Pose, Segment2};
+use lineflow_recordings::replay::{playback_graph, rerun_graph, Pace};
+use lineflow_recordings::{tools, Recording};
 use lineflow_runtime::launch::Resolver;
-use lineflow_runtime::recording::replay::{playback_graph, rerun_graph, Pace};
-use lineflow_runtime::recording::{tools, Recording};
 
 /// Options of `lineflow replay`.
 pub struct ReplayArgs<'a> {
@@ -49,7 +49,7 @@ pub fn replay(a: ReplayArgs<'_>) -> Result<ExitCode> {
         let g = rerun_graph(&rec, a.graph, a.set, &resolver, pace)?;
         let out = a.out.unwrap_or_else(|| rec.path.parent().unwrap_or(Path::new(".")).join("rerun"));
         eprintln!("re-running graph '{}' on {} -> {}", g.name, rec.path.display(), out.display());
-        return crate::run::run_graph(&g, &out, None);
+        return lineflow_runtime::run::run_graph(&g, &out, None);
     }
     if a.graph.is_some() || !a.set.is_empty() {
         bail!("--graph and --set apply to --rerun");
@@ -61,7 +61,7 @@ pub fn replay(a: ReplayArgs<'_>) -> Result<ExitCode> {
         g.edges.len(),
         rec.path.display()
     );
-    crate::run::run_graph(&g, &out, None)
+    lineflow_runtime::run::run_graph(&g, &out, None)
 }
 
 /// `lineflow info`.

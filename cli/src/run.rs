@@ -4,66 +4,12 @@ use std::process::ExitCode;
 
 use anyhow::{bail, Context, Result};
 use lineflow_runtime::launch::{self, Resolver};
-use lineflow_runtime::supervisor::{self, RunOptions};
+use lineflow_runtime::run::{launch_dir, run_graph};
 
 /// Runs a launch graph; prints the per-node summary and writes it to `out/summary.txt`.
 pub fn run(graph: &Path, set: &[String], out: &Path, expected_frames: Option<u64>) -> Result<ExitCode> {
     let g = launch::load(graph, set, &Resolver::beside_current_exe())?;
     run_graph(&g, out, expected_frames)
-}
-
-/// Runs a resolved graph; prints the per-node summary and writes it to `out/summary.txt`.
-pub fn run_graph(g: &launch::Graph, out: &Path, expected_frames: Option<u64>) -> Result<ExitCode> {
-    let opts = RunOptions {
-        out: out.to_owned(),
-        expected_frames,
-        progress: expected_frames.is_some(),
-        connect_timeout: None,
-    };
-    let outcome = supervisor::run(g, &opts)?;
-    let table = outcome.table();
-    eprint!("{table}");
-    let _ = std::fs::write(
-        out.join("summary.txt"),
-        format!(
-            "run {}  graph {}  wall {:.2} s\n{table}",
-            outcome.run_id,
-            g.source.display(),
-            outcome.wall.as_secs_f64()
-        ),
-    );
-    match outcome.error {
-        None => {
-            eprintln!(
-                "run {} finished in {:.2} s; results in {}",
-                outcome.run_id,
-                outcome.wall.as_secs_f64(),
-                out.display()
-            );
-            Ok(ExitCode::SUCCESS)
-        }
-        Some(e) => {
-            eprintln!("error: run {} failed: {e}", outcome.run_id);
-            Ok(ExitCode::FAILURE)
-        }
-    }
-}
-
-/// The folder holding the shipped launch graphs: `$LINEFLOW_HOME/launch`, `./launch`, or beside the build tree.
-pub fn launch_dir() -> PathBuf {
-    if let Some(home) = std::env::var_os("LINEFLOW_HOME") {
-        return PathBuf::from(home).join("launch");
-    }
-    let here = PathBuf::from("launch");
-    if here.is_dir() {
-        return here;
-    }
-    // target/<profile>/lineflow -> repository root
-    std::env::current_exe()
-        .ok()
-        .and_then(|e| e.ancestors().nth(3).map(|r| r.join("launch")))
-        .filter(|p| p.is_dir())
-        .unwrap_or(here)
 }
 
 /// Whether the launch file `graph` declares a node `name` (false when it cannot be read; loading it reports why).
@@ -77,7 +23,7 @@ fn has_node(graph: &Path, name: &str) -> bool {
 
 /// Runs a graph (default `launch/folder.toml`) over a project folder.
 pub fn process(folder: &Path, out: Option<PathBuf>, graph: Option<PathBuf>, set: &[String]) -> Result<ExitCode> {
-    let project = lineflow_capture::Project::open(folder, false).map_err(|e| anyhow::anyhow!("{e}"))?;
+    let project = lineflow_formats::project::Project::open(folder, false).map_err(|e| anyhow::anyhow!("{e}"))?;
     let graph = graph.unwrap_or_else(|| launch_dir().join("folder.toml"));
     if !graph.is_file() {
         bail!("{}: launch graph not found (pass --graph or set LINEFLOW_HOME)", graph.display());

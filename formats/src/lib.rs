@@ -3,6 +3,9 @@
 //! columns after them; a standard deviation that was not estimated is an empty field.
 #![warn(missing_docs)]
 
+pub mod natural;
+pub mod project;
+
 use std::io::Write;
 use std::path::{Path, PathBuf};
 

@@ -689,6 +689,23 @@ pub fn override_value(value: &str) -> toml::Value {
         .unwrap_or_else(|| toml::Value::String(value.to_owned()))
 }
 
+/// Parameters of type `T` from `PARAM=VALUE` overrides (each VALUE as [`override_value`] reads it), the rest at
+/// their serde defaults: what `lineflow model --set` and the benchmarks use to set a stage's parameters.
+///
+/// # Errors
+/// An item without `=`, or values that do not deserialize into `T` (the message names the parameter).
+pub fn params_from_overrides<T: serde::de::DeserializeOwned>(set: &[String]) -> anyhow::Result<T> {
+    use anyhow::Context as _;
+    let mut table = toml::Table::new();
+    for item in set {
+        let (k, v) = item
+            .split_once('=')
+            .with_context(|| format!("--set {item}: expected PARAM=VALUE"))?;
+        table.insert(k.trim().to_string(), override_value(v));
+    }
+    toml::Value::Table(table).try_into().context("parameters")
+}
+
 fn apply_override(file: &mut LaunchFile, item: &str) -> Result<(), String> {
     let (key, value) = item.split_once('=').ok_or("expected NODE.PARAM=VALUE")?;
     let (node, param) = key.split_once('.').ok_or("expected NODE.PARAM=VALUE")?;

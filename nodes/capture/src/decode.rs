@@ -57,12 +57,7 @@ fn u16_bytes(v: Vec<u16>) -> Vec<u8> {
     v.into_iter().flat_map(u16::to_ne_bytes).collect()
 }
 
-/// Whether `path` has an image extension the capture reads (any case of png, jpg, jpeg, tif, tiff).
-pub fn is_image_name(path: &Path) -> bool {
-    path.extension()
-        .and_then(|e| e.to_str())
-        .is_some_and(|e| matches!(e.to_ascii_lowercase().as_str(), "png" | "jpg" | "jpeg" | "tif" | "tiff"))
-}
+pub use lineflow_formats::project::is_image_name;
 
 /// Whether the bytes of a file end as a complete image of its kind does (JPEG end-of-image marker, PNG `IEND`
 /// chunk). TIFF has no trailer; for it the answer is `true` and the watcher relies on a stable size.

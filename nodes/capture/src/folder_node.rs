@@ -3,7 +3,8 @@ use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
 use anyhow::{bail, Context, Result};
-use lineflow_capture::{decode_file, project, Project};
+use lineflow_capture::decode_file;
+use lineflow_formats::project::{self, Project};
 use lineflow_messages::{fixed_str, kinds, CameraModelHeader, ImageHeader};
 use lineflow_runtime::NodeContext;
 use serde::Deserialize;

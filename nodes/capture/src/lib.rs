@@ -3,10 +3,6 @@
 #![warn(missing_docs)]
 
 pub mod decode;
-pub mod natural;
-pub mod project;
-pub mod synth;
 pub mod watch;
 
 pub use decode::{decode_file, DecodedImage};
-pub use project::{CameraFile, Project, ProjectError};

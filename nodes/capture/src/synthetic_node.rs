@@ -1,12 +1,12 @@
 //! The `synthetic` capture: renders a preset scene frame by frame, publishes the survey data a real project
 //! would have, and the ground truth on `gt/*` (which only `eval` may read).
 use anyhow::{bail, Context, Result};
-use lineflow_capture::synth::{self, Sensor, Synthetic};
 use lineflow_messages::{
     fixed_str, kinds, CameraModelHeader, ControlPoint, Encoding, ImageHeader, Line3, Lines3DHeader, Observation, Pose, PosesHeader,
     StampFlags, Wall,
 };
 use lineflow_runtime::NodeContext;
+use lineflow_synthetic::{Sensor, Synthetic};
 use serde::Deserialize;
 
 use crate::source::{Pacer, Survey};
@@ -38,13 +38,13 @@ struct Params {
 }
 
 fn default_preset() -> String {
-    synth::DEFAULT_PRESET.into()
+    lineflow_synthetic::DEFAULT_PRESET.into()
 }
 fn default_scale() -> f64 {
-    synth::DEFAULT_SCALE
+    lineflow_synthetic::DEFAULT_SCALE
 }
 fn default_seed() -> u64 {
-    synth::DEFAULT_SEED
+    lineflow_synthetic::DEFAULT_SEED
 }
 
 fn survey(syn: &Synthetic) -> (Vec<ControlPoint>, Vec<Observation>, Vec<Wall>) {
@@ -86,7 +86,7 @@ pub fn run(ctx: &NodeContext) -> Result<()> {
     }
     let images = ctx.output::<kinds::Image>("images")?;
     // The supervisor sizes the image edge from the preset unless the launch file does.
-    if let Some(preset) = synth::preset(&p.preset, p.seed) {
+    if let Some(preset) = lineflow_synthetic::preset(&p.preset, p.seed) {
         let c = preset.camera.scaled(p.scale.clamp(1e-3, 2.0));
         ctx.declare_max_payload("images", c.width as u64 * c.height as u64 * 3);
     }
@@ -164,7 +164,7 @@ pub fn run(ctx: &NodeContext) -> Result<()> {
         }
         let mut rgb = syn.render(frame as usize);
         if syn.preset.sensor.jpeg_quality > 0 {
-            let bytes = synth::jpeg_bytes(&rgb, cam.width, cam.height, syn.preset.sensor.jpeg_quality)?;
+            let bytes = lineflow_synthetic::jpeg_bytes(&rgb, cam.width, cam.height, syn.preset.sensor.jpeg_quality)?;
             rgb = image::load_from_memory(&bytes)
                 .context("decoding the simulated JPEG")?
                 .into_rgb8()

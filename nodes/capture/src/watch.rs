@@ -28,7 +28,7 @@ impl Watcher {
     /// Files that became complete since the last call, in natural file-name order.
     pub fn poll(&mut self) -> Vec<PathBuf> {
         let now = Instant::now();
-        let Ok(files) = crate::project::list_images(&self.dir) else {
+        let Ok(files) = lineflow_formats::project::list_images(&self.dir) else {
             return Vec::new();
         };
         let mut ready = Vec::new();
@@ -57,7 +57,9 @@ impl Watcher {
                 _ => entry.1 = now,
             }
         }
-        ready.sort_by(|a, b| crate::natural::natural_cmp(&crate::project::file_name(a), &crate::project::file_name(b)));
+        ready.sort_by(|a, b| {
+            lineflow_formats::natural::natural_cmp(&lineflow_formats::project::file_name(a), &lineflow_formats::project::file_name(b))
+        });
         ready
     }
 }

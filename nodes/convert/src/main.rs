@@ -34,7 +34,7 @@ fn body() -> Result<()> {
                 ..h
             };
             let mut result = Ok(());
-            output.publish_with(out, w * ht, |dst| result = lineflow_convert::gray_of_image(&h, msg.payload(), dst))?;
+            output.publish_with(out, w * ht, |dst| result = lineflow_imaging::gray_of_image(&h, msg.payload(), dst))?;
             result.map_err(anyhow::Error::msg)?;
         }
         Ok(if input.is_ended() { Flow::Stop } else { Flow::Continue })

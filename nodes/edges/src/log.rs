@@ -1,7 +1,7 @@
 //! Laplacian of Gaussian: zero crossings of the smoothed Laplacian where the Sobel gradient is strong enough.
 use rayon::prelude::*;
 
-use crate::gradient;
+use lineflow_imaging::gradient;
 
 fn gaussian_kernel(sigma: f64) -> Vec<f32> {
     let r = (3.0 * sigma).ceil().max(1.0) as isize;

@@ -90,7 +90,7 @@ fn body() -> Result<()> {
     ctx.connect()?;
     let mut gray = Vec::new();
     ctx.run(|| {
-        lineflow_convert::for_each_gray(&input, &mut gray, |h, gray| {
+        lineflow_imaging::for_each_gray(&input, &mut gray, |h, gray| {
             let (w, ht) = (h.width as usize, h.height as usize);
             if w > u16::MAX as usize || ht > u16::MAX as usize {
                 bail!("frame {}: {w}x{ht} exceeds the 65535-pixel edge map limit", h.stamp.frame);

@@ -2,12 +2,12 @@
 //! results the graph produces (`poses`, `lines2d`, `lines3d`, `wireframe`, `faces`), and at end-of-stream writes `eval/report.md` into the run's
 //! output folder. The scene is regenerated from the parameters of the graph's `synthetic` capture node.
 use anyhow::{bail, Context, Result};
-use lineflow_capture::synth::{self, Synthetic};
 use lineflow_eval::{evaluate, model::ModelOpening, report, Results, Truth, Wireframe};
 use lineflow_formats::{Line2Row, Line3Row, PoseRow};
 use lineflow_messages::{kinds, parts, FaceVertex, WireEdge};
 use lineflow_photogrammetry::Vec3;
 use lineflow_runtime::{Flow, NodeContext};
+use lineflow_synthetic::Synthetic;
 
 fn main() -> std::process::ExitCode {
     lineflow_runtime::run_node(body)
@@ -29,9 +29,12 @@ fn scene_of_graph(ctx: &NodeContext) -> Result<Synthetic> {
         );
     };
     let p = &node.params;
-    let preset = p.get("preset").and_then(|v| v.as_str()).unwrap_or(synth::DEFAULT_PRESET);
-    let scale = p.get("scale").and_then(|v| v.as_f64()).unwrap_or(synth::DEFAULT_SCALE);
-    let seed = p.get("seed").and_then(|v| v.as_u64()).unwrap_or(synth::DEFAULT_SEED);
+    let preset = p
+        .get("preset")
+        .and_then(|v| v.as_str())
+        .unwrap_or(lineflow_synthetic::DEFAULT_PRESET);
+    let scale = p.get("scale").and_then(|v| v.as_f64()).unwrap_or(lineflow_synthetic::DEFAULT_SCALE);
+    let seed = p.get("seed").and_then(|v| v.as_u64()).unwrap_or(lineflow_synthetic::DEFAULT_SEED);
     Synthetic::new(preset, scale, seed).map_err(|e| anyhow::anyhow!("node '{}': {e}", ctx.name()))
 }
 

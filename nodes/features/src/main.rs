@@ -44,7 +44,7 @@ fn run_images<D: lineflow_runtime::ZeroCopySend + Copy>(
     ctx.connect()?;
     let mut gray = Vec::new();
     ctx.run(|| {
-        lineflow_convert::for_each_gray(&input, &mut gray, |h, gray| {
+        lineflow_imaging::for_each_gray(&input, &mut gray, |h, gray| {
             let (kps, descriptors) = describe(gray, h.width as usize, h.height as usize);
             let header = KeypointsHeader {
                 stamp: h.stamp,

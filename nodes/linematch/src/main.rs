@@ -184,7 +184,7 @@ fn body() -> Result<()> {
                 }
             }
         }
-        lineflow_convert::for_each_gray(&images, &mut gray, |h, g| {
+        lineflow_imaging::for_each_gray(&images, &mut gray, |h, g| {
             st.grays.insert(h.stamp.frame, g.to_vec());
             st.stamps.insert(h.stamp.frame, h.stamp);
             Ok(())

@@ -1,16 +1,16 @@
 //! Object-space matching on the synthetic façade: true poses, the approximate site model, and 2-D chains drawn
 //! from the true edges, so that only the matching is measured.
-use lineflow_capture::synth::geometry::Edge;
-use lineflow_capture::synth::Synthetic;
 use lineflow_linematch::{choose_slaves, match_master, DistortionLut, MatchParams, SegmentInput, View, WallPlane};
 use lineflow_messages::Encoding;
 use lineflow_photogrammetry::Vec3;
+use lineflow_synthetic::geometry::Edge;
+use lineflow_synthetic::Synthetic;
 
 fn gray(syn: &Synthetic, frame: usize) -> Vec<u8> {
     let cam = syn.camera();
     let (w, h) = (cam.width as usize, cam.height as usize);
     let mut g = vec![0u8; w * h];
-    lineflow_convert::gray_into(Encoding::Rgb8, w, h, w * 3, &syn.render(frame), &mut g).unwrap();
+    lineflow_imaging::gray_into(Encoding::Rgb8, w, h, w * 3, &syn.render(frame), &mut g).unwrap();
     g
 }
 
@@ -22,7 +22,7 @@ fn chain(syn: &Synthetic, frame: usize, a: Vec3, b: Vec3) -> Vec<[u16; 2]> {
     let mut out: Vec<[u16; 2]> = Vec::new();
     for k in 0..=n {
         let p = a + (b - a) * (k as f64 / n as f64);
-        let Some(px) = lineflow_capture::synth::truth::sees(syn.world(), cam, pose, &p) else {
+        let Some(px) = lineflow_synthetic::truth::sees(syn.world(), cam, pose, &p) else {
             continue;
         };
         let q = [px[0].round() as u16, px[1].round() as u16];

@@ -540,7 +540,7 @@ pub fn corrected_pixels(camera: &lineflow_photogrammetry::Camera, positions: &[[
 }
 
 /// [`trace_measured`] with each pixel's sub-pixel position (measured col, row; e.g. the gradient peaks of
-/// `lineflow_edges::subpixel_positions`): the lines are fitted to the positions, the chains keep the pixels. Edge
+/// `lineflow_imaging::subpixel_positions`): the lines are fitted to the positions, the chains keep the pixels. Edge
 /// pixels sit on the integer grid, which biases a nearly vertical or horizontal line by up to half a pixel; line
 /// intersection across images needs better than that.
 pub fn trace_measured_at(

@@ -107,7 +107,7 @@ fn segments(cam: &Camera, h: &EdgeMapHeader, px: &[EdgePixel], gray: Option<&[u8
     let pixels: Vec<[u16; 2]> = px.iter().map(|e| [e.col, e.row]).collect();
     let traced = match gray {
         Some(g) if g.len() == cam.width as usize * cam.height as usize => {
-            let positions = lineflow_edges::subpixel_positions(g, cam.width as usize, cam.height as usize, px);
+            let positions = lineflow_imaging::subpixel_positions(g, cam.width as usize, cam.height as usize, px);
             lineflow_lines2d::trace_measured_at(cam, &pixels, &positions, p)
         }
         _ => lineflow_lines2d::trace_measured(cam, &pixels, p),
@@ -150,7 +150,7 @@ fn run_lsd(ctx: NodeContext) -> Result<()> {
     ctx.run(|| {
         drain(&unused_edges)?;
         drain(&unused_camera)?;
-        lineflow_convert::for_each_gray(&images, &mut gray, |h, gray| {
+        lineflow_imaging::for_each_gray(&images, &mut gray, |h, gray| {
             // Between frames too: LSD takes long enough for the unused queues to fill.
             drain(&unused_edges)?;
             let found = lineflow_lines2d::lsd::lsd(gray, h.width as usize, h.height as usize, p.min_length_px);
@@ -215,7 +215,7 @@ fn run_trace(ctx: NodeContext) -> Result<()> {
     let mut rows = Vec::new();
     ctx.run(|| {
         if let Some(i) = &images {
-            lineflow_convert::for_each_gray(i, &mut buffer, |h, g| {
+            lineflow_imaging::for_each_gray(i, &mut buffer, |h, g| {
                 grays.insert(h.stamp.frame, g.to_vec());
                 Ok(())
             })?;

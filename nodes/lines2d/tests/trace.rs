@@ -152,7 +152,7 @@ fn sub_pixel_positions_put_an_axis_aligned_line_where_the_edge_is() {
         let gray = vertical_step(w, h, x);
         let found = lineflow_edges::pixels(&gray, w, h, &lineflow_edges::canny(&gray, w, h, 20.0, 50.0));
         let pixels: Vec<[u16; 2]> = found.iter().map(|e| [e.col, e.row]).collect();
-        let positions = lineflow_edges::subpixel_positions(&gray, w, h, &found);
+        let positions = lineflow_imaging::subpixel_positions(&gray, w, h, &found);
         let at = lineflow_lines2d::trace_measured_at(&camera, &pixels, &positions, &TraceParams::default());
         let whole = lineflow_lines2d::trace_measured(&camera, &pixels, &TraceParams::default());
         let col = |s: &[lineflow_lines2d::MeasuredSegment]| {

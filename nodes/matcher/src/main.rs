@@ -85,7 +85,7 @@ fn body() -> Result<()> {
             while input.receive()?.is_some() {}
         }
         if let Some(input) = images.as_ref().filter(|_| p.refine) {
-            lineflow_convert::for_each_gray(input, &mut buffer, |h, g| {
+            lineflow_imaging::for_each_gray(input, &mut buffer, |h, g| {
                 let gray = Gray {
                     width: h.width as usize,
                     height: h.height as usize,

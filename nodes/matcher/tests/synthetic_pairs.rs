@@ -1,6 +1,5 @@
 //! Tie points on the synthetic façade, checked against its exact geometry: every track's rays, with the true
 //! poses, must meet where both images see the point.
-use lineflow_capture::synth::Synthetic;
 use lineflow_features::orb::{orb, OrbParams};
 use lineflow_features::surf::{surf, SurfParams};
 use lineflow_matcher::descriptors::{Descriptors, FrameFeatures};
@@ -8,6 +7,7 @@ use lineflow_matcher::lsm::Gray;
 use lineflow_matcher::{Matcher, MatcherParams, Observation};
 use lineflow_messages::Encoding;
 use lineflow_photogrammetry::Vec3;
+use lineflow_synthetic::Synthetic;
 
 /// The detector of a run.
 #[derive(Debug, Clone, Copy)]
@@ -20,7 +20,7 @@ fn features(syn: &Synthetic, frame: usize, detector: Detector) -> (FrameFeatures
     let cam = syn.camera();
     let (w, h) = (cam.width as usize, cam.height as usize);
     let mut gray = vec![0u8; w * h];
-    lineflow_convert::gray_into(Encoding::Rgb8, w, h, w * 3, &syn.render(frame), &mut gray).unwrap();
+    lineflow_imaging::gray_into(Encoding::Rgb8, w, h, w * 3, &syn.render(frame), &mut gray).unwrap();
     let features = match detector {
         Detector::Surf => {
             let f = surf(

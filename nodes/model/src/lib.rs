@@ -203,6 +203,17 @@ impl ModelParams {
         }
     }
 
+    /// The defaults with `PARAM=VALUE` overrides (VALUE as TOML) applied, validated: `lineflow model --set` and
+    /// `lineflow bench model --set`.
+    ///
+    /// # Errors
+    /// A malformed item, an unknown or mistyped parameter, or a value out of range.
+    pub fn with_overrides(set: &[String]) -> anyhow::Result<ModelParams> {
+        let params: ModelParams = lineflow_runtime::launch::params_from_overrides(set)?;
+        params.validate().map_err(anyhow::Error::msg)?;
+        Ok(params)
+    }
+
     /// Checks the values before anything is built.
     pub fn validate(&self) -> Result<(), String> {
         let positive = [

@@ -1,9 +1,9 @@
 //! The model of a synthetic façade's true edges with noise added, scored against the truth as `lineflow eval`
 //! scores it (targets of issue #8: vertex RMSE ≤ 1 GSD, edge precision and recall ≥ 95 %).
-use lineflow_capture::synth::{rng::Rng, Synthetic};
 use lineflow_eval::{model::evaluate, Truth};
 use lineflow_model::{build, export, Cameras, Model, ModelLine, ModelParams, SurfaceKind};
 use lineflow_photogrammetry::Vec3;
+use lineflow_synthetic::{rng::Rng, Synthetic};
 
 fn noisy_lines(truth: &Truth, sigma: f64) -> Vec<ModelLine> {
     let mut rng = Rng::new(7, 3);

@@ -3,12 +3,10 @@
 //!
 //! The pieces are plain functions: [`observations`] puts edge pixels into ideal photo coordinates and bins them,
 //! [`weights`] holds the seed's four weighting schemes, [`parametric`] what is adjusted, [`fit`] the loop with
-//! the shrinking buffer, [`wireframe`] fits a whole wire-frame component by component, [`faces`] gives the fitted wire-frame its faces, and [`aerial`] with
-//! [`experiment`] reproduce the seed's experiments.
+//! the shrinking buffer, [`wireframe`] fits a whole wire-frame component by component, and [`faces`] gives the
+//! fitted wire-frame its faces. The seed's experiments on synthetic aerial photos are in `lineflow-bench`.
 #![warn(missing_docs)]
 
-pub mod aerial;
-pub mod experiment;
 pub mod faces;
 pub mod fit;
 pub mod observations;

@@ -2,7 +2,6 @@
 //! arrive, against the scene's true poses and surveyed check points.
 use std::collections::BTreeMap;
 
-use lineflow_capture::synth::Synthetic;
 use lineflow_features::surf::{surf, SurfParams};
 use lineflow_matcher::descriptors::{Descriptors, FrameFeatures};
 use lineflow_matcher::lsm::Gray;
@@ -10,12 +9,13 @@ use lineflow_matcher::{Matcher, MatcherParams};
 use lineflow_messages::Encoding;
 use lineflow_orientation::{Block, Method, OrientationParams, Surveyed};
 use lineflow_photogrammetry::Vec3;
+use lineflow_synthetic::Synthetic;
 
 fn features(syn: &Synthetic, frame: usize) -> (FrameFeatures, Gray) {
     let cam = syn.camera();
     let (w, h) = (cam.width as usize, cam.height as usize);
     let mut gray = vec![0u8; w * h];
-    lineflow_convert::gray_into(Encoding::Rgb8, w, h, w * 3, &syn.render(frame), &mut gray).unwrap();
+    lineflow_imaging::gray_into(Encoding::Rgb8, w, h, w * 3, &syn.render(frame), &mut gray).unwrap();
     let f = surf(
         &gray,
         w,

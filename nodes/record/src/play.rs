@@ -7,7 +7,7 @@ use std::time::{Duration, Instant};
 use anyhow::{bail, Context, Result};
 use lineflow_messages::schema::{decode_view, read_pod, Decoded};
 use lineflow_messages::{with_kind, Message, MessageKind};
-use lineflow_runtime::recording::Recording;
+use lineflow_recordings::Recording;
 use lineflow_runtime::{NodeContext, Output};
 
 #[derive(serde::Deserialize)]

@@ -10,9 +10,9 @@ use anyhow::{Context, Result};
 use crossbeam::channel::Receiver;
 use lineflow_messages::schema::{bytes_of, encode, slice_bytes};
 use lineflow_messages::{with_kind, Message, MessageKind, NodeStatus};
+use lineflow_recordings::views::ViewRenderer;
+use lineflow_recordings::{now_ns, Compression, McapWriter, META_END, META_RUN};
 use lineflow_runtime::launch::Graph;
-use lineflow_runtime::recording::views::ViewRenderer;
-use lineflow_runtime::recording::{now_ns, Compression, McapWriter, META_END, META_RUN};
 use lineflow_runtime::{Flow, Input, NodeContext, RunEnd};
 
 #[derive(serde::Deserialize)]

@@ -1,7 +1,12 @@
 //! Shared harness of the end-to-end tests: a sandbox per test (its own state folder, so run ids, iceoryx2
-//! prefixes and output folders never collide and tests run in parallel) and helpers to find processes.
+//! prefixes and output folders never collide and tests run in parallel), the Python environment of the tests that
+//! run Python, and helpers to find processes.
+mod python;
+
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output, Stdio};
+
+pub use python::{python, python_path};
 
 /// The folder of the built binaries (`target/<profile>`).
 pub fn bin_dir() -> PathBuf {
@@ -38,10 +43,12 @@ impl Sandbox {
     pub fn path(&self) -> &Path {
         self.dir.path()
     }
-    /// `lineflow ARGS` with this sandbox's state folder.
+    /// `lineflow ARGS` with this sandbox's state folder; nodes written in Python (`#!/usr/bin/env python3`) find
+    /// the tests' Python environment first on `PATH`.
     pub fn lineflow(&self, args: &[&str]) -> Command {
         let mut c = Command::new(bin_dir().join("lineflow"));
         c.args(args)
+            .env("PATH", python_path())
             .env("LINEFLOW_STATE_DIR", self.path().join("state"))
             .env("LINEFLOW_LOG", "info")
             .stdin(Stdio::null());

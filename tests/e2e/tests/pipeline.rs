@@ -612,7 +612,7 @@ fn the_demo_graph_orients_both_strips_and_extracts_3d_lines_and_a_model_the_same
     // Refine offline: the same lines with the images' 2-D lines, the camera they were measured with and the poses.
     let out = sb.path().join("out0");
     let camera = sb.path().join("camera.toml");
-    let scene = lineflow_capture::synth::Synthetic::new("a55-two-strips", 0.3, 1).unwrap();
+    let scene = lineflow_synthetic::Synthetic::new("a55-two-strips", 0.3, 1).unwrap();
     std::fs::write(&camera, toml_camera(&scene)).unwrap();
     let refined = sb.path().join("refined");
     let arg = |name: &str| out.join(name).to_str().unwrap().to_owned();
@@ -646,8 +646,8 @@ fn the_demo_graph_orients_both_strips_and_extracts_3d_lines_and_a_model_the_same
 }
 
 /// The camera of a synthetic scene as `camera.toml` text.
-fn toml_camera(scene: &lineflow_capture::synth::Synthetic) -> String {
-    toml::to_string(&lineflow_capture::CameraFile::of(scene.camera())).expect("camera.toml")
+fn toml_camera(scene: &lineflow_synthetic::Synthetic) -> String {
+    toml::to_string(&lineflow_formats::project::CameraFile::of(scene.camera())).expect("camera.toml")
 }
 
 /// The first number after `marker` (then `lead`) in `text`.

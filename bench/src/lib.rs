@@ -1,0 +1,270 @@
+//! `lineflow bench` and `lineflow experiment`: every benchmark and seed experiment, each printing its figures
+//! beside a reference measured in the same run. The `lineflow` command parses [`BenchCmd`] and calls [`bench`].
+mod bundle;
+mod edges;
+mod features;
+mod linematch;
+mod lines2d;
+pub mod model;
+mod modelfit;
+mod record;
+mod render;
+pub mod seed001;
+pub mod seed004;
+mod stream;
+mod transport;
+mod util;
+
+use std::process::ExitCode;
+
+use anyhow::Result;
+use clap::Subcommand;
+
+#[derive(Subcommand)]
+pub enum BenchCmd {
+    /// iceoryx2 vs Unix-socket latency and throughput for 64 B to 48 MB payloads.
+    Transport {
+        /// Messages per case at 30 Hz.
+        #[arg(long, default_value_t = 60)]
+        paced: u64,
+        /// Scale the flat-out message counts (1.0 = 20000 x 64 B ... 60 x 48 MB).
+        #[arg(long, default_value_t = 1.0)]
+        flat_scale: f64,
+    },
+    /// Synthetic renderer: seconds per full-size frame against the 12 MP / 1 s target.
+    Render {
+        /// Preset.
+        #[arg(long, default_value = "d2x-strip")]
+        preset: String,
+        /// Frames to time.
+        #[arg(long, default_value_t = 5)]
+        frames: usize,
+        /// Image scale (1 = the preset's full size).
+        #[arg(long, default_value_t = 1.0)]
+        scale: f64,
+    },
+    /// Edge detectors on a full-size synthetic frame against OpenCV's Canny (needs opencv-python-headless).
+    Edges {
+        /// Preset.
+        #[arg(long, default_value = "d2x-strip")]
+        preset: String,
+        /// Repetitions per measurement.
+        #[arg(long, default_value_t = 5)]
+        reps: usize,
+        /// Canny high threshold (low = 0.4 × high), as the edges node's default.
+        #[arg(long, default_value_t = lineflow_edges::DEFAULT_HIGH)]
+        high: f64,
+    },
+    /// The default 2-D stage (Canny + line tracing) on a full-size synthetic frame: time per step, recall and
+    /// precision against the ground truth, beside our LSD and OpenCV's LSD (needs opencv-python-headless).
+    Lines2d {
+        /// Preset.
+        #[arg(long, default_value = "d2x-strip")]
+        preset: String,
+        /// Repetitions per measurement.
+        #[arg(long, default_value_t = 3)]
+        reps: usize,
+        /// Canny high threshold (low = 0.4 × high), as the edges node's default.
+        #[arg(long, default_value_t = lineflow_edges::DEFAULT_HIGH)]
+        high: f64,
+    },
+    /// SURF on a full-size synthetic frame against OpenCV's SIFT and ORB (needs opencv-python-headless).
+    Features {
+        /// Preset.
+        #[arg(long, default_value = "d2x-strip")]
+        preset: String,
+        /// Repetitions per measurement.
+        #[arg(long, default_value_t = 3)]
+        reps: usize,
+        /// Hessian threshold (the stage's default).
+        #[arg(long, default_value_t = 100.0)]
+        threshold: f32,
+    },
+    /// Full bundle adjustment of a thesis-size block (33 images, ~2,500 points, ~11,000 observations).
+    Bundle {
+        /// Images.
+        #[arg(long, default_value_t = 33)]
+        cameras: usize,
+        /// Tie points.
+        #[arg(long, default_value_t = 2500)]
+        points: usize,
+    },
+    /// The linematch stage: one master with all its lines against six slaves, every window mode.
+    Linematch {
+        /// Preset.
+        #[arg(long, default_value = "d2x-strip")]
+        preset: String,
+        /// Image scale (1 = the preset's full size).
+        #[arg(long, default_value_t = 1.0)]
+        scale: f64,
+        /// Repetitions per measurement.
+        #[arg(long, default_value_t = 1)]
+        reps: usize,
+    },
+    /// The model stage on the preset's true edges with noise: vertex RMSE, edge precision and recall, time.
+    Model {
+        /// Preset.
+        #[arg(long, default_value = "d2x-strip")]
+        preset: String,
+        /// Endpoint noise levels, σ per coordinate in ground sample distances. Repeatable.
+        #[arg(long = "sigma-gsd", default_values_t = vec![0.5, 1.0, 2.0])]
+        sigma_gsd: Vec<f64>,
+        /// Repetitions per timing.
+        #[arg(long, default_value_t = 3)]
+        reps: usize,
+        /// Override a model parameter, PARAM=VALUE (VALUE as TOML; `sigma_m` is the noise level's). Repeatable.
+        #[arg(long = "set", value_name = "PARAM=VALUE")]
+        set: Vec<String>,
+        /// Also write, per noise level, the noisy lines, the true lines and the model into this folder.
+        #[arg(long)]
+        out: Option<std::path::PathBuf>,
+    },
+    /// The modelfit stage: a façade model built from the preset's true edges with noise and fitted to the edge
+    /// pixels of every frame; vertex RMSE before and after, time against the 1 s target and a dense reference.
+    Modelfit {
+        /// Preset.
+        #[arg(long, default_value = "d2x-strip")]
+        preset: String,
+        /// Endpoint noise of the lines the model is built from, σ in ground sample distances.
+        #[arg(long = "sigma-gsd", default_value_t = 1.0)]
+        sigma_gsd: f64,
+        /// Use only the first N frames [default: all].
+        #[arg(long)]
+        frames: Option<usize>,
+        /// Edge-pixel weighting: equal, magnitude, angle or combined.
+        #[arg(long, default_value = "combined")]
+        weighting: String,
+        /// Repetitions per timing.
+        #[arg(long, default_value_t = 3)]
+        reps: usize,
+        /// Skip the one-system reference (slow).
+        #[arg(long)]
+        no_reference: bool,
+        /// Edge pixels at their pixel centres, without the sub-pixel refinement.
+        #[arg(long)]
+        no_subpixel: bool,
+        /// Render the façade with untextured materials, so that only geometry and shading make edges.
+        #[arg(long)]
+        flat_textures: bool,
+    },
+    /// Orientation while the photos arrive: renders a synthetic folder, runs `launch/orientation-stream.toml` on it
+    /// at 1 frame/s and reports each frame's first pose against the next frame's arrival, the camera centres against
+    /// the truth, and COLMAP's on the same images where `pycolmap` installs.
+    Stream {
+        /// Preset.
+        #[arg(long, default_value = "d2x-strip")]
+        preset: String,
+        /// Image scale (0.5 = about 3 MP for the D2X).
+        #[arg(long, default_value_t = 0.5)]
+        scale: f64,
+        /// Seed of the scene.
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+        /// Frames per second delivered.
+        #[arg(long, default_value_t = 1.0)]
+        fps: f64,
+        /// Launch graph [default: launch/orientation-stream.toml].
+        #[arg(long)]
+        graph: Option<std::path::PathBuf>,
+        /// Parameter override NODE.KEY=VALUE (repeatable), e.g. `--set capture.fps=2`.
+        #[arg(long)]
+        set: Vec<String>,
+        /// Keep the run's results in this folder [default: a temporary one].
+        #[arg(long)]
+        out: Option<std::path::PathBuf>,
+        /// Skip the COLMAP reference.
+        #[arg(long)]
+        no_colmap: bool,
+    },
+    /// The recorder node: MB/s of raw 12 MP RGB frames written with nothing dropped, against the disk.
+    Record {
+        /// Frames.
+        #[arg(long, default_value_t = 30)]
+        frames: usize,
+        /// Frame width.
+        #[arg(long, default_value_t = 4288)]
+        width: u32,
+        /// Frame height.
+        #[arg(long, default_value_t = 2848)]
+        height: u32,
+        /// The recorder's image previews for viewers (longest side; 0 = off), as in `[record] preview_max_px`.
+        #[arg(long, default_value_t = 1280)]
+        preview_max_px: u32,
+    },
+    /// (internal) the subscribing side of the iceoryx2 benchmark.
+    #[command(hide = true)]
+    IoxSub {
+        prefix: String,
+        root: String,
+        size: usize,
+        count: u64,
+    },
+    /// (internal) the reading side of the socket benchmark.
+    #[command(hide = true)]
+    UdsSub { path: String, size: usize, count: u64 },
+}
+
+pub fn bench(cmd: BenchCmd) -> Result<ExitCode> {
+    match cmd {
+        BenchCmd::IoxSub { prefix, root, size, count } => transport::iox_sub(&prefix, &root, size, count).map(|_| ExitCode::SUCCESS),
+        BenchCmd::UdsSub { path, size, count } => transport::uds_sub(&path, size, count).map(|_| ExitCode::SUCCESS),
+        BenchCmd::Transport { paced, flat_scale } => transport::transport_bench(paced, flat_scale),
+        BenchCmd::Render { preset, frames, scale } => render::bench_render(&preset, frames, scale),
+        BenchCmd::Edges { preset, reps, high } => edges::bench_edges(&preset, reps, high),
+        BenchCmd::Lines2d { preset, reps, high } => lines2d::bench_lines2d(&preset, reps, high),
+        BenchCmd::Features { preset, reps, threshold } => features::bench_features(&preset, reps, threshold),
+        BenchCmd::Model {
+            preset,
+            sigma_gsd,
+            reps,
+            set,
+            out,
+        } => model::bench_model(&preset, &sigma_gsd, reps, &set, out.as_deref()),
+        BenchCmd::Modelfit {
+            preset,
+            sigma_gsd,
+            frames,
+            weighting,
+            reps,
+            no_reference,
+            no_subpixel,
+            flat_textures,
+        } => modelfit::bench_modelfit(modelfit::Args {
+            preset: &preset,
+            sigma_gsd,
+            frames,
+            weighting: lineflow_modelfit::Weighting::parse(&weighting).map_err(anyhow::Error::msg)?,
+            reps,
+            reference: !no_reference,
+            subpixel: !no_subpixel,
+            flat_textures,
+        }),
+        BenchCmd::Linematch { preset, scale, reps } => linematch::bench_linematch(&preset, scale, reps),
+        BenchCmd::Bundle { cameras, points } => bundle::bench_bundle(cameras, points),
+        BenchCmd::Stream {
+            preset,
+            scale,
+            seed,
+            fps,
+            graph,
+            set,
+            out,
+            no_colmap,
+        } => stream::bench_stream(stream::StreamArgs {
+            preset: &preset,
+            scale,
+            seed,
+            fps,
+            graph: graph.as_deref(),
+            set: &set,
+            out,
+            no_colmap,
+        }),
+        BenchCmd::Record {
+            frames,
+            width,
+            height,
+            preview_max_px,
+        } => record::bench_record(frames, width, height, preview_max_px),
+    }
+}

@@ -1,0 +1,177 @@
+//! `lineflow eval`: the results of a run against the ground truth of a synthetic scene, as numbers
+//! ([`Evaluation`]) and as a Markdown report with plots. Metrics are defined in `docs/eval.md`.
+pub mod geometry;
+pub mod lines2d;
+pub mod lines3d;
+pub mod model;
+pub mod orientation;
+mod plot;
+pub mod report;
+pub mod resolvable;
+
+use std::path::{Path, PathBuf};
+
+use anyhow::{bail, Context, Result};
+use lineflow_formats::{read_checkpoints, read_lines2d, read_lines3d, read_poses, CheckRow, Line2Row, Line3Row, PoseRow};
+use lineflow_synthetic::Synthetic;
+
+/// The ground truth of a scene folder written by `lineflow synth`.
+pub struct Truth {
+    /// The folder.
+    pub dir: PathBuf,
+    /// True poses, by image.
+    pub poses: Vec<PoseRow>,
+    /// Structural edges seen in at least two images.
+    pub lines: Vec<Line3Row>,
+    /// The regenerated scene (deterministic from preset, scale and seed in `gt/scene.json`).
+    pub scene: Synthetic,
+}
+
+/// A wire-frame read from `model.obj`: vertices and edges.
+pub type Wireframe = (Vec<lineflow_photogrammetry::Vec3>, Vec<[usize; 2]>);
+
+impl Truth {
+    /// Loads `DIR/gt/` and regenerates the scene it describes.
+    pub fn load(dir: &Path) -> Result<Truth> {
+        let gt = dir.join("gt");
+        let scene_path = gt.join("scene.json");
+        let text = std::fs::read_to_string(&scene_path)
+            .with_context(|| format!("{}: cannot read (is this a `lineflow synth` folder?)", scene_path.display()))?;
+        let v: serde_json::Value = serde_json::from_str(&text).with_context(|| format!("{}: malformed", scene_path.display()))?;
+        let (Some(preset), Some(scale), Some(seed)) = (v["preset"].as_str(), v["scale"].as_f64(), v["seed"].as_u64()) else {
+            bail!("{}: needs preset, scale and seed", scene_path.display());
+        };
+        let scene = Synthetic::new(preset, scale, seed).with_context(|| format!("{}", scene_path.display()))?;
+        Ok(Truth {
+            dir: dir.to_owned(),
+            poses: read_poses(&gt.join("poses.csv"))?,
+            lines: read_lines3d(&gt.join("lines3d.csv"))?,
+            scene,
+        })
+    }
+
+    /// The truth of a scene generated in memory (no folder): its poses and seen edges.
+    pub fn from_scene(scene: Synthetic) -> Truth {
+        Truth {
+            dir: PathBuf::new(),
+            poses: lineflow_synthetic::truth_poses(&scene),
+            lines: lineflow_synthetic::truth_lines(&scene),
+            scene,
+        }
+    }
+
+    /// The ground sample distance at the typical object distance (median over the edges of the distance to the
+    /// nearest camera), metres.
+    pub fn gsd_m(&self) -> f64 {
+        let mut d: Vec<f64> = self
+            .lines
+            .iter()
+            .map(|l| {
+                let mid = (l.start + l.end) * 0.5;
+                self.poses
+                    .iter()
+                    .map(|p| (p.pose.center - mid).norm())
+                    .fold(f64::INFINITY, f64::min)
+            })
+            .collect();
+        if d.is_empty() {
+            return f64::NAN;
+        }
+        d.sort_by(f64::total_cmp);
+        self.scene.camera().gsd_m(d[d.len() / 2])
+    }
+}
+
+/// What a run wrote (each file optional).
+#[derive(Default)]
+pub struct Results {
+    pub poses: Option<Vec<PoseRow>>,
+    pub checkpoints: Option<Vec<CheckRow>>,
+    pub lines2d: Option<Vec<Line2Row>>,
+    pub lines3d: Option<Vec<Line3Row>>,
+    pub model: Option<Wireframe>,
+    /// The wire-frame fitted to the images (`model_fitted.obj`).
+    pub model_fitted: Option<Wireframe>,
+    /// The window and door faces of `model.obj`.
+    pub model_openings: Option<Vec<model::ModelOpening>>,
+    /// Edges of `model.obj` completed behind an occluder (not scored: the truth holds the edges seen in images).
+    pub model_hidden_edges: Option<usize>,
+}
+
+/// The window and door faces (groups `Window` and `Door`) of an OBJ model.
+pub fn openings_of_obj(obj: &lineflow_formats::ObjModel) -> Vec<model::ModelOpening> {
+    obj.faces
+        .iter()
+        .filter(|(group, _)| group == "Window" || group == "Door")
+        .map(|(group, ring)| model::ModelOpening {
+            door: group == "Door",
+            ring: ring.iter().map(|&v| obj.vertices[v]).collect(),
+        })
+        .collect()
+}
+
+fn optional<T>(path: PathBuf, read: impl Fn(&Path) -> Result<T, lineflow_formats::FormatError>) -> Result<Option<T>> {
+    if path.exists() {
+        Ok(Some(read(&path)?))
+    } else {
+        Ok(None)
+    }
+}
+
+impl Results {
+    /// Reads `poses.csv`, `checkpoints.csv`, `lines2d.csv`, `lines3d.csv`, `model.obj` and `model_fitted.obj`
+    /// from `dir`, where present.
+    pub fn load(dir: &Path) -> Result<Results> {
+        if !dir.is_dir() {
+            bail!("{}: not a folder", dir.display());
+        }
+        let obj = optional(dir.join("model.obj"), lineflow_formats::read_obj)?;
+        Ok(Results {
+            poses: optional(dir.join("poses.csv"), read_poses)?,
+            checkpoints: optional(dir.join("checkpoints.csv"), read_checkpoints)?,
+            lines2d: optional(dir.join("lines2d.csv"), read_lines2d)?,
+            lines3d: optional(dir.join("lines3d.csv"), read_lines3d)?,
+            model_openings: obj.as_ref().map(openings_of_obj),
+            model_hidden_edges: obj.as_ref().map(|o| o.hidden_edges.len()),
+            model: obj.map(|o| (o.vertices, o.edges)),
+            model_fitted: optional(dir.join("model_fitted.obj"), lineflow_formats::read_obj_wireframe)?,
+        })
+    }
+}
+
+/// Every metric that the results allow.
+pub struct Evaluation {
+    pub orientation: Option<orientation::OrientationReport>,
+    pub lines2d: Option<lines2d::Lines2dReport>,
+    pub lines3d: Option<lines3d::Lines3dReport>,
+    pub model: Option<model::ModelReport>,
+    pub model_fitted: Option<model::ModelReport>,
+    pub openings: Option<model::OpeningReport>,
+    /// Edges of the model completed behind an occluder, left out of the scores.
+    pub hidden_edges: Option<usize>,
+}
+
+/// Evaluates whatever `results` holds.
+pub fn evaluate(truth: &Truth, results: &Results) -> Evaluation {
+    Evaluation {
+        orientation: results
+            .poses
+            .as_ref()
+            .map(|p| orientation::evaluate(truth, p, results.checkpoints.as_deref())),
+        lines2d: results.lines2d.as_ref().map(|l| lines2d::evaluate(truth, l)),
+        lines3d: results.lines3d.as_ref().map(|l| lines3d::evaluate(truth, l)),
+        model: results
+            .model
+            .as_ref()
+            .map(|(v, e)| model::evaluate(&truth.lines, v, e, truth.gsd_m())),
+        model_fitted: results
+            .model_fitted
+            .as_ref()
+            .map(|(v, e)| model::evaluate(&truth.lines, v, e, truth.gsd_m())),
+        openings: results
+            .model_openings
+            .as_ref()
+            .map(|o| model::evaluate_openings(&truth.scene.building.openings, o, truth.gsd_m())),
+        hidden_edges: results.model_hidden_edges,
+    }
+}

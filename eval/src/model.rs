@@ -1,0 +1,243 @@
+//! Model metrics (`docs/eval.md`): the wire-frame against the true one, built from the ground-truth edges.
+//!
+//! The true wire-frame's vertices are the ends of the true edges (merged within 1 mm); an edge with another
+//! edge's end on it is split there, as a model edge would be. A model vertex matches the true vertex it is
+//! mutually nearest to within 5 GSD; the vertex RMSE is over those pairs. A model edge is right when both its ends
+//! lie within 3 GSD of the two ends of one true edge; edge precision is the share of model edges that are right,
+//! edge recall the share of true edges some model edge matches.
+use lineflow_formats::Line3Row;
+use lineflow_photogrammetry::Vec3;
+
+/// The model metrics.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ModelReport {
+    pub gsd_m: f64,
+    pub true_vertices: usize,
+    pub model_vertices: usize,
+    pub matched_vertices: usize,
+    /// 3-D RMSE of the matched vertices, metres.
+    pub vertex_rmse_m: f64,
+    pub true_edges: usize,
+    pub model_edges: usize,
+    pub edge_precision: f64,
+    pub edge_recall: f64,
+    /// Reach for vertex matching and tolerance for edge ends, metres.
+    pub vertex_reach_m: f64,
+    pub edge_tolerance_m: f64,
+}
+
+/// The true wire-frame: vertices and edges from the true segments.
+pub fn true_wireframe(lines: &[Line3Row]) -> (Vec<Vec3>, Vec<[usize; 2]>) {
+    let merge = 1e-3;
+    let mut vertices: Vec<Vec3> = Vec::new();
+    let index = |p: Vec3, vertices: &mut Vec<Vec3>| {
+        if let Some(k) = vertices.iter().position(|v| (v - p).norm() < merge) {
+            k
+        } else {
+            vertices.push(p);
+            vertices.len() - 1
+        }
+    };
+    let ends: Vec<[usize; 2]> = lines
+        .iter()
+        .map(|l| [index(l.start, &mut vertices), index(l.end, &mut vertices)])
+        .collect();
+    let mut edges = Vec::new();
+    for (l, [a, b]) in lines.iter().zip(&ends) {
+        let d = l.end - l.start;
+        let len2 = d.norm_squared();
+        if len2 < 1e-12 {
+            continue;
+        }
+        let mut on: Vec<(f64, usize)> = vec![(0.0, *a), (1.0, *b)];
+        for (k, v) in vertices.iter().enumerate() {
+            let t = (v - l.start).dot(&d) / len2;
+            if t > 1e-6 && t < 1.0 - 1e-6 && (l.start + d * t - v).norm() < merge {
+                on.push((t, k));
+            }
+        }
+        on.sort_by(|x, y| x.0.total_cmp(&y.0));
+        edges.extend(on.windows(2).filter(|w| w[0].1 != w[1].1).map(|w| [w[0].1, w[1].1]));
+    }
+    (vertices, edges)
+}
+
+fn nearest(points: &[Vec3], p: &Vec3) -> Option<(usize, f64)> {
+    points
+        .iter()
+        .enumerate()
+        .map(|(k, q)| (k, (q - p).norm()))
+        .min_by(|a, b| a.1.total_cmp(&b.1))
+}
+
+/// Scores a wire-frame (`vertices`, `edges`) against the true segments at ground sample distance `gsd_m`.
+pub fn evaluate(truth: &[Line3Row], vertices: &[Vec3], edges: &[[usize; 2]], gsd_m: f64) -> ModelReport {
+    let (tv, te) = true_wireframe(truth);
+    let reach = 5.0 * gsd_m;
+    let tol = 3.0 * gsd_m;
+    let mut sq = 0.0;
+    let mut matched = 0;
+    for (k, v) in vertices.iter().enumerate() {
+        let Some((t, d)) = nearest(&tv, v) else { continue };
+        if d <= reach && nearest(vertices, &tv[t]).is_some_and(|(back, _)| back == k) {
+            matched += 1;
+            sq += d * d;
+        }
+    }
+    let close = |p: &Vec3, q: &Vec3| (p - q).norm() <= tol;
+    let edge_matches = |m: &[usize; 2], t: &[usize; 2]| {
+        let (a, b) = (&vertices[m[0]], &vertices[m[1]]);
+        let (p, q) = (&tv[t[0]], &tv[t[1]]);
+        (close(a, p) && close(b, q)) || (close(a, q) && close(b, p))
+    };
+    let right = edges.iter().filter(|m| te.iter().any(|t| edge_matches(m, t))).count();
+    let found = te.iter().filter(|t| edges.iter().any(|m| edge_matches(m, t))).count();
+    let share = |n: usize, d: usize| if d == 0 { 0.0 } else { n as f64 / d as f64 };
+    ModelReport {
+        gsd_m,
+        true_vertices: tv.len(),
+        model_vertices: vertices.len(),
+        matched_vertices: matched,
+        vertex_rmse_m: if matched == 0 { f64::NAN } else { (sq / matched as f64).sqrt() },
+        true_edges: te.len(),
+        model_edges: edges.len(),
+        edge_precision: share(right, edges.len()),
+        edge_recall: share(found, te.len()),
+        vertex_reach_m: reach,
+        edge_tolerance_m: tol,
+    }
+}
+
+/// An opening face of a model: its outer ring and whether the model calls it a door.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ModelOpening {
+    pub door: bool,
+    pub ring: Vec<Vec3>,
+}
+
+impl From<(bool, Vec<Vec3>)> for ModelOpening {
+    /// From (door, ring), as `lineflow_model::Model::openings` gives them.
+    fn from((door, ring): (bool, Vec<Vec3>)) -> Self {
+        ModelOpening { door, ring }
+    }
+}
+
+/// Openings (windows and doors) of the model against the true ones.
+#[derive(Debug, Clone, PartialEq)]
+pub struct OpeningReport {
+    pub true_openings: usize,
+    /// Window and door faces of the model (frames and panes behind an opening included).
+    pub model_openings: usize,
+    /// True openings whose four corners each have a vertex of one model opening face within `reach_m`.
+    pub found: usize,
+    /// Of those, the ones the model calls a door when it is one and a window when it is one.
+    pub kind_right: usize,
+    /// RMSE of the found openings' corners (each to its nearest vertex of the matching face), metres.
+    pub corner_rmse_m: f64,
+    pub reach_m: f64,
+}
+
+/// Scores the model's opening faces against the true openings (outlines in the wall plane) at `gsd_m`: an opening
+/// is found when some model opening face has a vertex within 5 GSD of each of its four corners (the face with the
+/// smallest corner RMS is its match).
+pub fn evaluate_openings(truth: &[lineflow_synthetic::scene::Opening], model: &[ModelOpening], gsd_m: f64) -> OpeningReport {
+    let reach = 5.0 * gsd_m;
+    let (mut found, mut kind_right, mut sq) = (0, 0, 0.0);
+    for t in truth {
+        let corners: Vec<Vec3> = t.corners.iter().map(|&c| Vec3::from(c)).collect();
+        let best = model
+            .iter()
+            .filter_map(|m| {
+                let d: Vec<f64> = corners.iter().map(|c| nearest(&m.ring, c).map_or(f64::INFINITY, |n| n.1)).collect();
+                d.iter()
+                    .all(|&x| x <= reach)
+                    .then(|| (d.iter().map(|x| x * x).sum::<f64>(), m.door))
+            })
+            .min_by(|a, b| a.0.total_cmp(&b.0));
+        if let Some((s, door)) = best {
+            found += 1;
+            kind_right += usize::from(door == t.door);
+            sq += s;
+        }
+    }
+    OpeningReport {
+        true_openings: truth.len(),
+        model_openings: model.len(),
+        found,
+        kind_right,
+        corner_rmse_m: if found == 0 { f64::NAN } else { (sq / (4 * found) as f64).sqrt() },
+        reach_m: reach,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn an_opening_is_found_by_its_four_corners_and_its_kind_is_checked() {
+        let rect = |x0: f64, y: f64| [[x0, y, 1.0], [x0 + 1.0, y, 1.0], [x0 + 1.0, y, 2.0], [x0, y, 2.0]];
+        let truth = vec![
+            lineflow_synthetic::scene::Opening {
+                door: false,
+                corners: rect(0.0, 0.0),
+            },
+            lineflow_synthetic::scene::Opening {
+                door: true,
+                corners: rect(3.0, 0.0),
+            },
+        ];
+        let ring = |c: [[f64; 3]; 4], dy: f64| c.iter().map(|&p| Vec3::from(p) + Vec3::new(0.0, dy, 0.0)).collect();
+        let model = vec![
+            // The first opening 1 cm off, called a window; its frame 10 cm behind; the second one's frame only.
+            ModelOpening {
+                door: false,
+                ring: ring(rect(0.0, 0.0), 0.01),
+            },
+            ModelOpening {
+                door: false,
+                ring: ring(rect(0.0, 0.0), 0.1),
+            },
+            ModelOpening {
+                door: true,
+                ring: ring(rect(3.0, 0.0), 0.1),
+            },
+        ];
+        let r = evaluate_openings(&truth, &model, 0.005);
+        assert_eq!((r.true_openings, r.model_openings, r.found, r.kind_right), (2, 3, 1, 1));
+        assert!((r.corner_rmse_m - 0.01).abs() < 1e-12);
+    }
+
+    fn row(a: [f64; 3], b: [f64; 3]) -> Line3Row {
+        Line3Row {
+            id: String::new(),
+            start: Vec3::from(a),
+            end: Vec3::from(b),
+            n_points: None,
+            n_images: None,
+            rms_m: None,
+        }
+    }
+
+    #[test]
+    fn the_truth_scores_perfectly_and_a_t_junction_splits_its_edge() {
+        let lines = vec![row([0.0, 0.0, 0.0], [4.0, 0.0, 0.0]), row([2.0, 0.0, 0.0], [2.0, 0.0, 1.0])];
+        let (v, e) = true_wireframe(&lines);
+        assert_eq!((v.len(), e.len()), (4, 3));
+        let r = evaluate(&lines, &v, &e, 0.005);
+        assert_eq!((r.edge_precision, r.edge_recall, r.matched_vertices), (1.0, 1.0, 4));
+        assert_eq!(r.vertex_rmse_m, 0.0);
+    }
+
+    #[test]
+    fn a_shifted_model_has_that_rmse_and_loses_its_edges_beyond_the_tolerance() {
+        let lines = vec![row([0.0, 0.0, 0.0], [1.0, 0.0, 0.0])];
+        let (v, e) = true_wireframe(&lines);
+        let near: Vec<Vec3> = v.iter().map(|p| p + Vec3::new(0.0, 0.01, 0.0)).collect();
+        let r = evaluate(&lines, &near, &e, 0.005);
+        assert!((r.vertex_rmse_m - 0.01).abs() < 1e-12);
+        assert_eq!(r.edge_precision, 1.0, "1 cm is within 3 GSD = 1.5 cm");
+        let far: Vec<Vec3> = v.iter().map(|p| p + Vec3::new(0.0, 0.02, 0.0)).collect();
+        assert_eq!(evaluate(&lines, &far, &e, 0.005).edge_precision, 0.0);
+    }
+}

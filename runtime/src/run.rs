@@ -1,0 +1,64 @@
+//! Running a graph for a person at a terminal: the shipped launch graphs' folder, and a run whose per-node summary
+//! is printed and kept in `out/summary.txt`. `lineflow run`, `process`, `replay --rerun` and the benchmarks that
+//! run the shipped graphs share it.
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+
+use anyhow::Result;
+
+use crate::launch;
+use crate::supervisor::{self, RunOptions};
+
+/// Runs a resolved graph; prints the per-node summary and writes it to `out/summary.txt`.
+pub fn run_graph(g: &launch::Graph, out: &Path, expected_frames: Option<u64>) -> Result<ExitCode> {
+    let opts = RunOptions {
+        out: out.to_owned(),
+        expected_frames,
+        progress: expected_frames.is_some(),
+        connect_timeout: None,
+    };
+    let outcome = supervisor::run(g, &opts)?;
+    let table = outcome.table();
+    eprint!("{table}");
+    let _ = std::fs::write(
+        out.join("summary.txt"),
+        format!(
+            "run {}  graph {}  wall {:.2} s\n{table}",
+            outcome.run_id,
+            g.source.display(),
+            outcome.wall.as_secs_f64()
+        ),
+    );
+    match outcome.error {
+        None => {
+            eprintln!(
+                "run {} finished in {:.2} s; results in {}",
+                outcome.run_id,
+                outcome.wall.as_secs_f64(),
+                out.display()
+            );
+            Ok(ExitCode::SUCCESS)
+        }
+        Some(e) => {
+            eprintln!("error: run {} failed: {e}", outcome.run_id);
+            Ok(ExitCode::FAILURE)
+        }
+    }
+}
+
+/// The folder holding the shipped launch graphs: `$LINEFLOW_HOME/launch`, `./launch`, or beside the build tree.
+pub fn launch_dir() -> PathBuf {
+    if let Some(home) = std::env::var_os("LINEFLOW_HOME") {
+        return PathBuf::from(home).join("launch");
+    }
+    let here = PathBuf::from("launch");
+    if here.is_dir() {
+        return here;
+    }
+    // target/<profile>/lineflow -> repository root
+    std::env::current_exe()
+        .ok()
+        .and_then(|e| e.ancestors().nth(3).map(|r| r.join("launch")))
+        .filter(|p| p.is_dir())
+        .unwrap_or(here)
+}
