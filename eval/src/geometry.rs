@@ -148,3 +148,13 @@ pub fn bounds<'a>(points: impl IntoIterator<Item = &'a Vec3>) -> (Vec3, Vec3) {
             (lo.inf(p), hi.sup(p))
         })
 }
+
+/// Segments indexed for distance queries up to `reach`.
+pub fn segment_grid(set: &[Seg], reach: f64, region: (Vec3, Vec3)) -> Grid {
+    let mut grid = Grid::new(reach.max(0.25), region.0, region.1);
+    for (i, s) in set.iter().enumerate() {
+        let (lo, hi) = bounds([&s.a, &s.b]);
+        grid.insert(i as u32, lo, hi, reach);
+    }
+    grid
+}

@@ -5,7 +5,7 @@ use lineflow_formats::Line3Row;
 use lineflow_photogrammetry::{Pose, Vec3};
 use rayon::prelude::*;
 
-use crate::geometry::{bounds, classify, polygon_distance, Class, Grid, Seg};
+use crate::geometry::{bounds, classify, polygon_distance, segment_grid, Class, Grid, Seg};
 use crate::resolvable::resolvable;
 use crate::Truth;
 
@@ -68,16 +68,6 @@ pub fn tolerances(gsd_m: f64) -> Vec<(String, f64)> {
     let mut t: Vec<(String, f64)> = [5.0, 10.0, 20.0, 50.0].iter().map(|mm| (format!("{mm} mm"), mm / 1000.0)).collect();
     t.extend([1.0, 2.0, 5.0].iter().map(|k| (format!("{k} GSD"), k * gsd_m)));
     t
-}
-
-/// Segments indexed for distance queries up to `reach`.
-pub(crate) fn segment_grid(set: &[Seg], reach: f64, region: (Vec3, Vec3)) -> Grid {
-    let mut grid = Grid::new(reach.max(0.25), region.0, region.1);
-    for (i, s) in set.iter().enumerate() {
-        let (lo, hi) = bounds([&s.a, &s.b]);
-        grid.insert(i as u32, lo, hi, reach);
-    }
-    grid
 }
 
 /// Distance to the nearest item, exact up to the grid's reach (beyond it: infinity).

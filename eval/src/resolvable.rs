@@ -7,8 +7,7 @@
 use lineflow_photogrammetry::{Camera, Pose, Vec3};
 use rayon::prelude::*;
 
-use crate::geometry::{bounds, Grid, Seg};
-use crate::lines3d::segment_grid;
+use crate::geometry::{bounds, segment_grid, Grid, Seg};
 
 /// Parallel edges closer than this in an image are one image edge there, pixels.
 pub const RESOLVE_PX: f64 = 4.0;

@@ -8,10 +8,12 @@ pub mod bundle;
 mod camera;
 pub mod epipolar;
 pub mod intersect;
+mod polygon;
 mod pose;
 mod rotation;
 
 pub use camera::Camera;
+pub use polygon::{point_in_polygon, signed_area};
 pub use pose::Pose;
 pub use rotation::{look_at, opk_from_rotation, rotation_from_opk};
 

@@ -29,7 +29,7 @@ use serde::de::DeserializeOwned;
 use crate::describe::{Port, Ports};
 use crate::env::{self, RunEnv};
 use crate::launch::{Graph, NodeSpec};
-use crate::ports::{Connect, Input, Output};
+use crate::ports::{Connect, Input, Output, RUN_TICK};
 use crate::report::Reporter;
 use crate::transport;
 
@@ -51,8 +51,6 @@ pub enum RunEnd {
     Interrupted,
 }
 
-/// How often a waiting node wakes without input: to publish its status and pick up restarted publishers.
-pub const RUN_TICK: Duration = Duration::from_millis(100);
 /// Longest wait in [`NodeContext::finish`] for the subscribers to leave.
 pub const LINGER: Duration = Duration::from_secs(30);
 

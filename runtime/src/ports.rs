@@ -13,6 +13,9 @@ use crate::launch::EdgeSpec;
 use crate::report::Reporter;
 use crate::transport::{self, PubSub};
 
+/// How often a waiting node wakes without input: to publish its status and pick up restarted publishers.
+pub const RUN_TICK: Duration = Duration::from_millis(100);
+
 /// A received message: zero-copy view into shared memory (`user_header()`, `payload()`).
 pub type Received<M> = iceoryx2::sample::Sample<ipc::Service, [<M as Message>::Element], <M as Message>::Header>;
 
@@ -375,7 +378,7 @@ impl<M: Message> Connect for OutputInner<M> {
             // Subscribers connect to a new publisher on their next wake-up (at most RUN_TICK apart); samples sent
             // before that would be dropped (iceoryx2 pitfall P1). Give them four ticks.
             let _ = self.publisher.update_connections();
-            std::thread::sleep(crate::node::RUN_TICK * 4);
+            std::thread::sleep(RUN_TICK * 4);
         }
         self.publisher
             .update_connections()

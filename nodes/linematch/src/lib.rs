@@ -16,7 +16,7 @@ use lineflow_photogrammetry::{Camera, Pose, Vec3};
 use rayon::prelude::*;
 use serde::Deserialize;
 
-pub use search::{match_segment, MatchedPoint, SegmentInput, SegmentMatch, Unmatched};
+pub use search::{match_segment, SegmentInput, SegmentMatch, Unmatched};
 pub use slave_lines::{FrameSegments, SlaveSegments};
 pub use view::{DistortionLut, View};
 pub use wall::{fit_wall, fit_walls, wall_of_ray, NoWall, WallPlane, WALL_MIN_POINTS};
@@ -416,6 +416,25 @@ pub fn choose_slaves(
             .then(a.0.cmp(&b.0))
     });
     scored.into_iter().take(max_slaves).map(|(f, _)| f).collect()
+}
+
+/// A matched chain pixel.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MatchedPoint {
+    /// The master chain pixel (col, row).
+    pub pixel: [f64; 2],
+    /// Its foot on the segment's straight line, in ideal photo coordinates (mm): the point lies on this ray.
+    pub ideal: [f64; 2],
+    /// Depth in front of the wall, metres.
+    pub depth_m: f64,
+    /// The master-ray point at that depth (eq. 15).
+    pub xyz: Vec3,
+    /// SNCC of the winning window.
+    pub sncc: f64,
+    /// The winning window.
+    pub mode: Mode,
+    /// The depth comes from the slaves' 2-D lines, not from SNCC.
+    pub from_lines: bool,
 }
 
 #[cfg(test)]

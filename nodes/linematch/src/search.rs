@@ -9,7 +9,7 @@ use crate::ncc::{build_cross, master_window, ncc, BandScratch, BandSums, Bands, 
 use crate::slave_lines::{refine_depths, SlaveSegments};
 use crate::view::View;
 use crate::wall::{wall_of_ray, WallPlane};
-use crate::{MatchParams, Mode};
+use crate::{MatchParams, MatchedPoint, Mode};
 
 /// A 2-D segment of the master frame with its pixel chain (measured pixel coordinates).
 #[derive(Debug, Clone, Copy)]
@@ -22,25 +22,6 @@ pub struct SegmentInput<'a> {
     pub end_px: [f64; 2],
     /// The ordered chain.
     pub chain: &'a [[u16; 2]],
-}
-
-/// A matched chain pixel.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct MatchedPoint {
-    /// The master chain pixel (col, row).
-    pub pixel: [f64; 2],
-    /// Its foot on the segment's straight line, in ideal photo coordinates (mm): the point lies on this ray.
-    pub ideal: [f64; 2],
-    /// Depth in front of the wall, metres.
-    pub depth_m: f64,
-    /// The master-ray point at that depth (eq. 15).
-    pub xyz: Vec3,
-    /// SNCC of the winning window.
-    pub sncc: f64,
-    /// The winning window.
-    pub mode: Mode,
-    /// The depth comes from the slaves' 2-D lines, not from SNCC.
-    pub from_lines: bool,
 }
 
 /// The matched points of one segment.

@@ -9,9 +9,8 @@
 use lineflow_messages::Segment2;
 use lineflow_photogrammetry::{Camera, Pose, Vec3};
 
-use crate::search::MatchedPoint;
 use crate::wall::WallPlane;
-use crate::MatchParams;
+use crate::{MatchParams, MatchedPoint};
 
 /// One frame's 2-D segments in ideal photo coordinates (mm), bucketed by a coarse grid for window queries.
 #[derive(Debug, Clone, Default)]

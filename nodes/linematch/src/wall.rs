@@ -1,6 +1,6 @@
 //! Wall planes: the approximate building model the matching searches around (`site.toml`), or a plane fitted to
 //! tie points when there is none.
-use lineflow_photogrammetry::Vec3;
+use lineflow_photogrammetry::{point_in_polygon, Vec3};
 
 /// A planar wall polygon with its outward normal and an in-plane frame (u horizontal, w up).
 #[derive(Debug, Clone, PartialEq)]
@@ -84,17 +84,6 @@ impl WallPlane {
         let q = self.in_plane(p);
         point_in_polygon(q, &self.polygon) || polygon_distance(q, &self.polygon) <= margin
     }
-}
-
-fn point_in_polygon(q: [f64; 2], poly: &[[f64; 2]]) -> bool {
-    let mut inside = false;
-    for (k, a) in poly.iter().enumerate() {
-        let b = poly[(k + 1) % poly.len()];
-        if (a[1] > q[1]) != (b[1] > q[1]) && q[0] < a[0] + (q[1] - a[1]) * (b[0] - a[0]) / (b[1] - a[1]) {
-            inside = !inside;
-        }
-    }
-    inside
 }
 
 fn polygon_distance(q: [f64; 2], poly: &[[f64; 2]]) -> f64 {

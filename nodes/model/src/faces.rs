@@ -3,72 +3,11 @@
 //! that face's opening (the seed's "roof inside a roof"), and a semantic kind for each face.
 use std::collections::BTreeMap;
 
-use lineflow_photogrammetry::Vec3;
+use lineflow_photogrammetry::{point_in_polygon, signed_area, Vec3};
 
 use crate::disjoint::Disjoint;
+use crate::surface::{plane_basis, smaller_side, Face, Plane, SurfaceKind};
 use crate::{Cameras, Edge, ModelParams, Vertex};
-
-/// The CityJSON semantic surface of a face.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
-pub enum SurfaceKind {
-    Wall,
-    Roof,
-    Ground,
-    Floor,
-    Window,
-    Door,
-}
-
-impl SurfaceKind {
-    /// Every kind, in the order of their codes in `FaceVertex.kind`.
-    pub const ALL: [SurfaceKind; 6] = [
-        SurfaceKind::Wall,
-        SurfaceKind::Roof,
-        SurfaceKind::Ground,
-        SurfaceKind::Floor,
-        SurfaceKind::Window,
-        SurfaceKind::Door,
-    ];
-
-    /// The code of the kind in a `ModelFaces` message.
-    pub fn code(self) -> u32 {
-        Self::ALL.iter().position(|&k| k == self).unwrap_or(0) as u32
-    }
-
-    /// The kind of a code; `None` for an unknown one.
-    pub fn from_code(code: u32) -> Option<SurfaceKind> {
-        Self::ALL.get(code as usize).copied()
-    }
-
-    /// The CityJSON 2.0 semantic surface type.
-    pub fn cityjson(self) -> &'static str {
-        match self {
-            SurfaceKind::Wall => "WallSurface",
-            SurfaceKind::Roof => "RoofSurface",
-            SurfaceKind::Ground => "GroundSurface",
-            SurfaceKind::Floor => "OuterFloorSurface",
-            SurfaceKind::Window => "Window",
-            SurfaceKind::Door => "Door",
-        }
-    }
-}
-
-/// A planar face: its outer ring (vertex indices, counter-clockwise seen from outside), the rings of its openings,
-/// its unit outward normal and its kind.
-#[derive(Debug, Clone, PartialEq)]
-pub struct Face {
-    pub ring: Vec<usize>,
-    pub holes: Vec<Vec<usize>>,
-    pub normal: Vec3,
-    pub kind: SurfaceKind,
-}
-
-/// A plane n · x = offset, n a unit normal.
-#[derive(Debug, Clone, Copy)]
-pub(crate) struct Plane {
-    pub normal: Vec3,
-    pub offset: f64,
-}
 
 /// The faces of a wire-frame. The `cameras`' mean centre decides which side is outside; without cameras the
 /// centroid of the vertices is taken as inside.
@@ -270,13 +209,6 @@ fn kind_of_plane(normal: Vec3) -> SurfaceKind {
     }
 }
 
-/// A 2-D frame in a plane: u, v with u × v = normal.
-pub(crate) fn plane_basis(normal: Vec3) -> (Vec3, Vec3) {
-    let helper = if normal.z.abs() < 0.9 { Vec3::z() } else { Vec3::x() };
-    let u = helper.cross(&normal).normalize();
-    (u, normal.cross(&u))
-}
-
 /// The bounded faces of the planar graph of `edges` (vertices projected into the plane), each as a simple cycle
 /// traced counter-clockwise about `normal`. Dangling edges are pruned first.
 fn cycles(vertices: &[Vertex], edges: &[&Edge], normal: Vec3) -> Vec<Vec<usize>> {
@@ -356,26 +288,6 @@ fn cycles(vertices: &[Vertex], edges: &[&Edge], normal: Vec3) -> Vec<Vec<usize>>
     out
 }
 
-pub(crate) fn signed_area(p: &[[f64; 2]]) -> f64 {
-    let n = p.len();
-    (0..n)
-        .map(|i| p[i][0] * p[(i + 1) % n][1] - p[(i + 1) % n][0] * p[i][1])
-        .sum::<f64>()
-        / 2.0
-}
-
-pub(crate) fn point_in_polygon(q: [f64; 2], poly: &[[f64; 2]]) -> bool {
-    let mut inside = false;
-    let n = poly.len();
-    for i in 0..n {
-        let (a, b) = (poly[i], poly[(i + 1) % n]);
-        if (a[1] > q[1]) != (b[1] > q[1]) && q[0] < a[0] + (q[1] - a[1]) / (b[1] - a[1]) * (b[0] - a[0]) {
-            inside = !inside;
-        }
-    }
-    inside
-}
-
 /// A vertical face at least [`MIN_OPENING_M`] across whose corners (two or more) have edges running straight back
 /// from it, and none running forward, is an opening in its own right: a hole with reveals, even where the wall's
 /// outline is not closed (a façade's foot or top edge is often hidden). Two corners, because a street-level
@@ -409,16 +321,6 @@ fn recessed_openings(vertices: &[Vertex], incident: &[Vec<usize>], edges: &[Edge
 
 /// The smallest opening found by its reveals alone, metres (a cellar window; a sill's front is 6 cm tall).
 const MIN_OPENING_M: f64 = 0.25;
-
-/// The smaller side of the bounding rectangle of the vertices `points` in the plane of `normal`.
-pub(crate) fn smaller_side(vertices: &[Vertex], points: &[usize], normal: Vec3) -> f64 {
-    let (u, v) = plane_basis(normal);
-    let span = |axis: &Vec3| {
-        let t = points.iter().map(|&k| vertices[k].point.dot(axis));
-        t.clone().fold(f64::NEG_INFINITY, f64::max) - t.fold(f64::INFINITY, f64::min)
-    };
-    span(&u).min(span(&v))
-}
 
 /// A face lying inside a larger wall or roof face of the same plane, sharing no vertex with it, is that face's
 /// opening (the innermost container wins): a window, or a door when it reaches within 0.3 m of the container's

@@ -10,8 +10,8 @@
 //! plan, where the extension test means nothing.
 use lineflow_photogrammetry::Vec3;
 
-use crate::faces::signed_area;
 use crate::refine::{cross, sub};
+use lineflow_photogrammetry::signed_area;
 
 /// An object's footprint must cover at least this much in plan, m².
 const MIN_FOOTPRINT_M2: f64 = 0.25;

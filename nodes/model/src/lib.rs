@@ -28,13 +28,14 @@ pub mod occlusion;
 mod openings;
 pub mod refine;
 pub mod regular;
+mod surface;
 
 use lineflow_photogrammetry::{Camera, Vec3};
 use serde::Deserialize;
 
-pub use faces::{Face, SurfaceKind};
 pub use inside::Inside;
 use junction::Resolution;
+pub use surface::{Face, SurfaceKind};
 
 /// A 3-D line given to the model.
 #[derive(Debug, Clone)]

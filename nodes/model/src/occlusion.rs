@@ -34,7 +34,8 @@ use std::collections::{BTreeMap, BinaryHeap};
 use lineflow_photogrammetry::Vec3;
 
 use crate::disjoint::Disjoint;
-use crate::faces::{incident_edges, merge_close, plane_basis, plane_hypotheses, plane_tolerance, smaller_side, Plane};
+use crate::faces::{incident_edges, merge_close, plane_hypotheses, plane_tolerance};
+use crate::surface::{plane_basis, smaller_side, Plane};
 use crate::{Edge, ModelParams, Vertex};
 
 /// Closes the open chains that an occluder in front of them explains; appends the new vertices (no σ) and edges

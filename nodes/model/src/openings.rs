@@ -15,7 +15,9 @@
 //! opening's sides from both left and right.
 use lineflow_photogrammetry::Vec3;
 
-use crate::faces::{plane_basis, point_in_polygon, signed_area, smaller_side, Face, Plane, SurfaceKind};
+use lineflow_photogrammetry::{point_in_polygon, signed_area};
+
+use crate::surface::{plane_basis, smaller_side, Face, Plane, SurfaceKind};
 use crate::{Cameras, Edge, ModelParams, Vertex};
 
 /// How far behind its wall a recessed face may lie to make an opening in it, metres: from a glazing bar's 4 cm (a
