@@ -48,9 +48,8 @@ fn package_name(m: &toml::Table) -> String {
 
 #[test]
 fn nodes_holds_stages_only_and_stages_do_not_import_each_other() {
-    let nodes = repo_file("nodes");
-    let mut stages = BTreeSet::new();
-    for entry in std::fs::read_dir(&nodes).unwrap().flatten() {
+    let mut manifests = Vec::new();
+    for entry in std::fs::read_dir(repo_file("nodes")).unwrap().flatten() {
         let dir = entry.path();
         if dir.file_name().unwrap() == "python" {
             continue; // nodes in Python: scripts, no crate
@@ -62,16 +61,13 @@ fn nodes_holds_stages_only_and_stages_do_not_import_each_other() {
             "{}: a crate under nodes/ is a stage with its process (a [[bin]])",
             dir.display()
         );
-        stages.insert(package_name(&m));
+        manifests.push(m);
     }
+    let stages: BTreeSet<String> = manifests.iter().map(package_name).collect();
     let mut sideways = Vec::new();
-    for entry in std::fs::read_dir(&nodes).unwrap().flatten() {
-        if entry.file_name() == "python" {
-            continue;
-        }
-        let m = manifest(&entry.path());
-        let name = package_name(&m);
-        for dep in lineflow_dependencies(&m) {
+    for m in &manifests {
+        let name = package_name(m);
+        for dep in lineflow_dependencies(m) {
             assert!(!FRONT_ENDS.contains(&dep.as_str()), "{name} depends on the front end {dep}");
             if stages.contains(&dep) {
                 sideways.push((name.clone(), dep));
