@@ -11,6 +11,8 @@
 //! outliers and solves again, and the check points are intersected for `checkpoints.csv`.
 pub mod colmap;
 mod essential;
+pub mod results;
+pub mod stage;
 
 use std::collections::{BTreeMap, BTreeSet};
 

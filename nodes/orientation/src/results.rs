@@ -1,0 +1,68 @@
+//! The orientation's result files: `poses.csv`, `checkpoints.csv` and the COLMAP text model `colmap/`.
+use std::collections::BTreeMap;
+use std::path::Path;
+
+use anyhow::{Context, Result};
+use lineflow_formats::{write_checkpoints, write_poses, CheckRow, PoseRow};
+
+use crate::stage::pose_elements;
+use crate::Block;
+
+/// Writes `poses.csv` and the COLMAP text model into `dir` and, when the block is in the control frame,
+/// `checkpoints.csv`; says in the log what could not be written and why.
+///
+/// # Errors
+/// A file that cannot be written.
+pub fn write_results(dir: &Path, block: &Block, names: &BTreeMap<u64, String>) -> Result<()> {
+    let rows: Vec<PoseRow> = pose_elements(block)
+        .iter()
+        .map(|p| PoseRow {
+            image: names.get(&p.frame).cloned().unwrap_or_else(|| format!("frame_{:05}", p.frame)),
+            pose: p.exterior(),
+            sigma_center_m: p.sigma_center_m[0].is_finite().then_some(p.sigma_center_m),
+            sigma_angles_deg: p.sigma_angles_rad[0].is_finite().then(|| p.sigma_angles_rad.map(f64::to_degrees)),
+        })
+        .collect();
+    let path = dir.join("poses.csv");
+    write_poses(&path, &rows).with_context(|| format!("writing {}", path.display()))?;
+    if !block.poses.is_empty() {
+        let colmap_dir = dir.join("colmap");
+        let name = |f: u64| names.get(&f).cloned().unwrap_or_else(|| format!("frame_{f:05}"));
+        let worst = crate::colmap::write_text_model(&colmap_dir, block.camera(), &block.poses, &name, &block.points())
+            .with_context(|| format!("writing the COLMAP model into {}", colmap_dir.display()))?;
+        tracing::info!(
+            "COLMAP text model in {} (distortion fitted within {worst:.3} px)",
+            colmap_dir.display()
+        );
+    }
+    if block.poses.is_empty() {
+        tracing::warn!("no frame could be oriented (too few verified tie points): poses.csv has no rows");
+        return Ok(());
+    }
+    if !block.georeferenced {
+        tracing::warn!(
+            "fewer than three control points were intersected: poses.csv is in the arbitrary frame of the first pair, \
+             and no checkpoints.csv is written"
+        );
+        return Ok(());
+    }
+    let checks: Vec<CheckRow> = block
+        .check_points()
+        .into_iter()
+        .map(|(id, d)| CheckRow { id, delta_m: d.into() })
+        .collect();
+    let path = dir.join("checkpoints.csv");
+    write_checkpoints(&path, &checks).with_context(|| format!("writing {}", path.display()))?;
+    let n = checks.len().max(1) as f64;
+    let rmse: Vec<f64> = (0..3)
+        .map(|k| (checks.iter().map(|c| c.delta_m[k].powi(2)).sum::<f64>() / n).sqrt() * 1e3)
+        .collect();
+    tracing::info!(
+        "{} check points, RMSE X {:.1} Y {:.1} Z {:.1} mm",
+        checks.len(),
+        rmse[0],
+        rmse[1],
+        rmse[2]
+    );
+    Ok(())
+}
