@@ -6,11 +6,13 @@
 #![warn(missing_docs)]
 
 pub mod lsd;
+pub mod stage;
 
 use rayon::prelude::*;
 
-/// Tracing parameters.
-#[derive(Debug, Clone, Copy)]
+/// Tracing parameters (the `trace` implementation's launch-file parameters).
+#[derive(Debug, Clone, Copy, PartialEq, serde::Deserialize)]
+#[serde(deny_unknown_fields, default)]
 pub struct TraceParams {
     /// Largest perpendicular distance of a new pixel from the current line, pixels.
     pub max_distance_px: f64,
@@ -38,6 +40,51 @@ impl Default for TraceParams {
             // courses, cut every few pixels by the vertical joints, then become wall-long lines (30,000 segments
             // became 4,300) and the 3-D line stage's first master took 20 s instead of 5 (docs/lines2d.md).
             max_jump_px: 0.0,
+        }
+    }
+}
+
+/// Longer jumps would join unrelated edges that happen to line up.
+pub const MAX_JUMP_PX: f64 = 32.0;
+
+/// A tracing parameter out of its range, with the value given.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("{name} must be {range}, got {value}")]
+pub struct BadTraceParam {
+    /// The parameter.
+    pub name: &'static str,
+    /// Its valid range.
+    pub range: String,
+    /// What was given.
+    pub value: f64,
+}
+
+impl TraceParams {
+    /// Checks every value against its range.
+    ///
+    /// # Errors
+    /// The first parameter out of range.
+    pub fn validate(&self) -> Result<(), BadTraceParam> {
+        let checks: [(&'static str, f64, bool, String); 5] = [
+            ("max_distance_px", self.max_distance_px, self.max_distance_px > 0.0, "> 0".into()),
+            ("min_length_px", self.min_length_px, self.min_length_px >= 0.0, ">= 0".into()),
+            ("max_gap_px", self.max_gap_px, self.max_gap_px >= 0.0, ">= 0".into()),
+            (
+                "max_merge_angle_deg",
+                self.max_merge_angle_deg,
+                (0.0..90.0).contains(&self.max_merge_angle_deg),
+                "in [0, 90)".into(),
+            ),
+            (
+                "max_jump_px",
+                self.max_jump_px,
+                (0.0..=MAX_JUMP_PX).contains(&self.max_jump_px),
+                format!("in [0, {MAX_JUMP_PX}]"),
+            ),
+        ];
+        match checks.into_iter().find(|c| !c.2) {
+            Some((name, value, _, range)) => Err(BadTraceParam { name, range, value }),
+            None => Ok(()),
         }
     }
 }
