@@ -46,7 +46,9 @@ pub fn run_graph(g: &launch::Graph, out: &Path, expected_frames: Option<u64>) ->
     }
 }
 
-/// The folder holding the shipped launch graphs: `$LINEFLOW_HOME/launch`, `./launch`, or beside the build tree.
+/// The folder holding the shipped launch graphs: `$LINEFLOW_HOME/launch`, `./launch`, beside the build tree
+/// (`target/<profile>/lineflow`), or in the source tree the binaries were built from (a `CARGO_TARGET_DIR`
+/// elsewhere).
 pub fn launch_dir() -> PathBuf {
     if let Some(home) = std::env::var_os("LINEFLOW_HOME") {
         return PathBuf::from(home).join("launch");
@@ -56,9 +58,9 @@ pub fn launch_dir() -> PathBuf {
         return here;
     }
     // target/<profile>/lineflow -> repository root
-    std::env::current_exe()
+    let beside_build = std::env::current_exe()
         .ok()
-        .and_then(|e| e.ancestors().nth(3).map(|r| r.join("launch")))
-        .filter(|p| p.is_dir())
-        .unwrap_or(here)
+        .and_then(|e| e.ancestors().nth(3).map(|r| r.join("launch")));
+    let source_tree = Path::new(env!("CARGO_MANIFEST_DIR")).parent().map(|r| r.join("launch"));
+    beside_build.into_iter().chain(source_tree).find(|p| p.is_dir()).unwrap_or(here)
 }

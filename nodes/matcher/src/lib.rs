@@ -10,6 +10,7 @@
 //! good.
 pub mod descriptors;
 pub mod lsm;
+pub mod stage;
 
 use std::collections::HashMap;
 
