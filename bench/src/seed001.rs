@@ -1,4 +1,4 @@
-//! `lineflow experiment seed001`: seed 001's simulated stereo pair (`docs/seeds/001_spec.md`), run through both
+//! `lineflow experiment seed001`: seed 001's simulated stereo pair (`docs/sources.md`), run through both
 //! orientation methods it compares, as a Monte-Carlo experiment instead of the thesis's single noise draw.
 //!
 //! Collinearity: each image resected from the ten control points, the check points intersected by least squares

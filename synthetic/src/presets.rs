@@ -1,4 +1,4 @@
-//! Camera set-ups modelled on the thesis data sets (`seeds/000_spec.md` §3) and two more geometries.
+//! Camera set-ups modelled on the thesis data sets (seed 000 §3, `docs/sources.md`) and two more geometries.
 use lineflow_photogrammetry::{look_at, rotation_from_opk, Camera, Pose, Vec3};
 
 use super::render::Sensor;

@@ -1,4 +1,4 @@
-//! `lineflow experiment seed004`: seed 004's experiments (`docs/seeds/004_spec.md` §3) on synthetic aerial photos
+//! `lineflow experiment seed004`: seed 004's experiments (seed 004 §3, `docs/sources.md`) on synthetic aerial photos
 //! of five box buildings with parapets, water tanks, shadows and noise: detector × weighting, the pull-in range
 //! of each parameter, and the number of photos, with the seed's settings and with ours.
 pub mod aerial;

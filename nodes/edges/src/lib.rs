@@ -4,12 +4,15 @@
 //! Every detector thins to one-pixel-wide edges by non-maximum suppression (LoG by its zero crossings).
 #![warn(missing_docs)]
 
+pub mod detector;
 mod log;
 
 use lineflow_imaging::{gradient_at, gradient_row};
 
 use lineflow_messages::EdgePixel;
 use rayon::prelude::*;
+
+pub use detector::{Detector, EdgeParams, EdgeParamsError};
 
 /// Canny's low threshold as a share of the high one, as the thesis found best.
 pub const DEFAULT_LOW_RATIO: f64 = 0.4;

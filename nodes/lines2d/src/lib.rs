@@ -1,4 +1,4 @@
-//! Line tracing (`seeds/000_spec.md` §2.7): from a seed edge pixel, follow 8-neighbours that stay within a
+//! Line tracing (seed 000 §2.7): from a seed edge pixel, follow 8-neighbours that stay within a
 //! perpendicular distance of the current line (through the first two pixels, then the total-least-squares line
 //! of all once more than three are stacked), in both directions, and keep chains of a minimum length. Lines are
 //! fitted in **corrected** coordinates, so a straight edge bent by distortion stays one segment. Beyond the thesis,

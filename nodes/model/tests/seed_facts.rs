@@ -1,4 +1,4 @@
-//! Seed 003's acceptance facts B2–B4 and B6 (`../shared/docs/seeds/003_spec.md` §5) on noise-free roof lines.
+//! Seed 003's acceptance facts B2–B4 and B6 (seed 003 §5, `docs/sources.md`) on noise-free roof lines.
 use lineflow_model::{build, Model, ModelLine, ModelParams, SurfaceKind};
 use lineflow_photogrammetry::Vec3;
 
