@@ -340,15 +340,7 @@ mod tests {
     use super::*;
 
     fn camera() -> Camera {
-        Camera {
-            width: 600,
-            height: 400,
-            pixel_size_mm: 0.01,
-            focal_mm: 8.0,
-            principal_point_mm: [0.0, 0.0],
-            radial: [0.0; 3],
-            decentering: [0.0; 2],
-        }
+        Camera::pinhole(600, 400, 0.01, 8.0)
     }
 
     fn stamp(frame: u64) -> Stamp {
@@ -434,13 +426,31 @@ mod tests {
     #[test]
     fn a_survey_sent_before_the_camera_still_reaches_supplied_poses() {
         let mut s = file_stage();
-        s.on_control_points(&[control("K1", ControlPoint::CHECK)]);
+        let check = control("K1", ControlPoint::CHECK);
+        let observations: Vec<Observation> = [("a.png", 0.0), ("b.png", 2.0)]
+            .iter()
+            .enumerate()
+            .map(|(frame, &(image, x))| {
+                let px = row(image, x).pose.project(&camera(), &Vec3::from(check.xyz)).unwrap();
+                Observation {
+                    frame: frame as u64,
+                    point_id: fixed_str("K1"),
+                    col: px[0],
+                    row: px[1],
+                }
+            })
+            .collect();
+        s.on_control_points(&[check]);
+        s.on_observations(&observations);
         s.on_camera(camera());
         s.on_image(stamp(0), "a.png");
+        s.on_image(stamp(1), "b.png");
         s.step(true).unwrap();
         let (_, block, _) = s.finish().unwrap();
-        // One check point surveyed, never measured: no row, but no panic either.
-        assert!(block.check_points().is_empty());
+        // The check point is intersected from the supplied poses: only if its survey and observations joined.
+        let checks = block.check_points();
+        assert_eq!(checks.len(), 1, "{checks:?}");
+        assert!(checks[0].1.norm() < 1e-6, "{checks:?}");
     }
 
     #[test]
