@@ -204,15 +204,7 @@ mod tests {
     const H: u32 = 60;
 
     fn camera() -> Camera {
-        Camera {
-            width: W,
-            height: H,
-            pixel_size_mm: 0.01,
-            focal_mm: 8.0,
-            principal_point_mm: [0.0, 0.0],
-            radial: [0.0; 3],
-            decentering: [0.0; 2],
-        }
+        Camera::pinhole(W, H, 0.01, 8.0)
     }
 
     /// An edge map of frame `frame` holding one horizontal edge 50 pixels long at row 30.

@@ -254,15 +254,7 @@ mod tests {
     const H: u32 = 300;
 
     fn camera() -> Camera {
-        Camera {
-            width: W,
-            height: H,
-            pixel_size_mm: 0.01,
-            focal_mm: 4.0,
-            principal_point_mm: [0.0, 0.0],
-            radial: [0.0; 3],
-            decentering: [0.0; 2],
-        }
+        Camera::pinhole(W, H, 0.01, 4.0)
     }
 
     /// A Keypoints message of `frame`: 60 keypoints on a grid shifted `shift` pixels to the left, each with its
