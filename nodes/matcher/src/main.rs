@@ -22,12 +22,7 @@ fn body() -> Result<()> {
         );
     }
     let p: MatcherParams = ctx.params()?;
-    if !(p.ratio > 0.0 && p.ratio <= 1.0 && p.threshold_px > 0.0 && p.iterations > 0 && p.min_inliers >= 8) {
-        bail!(
-            "node '{}': ratio must be in (0, 1], threshold_px > 0, iterations > 0, min_inliers >= 8",
-            ctx.name()
-        );
-    }
+    p.validate().map_err(|e| anyhow::anyhow!("node '{}': {e}", ctx.name()))?;
     let keypoints = ctx.input::<kinds::Keypoints>("keypoints")?;
     let camera_in = ctx.input::<kinds::CameraModel>("camera")?;
     let images = ctx.optional_input::<kinds::Image>("images")?;

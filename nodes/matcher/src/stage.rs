@@ -364,4 +364,19 @@ mod tests {
         let e = s.next_frame(false).unwrap().unwrap_err();
         assert_eq!(e.to_string(), "frame 6: image 10x10 differs from the camera's 400x300");
     }
+
+    #[test]
+    fn parameters_out_of_range_are_named_with_their_value() {
+        assert_eq!(MatcherParams::default().validate(), Ok(()));
+        let ratio = MatcherParams {
+            ratio: 1.5,
+            ..MatcherParams::default()
+        };
+        assert_eq!(ratio.validate().unwrap_err(), "ratio must be in (0, 1], got 1.5");
+        let inliers = MatcherParams {
+            min_inliers: 5,
+            ..MatcherParams::default()
+        };
+        assert!(inliers.validate().unwrap_err().ends_with("got 5"));
+    }
 }
