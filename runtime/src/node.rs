@@ -170,6 +170,16 @@ impl NodeContext {
         serde_json::from_value(serde_json::Value::Object(map)).with_context(|| format!("node '{}': invalid parameters", self.spec.name))
     }
 
+    /// The parameters as a typed struct, checked against their ranges ([`StageParams::validate`]).
+    ///
+    /// # Errors
+    /// As [`NodeContext::params`], or the first value out of range, named with the node.
+    pub fn stage_params<P: crate::StageParams>(&self) -> Result<P> {
+        let p: P = self.params()?;
+        p.validate().map_err(|e| anyhow::anyhow!("node '{}': {e}", self.spec.name))?;
+        Ok(p)
+    }
+
     /// The `impl` parameter, or `default`.
     pub fn implementation<'a>(&'a self, default: &'a str) -> &'a str {
         self.spec.implementation.as_deref().unwrap_or(default)

@@ -1,6 +1,7 @@
 //! The edges stage's implementations as one value: the launch file's parameters ([`EdgeParams`]) checked and
 //! turned into a [`Detector`], which finds the edge pixels of one grey image. The process shell only wires it.
 use lineflow_messages::EdgePixel;
+use lineflow_runtime::params::{self, ParamError};
 
 use crate::{canny, log, pixels, sobel, DEFAULT_HIGH, DEFAULT_LOW_RATIO};
 
@@ -63,8 +64,8 @@ pub enum EdgeParamsError {
         takes: String,
     },
     /// A value out of range.
-    #[error("thresholds must be >= 0 (canny: low <= high), sigma in (0, 20]; got {0:?}")]
-    OutOfRange(Detector),
+    #[error(transparent)]
+    OutOfRange(#[from] ParamError),
 }
 
 impl Detector {
@@ -108,13 +109,16 @@ impl Detector {
                 threshold: params.threshold.unwrap_or(40.0),
             },
         };
-        let ok = match d {
-            Detector::Canny { low, high } => low >= 0.0 && high >= low,
-            Detector::Sobel { threshold } => threshold >= 0.0,
-            Detector::Log { sigma, threshold } => sigma > 0.0 && sigma <= 20.0 && threshold >= 0.0,
-        };
-        if !ok {
-            return Err(EdgeParamsError::OutOfRange(d));
+        match d {
+            Detector::Canny { low, high } => {
+                params::non_negative("low", low)?;
+                params::check(high >= low, "high", &format!(">= low ({low})"), high)?;
+            }
+            Detector::Sobel { threshold } => params::non_negative("threshold", threshold)?,
+            Detector::Log { sigma, threshold } => {
+                params::check(sigma > 0.0 && sigma <= 20.0, "sigma", "in (0, 20]", sigma)?;
+                params::non_negative("threshold", threshold)?;
+            }
         }
         Ok(d)
     }
@@ -181,7 +185,10 @@ mod tests {
             sigma: Some(25.0),
             ..EdgeParams::default()
         };
-        assert!(Detector::new("log", wide).unwrap_err().to_string().contains("sigma: 25.0"));
+        assert!(Detector::new("log", wide)
+            .unwrap_err()
+            .to_string()
+            .ends_with("sigma must be in (0, 20], got 25"));
     }
 
     #[test]

@@ -6,11 +6,11 @@ use lineflow_messages::{fixed_str, kinds, EdgeMapHeader};
 use lineflow_runtime::{Flow, NodeContext};
 
 fn main() -> std::process::ExitCode {
-    lineflow_runtime::run_node(body)
+    let run: lineflow_runtime::Implementation = run;
+    lineflow_runtime::run_stage("edges", "canny", &[("canny", run), ("sobel", run), ("log", run)])
 }
 
-fn body() -> Result<()> {
-    let ctx = NodeContext::from_env()?;
+fn run(ctx: NodeContext) -> Result<()> {
     let impl_ = ctx.implementation("canny").to_owned();
     let params: EdgeParams = ctx.params()?;
     let detector = Detector::new(&impl_, params).map_err(|e| anyhow::anyhow!("node '{}': {e}", ctx.name()))?;

@@ -4,6 +4,7 @@
 //!
 //! The comparison pattern is drawn once from an isotropic Gaussian (BRIEF's pattern G II, σ = patch / 5) by a fixed
 //! generator, not OpenCV's learned rBRIEF table: descriptors are therefore not interchangeable with OpenCV's.
+use lineflow_runtime::params::{self, ParamError};
 use rayon::prelude::*;
 use serde::Deserialize;
 
@@ -34,22 +35,13 @@ impl Default for OrbParams {
     }
 }
 
-impl OrbParams {
-    /// Checks the settings, naming the first one out of range.
-    pub fn validate(&self) -> Result<(), String> {
-        if self.max_keypoints == 0 {
-            return Err("max_keypoints must be >= 1".into());
-        }
-        if !(1..=12).contains(&self.levels) {
-            return Err("levels must be in 1..=12".into());
-        }
-        if !(self.scale_factor > 1.0 && self.scale_factor <= 2.0) {
-            return Err("scale_factor must be in (1, 2]".into());
-        }
-        if self.fast_threshold == 0 {
-            return Err("fast_threshold must be >= 1".into());
-        }
-        Ok(())
+impl lineflow_runtime::StageParams for OrbParams {
+    fn validate(&self) -> Result<(), ParamError> {
+        params::at_least("max_keypoints", self.max_keypoints, 1)?;
+        params::check((1..=12).contains(&self.levels), "levels", "in 1..=12", self.levels)?;
+        let scale = self.scale_factor;
+        params::check(scale > 1.0 && scale <= 2.0, "scale_factor", "in (1, 2]", scale)?;
+        params::check(self.fast_threshold >= 1, "fast_threshold", ">= 1", self.fast_threshold)
     }
 }
 

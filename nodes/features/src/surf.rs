@@ -40,6 +40,16 @@ impl Default for SurfParams {
     }
 }
 
+impl lineflow_runtime::StageParams for SurfParams {
+    fn validate(&self) -> Result<(), lineflow_runtime::ParamError> {
+        use lineflow_runtime::params::check;
+        let threshold = self.hessian_threshold;
+        check(threshold.is_finite() && threshold >= 0.0, "hessian_threshold", ">= 0", threshold)?;
+        check((1..=6).contains(&self.octaves), "octaves", "in 1..=6", self.octaves)?;
+        check((1..=4).contains(&self.init_sample), "init_sample", "in 1..=4", self.init_sample)
+    }
+}
+
 /// Filter sizes per octave (the first octave's 9, 15, 21, 27, then 15, 27, 39, 51, ...).
 const LAYERS: usize = 4;
 

@@ -60,26 +60,6 @@ impl Default for FitParams {
 }
 
 impl FitParams {
-    /// Checks the ranges; the message names the parameter.
-    pub fn validate(&self) -> Result<(), String> {
-        if !(self.inlier_m > 0.0 && self.merge_distance_m >= 0.0 && self.merge_gap_m >= 0.0 && self.min_length_m >= 0.0) {
-            return Err("inlier_m must be > 0; merge_distance_m, merge_gap_m and min_length_m >= 0".into());
-        }
-        if !(0.0..=1.0).contains(&self.min_inlier_share) {
-            return Err(format!("min_inlier_share must be in [0, 1] (got {})", self.min_inlier_share));
-        }
-        if !(0.0..90.0).contains(&self.merge_angle_deg) {
-            return Err(format!("merge_angle_deg must be in [0, 90) (got {})", self.merge_angle_deg));
-        }
-        if !(self.multiview_max_distance_px > 0.0 && self.multiview_min_views >= 2) {
-            return Err("multiview_max_distance_px must be > 0 and multiview_min_views >= 2".into());
-        }
-        if self.min_points < 2 || self.iterations == 0 {
-            return Err("min_points must be >= 2 and iterations >= 1".into());
-        }
-        Ok(())
-    }
-
     /// The merge rule these parameters describe.
     pub fn rule(&self) -> MergeRule {
         MergeRule {
@@ -87,6 +67,22 @@ impl FitParams {
             distance_m: self.merge_distance_m,
             gap_m: self.merge_gap_m,
         }
+    }
+}
+
+impl lineflow_runtime::StageParams for FitParams {
+    fn validate(&self) -> Result<(), lineflow_runtime::ParamError> {
+        use lineflow_runtime::params::{at_least, in_closed, in_half_open, non_negative, positive};
+        positive("inlier_m", self.inlier_m)?;
+        non_negative("merge_distance_m", self.merge_distance_m)?;
+        non_negative("merge_gap_m", self.merge_gap_m)?;
+        non_negative("min_length_m", self.min_length_m)?;
+        in_closed("min_inlier_share", self.min_inlier_share, 0.0, 1.0)?;
+        in_half_open("merge_angle_deg", self.merge_angle_deg, 0.0, 90.0)?;
+        positive("multiview_max_distance_px", self.multiview_max_distance_px)?;
+        at_least("multiview_min_views", self.multiview_min_views, 2)?;
+        at_least("min_points", self.min_points, 2)?;
+        at_least("iterations", self.iterations, 1)
     }
 }
 

@@ -6,7 +6,7 @@
 //! segments once all of them and the final poses are in (docs/lines3d.md).
 use std::collections::BTreeMap;
 
-use anyhow::{bail, Context, Result};
+use anyhow::{Context, Result};
 use lineflow_formats::{write_lines3d, write_lines_ply, Line3Row};
 use lineflow_linefit::{fit_group, merge, refine_multiview, FitParams, Fragment, Merged, Method, MULTIVIEW_MIN_SEGMENT_PX};
 use lineflow_linematch::{FrameSegments, SlaveSegments};
@@ -15,7 +15,7 @@ use lineflow_photogrammetry::{Camera, Pose, Vec3};
 use lineflow_runtime::{Flow, NodeContext, Output};
 
 fn main() -> std::process::ExitCode {
-    lineflow_runtime::run_node(body)
+    lineflow_runtime::run_stage("linefit", "tls", &[("tls", run_tls), ("thesis", run_thesis)])
 }
 
 fn elements(lines: &[Merged]) -> Vec<Line3> {
@@ -37,17 +37,16 @@ fn publish(output: &Output<kinds::Lines3D>, stamp: Stamp, lines: &[Merged]) -> R
     output.publish(Lines3DHeader { stamp }, &elements(lines))
 }
 
-fn body() -> Result<()> {
-    let ctx = NodeContext::from_env()?;
-    let method = match ctx.implementation("tls") {
-        "tls" => Method::Tls,
-        "thesis" => Method::Thesis,
-        other => bail!("node '{}': unknown linefit impl '{other}' (available: tls, thesis)", ctx.name()),
-    };
-    let params: FitParams = ctx.params()?;
-    if let Err(e) = params.validate() {
-        bail!("node '{}': {e}", ctx.name());
-    }
+fn run_tls(ctx: NodeContext) -> Result<()> {
+    run(ctx, Method::Tls)
+}
+
+fn run_thesis(ctx: NodeContext) -> Result<()> {
+    run(ctx, Method::Thesis)
+}
+
+fn run(ctx: NodeContext, method: Method) -> Result<()> {
+    let params: FitParams = ctx.stage_params()?;
     let input = ctx.input::<kinds::Points3D>("points3d")?;
     let lines_in = ctx.optional_input::<kinds::Lines2D>("lines2d")?;
     let poses_in = ctx.optional_input::<kinds::Poses>("poses")?;

@@ -13,6 +13,7 @@ pub mod view;
 pub mod wall;
 
 use lineflow_photogrammetry::{Camera, Pose, Vec3};
+use lineflow_runtime::params::{self, ParamError};
 use rayon::prelude::*;
 use serde::Deserialize;
 
@@ -231,10 +232,9 @@ impl Default for MatchParams {
     }
 }
 
-impl MatchParams {
-    /// Checks the ranges; the message names the parameter.
-    pub fn validate(&self) -> Result<(), String> {
-        let positive = [
+impl lineflow_runtime::StageParams for MatchParams {
+    fn validate(&self) -> Result<(), ParamError> {
+        for (name, v) in [
             ("spacing_px", self.spacing_px),
             ("depth_range_m", self.depth_range_m),
             ("depth_step_m", self.depth_step_m),
@@ -242,42 +242,32 @@ impl MatchParams {
             ("line_max_angle_deg", self.line_max_angle_deg),
             ("line_max_shift_m", self.line_max_shift_m),
             ("line_max_depth_per_px_m", self.line_max_depth_per_px_m),
-        ];
-        for (name, v) in positive {
-            if !(v.is_finite() && v > 0.0) {
-                return Err(format!("{name} must be > 0 (got {v})"));
-            }
+        ] {
+            params::positive(name, v)?;
         }
-        if !(self.min_length_px >= 0.0 && self.min_length_m >= 0.0 && self.min_cell_gsd >= 0.0 && self.wall_margin_m >= 0.0) {
-            return Err("min_length_px, min_cell_gsd and wall_margin_m must be >= 0".into());
+        for (name, v) in [
+            ("min_length_px", self.min_length_px),
+            ("min_length_m", self.min_length_m),
+            ("min_cell_gsd", self.min_cell_gsd),
+            ("wall_margin_m", self.wall_margin_m),
+            ("line_min_length_px", self.line_min_length_px),
+            ("front_min_px", self.front_min_px),
+            ("front_min_m", self.front_min_m),
+            ("front_max_step_m", self.front_max_step_m),
+            ("front_reach_m", self.front_reach_m),
+        ] {
+            params::non_negative(name, v)?;
         }
-        if self.line_min_slaves == 0 || self.line_min_length_px.is_nan() || self.line_min_length_px < 0.0 {
-            return Err("line_min_slaves must be >= 1 and line_min_length_px >= 0".into());
-        }
-        if self.half_window == 0 || self.half_window > 50 {
-            return Err(format!("half_window must be in 1..=50 (got {})", self.half_window));
-        }
-        if self.modes.is_empty() {
-            return Err("modes must name at least one window mode".into());
-        }
-        if self.max_slaves == 0 || self.min_slaves > self.max_slaves {
-            return Err("max_slaves must be >= 1 and >= min_slaves".into());
-        }
-        if self.master_every == 0 {
-            return Err("master_every must be >= 1".into());
-        }
-        if self.depth_step_m > self.depth_range_m {
-            return Err("depth_step_m must not exceed depth_range_m".into());
-        }
-        let front = [self.front_min_px, self.front_min_m, self.front_max_step_m, self.front_reach_m];
-        if self.front_margin.is_nan() || !front.iter().all(|v| v.is_finite() && *v >= 0.0) || self.front_min_m > self.front_reach_m {
-            return Err(format!(
-                "front_margin must be a number, front_min_px, front_min_m, front_max_step_m and front_reach_m >= 0, and \
-                 front_min_m <= front_reach_m (got {}, {front:?})",
-                self.front_margin
-            ));
-        }
-        Ok(())
+        params::at_least("line_min_slaves", self.line_min_slaves, 1)?;
+        params::check((1..=50).contains(&self.half_window), "half_window", "in 1..=50", self.half_window)?;
+        params::check(!self.modes.is_empty(), "modes", "at least one window mode", "none")?;
+        params::at_least("max_slaves", self.max_slaves, self.min_slaves.max(1))?;
+        params::check(self.master_every >= 1, "master_every", ">= 1", self.master_every)?;
+        let (step, range) = (self.depth_step_m, self.depth_range_m);
+        params::check(step <= range, "depth_step_m", &format!("<= depth_range_m ({range})"), step)?;
+        params::check(!self.front_margin.is_nan(), "front_margin", "a number", self.front_margin)?;
+        let (min, reach) = (self.front_min_m, self.front_reach_m);
+        params::check(min <= reach, "front_min_m", &format!("<= front_reach_m ({reach})"), min)
     }
 }
 
@@ -440,6 +430,7 @@ pub struct MatchedPoint {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use lineflow_runtime::StageParams;
 
     #[test]
     fn parameters_out_of_range_are_refused_by_name() {
@@ -462,7 +453,7 @@ mod tests {
             (front_behind, "front_reach_m"),
         ] {
             let e = params.validate().unwrap_err();
-            assert!(e.contains(name), "{e}");
+            assert_eq!(e.name, name, "{e}");
         }
     }
 }

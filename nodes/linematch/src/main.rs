@@ -5,7 +5,7 @@
 //! lines fitted downstream agree with `poses.csv`.
 use std::collections::BTreeMap;
 
-use anyhow::{bail, Result};
+use anyhow::Result;
 use lineflow_linematch::{
     choose_slaves, fit_walls, match_master, DistortionLut, FrameSegments, MasterMatch, MatchParams, NoWall, SegmentInput, SegmentMatch,
     View, WallPlane, WALL_MIN_POINTS,
@@ -127,22 +127,11 @@ impl State {
 }
 
 fn main() -> std::process::ExitCode {
-    lineflow_runtime::run_node(body)
+    lineflow_runtime::run_stage("linematch", "sncc", &[("sncc", run)])
 }
 
-fn body() -> Result<()> {
-    let ctx = NodeContext::from_env()?;
-    if ctx.implementation("sncc") != "sncc" {
-        bail!(
-            "node '{}': unknown linematch impl '{}' (available: sncc)",
-            ctx.name(),
-            ctx.implementation("sncc")
-        );
-    }
-    let params: MatchParams = ctx.params()?;
-    if let Err(e) = params.validate() {
-        bail!("node '{}': {e}", ctx.name());
-    }
+fn run(ctx: NodeContext) -> Result<()> {
+    let params: MatchParams = ctx.stage_params()?;
     let images = ctx.input::<kinds::Image>("images")?;
     let lines_in = ctx.input::<kinds::Lines2D>("lines2d")?;
     let poses_in = ctx.input::<kinds::Poses>("poses")?;

@@ -8,6 +8,7 @@
 pub mod lsd;
 pub mod stage;
 
+use lineflow_runtime::params::{self, ParamError};
 use rayon::prelude::*;
 
 /// Tracing parameters (the `trace` implementation's launch-file parameters).
@@ -47,45 +48,35 @@ impl Default for TraceParams {
 /// Longer jumps would join unrelated edges that happen to line up.
 pub const MAX_JUMP_PX: f64 = 32.0;
 
-/// A tracing parameter out of its range, with the value given.
-#[derive(Debug, Clone, PartialEq, thiserror::Error)]
-#[error("{name} must be {range}, got {value}")]
-pub struct BadTraceParam {
-    /// The parameter.
-    pub name: &'static str,
-    /// Its valid range.
-    pub range: String,
-    /// What was given.
-    pub value: f64,
+impl lineflow_runtime::StageParams for TraceParams {
+    fn validate(&self) -> Result<(), ParamError> {
+        params::positive("max_distance_px", self.max_distance_px)?;
+        params::non_negative("min_length_px", self.min_length_px)?;
+        params::non_negative("max_gap_px", self.max_gap_px)?;
+        params::in_half_open("max_merge_angle_deg", self.max_merge_angle_deg, 0.0, 90.0)?;
+        params::in_closed("max_jump_px", self.max_jump_px, 0.0, MAX_JUMP_PX)
+    }
 }
 
-impl TraceParams {
-    /// Checks every value against its range.
-    ///
-    /// # Errors
-    /// The first parameter out of range.
-    pub fn validate(&self) -> Result<(), BadTraceParam> {
-        let checks: [(&'static str, f64, bool, String); 5] = [
-            ("max_distance_px", self.max_distance_px, self.max_distance_px > 0.0, "> 0".into()),
-            ("min_length_px", self.min_length_px, self.min_length_px >= 0.0, ">= 0".into()),
-            ("max_gap_px", self.max_gap_px, self.max_gap_px >= 0.0, ">= 0".into()),
-            (
-                "max_merge_angle_deg",
-                self.max_merge_angle_deg,
-                (0.0..90.0).contains(&self.max_merge_angle_deg),
-                "in [0, 90)".into(),
-            ),
-            (
-                "max_jump_px",
-                self.max_jump_px,
-                (0.0..=MAX_JUMP_PX).contains(&self.max_jump_px),
-                format!("in [0, {MAX_JUMP_PX}]"),
-            ),
-        ];
-        match checks.into_iter().find(|c| !c.2) {
-            Some((name, value, _, range)) => Err(BadTraceParam { name, range, value }),
-            None => Ok(()),
+/// The `lsd` implementation's launch-file parameters.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct LsdParams {
+    /// Shortest segment kept, pixels.
+    pub min_length_px: f64,
+}
+
+impl Default for LsdParams {
+    fn default() -> Self {
+        LsdParams {
+            min_length_px: TraceParams::default().min_length_px,
         }
+    }
+}
+
+impl lineflow_runtime::StageParams for LsdParams {
+    fn validate(&self) -> Result<(), ParamError> {
+        params::non_negative("min_length_px", self.min_length_px)
     }
 }
 

@@ -2,25 +2,15 @@
 //! [`lineflow_lines2d::stage`] with the latched camera, each edge map and (when wired) the grey images; `impl =
 //! "lsd"` detects segments on the grey images. Both publish segments with their pixel chains and write
 //! `lines2d.csv` into the run's output folder.
-use anyhow::{bail, Context, Result};
+use anyhow::{Context, Result};
 use lineflow_formats::{write_lines2d, Line2Row};
 use lineflow_lines2d::stage::{FrameLines, TraceStage};
-use lineflow_lines2d::TraceParams;
+use lineflow_lines2d::{LsdParams, TraceParams};
 use lineflow_messages::{kinds, Lines2DHeader};
 use lineflow_runtime::{Flow, Input, NodeContext, Output};
-use serde::Deserialize;
 
 fn main() -> std::process::ExitCode {
-    lineflow_runtime::run_node(body)
-}
-
-fn body() -> Result<()> {
-    let ctx = NodeContext::from_env()?;
-    match ctx.implementation("trace") {
-        "trace" => run_trace(ctx),
-        "lsd" => run_lsd(ctx),
-        other => bail!("node '{}': unknown lines2d impl '{other}' (available: trace, lsd)", ctx.name()),
-    }
+    lineflow_runtime::run_stage("lines2d", "trace", &[("trace", run_trace), ("lsd", run_lsd)])
 }
 
 /// Publishes one frame's segments and keeps its rows for `lines2d.csv`.
@@ -45,19 +35,7 @@ fn write_rows(ctx: &NodeContext, rows: &[Line2Row], what: &str) -> Result<()> {
 
 /// `impl = "lsd"`: segments straight from the grey images (input `images`; `edges` is ignored when wired).
 fn run_lsd(ctx: NodeContext) -> Result<()> {
-    #[derive(Debug, Deserialize)]
-    #[serde(deny_unknown_fields)]
-    struct LsdParams {
-        #[serde(default = "default_length")]
-        min_length_px: f64,
-    }
-    fn default_length() -> f64 {
-        TraceParams::default().min_length_px
-    }
-    let p: LsdParams = ctx.params()?;
-    if !p.min_length_px.is_finite() || p.min_length_px < 0.0 {
-        bail!("node '{}': min_length_px must be >= 0, got {}", ctx.name(), p.min_length_px);
-    }
+    let p: LsdParams = ctx.stage_params()?;
     let images = ctx.input::<kinds::Image>("images")?;
     let unused_edges = ctx.optional_input::<kinds::EdgeMap>("edges")?;
     let unused_camera = ctx.optional_input::<kinds::CameraModel>("camera")?;
@@ -93,8 +71,7 @@ fn drain<M: lineflow_messages::Message>(input: &Option<Input<M>>) -> Result<()> 
 
 /// `impl = "trace"`: the thesis's line tracing on the edge maps.
 fn run_trace(ctx: NodeContext) -> Result<()> {
-    let params: TraceParams = ctx.params()?;
-    params.validate().map_err(|e| anyhow::anyhow!("node '{}': {e}", ctx.name()))?;
+    let params: TraceParams = ctx.stage_params()?;
     let edges = ctx.input::<kinds::EdgeMap>("edges")?;
     let camera_in = ctx.input::<kinds::CameraModel>("camera")?;
     // With the images wired, lines are fitted to sub-pixel edge positions; without them, to the edge pixels.

@@ -296,6 +296,7 @@ mod tests {
 
     #[test]
     fn parameters_out_of_range_are_named_with_their_value() {
+        use lineflow_runtime::StageParams;
         assert_eq!(TraceParams::default().validate(), Ok(()));
         let bad = TraceParams {
             max_jump_px: 40.0,

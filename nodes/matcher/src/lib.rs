@@ -17,6 +17,7 @@ use std::collections::HashMap;
 use descriptors::{guided_match, match_features, FrameFeatures};
 use lineflow_photogrammetry::epipolar::{dominant_plane, homography, verify, Ransac, Ray};
 use lineflow_photogrammetry::Camera;
+use lineflow_runtime::params::{self, ParamError};
 use lsm::{Gray, LsmParams};
 use nalgebra::Matrix3;
 use rayon::prelude::*;
@@ -70,28 +71,17 @@ pub struct MatcherParams {
     pub refine_keep_frames: usize,
 }
 
-impl MatcherParams {
-    /// Checks the values the matching cannot work with; the message names the parameter and the value.
-    ///
-    /// # Errors
-    /// The first value out of range.
-    pub fn validate(&self) -> Result<(), String> {
-        if !(self.ratio > 0.0 && self.ratio <= 1.0) {
-            return Err(format!("ratio must be in (0, 1], got {}", self.ratio));
-        }
-        if self.threshold_px.is_nan() || self.threshold_px <= 0.0 {
-            return Err(format!("threshold_px must be > 0, got {}", self.threshold_px));
-        }
-        if self.iterations == 0 {
-            return Err("iterations must be > 0, got 0".into());
-        }
-        if self.min_inliers < 8 {
-            return Err(format!(
-                "min_inliers must be >= 8 (the eight-point solution), got {}",
-                self.min_inliers
-            ));
-        }
-        Ok(())
+impl lineflow_runtime::StageParams for MatcherParams {
+    fn validate(&self) -> Result<(), ParamError> {
+        params::check(self.ratio > 0.0 && self.ratio <= 1.0, "ratio", "in (0, 1]", self.ratio)?;
+        params::positive("threshold_px", self.threshold_px)?;
+        params::at_least("iterations", self.iterations, 1)?;
+        params::check(
+            self.min_inliers >= 8,
+            "min_inliers",
+            ">= 8 (the eight-point solution)",
+            self.min_inliers,
+        )
     }
 }
 

@@ -2,27 +2,18 @@
 //! the latched camera, each frame's keypoints and (when least-squares refinement is on and they are wired) the grey
 //! images, and publishes per frame the new tie-point observations (of this frame, and of earlier frames' keypoints
 //! that start a track).
-use anyhow::{bail, Result};
+use anyhow::Result;
 use lineflow_matcher::stage::{MatcherError, MatcherStage};
 use lineflow_matcher::MatcherParams;
 use lineflow_messages::{kinds, TiePointsHeader};
 use lineflow_runtime::{Flow, Input, NodeContext};
 
 fn main() -> std::process::ExitCode {
-    lineflow_runtime::run_node(body)
+    lineflow_runtime::run_stage("matcher", "ratio", &[("ratio", run)])
 }
 
-fn body() -> Result<()> {
-    let ctx = NodeContext::from_env()?;
-    if ctx.implementation("ratio") != "ratio" {
-        bail!(
-            "node '{}': unknown matcher impl '{}' (available: ratio)",
-            ctx.name(),
-            ctx.implementation("ratio")
-        );
-    }
-    let p: MatcherParams = ctx.params()?;
-    p.validate().map_err(|e| anyhow::anyhow!("node '{}': {e}", ctx.name()))?;
+fn run(ctx: NodeContext) -> Result<()> {
+    let p: MatcherParams = ctx.stage_params()?;
     let keypoints = ctx.input::<kinds::Keypoints>("keypoints")?;
     let camera_in = ctx.input::<kinds::CameraModel>("camera")?;
     let images = ctx.optional_input::<kinds::Image>("images")?;

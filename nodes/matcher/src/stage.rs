@@ -367,16 +367,17 @@ mod tests {
 
     #[test]
     fn parameters_out_of_range_are_named_with_their_value() {
+        use lineflow_runtime::StageParams;
         assert_eq!(MatcherParams::default().validate(), Ok(()));
         let ratio = MatcherParams {
             ratio: 1.5,
             ..MatcherParams::default()
         };
-        assert_eq!(ratio.validate().unwrap_err(), "ratio must be in (0, 1], got 1.5");
+        assert_eq!(ratio.validate().unwrap_err().to_string(), "ratio must be in (0, 1], got 1.5");
         let inliers = MatcherParams {
             min_inliers: 5,
             ..MatcherParams::default()
         };
-        assert!(inliers.validate().unwrap_err().ends_with("got 5"));
+        assert!(inliers.validate().unwrap_err().to_string().ends_with("got 5"));
     }
 }

@@ -28,6 +28,7 @@ pub mod occlusion;
 mod openings;
 pub mod refine;
 pub mod regular;
+pub mod stage;
 mod surface;
 
 use lineflow_photogrammetry::{Camera, Vec3};
@@ -211,63 +212,8 @@ impl ModelParams {
     /// A malformed item, an unknown or mistyped parameter, or a value out of range.
     pub fn with_overrides(set: &[String]) -> anyhow::Result<ModelParams> {
         let params: ModelParams = lineflow_runtime::launch::params_from_overrides(set)?;
-        params.validate().map_err(anyhow::Error::msg)?;
+        lineflow_runtime::StageParams::validate(&params)?;
         Ok(params)
-    }
-
-    /// Checks the values before anything is built.
-    pub fn validate(&self) -> Result<(), String> {
-        let positive = [
-            ("sigma_m", self.sigma_m),
-            ("min_sigma_m", self.min_sigma_m),
-            ("max_reach_m", self.max_reach_m),
-            ("reach_k", self.reach_k),
-            ("gap_k", self.gap_k),
-            ("corner_k", self.corner_k),
-            ("plane_angle_deg", self.plane_angle_deg),
-            ("refine_k", self.refine_k),
-            ("refine_image_sigma_px", self.refine_image_sigma_px),
-            ("regular_k", self.regular_k),
-            ("align_k", self.align_k),
-        ];
-        for (name, v) in positive {
-            if !(v.is_finite() && v > 0.0) {
-                return Err(format!("{name} must be a positive number, got {v}"));
-            }
-        }
-        if !(0.0..45.0).contains(&self.min_angle_deg) {
-            return Err(format!("min_angle_deg must be in [0, 45), got {}", self.min_angle_deg));
-        }
-        if self.align_min_lines < 2 {
-            return Err(format!("align_min_lines must be at least 2, got {}", self.align_min_lines));
-        }
-        if !(0.0..45.0).contains(&self.regular_max_deg) {
-            return Err(format!("regular_max_deg must be in [0, 45), got {}", self.regular_max_deg));
-        }
-        if !(0.0..45.0).contains(&self.refine_min_plane_angle_deg) {
-            return Err(format!(
-                "refine_min_plane_angle_deg must be in [0, 45), got {}",
-                self.refine_min_plane_angle_deg
-            ));
-        }
-        if self.refine_min_image_line_px.is_nan() || self.refine_min_image_line_px < 0.0 {
-            return Err(format!(
-                "refine_min_image_line_px must be ≥ 0, got {}",
-                self.refine_min_image_line_px
-            ));
-        }
-        for (name, v) in [
-            ("occlusion_reach_m", self.occlusion_reach_m),
-            ("occlusion_min_depth_m", self.occlusion_min_depth_m),
-        ] {
-            if !(v.is_finite() && v >= 0.0) {
-                return Err(format!("{name} must be ≥ 0, got {v}"));
-            }
-        }
-        if self.min_length_m.is_nan() || self.min_length_m < 0.0 {
-            return Err(format!("min_length_m must be ≥ 0, got {}", self.min_length_m));
-        }
-        Ok(())
     }
 
     /// The endpoint σ of a fitted line: the RMS of its points about it, shrunk by the points' number as the end
@@ -284,6 +230,40 @@ impl ModelParams {
             (Some(rms), Some(n)) if rms.is_finite() && rms > 1e-9 && n > 0 => Some((2.0 * rms / (n as f64).sqrt()).max(self.min_sigma_m)),
             _ => None,
         }
+    }
+}
+
+impl lineflow_runtime::StageParams for ModelParams {
+    fn validate(&self) -> Result<(), lineflow_runtime::ParamError> {
+        use lineflow_runtime::params::{at_least, in_half_open, non_negative, positive};
+        for (name, v) in [
+            ("sigma_m", self.sigma_m),
+            ("min_sigma_m", self.min_sigma_m),
+            ("max_reach_m", self.max_reach_m),
+            ("reach_k", self.reach_k),
+            ("gap_k", self.gap_k),
+            ("corner_k", self.corner_k),
+            ("plane_angle_deg", self.plane_angle_deg),
+            ("refine_k", self.refine_k),
+            ("refine_image_sigma_px", self.refine_image_sigma_px),
+            ("regular_k", self.regular_k),
+            ("align_k", self.align_k),
+        ] {
+            positive(name, v)?;
+        }
+        in_half_open("min_angle_deg", self.min_angle_deg, 0.0, 45.0)?;
+        at_least("align_min_lines", self.align_min_lines, 2)?;
+        in_half_open("regular_max_deg", self.regular_max_deg, 0.0, 45.0)?;
+        in_half_open("refine_min_plane_angle_deg", self.refine_min_plane_angle_deg, 0.0, 45.0)?;
+        for (name, v) in [
+            ("refine_min_image_line_px", self.refine_min_image_line_px),
+            ("occlusion_reach_m", self.occlusion_reach_m),
+            ("occlusion_min_depth_m", self.occlusion_min_depth_m),
+            ("min_length_m", self.min_length_m),
+        ] {
+            non_negative(name, v)?;
+        }
+        Ok(())
     }
 }
 

@@ -74,32 +74,6 @@ impl Default for FitParams {
 }
 
 impl FitParams {
-    /// Why these settings cannot run, if they cannot.
-    pub fn validate(&self) -> Result<(), String> {
-        let b = (self.buffer_start_mm, self.buffer_step_mm, self.buffer_min_mm);
-        if !(b.2 > 0.0 && b.0 >= b.2 && b.1 >= 0.0) || [b.0, b.1, b.2].iter().any(|v| !v.is_finite()) {
-            return Err(format!(
-                "buffer schedule needs 0 < buffer_min_mm <= buffer_start_mm and buffer_step_mm >= 0 (got {} / {} / {})",
-                b.0, b.1, b.2
-            ));
-        }
-        if let Some(c) = self.constraints.iter().find(|c| !(c.sigma > 0.0 && c.value.is_finite())) {
-            return Err(format!("constraint on parameter {} needs a finite value and sigma > 0", c.param));
-        }
-        if !(0.0..=90.0).contains(&self.angle_gate_deg) {
-            return Err(format!("angle_gate_deg must be in [0, 90] (got {})", self.angle_gate_deg));
-        }
-        if self.max_iterations == 0 {
-            return Err("max_iterations must be at least 1".into());
-        }
-        for (name, v) in [("prior_sigma", self.prior_sigma), ("prior_depth_sigma", self.prior_depth_sigma)] {
-            if !(v >= 0.0 && v.is_finite()) {
-                return Err(format!("{name} must be >= 0 (got {v})"));
-            }
-        }
-        Ok(())
-    }
-
     /// The buffer half-width at iteration `it` (0-based): start, shrinking by the step, then constant (fact C4).
     pub fn buffer_mm(&self, it: usize) -> f64 {
         (self.buffer_start_mm - self.buffer_step_mm * it as f64).max(self.buffer_min_mm)
@@ -113,6 +87,34 @@ impl FitParams {
         ((self.buffer_start_mm - self.buffer_min_mm) / self.buffer_step_mm - 1e-9)
             .ceil()
             .max(0.0) as usize
+    }
+}
+
+impl lineflow_runtime::StageParams for FitParams {
+    fn validate(&self) -> Result<(), lineflow_runtime::ParamError> {
+        use lineflow_runtime::params::{at_least, check, in_closed, non_negative, positive};
+        positive("buffer_min_mm", self.buffer_min_mm)?;
+        let (start, min) = (self.buffer_start_mm, self.buffer_min_mm);
+        check(
+            start.is_finite() && start >= min,
+            "buffer_start_mm",
+            &format!(">= buffer_min_mm ({min})"),
+            start,
+        )?;
+        non_negative("buffer_step_mm", self.buffer_step_mm)?;
+        for c in &self.constraints {
+            positive(&format!("sigma of the constraint on parameter {}", c.param), c.sigma)?;
+            check(
+                c.value.is_finite(),
+                &format!("value of the constraint on parameter {}", c.param),
+                "finite",
+                c.value,
+            )?;
+        }
+        in_closed("angle_gate_deg", self.angle_gate_deg, 0.0, 90.0)?;
+        at_least("max_iterations", self.max_iterations, 1)?;
+        non_negative("prior_sigma", self.prior_sigma)?;
+        non_negative("prior_depth_sigma", self.prior_depth_sigma)
     }
 }
 
@@ -617,6 +619,7 @@ pub fn fit<I: Borrow<ImageEdges> + Sync>(model: &dyn Parametric, start: &[f64], 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use lineflow_runtime::StageParams;
 
     /// Seed fact C4: 0.40 → 0.05 mm in steps of 0.05 mm, then constant.
     #[test]

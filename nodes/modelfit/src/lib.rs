@@ -12,6 +12,7 @@ pub mod fit;
 pub mod observations;
 pub mod parametric;
 pub mod sparse;
+pub mod stage;
 pub mod weights;
 pub mod wireframe;
 

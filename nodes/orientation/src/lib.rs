@@ -53,22 +53,15 @@ pub struct OrientationParams {
     pub estimate_tie_sigma: bool,
 }
 
-impl OrientationParams {
-    /// Checks the settings, naming the first one out of range.
-    pub fn validate(&self) -> Result<(), String> {
-        if !(self.tie_sigma_px > 0.0 && self.target_sigma_px > 0.0) {
-            return Err("tie_sigma_px and target_sigma_px must be > 0".into());
-        }
-        if self.min_init_tracks < 8 || self.min_resect_points < 6 {
-            return Err("min_init_tracks must be >= 8 and min_resect_points >= 6".into());
-        }
-        if !(self.min_angle_deg >= 0.0 && self.min_angle_deg < 90.0) {
-            return Err("min_angle_deg must be in [0, 90)".into());
-        }
-        if self.window < 2 {
-            return Err("window must be >= 2".into());
-        }
-        Ok(())
+impl lineflow_runtime::StageParams for OrientationParams {
+    fn validate(&self) -> Result<(), lineflow_runtime::ParamError> {
+        use lineflow_runtime::params::{at_least, in_half_open, positive};
+        positive("tie_sigma_px", self.tie_sigma_px)?;
+        positive("target_sigma_px", self.target_sigma_px)?;
+        at_least("min_init_tracks", self.min_init_tracks, 8)?;
+        at_least("min_resect_points", self.min_resect_points, 6)?;
+        in_half_open("min_angle_deg", self.min_angle_deg, 0.0, 90.0)?;
+        at_least("window", self.window, 2)
     }
 }
 

@@ -2,7 +2,7 @@
 //! (seed 001's chained essential matrices) and `file` (the user's poses). It moves messages between the ports and
 //! the state machine of [`lineflow_orientation::stage`], publishes what that returns, and at end-of-stream writes
 //! `poses.csv`, `checkpoints.csv` and `colmap/` into the run's output folder.
-use anyhow::{bail, Result};
+use anyhow::Result;
 use lineflow_messages::kinds;
 use lineflow_orientation::results::write_results;
 use lineflow_orientation::stage::OrientationStage;
@@ -10,7 +10,11 @@ use lineflow_orientation::{Method, OrientationParams};
 use lineflow_runtime::{Flow, Input, NodeContext, Output};
 
 fn main() -> std::process::ExitCode {
-    lineflow_runtime::run_node(body)
+    lineflow_runtime::run_stage(
+        "orientation",
+        "bundle",
+        &[("bundle", run_bundle), ("essential", run_essential), ("file", run_file)],
+    )
 }
 
 /// Parameters of `impl = "file"` (the `bundle` parameters a launch file may carry are ignored).
@@ -86,25 +90,24 @@ impl Ports {
     }
 }
 
-fn body() -> Result<()> {
-    let ctx = NodeContext::from_env()?;
-    let impl_ = ctx.implementation("bundle");
-    let method = match impl_ {
-        "bundle" => Some(Method::Bundle),
-        "essential" => Some(Method::Essential),
-        "file" => None,
-        other => bail!(
-            "node '{}': unknown orientation impl '{other}' (available: bundle, essential, file)",
-            ctx.name()
-        ),
-    };
+fn run_bundle(ctx: NodeContext) -> Result<()> {
+    run(ctx, Some(Method::Bundle))
+}
+
+fn run_essential(ctx: NodeContext) -> Result<()> {
+    run(ctx, Some(Method::Essential))
+}
+
+fn run_file(ctx: NodeContext) -> Result<()> {
+    run(ctx, None)
+}
+
+/// `method` None: the `file` implementation.
+fn run(ctx: NodeContext, method: Option<Method>) -> Result<()> {
     let ports = Ports::open(&ctx, method.is_none())?;
     let mut stage = match method {
         Some(method) => {
-            let params: OrientationParams = ctx.params()?;
-            if let Err(e) = params.validate() {
-                bail!("node '{}': {e}", ctx.name());
-            }
+            let params: OrientationParams = ctx.stage_params()?;
             OrientationStage::from_tie_points(params, method, ports.control.is_some(), ports.observations.is_some())
         }
         None => {
