@@ -1,66 +1,22 @@
 //! The `folder` capture: publishes a project folder's camera and survey data once, then its images as a stream.
-use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
 use anyhow::{bail, Context, Result};
 use lineflow_capture::decode_file;
+use lineflow_capture::folder_params::FolderParams;
+use lineflow_capture::pacer::Pacer;
 use lineflow_formats::project::{self, Project};
 use lineflow_messages::{fixed_str, kinds, CameraModelHeader, ImageHeader};
 use lineflow_runtime::NodeContext;
-use serde::Deserialize;
 
-use crate::source::{Pacer, Survey};
+use crate::source::Survey;
 
-#[derive(Debug, Deserialize)]
-#[serde(deny_unknown_fields)]
-struct Params {
-    /// Project folder.
-    folder: PathBuf,
-    /// Frames per second; 0 = as fast as the graph accepts.
-    #[serde(default)]
-    fps: f64,
-    /// Keep watching images/ for new files.
-    #[serde(default)]
-    watch: bool,
-    /// Watch mode ends after this long without a new file (0 = never).
-    #[serde(default = "default_idle")]
-    idle_timeout_s: f64,
-    /// Watch mode ends when this file appears in the project folder.
-    #[serde(default = "default_stop_file")]
-    stop_file: String,
-    /// A file must keep its size this long before it is read.
-    #[serde(default = "default_settle")]
-    settle_ms: u64,
-    /// Stamp frames from the system clock instead of the fixed start.
-    #[serde(default)]
-    use_clock: bool,
-}
-
-fn default_idle() -> f64 {
-    30.0
-}
-fn default_stop_file() -> String {
-    "STOP".into()
-}
-fn default_settle() -> u64 {
-    300
-}
-
-pub fn run(ctx: &NodeContext) -> Result<()> {
-    let mut p: Params = ctx.params()?;
+pub fn run(ctx: NodeContext) -> Result<()> {
+    let mut p: FolderParams = ctx.stage_params()?;
     let base = ctx.graph().source.parent().map(std::path::Path::to_path_buf).unwrap_or_default();
     p.folder = lineflow_runtime::launch::resolve_param_path(&base, &p.folder.display().to_string());
-    let valid = |v: f64| v.is_finite() && v >= 0.0;
-    if !valid(p.fps) || !(valid(p.idle_timeout_s) || p.idle_timeout_s == f64::INFINITY) {
-        bail!(
-            "node '{}': fps and idle_timeout_s must be >= 0, got {} and {}",
-            ctx.name(),
-            p.fps,
-            p.idle_timeout_s
-        );
-    }
     let images = ctx.output::<kinds::Image>("images")?;
-    let survey = Survey::open(ctx)?;
+    let survey = Survey::open(&ctx)?;
     let project = Project::open(&p.folder, p.watch).map_err(|e| anyhow::anyhow!("{e}"))?;
     ctx.connect()?;
 

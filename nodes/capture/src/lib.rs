@@ -3,6 +3,9 @@
 #![warn(missing_docs)]
 
 pub mod decode;
+pub mod folder_params;
+pub mod pacer;
+pub mod synthetic_source;
 pub mod watch;
 
 pub use decode::{decode_file, DecodedImage};

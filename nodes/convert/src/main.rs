@@ -1,5 +1,5 @@
 //! `lineflow-convert`: pixel-format conversion (`impl = "gray"`). Stateless: one output per input frame.
-use anyhow::{bail, Result};
+use anyhow::Result;
 use lineflow_messages::{image::ImageHeader, kinds::Image, Encoding};
 use lineflow_runtime::{Flow, NodeContext};
 
@@ -9,18 +9,10 @@ use lineflow_runtime::{Flow, NodeContext};
 struct NoParams {}
 
 fn main() -> std::process::ExitCode {
-    lineflow_runtime::run_node(body)
+    lineflow_runtime::run_stage("convert", "gray", &[("gray", run)])
 }
 
-fn body() -> Result<()> {
-    let ctx = NodeContext::from_env()?;
-    if ctx.implementation("gray") != "gray" {
-        bail!(
-            "node '{}': unknown convert impl '{}' (available: gray)",
-            ctx.name(),
-            ctx.implementation("gray")
-        );
-    }
+fn run(ctx: NodeContext) -> Result<()> {
     let _: NoParams = ctx.params()?;
     let (input, output) = (ctx.input::<Image>("images")?, ctx.output::<Image>("gray")?);
     ctx.connect()?;

@@ -2,15 +2,14 @@
 //! results the graph produces (`poses`, `lines2d`, `lines3d`, `wireframe`, `faces`), and at end-of-stream writes `eval/report.md` into the run's
 //! output folder. The scene is regenerated from the parameters of the graph's `synthetic` capture node.
 use anyhow::{bail, Context, Result};
-use lineflow_eval::{evaluate, model::ModelOpening, report, Results, Truth, Wireframe};
-use lineflow_formats::{Line2Row, Line3Row, PoseRow};
-use lineflow_messages::{kinds, parts, FaceVertex, WireEdge};
-use lineflow_photogrammetry::Vec3;
+use lineflow_eval::{evaluate, report, Truth};
+use lineflow_eval_node::{line_rows, pose_rows, Collector};
+use lineflow_messages::{kinds, parts, WireEdge};
 use lineflow_runtime::{Flow, NodeContext};
 use lineflow_synthetic::Synthetic;
 
 fn main() -> std::process::ExitCode {
-    lineflow_runtime::run_node(body)
+    lineflow_runtime::run_stage("eval", "report", &[("report", run)])
 }
 
 /// The synthetic capture node's scene: preset, scale, seed as the launch file sets them (or their defaults).
@@ -38,25 +37,7 @@ fn scene_of_graph(ctx: &NodeContext) -> Result<Synthetic> {
     Synthetic::new(preset, scale, seed).map_err(|e| anyhow::anyhow!("node '{}': {e}", ctx.name()))
 }
 
-fn pose_rows(syn: &Synthetic, poses: &[lineflow_messages::Pose]) -> Vec<PoseRow> {
-    poses
-        .iter()
-        .filter(|p| (p.frame as usize) < syn.poses().len())
-        .map(|p| PoseRow {
-            image: syn.image_name(p.frame as usize),
-            pose: p.exterior(),
-            sigma_center_m: None,
-            sigma_angles_deg: None,
-        })
-        .collect()
-}
-
-fn line_rows(lines: &[lineflow_messages::Line3]) -> Vec<Line3Row> {
-    lines.iter().map(Line3Row::from).collect()
-}
-
-fn body() -> Result<()> {
-    let ctx = NodeContext::from_env()?;
+fn run(ctx: NodeContext) -> Result<()> {
     let gt_poses = ctx.input::<kinds::Poses>("gt/poses")?;
     let gt_lines = ctx.input::<kinds::Lines3D>("gt/lines3d")?;
     let poses = ctx.optional_input::<kinds::Poses>("poses")?;
@@ -68,64 +49,43 @@ fn body() -> Result<()> {
     let syn = scene_of_graph(&ctx)?;
     ctx.connect()?;
 
-    // The newest message of each topic is the one that counts (a later revision supersedes an earlier one).
-    let (mut truth_poses, mut truth_lines, mut est_poses, mut est_lines) = (Vec::new(), Vec::new(), None, None);
-    let mut est_segments: Option<Vec<Line2Row>> = segments.as_ref().map(|_| Vec::new());
-    let (mut est_model, mut est_fitted): (Option<Wireframe>, Option<Wireframe>) = (None, None);
-    let mut est_faces: Option<Vec<FaceVertex>> = None;
-    let mut model_hidden = 0usize;
+    let mut collected = Collector::new(segments.is_some());
     ctx.run(|| {
         while let Some(m) = gt_poses.receive()? {
-            truth_poses = m.payload().to_vec();
+            collected.truth_poses = m.payload().to_vec();
         }
         while let Some(m) = gt_lines.receive()? {
-            truth_lines = m.payload().to_vec();
+            collected.truth_lines = m.payload().to_vec();
         }
         if let Some(i) = &poses {
             while let Some(m) = i.receive()? {
-                est_poses = Some(m.payload().to_vec());
+                collected.on_poses(m.payload());
             }
         }
         if let Some(i) = &lines {
             while let Some(m) = i.receive()? {
-                est_lines = Some(m.payload().to_vec());
+                collected.on_lines(m.payload());
             }
         }
-        if let (Some(i), Some(rows)) = (&segments, &mut est_segments) {
+        if let Some(i) = &segments {
             i.for_each_segments(|h, segs, _| {
-                rows.extend(segs.iter().map(|s| Line2Row {
-                    image: h.name().to_string(),
-                    id: s.id as u64,
-                    start_px: s.start_px,
-                    end_px: s.end_px,
-                    n_pixels: Some(s.chain_len),
-                }));
+                collected.on_segments(h, segs);
                 Ok(())
             })?;
         }
-        for (input, slot, mut hidden) in [
-            (&wireframe, &mut est_model, Some(&mut model_hidden)),
-            (&fitted, &mut est_fitted, None),
-        ] {
+        for (input, is_fitted) in [(&wireframe, false), (&fitted, true)] {
             if let Some(i) = input {
                 while let Some(m) = i.receive()? {
                     let h = m.user_header();
                     let (v, e) = parts::split::<[f64; 3], WireEdge>(m.payload(), h.n_vertices as usize, h.n_edges as usize)
                         .map_err(|e| anyhow::anyhow!("wireframe of frame {}: {e}", h.stamp.frame))?;
-                    // Edges completed behind an occluder are not scored: the truth holds the edges seen in images.
-                    *slot = Some((
-                        v.iter().map(|p| Vec3::from(*p)).collect(),
-                        e.iter().filter(|e| e.hidden == 0).map(|e| [e.a as usize, e.b as usize]).collect(),
-                    ));
-                    if let Some(n) = hidden.as_deref_mut() {
-                        *n = e.iter().filter(|e| e.hidden != 0).count();
-                    }
+                    collected.on_wireframe(is_fitted, v, e);
                 }
             }
         }
         if let Some(i) = &faces {
             while let Some(m) = i.receive()? {
-                est_faces = Some(m.payload().to_vec());
+                collected.on_faces(m.payload());
             }
         }
         let done = segments.as_ref().is_none_or(|i| i.is_ended())
@@ -140,26 +100,18 @@ fn body() -> Result<()> {
     })?;
 
     let out = ctx.out_dir();
+    // Written by the orientation stage before it ended its `poses`, so complete by now.
+    let checkpoints = match out.join("checkpoints.csv") {
+        p if p.exists() => Some(lineflow_formats::read_checkpoints(&p).context("reading checkpoints.csv")?),
+        _ => None,
+    };
     let truth = Truth {
         dir: out.clone(),
-        poses: pose_rows(&syn, &truth_poses),
-        lines: line_rows(&truth_lines),
+        poses: pose_rows(&syn, &collected.truth_poses),
+        lines: line_rows(&collected.truth_lines),
         scene: syn,
     };
-    let results = Results {
-        poses: est_poses.map(|p| pose_rows(&truth.scene, &p)),
-        lines3d: est_lines.map(|l| line_rows(&l)),
-        lines2d: est_segments,
-        // Written by the orientation stage before it ended its `poses`, so complete by now.
-        checkpoints: match out.join("checkpoints.csv") {
-            p if p.exists() => Some(lineflow_formats::read_checkpoints(&p).context("reading checkpoints.csv")?),
-            _ => None,
-        },
-        model_openings: est_model.as_ref().zip(est_faces.as_ref()).map(|((v, _), f)| openings(v, f)),
-        model_hidden_edges: est_model.as_ref().map(|_| model_hidden),
-        model: est_model,
-        model_fitted: est_fitted,
-    };
+    let results = collected.results(&truth.scene, checkpoints);
     let evaluation = evaluate(&truth, &results);
     let path = report::write(&truth, &out, &evaluation, &out.join("eval")).context("writing the evaluation report")?;
     tracing::info!(
@@ -173,24 +125,4 @@ fn body() -> Result<()> {
     );
     ctx.finish();
     Ok(())
-}
-
-/// The window and door faces (outer rings) of a `ModelFaces` message over its wire-frame's vertices.
-fn openings(vertices: &[Vec3], faces: &[FaceVertex]) -> Vec<ModelOpening> {
-    let (window, door) = (FaceVertex::KIND_WINDOW, FaceVertex::KIND_DOOR);
-    let mut out: Vec<(u32, ModelOpening)> = Vec::new();
-    for f in faces.iter().filter(|f| f.ring == 0 && (f.kind == window || f.kind == door)) {
-        let Some(&p) = vertices.get(f.vertex as usize) else { continue };
-        match out.last_mut() {
-            Some((face, o)) if *face == f.face => o.ring.push(p),
-            _ => out.push((
-                f.face,
-                ModelOpening {
-                    door: f.kind == door,
-                    ring: vec![p],
-                },
-            )),
-        }
-    }
-    out.into_iter().map(|(_, o)| o).collect()
 }
