@@ -1,6 +1,7 @@
 //! Two-view geometry with the interior orientation known: essential matrices from the normalised eight-point
 //! algorithm, the Sampson distance, RANSAC (seed 000 §2.4: the essential matrix, not a homography, because a
 //! façade has parallax), and the relative orientation from the four-fold decomposition with the cheirality test.
+use crate::ransac::{best_of_samples, Sampling};
 use nalgebra::{Matrix3, SMatrix, Vector3};
 
 /// A viewing direction in the camera frame, (x, y, −f) / f of the ideal image coordinates.
@@ -71,7 +72,8 @@ pub struct Ransac {
 }
 
 /// RANSAC over a model fitted to `size` correspondences: the largest consensus among `r.iterations` random samples
-/// (deterministic from `r.seed`, stopping early once another better sample is unlikely), refitted on its inliers.
+/// ([`best_of_samples`], deterministic from `r.seed`, stopping early once another better sample is unlikely),
+/// refitted on its inliers.
 fn consensus<M>(
     a: &[Ray],
     b: &[Ray],
@@ -84,40 +86,20 @@ fn consensus<M>(
     if n < size {
         return Vec::new();
     }
-    let mut state = r.seed | 1;
-    let mut next = move || {
-        state ^= state << 13;
-        state ^= state >> 7;
-        state ^= state << 17;
-        state
-    };
     let inliers_of = |m: &M| -> Vec<usize> { (0..n).filter(|&i| error(m, &a[i], &b[i]) < r.threshold).collect() };
     let fit_on = |idx: &[usize]| -> Option<M> {
         let (sa, sb): (Vec<Ray>, Vec<Ray>) = idx.iter().map(|&i| (a[i], b[i])).unzip();
         fit(&sa, &sb)
     };
-    let mut best: Vec<usize> = Vec::new();
-    let mut pick = Vec::with_capacity(size);
-    for _ in 0..r.iterations {
-        pick.clear();
-        while pick.len() < size {
-            let c = (next() % n as u64) as usize;
-            if !pick.contains(&c) {
-                pick.push(c);
-            }
-        }
-        let Some(m) = fit_on(&pick) else { continue };
-        let inl = inliers_of(&m);
-        if inl.len() > best.len() {
-            best = inl;
-            // Stop early once the inlier ratio makes another better sample unlikely (p = 0.999).
-            let w = best.len() as f64 / n as f64;
-            let needed = (0.001f64).ln() / (1.0 - w.powi(size as i32)).max(1e-12).ln();
-            if needed.is_finite() && (needed as usize) < r.iterations && best.len() > n / 2 {
-                break;
-            }
-        }
-    }
+    let sampling = Sampling {
+        iterations: r.iterations,
+        adaptive: true,
+        seed: r.seed,
+    };
+    let Some((model, _)) = best_of_samples(n, size, sampling, &fit_on, |m| inliers_of(m).len()) else {
+        return Vec::new();
+    };
+    let mut best = inliers_of(&model);
     if best.len() >= size {
         if let Some(refined) = fit_on(&best).map(|m| inliers_of(&m)) {
             if refined.len() >= best.len() {

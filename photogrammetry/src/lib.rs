@@ -10,6 +10,8 @@ pub mod epipolar;
 pub mod intersect;
 mod polygon;
 mod pose;
+pub mod random;
+pub mod ransac;
 mod rotation;
 
 pub use camera::Camera;

@@ -4,7 +4,8 @@ mod bvh;
 pub mod geometry;
 mod presets;
 pub mod render;
-pub mod rng;
+/// The workspace's seeded generator, where the scenes have always drawn from.
+pub use lineflow_photogrammetry::random as rng;
 pub mod scene;
 mod texture;
 mod tiles;

@@ -2,6 +2,7 @@
 //! with f = 152 mm and 0.025 mm pixels at about 1 : 4000, the building photographed off-nadir from several strip
 //! positions, with the distractors the seed blames for failures: a parapet line inside the roof outline, a bright
 //! rooftop water tank, cast shadows, ground texture and image noise.
+use lineflow_photogrammetry::random::mix64;
 use lineflow_photogrammetry::{rotation_from_opk, Camera, Pose, Vec3};
 
 use lineflow_modelfit::parametric::{BoxModel, Parametric};
@@ -156,7 +157,7 @@ impl BuildingScene {
         let mut a = 0.3;
         let mut s = self.seed;
         for k in 0..4 {
-            s = splitmix(s);
+            s = mix64(s);
             let phase = (s >> 11) as f64 / (1u64 << 53) as f64 * std::f64::consts::TAU;
             let f = 0.07 * (k + 1) as f64;
             a += 0.025 * ((x * f * (1.0 + 0.3 * k as f64) + y * f * 0.7) + phase).sin();
@@ -210,7 +211,7 @@ impl BuildingScene {
         let blocks = self.blocks();
         let mut img = vec![0u8; w * h];
         img.par_chunks_mut(w).enumerate().for_each(|(row, out)| {
-            let mut rng = splitmix(self.seed ^ (row as u64).wrapping_mul(0x9e37_79b9_7f4a_7c15));
+            let mut rng = mix64(self.seed ^ (row as u64).wrapping_mul(0x9e37_79b9_7f4a_7c15));
             for (col, o) in out.iter_mut().enumerate() {
                 let mut sum = 0.0;
                 for sy in 0..3 {
@@ -229,17 +230,10 @@ impl BuildingScene {
     }
 }
 
-fn splitmix(mut z: u64) -> u64 {
-    z = z.wrapping_add(0x9e37_79b9_7f4a_7c15);
-    z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-    z ^ (z >> 31)
-}
-
 /// A standard normal deviate (Box-Muller) and the next state.
 fn gaussian(state: u64) -> (f64, u64) {
-    let a = splitmix(state);
-    let b = splitmix(a);
+    let a = mix64(state);
+    let b = mix64(a);
     let u1 = ((a >> 11) as f64 + 0.5) / (1u64 << 53) as f64;
     let u2 = (b >> 11) as f64 / (1u64 << 53) as f64;
     ((-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos(), b)

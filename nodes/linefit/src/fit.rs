@@ -1,5 +1,7 @@
 //! One 3-D line per point group: the thesis's direction clustering with the principal piercing plane (seed 000
 //! §2.16), and robust total least squares (two-point RANSAC, then principal-axis refits of the inliers).
+use lineflow_photogrammetry::random::Rng;
+use lineflow_photogrammetry::ransac::{best_of_samples, Sampling};
 use lineflow_photogrammetry::{Mat3, Vec3};
 use serde::Deserialize;
 
@@ -35,17 +37,6 @@ impl Fitted {
     /// Length, metres.
     pub fn length(&self) -> f64 {
         (self.end - self.start).norm()
-    }
-}
-
-/// A deterministic stream of indices (a linear congruential generator seeded per group, so that results do not
-/// depend on thread scheduling).
-struct Lcg(u64);
-
-impl Lcg {
-    fn below(&mut self, n: usize) -> usize {
-        self.0 = self.0.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-        ((self.0 >> 33) % n.max(1) as u64) as usize
     }
 }
 
@@ -90,23 +81,27 @@ pub fn fit_tls(points: &[Vec3], tolerance: f64, iterations: usize) -> Option<Fit
     if n < 2 {
         return None;
     }
-    let mut rng = Lcg(0x5851_F42D_4C95_7F2D ^ n as u64);
-    let mut best: Option<(usize, Vec3, Vec3)> = None;
-    let pairs = if n * (n - 1) / 2 <= iterations {
-        (0..n).flat_map(|i| (i + 1..n).map(move |j| (i, j))).collect::<Vec<_>>()
-    } else {
-        (0..iterations).map(|_| (rng.below(n), rng.below(n))).collect()
-    };
-    for (i, j) in pairs {
-        let Some(dir) = (points[j] - points[i]).try_normalize(1e-9) else {
-            continue;
-        };
-        let count = points.iter().filter(|p| distance(p, &points[i], &dir) <= tolerance).count();
-        if best.as_ref().is_none_or(|(c, _, _)| count > *c) {
-            best = Some((count, points[i], dir));
+    let through = |i: usize, j: usize| (points[j] - points[i]).try_normalize(1e-9).map(|dir| (points[i], dir));
+    let near = |(origin, dir): &(Vec3, Vec3)| points.iter().filter(|p| distance(p, origin, dir) <= tolerance).count();
+    let ((mut origin, mut dir), _) = if n * (n - 1) / 2 <= iterations {
+        // Few enough points to try every pair.
+        let mut best: Option<((Vec3, Vec3), usize)> = None;
+        for (i, j) in (0..n).flat_map(|i| (i + 1..n).map(move |j| (i, j))) {
+            let Some(line) = through(i, j) else { continue };
+            let count = near(&line);
+            if best.as_ref().is_none_or(|(_, c)| count > *c) {
+                best = Some((line, count));
+            }
         }
-    }
-    let (_, mut origin, mut dir) = best?;
+        best?
+    } else {
+        let sampling = Sampling {
+            iterations,
+            adaptive: false,
+            seed: 0x5851_F42D_4C95_7F2D ^ n as u64,
+        };
+        best_of_samples(n, 2, sampling, |s| through(s[0], s[1]), near)?
+    };
     for _ in 0..3 {
         let chosen: Vec<Vec3> = points.iter().filter(|p| distance(p, &origin, &dir) <= tolerance).copied().collect();
         let (c, d) = principal_axis(&chosen)?;
@@ -139,7 +134,7 @@ pub fn fit_thesis(points: &[Vec3], tolerance: f64) -> Option<Fitted> {
     if n < 2 {
         return None;
     }
-    let mut rng = Lcg(0x2545_F491_4F6C_DD1D ^ n as u64);
+    let mut rng = Rng::new(0x2545_F491_4F6C_DD1D, n as u64);
     let draws = n.div_ceil(2).max(200);
     let dirs: Vec<Vec3> = (0..draws)
         .filter_map(|_| (points[rng.below(n)] - points[rng.below(n)]).try_normalize(1e-9).map(canonical))
@@ -192,7 +187,7 @@ mod tests {
 
     /// Points along a line with a deterministic scatter and a share of gross outliers.
     fn group(a: Vec3, b: Vec3, n: usize, scatter: f64, outliers: usize) -> Vec<Vec3> {
-        let mut rng = Lcg(7);
+        let mut rng = Rng::new(7, 0);
         let mut pts: Vec<Vec3> = (0..n)
             .map(|k| {
                 let t = k as f64 / (n - 1) as f64;

@@ -1,5 +1,6 @@
 //! Wall planes: the approximate building model the matching searches around (`site.toml`), or a plane fitted to
 //! tie points when there is none.
+use lineflow_photogrammetry::ransac::{best_of_samples, Sampling};
 use lineflow_photogrammetry::{point_in_polygon, Vec3};
 
 /// A planar wall polygon with its outward normal and an in-plane frame (u horizontal, w up).
@@ -124,24 +125,17 @@ pub fn fit_wall(points: &[Vec3], viewpoint: &Vec3, tolerance: f64, min_inliers: 
     if points.len() < 3 || points.len() < min_inliers {
         return None;
     }
-    // Deterministic sampling: a fixed linear congruential sequence.
-    let mut state = 0x9E37_79B9_7F4A_7C15u64;
-    let mut next = |n: usize| {
-        state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-        ((state >> 33) % n as u64) as usize
+    let on_plane = |(n, a): &(Vec3, Vec3)| points.iter().filter(|p| n.dot(&(*p - a)).abs() <= tolerance).count();
+    let through = |s: &[usize]| {
+        let (a, b, c) = (points[s[0]], points[s[1]], points[s[2]]);
+        (b - a).cross(&(c - a)).try_normalize(1e-9).map(|n| (n, a))
     };
-    let mut best: Option<(usize, Vec3, Vec3)> = None;
-    for _ in 0..500 {
-        let (a, b, c) = (points[next(points.len())], points[next(points.len())], points[next(points.len())]);
-        let Some(n) = (b - a).cross(&(c - a)).try_normalize(1e-9) else {
-            continue;
-        };
-        let count = points.iter().filter(|p| n.dot(&(*p - a)).abs() <= tolerance).count();
-        if best.as_ref().is_none_or(|(k, _, _)| count > *k) {
-            best = Some((count, n, a));
-        }
-    }
-    let (count, n, a) = best?;
+    let sampling = Sampling {
+        iterations: 500,
+        adaptive: false,
+        seed: 0x9E37_79B9_7F4A_7C15,
+    };
+    let ((n, a), count) = best_of_samples(points.len(), 3, sampling, through, on_plane)?;
     if count < min_inliers {
         return None;
     }

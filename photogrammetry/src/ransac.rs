@@ -1,0 +1,100 @@
+//! The workspace's one RANSAC: the largest consensus among random minimal samples drawn from the seeded
+//! [`Rng`](crate::random::Rng), so that the same inputs give the same inliers on every run and thread schedule.
+//! What a model is, how it is fitted to a sample and how it scores are the caller's; the sampling, the
+//! bookkeeping and the adaptive stop are here.
+use crate::random::Rng;
+
+/// How many samples to draw and when to stop.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Sampling {
+    /// Samples at most.
+    pub iterations: usize,
+    /// Stop once another better sample is unlikely (probability 0.999, from the best inlier ratio) and the best
+    /// consensus holds more than half of the data.
+    pub adaptive: bool,
+    /// Seed of the generator.
+    pub seed: u64,
+}
+
+/// The best model among the samples of `size` distinct indices of `0..n`: `fit` makes a model of a sample
+/// (`None` for a degenerate one), `score` counts its consensus (higher is better; ties keep the earlier). `None`
+/// when `n < size` or every sample was degenerate.
+pub fn best_of_samples<M>(
+    n: usize,
+    size: usize,
+    sampling: Sampling,
+    mut fit: impl FnMut(&[usize]) -> Option<M>,
+    mut score: impl FnMut(&M) -> usize,
+) -> Option<(M, usize)> {
+    if n < size || size == 0 {
+        return None;
+    }
+    let mut rng = Rng::new(sampling.seed, size as u64);
+    let mut best: Option<(M, usize)> = None;
+    let mut pick = Vec::with_capacity(size);
+    for _ in 0..sampling.iterations {
+        pick.clear();
+        while pick.len() < size {
+            let c = rng.below(n);
+            if !pick.contains(&c) {
+                pick.push(c);
+            }
+        }
+        let Some(model) = fit(&pick) else { continue };
+        let count = score(&model);
+        if best.as_ref().is_none_or(|(_, k)| count > *k) {
+            best = Some((model, count));
+            if sampling.adaptive && unlikely_to_improve(count, n, size, sampling.iterations) {
+                break;
+            }
+        }
+    }
+    best
+}
+
+/// Whether a consensus of `count` among `n` makes a better sample of `size` unlikely within `iterations`.
+fn unlikely_to_improve(count: usize, n: usize, size: usize, iterations: usize) -> bool {
+    let w = count as f64 / n as f64;
+    let needed = (0.001f64).ln() / (1.0 - w.powi(size as i32)).max(1e-12).ln();
+    needed.is_finite() && (needed as usize) < iterations && count > n / 2
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Points on y = 2x + 1 and gross outliers: the line through two samples, scored by points within 0.01.
+    #[test]
+    fn the_line_through_the_inliers_wins_and_the_run_repeats() {
+        let mut points: Vec<[f64; 2]> = (0..60).map(|i| [i as f64, 2.0 * i as f64 + 1.0]).collect();
+        points.extend((0..40).map(|i| [i as f64 * 0.7, (i * 37 % 11) as f64 * 9.0 - 50.0]));
+        let fit = |s: &[usize]| {
+            let (a, b) = (points[s[0]], points[s[1]]);
+            ((b[0] - a[0]).abs() > 1e-9).then(|| {
+                let slope = (b[1] - a[1]) / (b[0] - a[0]);
+                (slope, a[1] - slope * a[0])
+            })
+        };
+        let score = |m: &(f64, f64)| points.iter().filter(|p| (p[1] - m.0 * p[0] - m.1).abs() < 0.01).count();
+        let sampling = Sampling {
+            iterations: 200,
+            adaptive: true,
+            seed: 3,
+        };
+        let (line, count) = best_of_samples(points.len(), 2, sampling, fit, score).unwrap();
+        assert!((line.0 - 2.0).abs() < 1e-9 && (line.1 - 1.0).abs() < 1e-9, "{line:?}");
+        assert!(count >= 60);
+        assert_eq!(best_of_samples(points.len(), 2, sampling, fit, score).unwrap().1, count);
+    }
+
+    #[test]
+    fn too_few_data_or_only_degenerate_samples_give_nothing() {
+        let sampling = Sampling {
+            iterations: 10,
+            adaptive: false,
+            seed: 1,
+        };
+        assert!(best_of_samples(1, 2, sampling, |_| Some(()), |_| 1).is_none());
+        assert!(best_of_samples::<()>(5, 2, sampling, |_| None, |_| 1).is_none());
+    }
+}
