@@ -2,9 +2,12 @@
 //! sample draws the same numbers whatever the thread schedule, and a run repeats byte for byte. The synthetic
 //! scenes, the benchmarks' noise and new samplers draw from here; do not add another generator.
 
+/// SplitMix64's increment (2⁶⁴ / φ).
+const GOLDEN_GAMMA: u64 = 0x9E37_79B9_7F4A_7C15;
+
 /// SplitMix64 finaliser: a well-mixed 64-bit hash of a 64-bit input.
 pub fn mix64(mut z: u64) -> u64 {
-    z = z.wrapping_add(0x9E37_79B9_7F4A_7C15);
+    z = z.wrapping_add(GOLDEN_GAMMA);
     z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
     z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
     z ^ (z >> 31)
@@ -29,9 +32,15 @@ impl Rng {
     pub fn new(seed: u64, stream: u64) -> Self {
         Rng(hash(&[seed, stream]))
     }
+    /// A generator that continues a SplitMix64 stream from its raw state: the first draw is `mix64(state + γ)`.
+    /// For sequences fixed before this module existed (ORB's comparison pattern, seed 004's start perturbations),
+    /// which must not change; new code takes [`Rng::new`].
+    pub fn from_state(state: u64) -> Self {
+        Rng(state.wrapping_sub(GOLDEN_GAMMA))
+    }
     /// Next 64 random bits.
     pub fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        self.0 = self.0.wrapping_add(GOLDEN_GAMMA);
         mix64(self.0)
     }
     /// Uniform in `0..n` (0 when `n` is 0). The modulo bias is below 2⁻³² for any `n` a sample draws from.
@@ -67,6 +76,23 @@ mod tests {
         };
         assert_eq!(draw(1), draw(1));
         assert_ne!(draw(1), draw(2));
+    }
+
+    #[test]
+    fn from_state_continues_a_raw_splitmix_stream() {
+        // The textbook SplitMix64: add γ, then finalise.
+        let mut state = 0x6C69_6E65_666C_6F77u64;
+        let mut textbook = || {
+            state = state.wrapping_add(GOLDEN_GAMMA);
+            let mut z = state;
+            z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+            z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+            z ^ (z >> 31)
+        };
+        let mut r = Rng::from_state(0x6C69_6E65_666C_6F77);
+        for _ in 0..5 {
+            assert_eq!(r.next_u64(), textbook());
+        }
     }
 
     #[test]

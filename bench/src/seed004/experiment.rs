@@ -135,20 +135,12 @@ pub fn succeeded(scene: &BuildingScene, photos: &[(Camera, Pose)], f: &Fit) -> b
     close && good == visible
 }
 
-fn uniform(state: &mut u64) -> f64 {
-    *state = state.wrapping_add(0x9e37_79b9_7f4a_7c15);
-    let mut z = *state;
-    z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-    ((z ^ (z >> 31)) >> 11) as f64 / (1u64 << 53) as f64
-}
-
 /// A start perturbed uniformly by up to ±`metres` in dX, dY, dZ, L, W, h and ±`degrees` in θ.
 pub fn perturbed(truth: &[f64; 7], metres: f64, degrees: f64, seed: u64) -> Vec<f64> {
-    let mut s = seed;
+    let mut rng = lineflow_photogrammetry::random::Rng::from_state(seed);
     (0..7)
         .map(|k| {
-            let r = 2.0 * uniform(&mut s) - 1.0;
+            let r = 2.0 * lineflow_photogrammetry::random::unit(rng.next_u64()) - 1.0;
             truth[k] + r * if k == box_param::THETA { degrees.to_radians() } else { metres }
         })
         .collect()

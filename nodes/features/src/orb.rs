@@ -257,14 +257,8 @@ fn orientation(level: &Level, x: i32, y: i32) -> f32 {
 /// The 256 comparison pairs: points of an isotropic Gaussian (σ = 31 / 5) inside the patch's circle, from a fixed
 /// generator (SplitMix64 and Box–Muller) so that every run and every machine compares the same pixels.
 fn pattern() -> [[(f32, f32); 2]; 256] {
-    let mut state = 0x6C69_6E65_666C_6F77u64;
-    let mut next = move || {
-        state = state.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = state;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        ((z ^ (z >> 31)) >> 11) as f64 / (1u64 << 53) as f64
-    };
+    let mut rng = lineflow_photogrammetry::random::Rng::from_state(0x6C69_6E65_666C_6F77);
+    let mut next = move || lineflow_photogrammetry::random::unit(rng.next_u64());
     let sigma = 31.0 / 5.0;
     let limit = (PATCH_RADIUS as f64 - 1.0).powi(2);
     let mut point = || loop {
