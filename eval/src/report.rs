@@ -43,6 +43,17 @@ pub fn write(truth: &Truth, results: &Path, eval: &Evaluation, out: &Path) -> Re
         truth.gsd_m() * 1000.0
     );
 
+    orientation_section(&mut md, eval);
+    lines2d_section(&mut md, eval);
+    lines3d_section(&mut md, eval, out)?;
+    model_section(&mut md, eval);
+    let path = out.join("report.md");
+    std::fs::write(&path, md).with_context(|| format!("cannot write {}", path.display()))?;
+    Ok(path)
+}
+
+/// Poses against the truth, and the check points.
+fn orientation_section(md: &mut String, eval: &Evaluation) {
     let _ = writeln!(md, "## Orientation\n");
     match &eval.orientation {
         None => {
@@ -76,7 +87,10 @@ pub fn write(truth: &Truth, results: &Path, eval: &Evaluation, out: &Path) -> Re
             let _ = writeln!(md, "σ0 is not part of the result files; the orientation stage's log reports it.\n");
         }
     }
+}
 
+/// The 2-D segments per image.
+fn lines2d_section(md: &mut String, eval: &Evaluation) {
     let _ = writeln!(md, "## 2-D lines (tolerance 1.5 px and 5°, corrected coordinates)\n");
     match &eval.lines2d {
         None => {
@@ -107,7 +121,10 @@ pub fn write(truth: &Truth, results: &Path, eval: &Evaluation, out: &Path) -> Re
             md.push('\n');
         }
     }
+}
 
+/// The 3-D lines: the thesis's tables, each class's figures, and the plots written beside the report.
+fn lines3d_section(md: &mut String, eval: &Evaluation, out: &Path) -> Result<()> {
     let _ = writeln!(md, "## 3-D lines\n");
     match &eval.lines3d {
         None => {
@@ -184,6 +201,11 @@ pub fn write(truth: &Truth, results: &Path, eval: &Evaluation, out: &Path) -> Re
             );
         }
     }
+    Ok(())
+}
+
+/// The models' vertices and edges, hidden edges and openings.
+fn model_section(md: &mut String, eval: &Evaluation) {
     let _ = writeln!(md, "## Model\n");
     let models = [
         ("CSR (`model.obj`)", &eval.model),
@@ -235,7 +257,4 @@ pub fn write(truth: &Truth, results: &Path, eval: &Evaluation, out: &Path) -> Re
             o.model_openings
         );
     }
-    let path = out.join("report.md");
-    std::fs::write(&path, md).with_context(|| format!("cannot write {}", path.display()))?;
-    Ok(path)
 }

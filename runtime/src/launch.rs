@@ -312,7 +312,7 @@ pub fn load(path: &Path, overrides: &[String], resolver: &Resolver) -> Result<Gr
 /// # Errors
 /// A [`LaunchError`] naming the file and the entry at fault.
 pub fn parse(path: &Path, text: &str, overrides: &[String], resolver: &Resolver) -> Result<Graph, LaunchError> {
-    let invalid = |entry: String, message: String| LaunchError::Invalid {
+    let invalid = |(entry, message): Invalid| LaunchError::Invalid {
         path: path.to_owned(),
         entry,
         message,
@@ -322,187 +322,45 @@ pub fn parse(path: &Path, text: &str, overrides: &[String], resolver: &Resolver)
         message: e.to_string().trim().replace('\n', " "),
     })?;
     let base = path.parent().unwrap_or(Path::new(".")).to_path_buf();
-
     for item in overrides {
-        apply_override(&mut file, item).map_err(|m| invalid(format!("--set {item}"), m))?;
+        apply_override(&mut file, item).map_err(|m| invalid((format!("--set {item}"), m)))?;
     }
-
-    let mut names = BTreeSet::new();
-    for n in &file.node {
-        if n.name.is_empty() || !n.name.chars().all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-') {
-            return Err(invalid(
-                format!("node '{}'", n.name),
-                "a node name is non-empty ASCII letters, digits, '_' or '-'".into(),
-            ));
-        }
-        if !names.insert(n.name.clone()) {
-            return Err(invalid(format!("node '{}'", n.name), "duplicate node name".into()));
-        }
-    }
-    if file.node.is_empty() {
-        return Err(invalid("graph".into(), "no [[node]] entries".into()));
-    }
-
+    let names = node_names(&file).map_err(invalid)?;
     let mut nodes = Vec::new();
     for (index, n) in file.node.iter().enumerate() {
-        let entry = format!("node '{}'", n.name);
-        let command = match (&n.stage, &n.executable) {
-            (Some(stage), None) => {
-                let exe = resolver.stage(stage).map_err(|m| invalid(entry.clone(), m))?;
-                std::iter::once(exe).chain(n.args.iter().cloned()).collect()
-            }
-            (None, Some(exe)) => {
-                let found = find_executable(exe, &base).ok_or_else(|| {
-                    invalid(
-                        entry.clone(),
-                        format!(
-                            "executable '{exe}' does not exist (relative paths are taken from {})",
-                            base.display()
-                        ),
-                    )
-                })?;
-                std::iter::once(found).chain(n.args.iter().cloned()).collect()
-            }
-            _ => return Err(invalid(entry, "give exactly one of `stage` or `executable`".into())),
-        };
-        let mut params = serde_json::Map::new();
-        for (k, v) in &n.params {
-            params.insert(
-                k.clone(),
-                serde_json::to_value(v).map_err(|e| invalid(entry.clone(), format!("param '{k}': {e}")))?,
-            );
-        }
-        if let Some(i) = &n.implementation {
-            params.insert("impl".into(), serde_json::Value::String(i.clone()));
-        }
-        nodes.push(NodeSpec {
-            name: n.name.clone(),
-            index: index as u32,
-            stage: n.stage.clone(),
-            implementation: n.implementation.clone(),
-            command,
-            params,
-            restart: n.restart,
-            max_restarts: n.max_restarts,
-            backoff_ms: n.backoff_ms,
-            remap: n.remap.clone(),
-        });
+        nodes.push(node_spec(index, n, &base, resolver).map_err(invalid)?);
     }
-
     let mut record = file.record.clone();
     let enabled = match record.remove("enabled") {
         None => true,
         Some(toml::Value::Boolean(b)) => b,
-        Some(v) => return Err(invalid("[record]".into(), format!("`enabled` must be true or false, got {v}"))),
+        Some(v) => return Err(invalid(("[record]".into(), format!("`enabled` must be true or false, got {v}")))),
     };
     let camera_bytes = default_image_bytes(&file, &base);
     let mut edges: Vec<EdgeSpec> = Vec::new();
     let mut topics = BTreeSet::new();
     for e in &file.edge {
-        let entry = format!("edge '{}'", e.topic);
-        if e.topic.is_empty() || !e.topic.is_ascii() || e.topic.starts_with("lineflow/") || e.topic.len() > 200 {
-            return Err(invalid(
-                entry,
-                "a topic is 1-200 ASCII characters and does not start with 'lineflow/'".into(),
-            ));
-        }
         if !topics.insert(e.topic.clone()) {
-            return Err(invalid(entry, "duplicate topic: each topic has one edge with one publisher".into()));
+            let entry = format!("edge '{}'", e.topic);
+            return Err(invalid((
+                entry,
+                "duplicate topic: each topic has one edge with one publisher".into(),
+            )));
         }
-        let kind = MessageKind::from_name(&e.message).ok_or_else(|| {
-            let known: Vec<_> = MessageKind::ALL.iter().map(|k| k.name()).collect();
-            invalid(
-                entry.clone(),
-                format!("unknown message type '{}' (known: {})", e.message, known.join(", ")),
-            )
-        })?;
-        if !names.contains(&e.from) {
-            return Err(invalid(entry, format!("publisher '{}' is not a node", e.from)));
-        }
-        // With the recorder on, a topic may be recorded only.
-        if e.to.is_empty() && !enabled {
-            return Err(invalid(entry, "no subscribers (`to` is empty) and the recorder is off".into()));
-        }
-        for t in &e.to {
-            if !names.contains(t) {
-                return Err(invalid(entry, format!("subscriber '{t}' is not a node")));
-            }
-            if t == &e.from {
-                return Err(invalid(entry, format!("node '{t}' subscribes to its own output")));
-            }
-        }
-        if e.topic.starts_with("gt/") {
-            if let Some(t) =
-                e.to.iter()
-                    .find(|t| nodes.iter().any(|n| &n.name == *t && n.stage.as_deref() != Some("eval")))
-            {
-                return Err(invalid(
-                    entry,
-                    format!("node '{t}' subscribes to ground truth; only `eval` may read gt/* topics"),
-                ));
-            }
-        }
-        let depth = e.depth.unwrap_or(4);
-        let history = e.history.unwrap_or(if kind.latched() { 1 } else { 0 });
-        if !(1..=1024).contains(&depth) {
-            return Err(invalid(entry, format!("depth must be in 1..=1024, got {depth}")));
-        }
-        if history > 1024 {
-            return Err(invalid(entry, format!("history must be in 0..=1024, got {history}")));
-        }
-        let max_payload_bytes = match (e.max_payload_bytes, kind) {
-            (Some(b), _) => b,
-            // 0: the producer declares the size through --describe (see `resolve_payloads`).
-            (None, MessageKind::Image) => camera_bytes.clone().map_err(|m| invalid(entry.clone(), m))?.unwrap_or(0),
-            (None, _) => 1 << 20,
-        };
-        edges.push(EdgeSpec {
-            topic: e.topic.clone(),
-            message: kind.name().into(),
-            from: e.from.clone(),
-            to: e.to.clone(),
-            policy: e.policy,
-            max_payload_bytes,
-            depth: depth.max(history),
-            history,
-            timeout_ms: e.timeout_ms.unwrap_or(DEFAULT_TIMEOUT_MS),
-        });
+        edges.push(edge_spec(e, &names, &nodes, enabled, &camera_bytes).map_err(invalid)?);
     }
-
     if enabled {
         if names.contains(RECORDER) {
-            return Err(invalid(
+            return Err(invalid((
                 format!("node '{RECORDER}'"),
                 format!("the name '{RECORDER}' is reserved for the recorder; rename the node or set [record] enabled = false"),
-            ));
+            )));
         }
-        let command = vec![resolver.stage(RECORDER_STAGE).map_err(|m| invalid("[record]".into(), m))?];
-        let params = record
-            .iter()
-            .map(|(k, v)| {
-                Ok((
-                    k.clone(),
-                    serde_json::to_value(v).map_err(|e| invalid("[record]".into(), format!("{k}: {e}")))?,
-                ))
-            })
-            .collect::<Result<_, LaunchError>>()?;
-        nodes.push(NodeSpec {
-            name: RECORDER.into(),
-            index: nodes.len() as u32,
-            stage: Some(RECORDER_STAGE.into()),
-            implementation: None,
-            command,
-            params,
-            restart: RestartPolicy::Never,
-            max_restarts: 0,
-            backoff_ms: 0,
-            remap: BTreeMap::new(),
-        });
+        nodes.push(recorder_spec(&record, nodes.len(), resolver).map_err(invalid)?);
         for e in &mut edges {
             e.to.push(RECORDER.into());
         }
     }
-
     Ok(Graph {
         name: file
             .graph
@@ -515,6 +373,158 @@ pub fn parse(path: &Path, text: &str, overrides: &[String], resolver: &Resolver)
         nodes,
         edges,
         replaced: Vec::new(),
+    })
+}
+
+/// An entry of the launch file (`node 'x'`, `edge 't'`, `[record]`) and what is wrong with it.
+type Invalid = (String, String);
+
+/// The node names, checked: well-formed, unique, at least one.
+fn node_names(file: &LaunchFile) -> Result<BTreeSet<String>, Invalid> {
+    let mut names = BTreeSet::new();
+    for n in &file.node {
+        let entry = format!("node '{}'", n.name);
+        if n.name.is_empty() || !n.name.chars().all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-') {
+            return Err((entry, "a node name is non-empty ASCII letters, digits, '_' or '-'".into()));
+        }
+        if !names.insert(n.name.clone()) {
+            return Err((entry, "duplicate node name".into()));
+        }
+    }
+    if file.node.is_empty() {
+        return Err(("graph".into(), "no [[node]] entries".into()));
+    }
+    Ok(names)
+}
+
+/// A `[[node]]` entry as the supervisor runs it: its command (the stage's binary or an executable found from the
+/// launch file's folder) and its parameters with `impl`.
+fn node_spec(index: usize, n: &NodeEntry, base: &Path, resolver: &Resolver) -> Result<NodeSpec, Invalid> {
+    let entry = format!("node '{}'", n.name);
+    let command = match (&n.stage, &n.executable) {
+        (Some(stage), None) => {
+            let exe = resolver.stage(stage).map_err(|m| (entry.clone(), m))?;
+            std::iter::once(exe).chain(n.args.iter().cloned()).collect()
+        }
+        (None, Some(exe)) => {
+            let found = find_executable(exe, base).ok_or_else(|| {
+                let where_ = base.display();
+                (
+                    entry.clone(),
+                    format!("executable '{exe}' does not exist (relative paths are taken from {where_})"),
+                )
+            })?;
+            std::iter::once(found).chain(n.args.iter().cloned()).collect()
+        }
+        _ => return Err((entry, "give exactly one of `stage` or `executable`".into())),
+    };
+    let mut params = serde_json::Map::new();
+    for (k, v) in &n.params {
+        let value = serde_json::to_value(v).map_err(|e| (entry.clone(), format!("param '{k}': {e}")))?;
+        params.insert(k.clone(), value);
+    }
+    if let Some(i) = &n.implementation {
+        params.insert("impl".into(), serde_json::Value::String(i.clone()));
+    }
+    Ok(NodeSpec {
+        name: n.name.clone(),
+        index: index as u32,
+        stage: n.stage.clone(),
+        implementation: n.implementation.clone(),
+        command,
+        params,
+        restart: n.restart,
+        max_restarts: n.max_restarts,
+        backoff_ms: n.backoff_ms,
+        remap: n.remap.clone(),
+    })
+}
+
+/// An `[[edge]]` entry, checked against the nodes (`names`; `nodes` for the `gt/*` rule): topic, message type,
+/// publisher and subscribers, queue sizes, and the payload bound (images from the camera, `camera_bytes`).
+fn edge_spec(
+    e: &EdgeEntry,
+    names: &BTreeSet<String>,
+    nodes: &[NodeSpec],
+    recording: bool,
+    camera_bytes: &Result<Option<u64>, String>,
+) -> Result<EdgeSpec, Invalid> {
+    let entry = format!("edge '{}'", e.topic);
+    let fail = |message: String| Err((entry.clone(), message));
+    if e.topic.is_empty() || !e.topic.is_ascii() || e.topic.starts_with("lineflow/") || e.topic.len() > 200 {
+        return fail("a topic is 1-200 ASCII characters and does not start with 'lineflow/'".into());
+    }
+    let Some(kind) = MessageKind::from_name(&e.message) else {
+        let known: Vec<_> = MessageKind::ALL.iter().map(|k| k.name()).collect();
+        return fail(format!("unknown message type '{}' (known: {})", e.message, known.join(", ")));
+    };
+    if !names.contains(&e.from) {
+        return fail(format!("publisher '{}' is not a node", e.from));
+    }
+    // With the recorder on, a topic may be recorded only.
+    if e.to.is_empty() && !recording {
+        return fail("no subscribers (`to` is empty) and the recorder is off".into());
+    }
+    for t in &e.to {
+        if !names.contains(t) {
+            return fail(format!("subscriber '{t}' is not a node"));
+        }
+        if t == &e.from {
+            return fail(format!("node '{t}' subscribes to its own output"));
+        }
+    }
+    if e.topic.starts_with("gt/") {
+        let reader = |t: &&String| nodes.iter().any(|n| &n.name == *t && n.stage.as_deref() != Some("eval"));
+        if let Some(t) = e.to.iter().find(reader) {
+            return fail(format!("node '{t}' subscribes to ground truth; only `eval` may read gt/* topics"));
+        }
+    }
+    let depth = e.depth.unwrap_or(4);
+    let history = e.history.unwrap_or(if kind.latched() { 1 } else { 0 });
+    if !(1..=1024).contains(&depth) {
+        return fail(format!("depth must be in 1..=1024, got {depth}"));
+    }
+    if history > 1024 {
+        return fail(format!("history must be in 0..=1024, got {history}"));
+    }
+    let max_payload_bytes = match (e.max_payload_bytes, kind) {
+        (Some(b), _) => b,
+        // 0: the producer declares the size through --describe (see `resolve_payloads`).
+        (None, MessageKind::Image) => camera_bytes.clone().map_err(|m| (entry.clone(), m))?.unwrap_or(0),
+        (None, _) => 1 << 20,
+    };
+    Ok(EdgeSpec {
+        topic: e.topic.clone(),
+        message: kind.name().into(),
+        from: e.from.clone(),
+        to: e.to.clone(),
+        policy: e.policy,
+        max_payload_bytes,
+        depth: depth.max(history),
+        history,
+        timeout_ms: e.timeout_ms.unwrap_or(DEFAULT_TIMEOUT_MS),
+    })
+}
+
+/// The recorder the loader adds to a graph, with the `[record]` table (less `enabled`) as its parameters.
+fn recorder_spec(record: &toml::Table, index: usize, resolver: &Resolver) -> Result<NodeSpec, Invalid> {
+    let command = vec![resolver.stage(RECORDER_STAGE).map_err(|m| ("[record]".to_owned(), m))?];
+    let mut params = serde_json::Map::new();
+    for (k, v) in record {
+        let value = serde_json::to_value(v).map_err(|e| ("[record]".to_owned(), format!("{k}: {e}")))?;
+        params.insert(k.clone(), value);
+    }
+    Ok(NodeSpec {
+        name: RECORDER.into(),
+        index: index as u32,
+        stage: Some(RECORDER_STAGE.into()),
+        implementation: None,
+        command,
+        params,
+        restart: RestartPolicy::Never,
+        max_restarts: 0,
+        backoff_ms: 0,
+        remap: BTreeMap::new(),
     })
 }
 

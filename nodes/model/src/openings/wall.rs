@@ -1,0 +1,134 @@
+//! A wall's own coordinates (along, up, behind), outlines for containment, rectangles in those coordinates,
+//! and the corners of an opening placed back along the line of sight.
+use super::*;
+
+/// A wall plane with coordinates along it (`x`), up (`z`) and behind it (`depth`, along −`out`).
+pub(super) struct Wall {
+    pub(super) plane: Plane,
+    /// Outward unit normal (towards the cameras).
+    pub(super) out: Vec3,
+    /// Horizontal unit vector in the wall.
+    pub(super) across: Vec3,
+}
+
+impl Wall {
+    /// The plane as a wall seen from `viewpoint`; none when the viewpoint lies in it.
+    pub(super) fn facing(plane: Plane, viewpoint: &Vec3) -> Option<Wall> {
+        let side = plane.normal.dot(viewpoint) - plane.offset;
+        if side.abs() < 1e-9 {
+            return None;
+        }
+        let out = plane.normal * side.signum();
+        let across = Vec3::z().cross(&out).try_normalize(1e-9)?;
+        Some(Wall { plane, out, across })
+    }
+
+    /// How far behind the wall `p` lies (negative in front).
+    pub(super) fn depth(&self, p: &Vec3) -> f64 {
+        (self.plane.offset - self.plane.normal.dot(p)) / self.plane.normal.dot(&self.out)
+    }
+
+    /// The point of the wall plane at `x` along it and height `z`.
+    pub(super) fn point(&self, x: f64, z: f64, near: &Vec3) -> Vec3 {
+        let base = near - self.across * near.dot(&self.across);
+        let p = Vec3::new(base.x, base.y, z) + self.across * x;
+        p + self.out * self.depth(&p)
+    }
+}
+
+/// A wall with the observed edges behind it and on it gathered into sides.
+pub(super) struct WallView {
+    pub(super) wall: Wall,
+    pub(super) standing: Vec<Side>,
+    pub(super) lying: Vec<Side>,
+    /// The standing and lying sides on the wall itself: an opening's own edges.
+    pub(super) standing_on_wall: Vec<Side>,
+    pub(super) lying_on_wall: Vec<Side>,
+}
+
+/// A ring flattened in its plane, for containment tests.
+#[derive(Clone)]
+pub(super) struct Outline {
+    pub(super) normal: Vec3,
+    pub(super) centroid: Vec3,
+    pub(super) basis: (Vec3, Vec3),
+    pub(super) polygon: Vec<[f64; 2]>,
+    pub(super) area: f64,
+}
+
+impl Outline {
+    pub(super) fn of(points: &[Vec3], normal: Vec3) -> Outline {
+        let basis = plane_basis(normal);
+        let polygon: Vec<[f64; 2]> = points.iter().map(|p| [p.dot(&basis.0), p.dot(&basis.1)]).collect();
+        Outline {
+            normal,
+            centroid: points.iter().sum::<Vec3>() / points.len().max(1) as f64,
+            basis,
+            area: signed_area(&polygon).abs(),
+            polygon,
+        }
+    }
+
+    /// Whether `p`, moved along the normal into the ring's plane, lies inside it.
+    pub(super) fn contains(&self, p: &Vec3) -> bool {
+        point_in_polygon([p.dot(&self.basis.0), p.dot(&self.basis.1)], &self.polygon)
+    }
+}
+
+/// A rectangle in a wall's coordinates: `bounds` [x0, x1, z0, z1], and which of those four sides lie on the wall
+/// itself (the opening's own edge, seen where the frame's edge behind it is hidden) rather than behind it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(super) struct Rect {
+    pub(super) bounds: [f64; 4],
+    pub(super) on_wall: [bool; 4],
+}
+
+impl Rect {
+    pub(super) fn behind(bounds: [f64; 4]) -> Rect {
+        Rect {
+            bounds,
+            on_wall: [false; 4],
+        }
+    }
+}
+
+/// Which sides of the rectangle `[x0, x1, z0, z1]` behind `wall` no camera saw the frame's outer edge of, as
+/// [left, right, foot, top]: a camera sees a recessed frame's left outer edge only from the right of it (the
+/// reveal hides it from the left), its foot only from above it, and so on.
+pub(super) fn hidden_sides(wall: &Wall, [x0, x1, z0, z1]: [f64; 4], centres: &[Vec3]) -> [bool; 4] {
+    let all = |seen_from: &dyn Fn(f64, f64) -> bool| !centres.is_empty() && centres.iter().all(|c| seen_from(c.dot(&wall.across), c.z));
+    [all(&|x, _| x < x0), all(&|x, _| x > x1), all(&|_, z| z < z0), all(&|_, z| z > z1)]
+}
+
+/// The corners on the wall plane of the opening through which the rectangle `rect`, `depth` behind the wall, is
+/// seen from the cameras at `centres`. A foot behind the wall that every camera sees from below is where the line
+/// of sight over the opening's foot meets the frame: it is moved back along the line of sight of the camera that
+/// sees most of it, the highest; a top that every camera sees from above, likewise.
+pub(super) fn opening_corners(wall: &Wall, rect: Rect, depth: f64, centres: &[Vec3], sigma: Option<Vec3>, near: &Vec3) -> Vec<Vertex> {
+    let [x0, x1, mut z0, mut z1] = rect.bounds;
+    let hidden = hidden_sides(wall, rect.bounds, centres);
+    // A height z on the wall is seen at the recessed depth at cz + (z − cz)·(D + depth)/D, D the wall's distance.
+    let seen_on_wall = |z: f64, camera: &Vec3| {
+        let distance = -wall.depth(camera);
+        if distance > 0.0 {
+            camera.z + (z - camera.z) * distance / (distance + depth)
+        } else {
+            z
+        }
+    };
+    let highest = centres.iter().max_by(|a, b| a.z.total_cmp(&b.z));
+    let lowest = centres.iter().min_by(|a, b| a.z.total_cmp(&b.z));
+    if let (true, false, Some(camera)) = (hidden[2], rect.on_wall[2], highest) {
+        z0 = seen_on_wall(z0, camera);
+    }
+    if let (true, false, Some(camera)) = (hidden[3], rect.on_wall[3], lowest) {
+        z1 = seen_on_wall(z1, camera);
+    }
+    [(x0, z0), (x1, z0), (x1, z1), (x0, z1)]
+        .iter()
+        .map(|&(x, z)| Vertex {
+            point: wall.point(x, z, near),
+            sigma,
+        })
+        .collect()
+}
