@@ -52,8 +52,7 @@ pub fn bench_linematch(preset: &str, scale: f64, reps: usize) -> Result<ExitCode
             let mut g = vec![0u8; w * h];
             lineflow_imaging::gray_into(Encoding::Rgb8, w, h, w * 3, &syn.render(f as usize), &mut g).map(|_| (f, g))
         })
-        .collect::<Result<_, String>>()
-        .map_err(anyhow::Error::msg)?;
+        .collect::<Result<_, lineflow_imaging::GrayError>>()?;
     // Every image's lines, as the shipped graph has them: the master's to match, the slaves' to refine depths.
     let traced: Vec<Vec<MeasuredSegment>> = grays
         .iter()

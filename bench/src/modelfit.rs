@@ -75,7 +75,7 @@ pub fn bench_modelfit(args: Args) -> Result<ExitCode> {
         .map(|f| {
             let rgb = truth.scene.render(f);
             let mut gray = vec![0u8; w * h];
-            lineflow_imaging::gray_into(Encoding::Rgb8, w, h, w * 3, &rgb, &mut gray).map_err(anyhow::Error::msg)?;
+            lineflow_imaging::gray_into(Encoding::Rgb8, w, h, w * 3, &rgb, &mut gray)?;
             let map = lineflow_edges::canny(&gray, w, h, 40.0, 100.0);
             let pixels = lineflow_edges::pixels(&gray, w, h, &map);
             eprint!(

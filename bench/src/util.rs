@@ -27,7 +27,7 @@ pub fn synthetic_gray(preset: &str, dir: &Path) -> Result<(Vec<u8>, usize, usize
     let (w, h) = (cam.width as usize, cam.height as usize);
     let rgb = syn.render(syn.poses().len() / 2);
     let mut gray = vec![0u8; w * h];
-    lineflow_imaging::gray_into(Encoding::Rgb8, w, h, w * 3, &rgb, &mut gray).map_err(anyhow::Error::msg)?;
+    lineflow_imaging::gray_into(Encoding::Rgb8, w, h, w * 3, &rgb, &mut gray)?;
     let png = dir.join("gray.png");
     image::save_buffer(&png, &gray, w as u32, h as u32, image::ExtendedColorType::L8)?;
     Ok((gray, w, h, png))

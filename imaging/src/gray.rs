@@ -2,23 +2,54 @@
 //! grey values computes from the `images` topic when it is wired to it directly.
 use lineflow_messages::{Encoding, ImageHeader};
 
+/// Why an image cannot be made grey.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum GrayError {
+    /// The header's encoding code is none of [`Encoding`].
+    #[error("unknown encoding {0}")]
+    UnknownEncoding(u32),
+    /// The payload or the output buffer does not match the size and step.
+    #[error("{encoding} image {width}x{height} with step {step}: payload has {have} bytes, need {need}")]
+    Size {
+        /// The encoding's name.
+        encoding: &'static str,
+        /// Columns.
+        width: usize,
+        /// Rows.
+        height: usize,
+        /// Bytes per row.
+        step: usize,
+        /// Payload bytes.
+        have: usize,
+        /// Bytes the size needs.
+        need: usize,
+    },
+    /// A received image's error, with its frame and name.
+    #[error("frame {frame} ({image}): {cause}")]
+    Frame {
+        /// The frame.
+        frame: u64,
+        /// The image's name.
+        image: String,
+        /// What is wrong.
+        cause: Box<GrayError>,
+    },
+}
+
 /// Writes the 8-bit grey version of a received image (`header` and its payload `src`) into `dst`
 /// (`width * height` bytes).
 ///
 /// # Errors
-/// An unknown encoding or a payload that does not match the header; the message names the frame and image.
-pub fn gray_of_image(header: &ImageHeader, src: &[u8], dst: &mut [u8]) -> Result<(), String> {
-    let why = |m: String| format!("frame {} ({}): {m}", header.stamp.frame, header.name());
-    let encoding = Encoding::from_u32(header.encoding).ok_or_else(|| why(format!("unknown encoding {}", header.encoding)))?;
-    gray_into(
-        encoding,
-        header.width as usize,
-        header.height as usize,
-        header.step as usize,
-        src,
-        dst,
-    )
-    .map_err(why)
+/// An unknown encoding or a payload that does not match the header, named with the frame and image.
+pub fn gray_of_image(header: &ImageHeader, src: &[u8], dst: &mut [u8]) -> Result<(), GrayError> {
+    let frame = |cause: GrayError| GrayError::Frame {
+        frame: header.stamp.frame,
+        image: header.name().to_owned(),
+        cause: Box::new(cause),
+    };
+    let encoding = Encoding::from_u32(header.encoding).ok_or_else(|| frame(GrayError::UnknownEncoding(header.encoding)))?;
+    let (width, height, step) = (header.width as usize, header.height as usize, header.step as usize);
+    gray_into(encoding, width, height, step, src, dst).map_err(frame)
 }
 
 /// Writes the 8-bit grey version of `src` (rows of `step` bytes in `encoding`) into `dst` (`width * height` bytes).
@@ -28,15 +59,17 @@ pub fn gray_of_image(header: &ImageHeader, src: &[u8], dst: &mut [u8]) -> Result
 ///
 /// # Errors
 /// When `src` is shorter than `step * height` or `dst` is not `width * height` long.
-pub fn gray_into(encoding: Encoding, width: usize, height: usize, step: usize, src: &[u8], dst: &mut [u8]) -> Result<(), String> {
+pub fn gray_into(encoding: Encoding, width: usize, height: usize, step: usize, src: &[u8], dst: &mut [u8]) -> Result<(), GrayError> {
     let bpp = encoding.bytes_per_pixel();
     if step < width * bpp || src.len() < step * height || dst.len() != width * height {
-        return Err(format!(
-            "{} image {width}x{height} with step {step}: payload has {} bytes, need {}",
-            encoding.name(),
-            src.len(),
-            step * height
-        ));
+        return Err(GrayError::Size {
+            encoding: encoding.name(),
+            width,
+            height,
+            step,
+            have: src.len(),
+            need: step * height,
+        });
     }
     let hi = |p: &[u8], i: usize| u16::from_ne_bytes([p[2 * i], p[2 * i + 1]]) >> 8;
     for (row, out) in dst.chunks_exact_mut(width.max(1)).enumerate().take(height) {

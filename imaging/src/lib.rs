@@ -9,6 +9,6 @@ pub mod receive;
 pub mod subpixel;
 
 pub use gradient::{gradient, gradient_at, gradient_row, Gradient};
-pub use gray::{gray_into, gray_of_image};
+pub use gray::{gray_into, gray_of_image, GrayError};
 pub use receive::for_each_gray;
 pub use subpixel::subpixel_positions;

@@ -19,7 +19,7 @@ pub fn for_each_gray(
     while let Some(msg) = input.receive()? {
         let h = *msg.user_header();
         buffer.resize(h.width as usize * h.height as usize, 0);
-        gray_of_image(&h, msg.payload(), buffer).map_err(anyhow::Error::msg)?;
+        gray_of_image(&h, msg.payload(), buffer)?;
         drop(msg);
         f(&h, buffer)?;
     }

@@ -7,6 +7,7 @@
 //! renderings of the same messages and are marked with the channel metadata `lineflow.view = true`; they are never
 //! replayed into a graph. Metadata records: [`META_RUN`] (versions, the launch file, the resolved graph) at the start,
 //! [`META_END`] (completeness and every node's counters) at the end.
+#![warn(missing_docs)]
 pub mod replay;
 pub mod tools;
 pub mod views;

@@ -1,5 +1,6 @@
 //! The synthetic camera: a procedural building with known geometry, rendered through the camera model of
 //! `conventions.md`, with ground truth (poses, structural edges, targets) for every accuracy figure.
+#![warn(missing_docs)]
 mod bvh;
 pub mod geometry;
 mod presets;

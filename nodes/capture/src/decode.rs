@@ -1,5 +1,5 @@
 //! Decoding image files into message pixels: 8- and 16-bit, grey or RGB, EXIF orientation applied.
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use image::{DynamicImage, ImageDecoder, ImageReader};
 use lineflow_messages::Encoding;
@@ -17,17 +17,62 @@ pub struct DecodedImage {
     pub bytes: Vec<u8>,
 }
 
+/// Why an image file could not be decoded; each names the file.
+#[derive(Debug, thiserror::Error)]
+pub enum DecodeError {
+    /// The file cannot be opened or read.
+    #[error("{}: cannot {what}: {source}", path.display())]
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// "open" or "read".
+        what: &'static str,
+        /// The cause.
+        source: std::io::Error,
+    },
+    /// Not an image format the build decodes.
+    #[error("{}: not a supported image: {source}", path.display())]
+    Unsupported {
+        /// The file.
+        path: PathBuf,
+        /// The cause.
+        source: image::ImageError,
+    },
+    /// The pixels cannot be decoded.
+    #[error("{}: corrupt or truncated image: {source}", path.display())]
+    Corrupt {
+        /// The file.
+        path: PathBuf,
+        /// The cause.
+        source: image::ImageError,
+    },
+}
+
 /// Decodes `path`, applying its EXIF orientation. Alpha is dropped; grey stays grey.
 ///
 /// # Errors
-/// A message naming the file when it cannot be opened or is not a complete, supported image.
-pub fn decode_file(path: &Path) -> Result<DecodedImage, String> {
-    let name = path.display();
-    let reader = ImageReader::open(path).map_err(|e| format!("{name}: cannot open: {e}"))?;
-    let reader = reader.with_guessed_format().map_err(|e| format!("{name}: cannot read: {e}"))?;
-    let mut decoder = reader.into_decoder().map_err(|e| format!("{name}: not a supported image: {e}"))?;
+/// The file cannot be opened or is not a complete, supported image.
+pub fn decode_file(path: &Path) -> Result<DecodedImage, DecodeError> {
+    let io = |what| {
+        move |source| DecodeError::Io {
+            path: path.to_owned(),
+            what,
+            source,
+        }
+    };
+    let reader = ImageReader::open(path)
+        .map_err(io("open"))?
+        .with_guessed_format()
+        .map_err(io("read"))?;
+    let mut decoder = reader.into_decoder().map_err(|source| DecodeError::Unsupported {
+        path: path.to_owned(),
+        source,
+    })?;
     let orientation = decoder.orientation().unwrap_or(image::metadata::Orientation::NoTransforms);
-    let mut img = DynamicImage::from_decoder(decoder).map_err(|e| format!("{name}: corrupt or truncated image: {e}"))?;
+    let mut img = DynamicImage::from_decoder(decoder).map_err(|source| DecodeError::Corrupt {
+        path: path.to_owned(),
+        source,
+    })?;
     img.apply_orientation(orientation);
     Ok(from_dynamic(img))
 }
@@ -115,7 +160,8 @@ mod tests {
         std::fs::write(&p, &bytes[..bytes.len() / 2]).unwrap();
         assert!(!looks_complete(&bytes[..bytes.len() / 2]));
         let err = decode_file(&p).unwrap_err();
-        assert!(err.contains("t.png"), "{err}");
+        assert!(matches!(err, DecodeError::Corrupt { .. }), "{err}");
+        assert!(err.to_string().contains("t.png: corrupt or truncated image"), "{err}");
     }
 
     #[test]

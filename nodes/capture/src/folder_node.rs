@@ -31,7 +31,7 @@ pub fn run(ctx: NodeContext) -> Result<()> {
 
     let mut frame = 0u64;
     let mut publish = |path: &std::path::Path| -> Result<()> {
-        let img = decode_file(path).map_err(|e| anyhow::anyhow!(e))?;
+        let img = decode_file(path)?;
         if (img.width, img.height) != (project.camera.width, project.camera.height) {
             bail!(
                 "{}: image is {}x{} but camera.toml says {}x{}",

@@ -27,7 +27,7 @@ fn run(ctx: NodeContext) -> Result<()> {
             };
             let mut result = Ok(());
             output.publish_with(out, w * ht, |dst| result = lineflow_imaging::gray_of_image(&h, msg.payload(), dst))?;
-            result.map_err(anyhow::Error::msg)?;
+            result?;
         }
         Ok(if input.is_ended() { Flow::Stop } else { Flow::Continue })
     })?;

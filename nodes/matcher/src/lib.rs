@@ -8,6 +8,7 @@
 //! the partners already accepted (or the camera's steady motion) picks the true one. Scenes without a dominant
 //! plane are verified with the essential matrix instead. Verified matches join tracks; a track keeps its id for
 //! good.
+#![warn(missing_docs)]
 pub mod descriptors;
 pub mod lsm;
 pub mod stage;
@@ -130,8 +131,9 @@ pub struct FrameResult {
     pub partners: Vec<(u64, usize, usize)>,
     /// New observations, of this frame and of partners' keypoints that started tracks.
     pub observations: Vec<Observation>,
-    /// Observations refined by least-squares matching, and those dropped because their refinement failed.
+    /// Observations refined by least-squares matching.
     pub refined: usize,
+    /// Observations dropped because their refinement failed.
     pub unrefined: usize,
 }
 

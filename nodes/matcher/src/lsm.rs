@@ -12,8 +12,11 @@
 /// An 8-bit grey image, row-major.
 #[derive(Debug, Clone)]
 pub struct Gray {
+    /// Columns.
     pub width: usize,
+    /// Rows.
     pub height: usize,
+    /// `width × height` grey values.
     pub data: Vec<u8>,
 }
 

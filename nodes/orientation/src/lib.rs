@@ -9,6 +9,7 @@
 //! soon as three control points are intersected the block is moved into the control frame by a similarity and the
 //! control points join the adjustment with their a-priori standard deviations. At the end a full adjustment removes
 //! outliers and solves again, and the check points are intersected for `checkpoints.csv`.
+#![warn(missing_docs)]
 pub mod colmap;
 mod essential;
 pub mod results;
