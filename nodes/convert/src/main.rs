@@ -1,6 +1,7 @@
 //! `lineflow-convert`: pixel-format conversion (`impl = "gray"`). Stateless: one output per input frame.
 use anyhow::Result;
-use lineflow_messages::{image::ImageHeader, kinds::Image, Encoding};
+use lineflow_convert::{gray_header, gray_len};
+use lineflow_messages::kinds::Image;
 use lineflow_runtime::{Flow, NodeContext};
 
 /// `gray` takes no parameters; any given is a typo worth an error.
@@ -19,14 +20,10 @@ fn run(ctx: NodeContext) -> Result<()> {
     ctx.run(|| {
         while let Some(msg) = input.receive()? {
             let h = *msg.user_header();
-            let (w, ht) = (h.width as usize, h.height as usize);
-            let out = ImageHeader {
-                step: h.width,
-                encoding: Encoding::Mono8 as u32,
-                ..h
-            };
             let mut result = Ok(());
-            output.publish_with(out, w * ht, |dst| result = lineflow_imaging::gray_of_image(&h, msg.payload(), dst))?;
+            output.publish_with(gray_header(&h), gray_len(&h), |dst| {
+                result = lineflow_imaging::gray_of_image(&h, msg.payload(), dst)
+            })?;
             result?;
         }
         Ok(if input.is_ended() { Flow::Stop } else { Flow::Continue })

@@ -1,4 +1,4 @@
-//! The layout's rules, checked on the sources (docs/layout.md): `nodes/` holds stages only, a stage depends on the
+//! The layout's rules, checked on the sources (the README's "Layout"): `nodes/` holds stages only, a stage depends on the
 //! base crates and not on another stage, no crate's modules import each other in a circle, and `cli/` keeps
 //! only the user's commands.
 use std::collections::{BTreeMap, BTreeSet};
@@ -90,6 +90,30 @@ fn nodes_holds_stages_only_and_stages_do_not_import_each_other() {
             k.0,
             k.1
         );
+    }
+}
+
+/// Every stage process dispatches its implementations through `run_stage` (parameters checked, an unknown `impl`
+/// named with those available) and its library tests what the stage does without processes.
+#[test]
+fn every_stage_has_a_thin_shell_and_tested_library() {
+    for entry in std::fs::read_dir(repo_file("nodes")).unwrap().flatten() {
+        let dir = entry.path();
+        let stage = dir.file_name().unwrap().to_string_lossy().into_owned();
+        // python/: scripts; record/: the recorder and player the supervisor adds, not stages with implementations.
+        if stage == "python" || stage == "record" {
+            continue;
+        }
+        let main = std::fs::read_to_string(dir.join("src/main.rs")).unwrap();
+        assert!(
+            main.contains("run_stage("),
+            "nodes/{stage}/src/main.rs does not dispatch through run_stage"
+        );
+        let tested = rust_files(&dir.join("src"))
+            .iter()
+            .filter(|f| f.file_name().unwrap() != "main.rs")
+            .any(|f| std::fs::read_to_string(f).unwrap().contains("#[test]"));
+        assert!(tested, "nodes/{stage}: no unit test in its library");
     }
 }
 
