@@ -60,6 +60,9 @@ pub fn sampson(e: &Matrix3<f64>, a: &Ray, b: &Ray) -> f64 {
     (num * num / den).sqrt()
 }
 
+/// Refits of a consensus on its own inliers at most.
+const LOCAL_ROUNDS: usize = 5;
+
 /// RANSAC settings.
 #[derive(Debug, Clone, Copy)]
 pub struct Ransac {
@@ -72,8 +75,7 @@ pub struct Ransac {
 }
 
 /// RANSAC over a model fitted to `size` correspondences: the largest consensus among `r.iterations` random samples
-/// ([`best_of_samples`], deterministic from `r.seed`, stopping early once another better sample is unlikely),
-/// refitted on its inliers.
+/// ([`best_of_samples`], deterministic from `r.seed`), refitted on its inliers until they stop growing.
 fn consensus<M>(
     a: &[Ray],
     b: &[Ray],
@@ -93,18 +95,25 @@ fn consensus<M>(
     };
     let sampling = Sampling {
         iterations: r.iterations,
-        adaptive: true,
         seed: r.seed,
     };
     let Some((model, _)) = best_of_samples(n, size, sampling, &fit_on, |m| inliers_of(m).len()) else {
         return Vec::new();
     };
     let mut best = inliers_of(&model);
-    if best.len() >= size {
-        if let Some(refined) = fit_on(&best).map(|m| inliers_of(&m)) {
-            if refined.len() >= best.len() {
+    // Refit on the consensus until it stops growing (local optimisation): the result then depends on the data, not
+    // on which minimal sample happened to win.
+    for _ in 0..LOCAL_ROUNDS {
+        if best.len() < size {
+            break;
+        }
+        match fit_on(&best).map(|m| inliers_of(&m)) {
+            Some(refined) if refined.len() > best.len() => best = refined,
+            Some(refined) if refined.len() == best.len() => {
                 best = refined;
+                break;
             }
+            _ => break,
         }
     }
     best

@@ -1,17 +1,16 @@
 //! The workspace's one RANSAC: the largest consensus among random minimal samples drawn from the seeded
 //! [`Rng`](crate::random::Rng), so that the same inputs give the same inliers on every run and thread schedule.
-//! What a model is, how it is fitted to a sample and how it scores are the caller's; the sampling, the
-//! bookkeeping and the adaptive stop are here.
+//! What a model is, how it is fitted to a sample and how it scores are the caller's; the sampling and the
+//! bookkeeping are here. Every sample is drawn: the textbook early stop (once the best inlier ratio makes a
+//! better sample unlikely) made the essential-matrix chain's check points depend on the sample stream, from 20 to
+//! 51 mm RMSE in Y on `d2x-strip` at scale 0.25, while all 1,000 samples give 11 mm on every stream tried.
 use crate::random::Rng;
 
-/// How many samples to draw and when to stop.
+/// How many samples to draw, from which seed.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Sampling {
-    /// Samples at most.
+    /// Samples.
     pub iterations: usize,
-    /// Stop once another better sample is unlikely (probability 0.999, from the best inlier ratio) and the best
-    /// consensus holds more than half of the data.
-    pub adaptive: bool,
     /// Seed of the generator.
     pub seed: u64,
 }
@@ -44,19 +43,9 @@ pub fn best_of_samples<M>(
         let count = score(&model);
         if best.as_ref().is_none_or(|(_, k)| count > *k) {
             best = Some((model, count));
-            if sampling.adaptive && unlikely_to_improve(count, n, size, sampling.iterations) {
-                break;
-            }
         }
     }
     best
-}
-
-/// Whether a consensus of `count` among `n` makes a better sample of `size` unlikely within `iterations`.
-fn unlikely_to_improve(count: usize, n: usize, size: usize, iterations: usize) -> bool {
-    let w = count as f64 / n as f64;
-    let needed = (0.001f64).ln() / (1.0 - w.powi(size as i32)).max(1e-12).ln();
-    needed.is_finite() && (needed as usize) < iterations && count > n / 2
 }
 
 #[cfg(test)]
@@ -76,11 +65,7 @@ mod tests {
             })
         };
         let score = |m: &(f64, f64)| points.iter().filter(|p| (p[1] - m.0 * p[0] - m.1).abs() < 0.01).count();
-        let sampling = Sampling {
-            iterations: 200,
-            adaptive: true,
-            seed: 3,
-        };
+        let sampling = Sampling { iterations: 200, seed: 3 };
         let (line, count) = best_of_samples(points.len(), 2, sampling, fit, score).unwrap();
         assert!((line.0 - 2.0).abs() < 1e-9 && (line.1 - 1.0).abs() < 1e-9, "{line:?}");
         assert!(count >= 60);
@@ -89,11 +74,7 @@ mod tests {
 
     #[test]
     fn too_few_data_or_only_degenerate_samples_give_nothing() {
-        let sampling = Sampling {
-            iterations: 10,
-            adaptive: false,
-            seed: 1,
-        };
+        let sampling = Sampling { iterations: 10, seed: 1 };
         assert!(best_of_samples(1, 2, sampling, |_| Some(()), |_| 1).is_none());
         assert!(best_of_samples::<()>(5, 2, sampling, |_| None, |_| 1).is_none());
     }

@@ -97,7 +97,6 @@ pub fn fit_tls(points: &[Vec3], tolerance: f64, iterations: usize) -> Option<Fit
     } else {
         let sampling = Sampling {
             iterations,
-            adaptive: false,
             seed: 0x5851_F42D_4C95_7F2D ^ n as u64,
         };
         best_of_samples(n, 2, sampling, |s| through(s[0], s[1]), near)?

@@ -132,7 +132,6 @@ pub fn fit_wall(points: &[Vec3], viewpoint: &Vec3, tolerance: f64, min_inliers: 
     };
     let sampling = Sampling {
         iterations: 500,
-        adaptive: false,
         seed: 0x9E37_79B9_7F4A_7C15,
     };
     let ((n, a), count) = best_of_samples(points.len(), 3, sampling, through, on_plane)?;

@@ -512,7 +512,7 @@ to = []
         out.to_str().unwrap(),
     ]);
     assert!(!bad.status.success());
-    assert!(String::from_utf8_lossy(&bad.stderr).contains("octaves in 1..=6"));
+    assert!(String::from_utf8_lossy(&bad.stderr).contains("octaves must be in 1..=6, got 9"));
 }
 
 #[test]
