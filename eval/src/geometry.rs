@@ -51,6 +51,43 @@ pub enum Class {
     Horizontal,
     Vertical,
     Oblique,
+    /// Horizontal, along the normal of the wall it is nearest to: the depth of a reveal, sill, lintel, cornice or
+    /// frame, what makes a façade LOD 3 ([`class_on_walls`]).
+    Depth,
+}
+
+/// A wall plane of the truth: its unit normal and its corners.
+#[derive(Debug, Clone)]
+pub struct WallPlane {
+    pub normal: Vec3,
+    pub corners: Vec<Vec3>,
+}
+
+impl WallPlane {
+    /// The wall through `corners` (at least three, not collinear).
+    pub fn new(corners: Vec<Vec3>) -> Option<WallPlane> {
+        let normal = (corners.get(1)? - corners[0])
+            .cross(&(corners.get(2)? - corners[1]))
+            .try_normalize(1e-12)?;
+        Some(WallPlane { normal, corners })
+    }
+}
+
+/// [`classify`], with horizontal segments that run along the normal of the nearest wall (closer than 45° to it)
+/// told apart as [`Class::Depth`].
+pub fn class_on_walls(s: &Seg, walls: &[WallPlane]) -> Class {
+    let class = classify(s);
+    if class != Class::Horizontal {
+        return class;
+    }
+    let mid = s.at(0.5);
+    let nearest = walls
+        .iter()
+        .min_by(|a, b| polygon_distance(&mid, &a.corners).total_cmp(&polygon_distance(&mid, &b.corners)));
+    match nearest {
+        Some(w) if s.dir().dot(&w.normal).abs() > std::f64::consts::FRAC_1_SQRT_2 => Class::Depth,
+        _ => class,
+    }
 }
 
 pub fn classify(s: &Seg) -> Class {

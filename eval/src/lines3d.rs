@@ -5,7 +5,7 @@ use lineflow_formats::Line3Row;
 use lineflow_photogrammetry::{Pose, Vec3};
 use rayon::prelude::*;
 
-use crate::geometry::{bounds, classify, polygon_distance, segment_grid, Class, Grid, Seg};
+use crate::geometry::{bounds, class_on_walls, polygon_distance, segment_grid, Class, Grid, Seg, WallPlane};
 use crate::resolvable::resolvable;
 use crate::Truth;
 
@@ -157,16 +157,40 @@ pub fn evaluate(truth: &Truth, rows: &[Line3Row]) -> Lines3dReport {
         })
         .collect();
 
+    let walls: Vec<WallPlane> = truth
+        .scene
+        .building
+        .walls
+        .iter()
+        .filter_map(|(_, corners)| WallPlane::new(corners.iter().map(|&p| Vec3::from(p)).collect()))
+        .collect();
+    let est_class: Vec<Class> = est.iter().map(|s| class_on_walls(s, &walls)).collect();
+    let gt_class: Vec<Class> = gt.iter().map(|s| class_on_walls(s, &walls)).collect();
     let classes = [
         ("all", None),
         ("horizontal", Some(Class::Horizontal)),
         ("vertical", Some(Class::Vertical)),
+        ("depth", Some(Class::Depth)),
     ]
     .iter()
     .map(|&(name, class)| {
-        let keep = |s: &Seg| class.is_none_or(|c| classify(s) == c);
-        let ei: Vec<usize> = (0..est.len()).filter(|&i| keep(&est[i])).collect();
-        let gi: Vec<usize> = (0..gt.len()).filter(|&i| keep(&gt[i])).collect();
+        let ei: Vec<usize> = (0..est.len()).filter(|&i| class.is_none_or(|c| est_class[i] == c)).collect();
+        let gi: Vec<usize> = (0..gt.len()).filter(|&i| class.is_none_or(|c| gt_class[i] == c)).collect();
+        // A depth edge is 0.1-0.5 m long and ends on the lines around its opening: every estimate counts as covering
+        // it at its ends. Its recall counts depth estimates only (horizontal and vertical keep their definition
+        // against all estimates, for comparison with earlier figures).
+        let depth_samples: Option<Vec<Vec<(f64, f64)>>> = (class == Some(Class::Depth)).then(|| {
+            let depth_est: Vec<Seg> = ei.iter().map(|&i| est[i]).collect();
+            let grid = segment_grid(&depth_est, reach, region);
+            let mut samples = vec![Vec::new(); gt.len()];
+            for &i in &gi {
+                samples[i] = gt[i]
+                    .samples(SAMPLES)
+                    .map(|(p, w)| (nearest(&p, &grid, |k| depth_est[k].distance(&p)), w))
+                    .collect();
+            }
+            samples
+        });
         let at = taus
             .iter()
             .map(|(label, tau)| {
@@ -185,7 +209,8 @@ pub fn evaluate(truth: &Truth, rows: &[Line3Row]) -> Lines3dReport {
                 }
                 let (mut covered, mut gt_total) = (0.0, 0.0);
                 for &i in &gi {
-                    for &(d, w) in &gt_samples[i] {
+                    let samples = depth_samples.as_ref().map_or(&gt_samples[i], |d| &d[i]);
+                    for &(d, w) in samples {
                         gt_total += w;
                         covered += if d <= *tau { w } else { 0.0 };
                     }

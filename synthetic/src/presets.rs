@@ -1,6 +1,7 @@
 //! Camera set-ups modelled on the thesis data sets (seed 000 §3, `docs/sources.md`) and two more geometries.
 use lineflow_photogrammetry::{look_at, rotation_from_opk, Camera, Pose, Vec3};
 
+use super::geometry::Material;
 use super::render::Sensor;
 use super::rng::Rng;
 use super::scene::BuildingSpec;
@@ -11,8 +12,8 @@ pub const PRESETS: [&str; 4] = ["d2x-strip", "a55-two-strips", "convergent", "ro
 /// A camera, a building, the camera stations, and the sensor.
 #[derive(Debug, Clone)]
 pub struct Preset {
-    /// Preset name.
-    pub name: &'static str,
+    /// Preset name, with `@N` when the building is variant `N` ([`BuildingSpec::varied`]).
+    pub name: String,
     /// One-line description.
     pub description: &'static str,
     /// Interior orientation at full size.
@@ -72,6 +73,7 @@ fn building(width_m: f64, window_columns: u32) -> BuildingSpec {
         roof_pitch_deg: 35.0,
         eave_m: 0.5,
         target_radius_m: 0.05,
+        facade_material: Material::Brick,
     }
 }
 
@@ -87,11 +89,21 @@ fn station(rng: &mut Rng, centre: Vec3, target: Vec3) -> Pose {
     }
 }
 
-/// The preset called `name`, with the hand-held jitter drawn from `seed`.
+/// The preset called `name`, with the hand-held jitter drawn from `seed`. `NAME@N` is preset `NAME`'s camera
+/// set-up in front of building variant `N` ([`BuildingSpec::varied`]); `None` for an unknown name or a variant
+/// that is not a number.
 pub fn preset(name: &str, seed: u64) -> Option<Preset> {
+    let (base, variant) = match name.split_once('@') {
+        Some((base, n)) => (base, Some(n.parse::<u64>().ok()?)),
+        None => (name, None),
+    };
+    let building = |width_m: f64, columns: u32| {
+        let b = building(width_m, columns);
+        variant.map_or_else(|| b.clone(), |v| b.varied(v))
+    };
     let mut rng = Rng::new(seed, 2);
-    let common = |name, description, camera, building, poses| Preset {
-        name,
+    let common = |_: &str, description, camera, building, poses| Preset {
+        name: name.to_owned(),
         description,
         camera,
         building,
@@ -100,7 +112,7 @@ pub fn preset(name: &str, seed: u64) -> Option<Preset> {
         obs_sigma_px: 0.3,
         survey_sigma_m: 0.005,
     };
-    Some(match name {
+    Some(match base {
         "d2x-strip" => {
             // One strip of 33 at equal height, parallel to the façade at 19.3 m (GSD 5.9 mm), baseline 2.077 m.
             let b = building(60.0, 20);
