@@ -1,5 +1,6 @@
 //! `lineflow bench` and `lineflow experiment`: every benchmark and seed experiment, each printing its figures
 //! beside a reference measured in the same run. The `lineflow` command parses [`BenchCmd`] and calls [`bench`].
+mod buildings;
 mod bundle;
 mod edges;
 mod features;
@@ -176,6 +177,31 @@ pub enum BenchCmd {
         #[arg(long)]
         no_colmap: bool,
     },
+    /// The 3-D lines on held-out buildings (`PRESET@N`, N from 1000 up) beside the preset's own, tuned building:
+    /// the shipped demo graph as real processes, one row per building, and the worst.
+    Buildings {
+        /// Preset whose cameras film every building.
+        #[arg(long, default_value = "a55-two-strips")]
+        preset: String,
+        /// Image scale.
+        #[arg(long, default_value_t = 0.3)]
+        scale: f64,
+        /// Seed of the scenes.
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+        /// Held-out building variants, comma-separated.
+        #[arg(long, value_delimiter = ',', default_value = "1001,1002,1003,1004,1005")]
+        variants: Vec<u64>,
+        /// Launch graph [default: launch/demo.toml].
+        #[arg(long)]
+        graph: Option<std::path::PathBuf>,
+        /// Parameter override NODE.KEY=VALUE (repeatable), applied to every run.
+        #[arg(long)]
+        set: Vec<String>,
+        /// Keep the runs' results in this folder [default: a temporary one].
+        #[arg(long)]
+        out: Option<std::path::PathBuf>,
+    },
     /// The recorder node: MB/s of raw 12 MP RGB frames written with nothing dropped, against the disk.
     Record {
         /// Frames.
@@ -241,6 +267,23 @@ pub fn bench(cmd: BenchCmd) -> Result<ExitCode> {
         }),
         BenchCmd::Linematch { preset, scale, reps } => linematch::bench_linematch(&preset, scale, reps),
         BenchCmd::Bundle { cameras, points } => bundle::bench_bundle(cameras, points),
+        BenchCmd::Buildings {
+            preset,
+            scale,
+            seed,
+            variants,
+            graph,
+            set,
+            out,
+        } => buildings::bench_buildings(buildings::BuildingsArgs {
+            preset: &preset,
+            scale,
+            seed,
+            variants: &variants,
+            graph: graph.as_deref(),
+            set: &set,
+            out,
+        }),
         BenchCmd::Stream {
             preset,
             scale,
