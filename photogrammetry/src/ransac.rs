@@ -23,15 +23,14 @@ pub fn best_of_samples<M>(
     size: usize,
     sampling: Sampling,
     mut fit: impl FnMut(&[usize]) -> Option<M>,
-    mut score: impl FnMut(&M) -> usize,
+    score: impl FnMut(&M) -> usize,
 ) -> Option<(M, usize)> {
     if n < size || size == 0 {
         return None;
     }
     let mut rng = Rng::new(sampling.seed, size as u64);
-    let mut best: Option<(M, usize)> = None;
     let mut pick = Vec::with_capacity(size);
-    for _ in 0..sampling.iterations {
+    let models = (0..sampling.iterations).filter_map(|_| {
         pick.clear();
         while pick.len() < size {
             let c = rng.below(n);
@@ -39,7 +38,16 @@ pub fn best_of_samples<M>(
                 pick.push(c);
             }
         }
-        let Some(model) = fit(&pick) else { continue };
+        fit(&pick)
+    });
+    best_scored(models, score)
+}
+
+/// The model with the highest `score` (ties keep the earlier) and its score; `None` for no models. For callers
+/// that enumerate every minimal sample instead of drawing them.
+pub fn best_scored<M>(models: impl IntoIterator<Item = M>, mut score: impl FnMut(&M) -> usize) -> Option<(M, usize)> {
+    let mut best: Option<(M, usize)> = None;
+    for model in models {
         let count = score(&model);
         if best.as_ref().is_none_or(|(_, k)| count > *k) {
             best = Some((model, count));

@@ -1,7 +1,7 @@
 //! One 3-D line per point group: the thesis's direction clustering with the principal piercing plane (seed 000
 //! §2.16), and robust total least squares (two-point RANSAC, then principal-axis refits of the inliers).
 use lineflow_photogrammetry::random::Rng;
-use lineflow_photogrammetry::ransac::{best_of_samples, Sampling};
+use lineflow_photogrammetry::ransac::{best_of_samples, best_scored, Sampling};
 use lineflow_photogrammetry::{Mat3, Vec3};
 use serde::Deserialize;
 
@@ -85,15 +85,8 @@ pub fn fit_tls(points: &[Vec3], tolerance: f64, iterations: usize) -> Option<Fit
     let near = |(origin, dir): &(Vec3, Vec3)| points.iter().filter(|p| distance(p, origin, dir) <= tolerance).count();
     let ((mut origin, mut dir), _) = if n * (n - 1) / 2 <= iterations {
         // Few enough points to try every pair.
-        let mut best: Option<((Vec3, Vec3), usize)> = None;
-        for (i, j) in (0..n).flat_map(|i| (i + 1..n).map(move |j| (i, j))) {
-            let Some(line) = through(i, j) else { continue };
-            let count = near(&line);
-            if best.as_ref().is_none_or(|(_, c)| count > *c) {
-                best = Some((line, count));
-            }
-        }
-        best?
+        let pairs = (0..n).flat_map(|i| (i + 1..n).map(move |j| (i, j)));
+        best_scored(pairs.filter_map(|(i, j)| through(i, j)), near)?
     } else {
         let sampling = Sampling {
             iterations,
