@@ -31,7 +31,7 @@ pub struct BuildingsArgs<'a> {
 }
 
 /// One building's figures.
-struct Row {
+pub(crate) struct Row {
     building: String,
     lines: usize,
     success: [f64; 4],
@@ -43,7 +43,7 @@ struct Row {
 
 const CLASSES: [&str; 4] = ["all", "horizontal", "vertical", "depth"];
 
-fn row(building: String, report: &Lines3dReport, seconds: f64) -> Row {
+pub(crate) fn row(building: String, report: &Lines3dReport, seconds: f64) -> Row {
     let class = |name: &str| report.classes.iter().find(|c| c.class == name);
     let at_2gsd = |name: &str| class(name).and_then(|c| c.at.iter().find(|a| a.label == "2 GSD"));
     let n = report.endpoint_m.len().max(1) as f64;
@@ -66,7 +66,7 @@ fn pct(x: f64) -> String {
     }
 }
 
-fn print_row(r: &Row) {
+pub(crate) fn print_row(r: &Row) {
     println!(
         "| {} | {} | {} | {} | {} | {} | {} | {} | {:.2} | {:.0} |",
         r.building,
@@ -80,6 +80,14 @@ fn print_row(r: &Row) {
         r.endpoint_gsd,
         r.seconds
     );
+}
+
+/// The table's header.
+pub(crate) fn print_header() {
+    println!(
+        "| building | lines | success | horizontal | vertical | depth | recall 2 GSD | on surfaces 2 GSD | endpoint (GSD) | run (s) |"
+    );
+    println!("|---|---|---|---|---|---|---|---|---|---|");
 }
 
 /// Runs the graph on `building` and scores its 3-D lines.
@@ -130,10 +138,7 @@ pub fn bench_buildings(a: BuildingsArgs<'_>) -> Result<ExitCode> {
         graph.display()
     );
     println!("precision against the surfaces at 2 GSD, mean endpoint distance of matched lines (`docs/eval.md`).\n");
-    println!(
-        "| building | lines | success | horizontal | vertical | depth | recall 2 GSD | on surfaces 2 GSD | endpoint (GSD) | run (s) |"
-    );
-    println!("|---|---|---|---|---|---|---|---|---|---|");
+    print_header();
     print_row(&reference);
     for r in &held_out {
         print_row(r);

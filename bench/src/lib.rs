@@ -1,6 +1,7 @@
 //! `lineflow bench` and `lineflow experiment`: every benchmark and seed experiment, each printing its figures
 //! beside a reference measured in the same run. The `lineflow` command parses [`BenchCmd`] and calls [`bench`].
 mod buildings;
+mod linemap;
 mod bundle;
 mod edges;
 mod features;
@@ -202,6 +203,30 @@ pub enum BenchCmd {
         #[arg(long)]
         out: Option<std::path::PathBuf>,
     },
+    /// The linemap algorithm again, in this process, on a finished run's lines2d.csv and poses.csv of a synthetic
+    /// building, scored against its truth (for trying parameters on tuning buildings, PRESET@N with N < 1000).
+    Linemap {
+        /// The run's output folder.
+        run: std::path::PathBuf,
+        /// The building the run filmed (PRESET or PRESET@N).
+        #[arg(long)]
+        building: String,
+        /// Image scale of the run.
+        #[arg(long, default_value_t = 0.3)]
+        scale: f64,
+        /// Seed of the run's scene.
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+        /// Use the true poses instead of the run's.
+        #[arg(long)]
+        truth_poses: bool,
+        /// Also print, per class of true edge, where the edges are lost.
+        #[arg(long)]
+        funnel: bool,
+        /// Parameter override KEY=VALUE of the linemap stage (repeatable).
+        #[arg(long)]
+        set: Vec<String>,
+    },
     /// The recorder node: MB/s of raw 12 MP RGB frames written with nothing dropped, against the disk.
     Record {
         /// Frames.
@@ -266,6 +291,15 @@ pub fn bench(cmd: BenchCmd) -> Result<ExitCode> {
             flat_textures,
         }),
         BenchCmd::Linematch { preset, scale, reps } => linematch::bench_linematch(&preset, scale, reps),
+        BenchCmd::Linemap {
+            run,
+            building,
+            scale,
+            seed,
+            truth_poses,
+            funnel,
+            set,
+        } => linemap::bench_linemap(&run, &building, scale, seed, truth_poses, funnel, &set),
         BenchCmd::Bundle { cameras, points } => bundle::bench_bundle(cameras, points),
         BenchCmd::Buildings {
             preset,

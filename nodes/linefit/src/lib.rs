@@ -5,8 +5,7 @@
 pub mod fit;
 pub mod merge;
 
-use lineflow_linematch::multiview::{refine_line, MultiviewLine, MultiviewParams};
-use lineflow_linematch::SlaveSegments;
+use lineflow_linegeom::{refine_line, MultiviewLine, MultiviewParams, SlaveSegments};
 use lineflow_photogrammetry::Vec3;
 use serde::Deserialize;
 
@@ -90,7 +89,7 @@ impl lineflow_runtime::StageParams for FitParams {
 pub const MULTIVIEW_MIN_SEGMENT_PX: f64 = 20.0;
 
 /// Re-estimates each merged line from the 2-D segments of every image in `views` (multi-view line intersection,
-/// [`lineflow_linematch::multiview`]); lines that too few images show keep their place. Returns how many moved
+/// [`lineflow_linegeom::multiview`]); lines that too few images show keep their place. Returns how many moved
 /// and the RMS of their image residuals, pixels.
 pub fn refine_multiview(
     camera: &lineflow_photogrammetry::Camera,

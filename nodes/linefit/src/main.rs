@@ -9,7 +9,7 @@ use std::collections::BTreeMap;
 use anyhow::{Context, Result};
 use lineflow_formats::{write_lines3d, write_lines_ply, Line3Row};
 use lineflow_linefit::{fit_group, merge, refine_multiview, FitParams, Fragment, Merged, Method, MULTIVIEW_MIN_SEGMENT_PX};
-use lineflow_linematch::{FrameSegments, SlaveSegments};
+use lineflow_linegeom::{FrameSegments, SlaveSegments};
 use lineflow_messages::{kinds, parts, Line3, Lines3DHeader, Point3, PointGroup, Segment2, Stamp, StampFlags};
 use lineflow_photogrammetry::{Camera, Pose, Vec3};
 use lineflow_runtime::{Flow, NodeContext, Output};

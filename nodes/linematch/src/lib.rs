@@ -5,7 +5,6 @@
 //! object-space lattice ([`view`]) and compared by SNCC over several window modes ([`ncc`], [`search`]).
 #![warn(missing_docs)]
 
-pub mod multiview;
 pub mod ncc;
 pub mod search;
 pub mod slave_lines;
@@ -18,7 +17,7 @@ use rayon::prelude::*;
 use serde::Deserialize;
 
 pub use search::{match_segment, SegmentInput, SegmentMatch, Unmatched};
-pub use slave_lines::{FrameSegments, SlaveSegments};
+pub use lineflow_linegeom::{FrameSegments, SlaveSegments};
 pub use view::{DistortionLut, View};
 pub use wall::{fit_wall, fit_walls, wall_of_ray, NoWall, WallPlane, WALL_MIN_POINTS};
 

@@ -1,7 +1,7 @@
 //! An oriented grey image: pose, camera, a lookup table for the inverse correction, and bilinear sampling.
 use lineflow_photogrammetry::{Camera, Pose, Vec3};
 
-use crate::slave_lines::FrameSegments;
+use lineflow_linegeom::FrameSegments;
 
 /// Measured pixel positions of ideal photo points on a regular grid, interpolated bilinearly: the inverse correction
 /// (`Camera::distort`, Newton iterations) is far too slow for millions of grid samples, and the correction is smooth

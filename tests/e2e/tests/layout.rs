@@ -10,9 +10,7 @@ use lineflow_e2e::repo_file;
 const FRONT_ENDS: [&str; 2] = ["lineflow-cli", "lineflow-bench"];
 
 /// Stage-to-stage library dependencies still to go, each with the issue that removes it.
-const KNOWN_SIDEWAYS: [(&str, &str, &str); 2] = [
-    ("lineflow-linefit", "lineflow-linematch", "#28 redesigns both line stages"),
-    (
+const KNOWN_SIDEWAYS: [(&str, &str, &str); 1] = [(
         "lineflow-modelfit",
         "lineflow-model",
         "#29 reworks model-image fitting on the model's types",

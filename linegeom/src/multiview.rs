@@ -12,7 +12,7 @@
 use lineflow_photogrammetry::{Camera, Vec3};
 use nalgebra::{Matrix2, Vector2};
 
-use crate::slave_lines::SlaveSegments;
+use crate::segments::SlaveSegments;
 
 /// Settings of the multi-view line estimate.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -70,12 +70,34 @@ struct PlaneView {
 /// fewer than `min_views` images show it. The views are collected again around the moved line once: images far
 /// along the strip see the first estimate's depth error as a larger shift and join only when it is smaller.
 pub fn refine_line(camera: &Camera, start: Vec3, end: Vec3, views: &[SlaveSegments], p: &MultiviewParams) -> Option<MultiviewLine> {
-    let first = solve_line(camera, [start, end], views, p)?;
-    Some(solve_line(camera, [first.start, first.end], views, p).unwrap_or(first))
+    let first = solve_line(camera, [start, end], views, p, false)?;
+    Some(solve_line(camera, [first.start, first.end], views, p, false).unwrap_or(first))
 }
 
-/// One estimate from the views whose segments lie along the projection of `ends`.
-fn solve_line(camera: &Camera, ends: [Vec3; 2], views: &[SlaveSegments], p: &MultiviewParams) -> Option<MultiviewLine> {
+/// [`refine_line`] with the line's direction fixed to `direction` (a vanishing direction, the vertical or a wall's
+/// horizontal): the line is first turned about its midpoint onto it, then moved across itself as a whole. Where
+/// the planes fix the depth of each endpoint poorly (a horizontal edge seen from strips a few metres apart), the
+/// free estimate tilts the line by their independent errors; with the direction known only the common offset is
+/// estimated, from all the planes at both ends.
+pub fn refine_line_along(
+    camera: &Camera,
+    start: Vec3,
+    end: Vec3,
+    direction: Vec3,
+    views: &[SlaveSegments],
+    p: &MultiviewParams,
+) -> Option<MultiviewLine> {
+    let d = direction.try_normalize(1e-12)?;
+    let d = if d.dot(&(end - start)) < 0.0 { -d } else { d };
+    let (mid, half) = ((start + end) * 0.5, (end - start).norm() * 0.5);
+    let ends = [mid - d * half, mid + d * half];
+    let first = solve_line(camera, ends, views, p, true)?;
+    Some(solve_line(camera, [first.start, first.end], views, p, true).unwrap_or(first))
+}
+
+/// One estimate from the views whose segments lie along the projection of `ends`; with `rigid` both endpoints move
+/// by one offset, keeping the direction.
+fn solve_line(camera: &Camera, ends: [Vec3; 2], views: &[SlaveSegments], p: &MultiviewParams, rigid: bool) -> Option<MultiviewLine> {
     let dir = (ends[1] - ends[0]).try_normalize(1e-12)?;
     let mut planes: Vec<PlaneView> = views.iter().filter_map(|v| plane_view(camera, &ends[0], &ends[1], v, p)).collect();
     if planes.len() < p.min_views {
@@ -85,7 +107,12 @@ fn solve_line(camera: &Camera, ends: [Vec3; 2], views: &[SlaveSegments], p: &Mul
     let u = dir.cross(&if dir.z.abs() < 0.9 { Vec3::z() } else { Vec3::x() }).normalize();
     let v = dir.cross(&u);
     for _ in 0..3 {
-        let moved = [0, 1].map(|i| solve_endpoint(&ends[i], &u, &v, &planes, i, p));
+        let moved = if rigid {
+            let offset = solve_offset(&ends, &[0, 1], &u, &v, &planes, p);
+            [ends[0] + offset, ends[1] + offset]
+        } else {
+            [0, 1].map(|i| ends[i] + solve_offset(&ends, &[i], &u, &v, &planes, p))
+        };
         let residual = |pv: &PlaneView, i: usize| pv.normal.dot(&(moved[i] - pv.center)) / pv.metres_per_px[i];
         let before = planes.len();
         planes.retain(|pv| residual(pv, 0).abs().max(residual(pv, 1).abs()) <= p.max_residual_px);
@@ -105,20 +132,22 @@ fn solve_line(camera: &Camera, ends: [Vec3; 2], views: &[SlaveSegments], p: &Mul
     None
 }
 
-/// The endpoint `x` moved across the line (offsets along `u` and `v`) to lie best on the views' planes, weighted
-/// in pixels. Only directions the planes determine to `max_sigma_m` move: a horizontal edge seen along a
-/// horizontal strip has planes that all contain the cameras' line, its depth is barely observed, and letting the
-/// noise move each endpoint's depth on its own would tilt the line.
-fn solve_endpoint(x: &Vec3, u: &Vec3, v: &Vec3, planes: &[PlaneView], i: usize, p: &MultiviewParams) -> Vec3 {
+/// The offset across the line (along `u` and `v`) that moves the endpoints `which` of `ends` to lie best on the
+/// views' planes, weighted in pixels. Only directions the planes determine to `max_sigma_m` move: a horizontal
+/// edge seen along a horizontal strip has planes that all contain the cameras' line, its depth is barely observed,
+/// and letting the noise move each endpoint's depth on its own would tilt the line.
+fn solve_offset(ends: &[Vec3; 2], which: &[usize], u: &Vec3, v: &Vec3, planes: &[PlaneView], p: &MultiviewParams) -> Vec3 {
     let mut n = Matrix2::zeros();
     let mut b = Vector2::zeros();
     for pv in planes {
-        // Residual in pixels: (normal · (x + a u + b v − C)) / metres_per_px, linear in (a, b).
-        let w = 1.0 / (pv.metres_per_px[i] * p.sigma_px).powi(2);
-        let row = Vector2::new(pv.normal.dot(u), pv.normal.dot(v));
-        let r0 = pv.normal.dot(&(x - pv.center));
-        n += row * row.transpose() * w;
-        b -= row * (r0 * w);
+        for &i in which {
+            // Residual in pixels: (normal · (x + a u + b v − C)) / metres_per_px, linear in (a, b).
+            let w = 1.0 / (pv.metres_per_px[i] * p.sigma_px).powi(2);
+            let row = Vector2::new(pv.normal.dot(u), pv.normal.dot(v));
+            let r0 = pv.normal.dot(&(ends[i] - pv.center));
+            n += row * row.transpose() * w;
+            b -= row * (r0 * w);
+        }
     }
     let eigen = n.symmetric_eigen();
     let min_information = 1.0 / (p.max_sigma_m * p.max_sigma_m);
@@ -129,7 +158,7 @@ fn solve_endpoint(x: &Vec3, u: &Vec3, v: &Vec3, planes: &[PlaneView], i: usize, 
             d += e * (e.dot(&b) / lambda);
         }
     }
-    x + u * d[0] + v * d[1]
+    u * d[0] + v * d[1]
 }
 
 /// The interpretation plane of the 2-D segment of view `view` that lies along the projection of `start`–`end`,
@@ -174,7 +203,7 @@ fn plane_view(camera: &Camera, start: &Vec3, end: &Vec3, view: &SlaveSegments, p
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::slave_lines::FrameSegments;
+    use crate::segments::FrameSegments;
     use lineflow_messages::Segment2;
     use lineflow_photogrammetry::{rotation_from_opk, Pose};
 

@@ -1,0 +1,166 @@
+//! `lineflow bench linemap`: the linemap algorithm run again, in this process, on a finished run's 2-D lines and
+//! poses (`lines2d.csv`, `poses.csv`) of a synthetic building, and scored against its truth as `bench buildings`
+//! scores a whole run. For trying parameters and designs of the 3-D line stage in seconds instead of a run; use
+//! tuning buildings (`PRESET@N`, N < 1000) for that, and `bench buildings` for the held-out figures.
+use std::collections::BTreeMap;
+use std::path::Path;
+use std::process::ExitCode;
+
+use anyhow::{Context, Result};
+use lineflow_eval::lines3d::evaluate;
+use lineflow_eval::Truth;
+use lineflow_formats::{read_lines2d, read_poses, Line3Row};
+use lineflow_linemap::{map_lines_with_stats, Bounds, Guide, MapParams, View};
+use lineflow_messages::{Line3, Segment2};
+use lineflow_photogrammetry::Vec3;
+use lineflow_synthetic::Synthetic;
+
+use crate::buildings::{print_header, print_row, row};
+
+/// `lineflow bench linemap RUN --building B [--scale S] [--seed N] [--truth-poses] [--set KEY=VALUE]...`
+pub fn bench_linemap(run: &Path, building: &str, scale: f64, seed: u64, truth_poses: bool, funnel: bool, set: &[String]) -> Result<ExitCode> {
+    let params: MapParams = lineflow_runtime::launch::params_from_overrides(set)?;
+    lineflow_runtime::StageParams::validate(&params)?;
+    let scene = Synthetic::new(building, scale, seed).map_err(|e| anyhow::anyhow!("{e}"))?;
+    let camera = *scene.camera();
+    let walls = scene.approximate_walls();
+    let walls: Vec<Vec<Vec3>> = walls.iter().map(|(_, c)| c.iter().map(|&p| Vec3::from(p)).collect()).collect();
+    let guide = Guide::from_walls(&walls, params.site_margin_m);
+    let bounds = guide.bounds;
+    let truth = Truth::from_scene(scene);
+    let poses = if truth_poses {
+        truth.poses.clone()
+    } else {
+        read_poses(&run.join("poses.csv")).with_context(|| format!("{}: the run's poses", run.display()))?
+    };
+    let mut segments: BTreeMap<String, Vec<Segment2>> = BTreeMap::new();
+    for r in read_lines2d(&run.join("lines2d.csv")).with_context(|| format!("{}: the run's 2-D lines", run.display()))? {
+        segments.entry(r.image.clone()).or_default().push(Segment2 {
+            start_px: r.start_px,
+            end_px: r.end_px,
+            ..Default::default()
+        });
+    }
+    let views: Vec<View> = poses
+        .iter()
+        .enumerate()
+        .filter_map(|(f, p)| Some(View::new(&camera, f as u64, p.pose, segments.get(&p.image)?, params.min_length_px)))
+        .collect();
+    let start = std::time::Instant::now();
+    let (lines, stats) = map_lines_with_stats(&camera, &views, &guide, &params);
+    let seconds = start.elapsed().as_secs_f64();
+    let rows: Vec<Line3Row> = lines
+        .iter()
+        .enumerate()
+        .map(|(k, l)| {
+            Line3Row::from(&Line3 {
+                id: k as u64 + 1,
+                start_m: l.start.into(),
+                end_m: l.end.into(),
+                n_points: l.n_segments,
+                n_images: l.n_images,
+                rms_m: l.rms_m,
+            })
+        })
+        .collect();
+    lineflow_formats::write_lines3d(&run.join("lines3d_linemap.csv"), &rows)?;
+    println!(
+        "linemap on {} ({} views, {} segments, {} poses), {:.2} s:\n",
+        building,
+        views.len(),
+        views.iter().map(View::len).sum::<usize>(),
+        if truth_poses { "true" } else { "the run's" },
+        seconds
+    );
+    println!("{stats:?}\n");
+    print_header();
+    print_row(&row(building.to_owned(), &evaluate(&truth, &rows), seconds));
+    if funnel {
+        print_funnel(&camera, &views, bounds.as_ref(), &truth, &rows, &params);
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+/// Where the true edges of at least 0.5 m are lost, per class: seen as a 2-D segment in two or more images, given
+/// a hypothesis within 2 GSD by some pair, given one as its segments' best hypothesis, and found among the lines.
+fn print_funnel(camera: &lineflow_photogrammetry::Camera, views: &[View], bounds: Option<&Bounds>, truth: &Truth, lines: &[Line3Row], p: &MapParams) {
+    use lineflow_eval::geometry::{class_on_walls, Class, Seg, WallPlane};
+    use lineflow_linemap::hypotheses::pair_hypotheses;
+    use lineflow_linemap::support::best_match;
+    let tol = 2.0 * truth.gsd_m();
+    let near = |g: &Seg, a: &Vec3, b: &Vec3| {
+        let e = Seg::new(*a, *b);
+        g.line_distance(a) <= tol && g.line_distance(b) <= tol && g.angle_deg(&e) <= 2.0 && {
+            let (t0, t1) = (g.param(a), g.param(b));
+            t0.max(t1) > 0.0 && t0.min(t1) < g.length()
+        }
+    };
+    let walls: Vec<WallPlane> = truth
+        .scene
+        .approximate_walls()
+        .into_iter()
+        .filter_map(|(_, c)| WallPlane::new(c.into_iter().map(Vec3::from).collect()))
+        .collect();
+    let names = ["horizontal", "vertical", "oblique", "depth"];
+    let mut counts = [[0usize; 5]; 4];
+    for r in truth.lines.iter().filter(|r| (r.end - r.start).norm() >= 0.5) {
+        let g = Seg::new(r.start, r.end);
+        let c = match class_on_walls(&g, &walls) {
+            Class::Horizontal => 0,
+            Class::Vertical => 1,
+            Class::Oblique => 2,
+            Class::Depth => 3,
+        };
+        counts[c][0] += 1;
+        let seen: Vec<(usize, usize)> = views
+            .iter()
+            .enumerate()
+            .filter_map(|(k, v)| best_match(camera, (k, v), &[r.start, r.end], p).map(|m| (k, m.segment)))
+            .collect();
+        if seen.len() < 2 {
+            continue;
+        }
+        counts[c][1] += 1;
+        let proposed = seen.iter().any(|&(i, s)| {
+            (0..views.len())
+                .filter(|&j| j != i)
+                .any(|j| pair_hypotheses(camera, (i, &views[i]), s, (j, &views[j]), bounds, p).iter().any(|h| near(&g, &h.ends[0], &h.ends[1])))
+        });
+        counts[c][2] += proposed as usize;
+        let bests: Vec<_> = seen
+            .iter()
+            .filter_map(|&(i, s)| lineflow_linemap::best_hypothesis(camera, views, i, s, bounds, p))
+            .filter(|b| near(&g, &b.hypothesis.ends[0], &b.hypothesis.ends[1]))
+            .collect();
+        counts[c][3] += !bests.is_empty() as usize;
+        let found = lines.iter().any(|l| near(&g, &l.start, &l.end));
+        counts[c][4] += found as usize;
+        if !found && !bests.is_empty() && std::env::var_os("LINEMAP_TRACE").is_some() {
+            let b = &bests[0];
+            let slaves: Vec<_> = views.iter().map(View::as_slave).collect();
+            let mv = p.multiview();
+            let r = lineflow_linegeom::refine_line(camera, b.hypothesis.ends[0], b.hypothesis.ends[1], &slaves, &mv);
+            let close: Vec<String> = lines
+                .iter()
+                .filter(|l| g.line_distance(&l.start) < 0.3 && g.line_distance(&l.end) < 0.3)
+                .map(|l| format!("[{:.3} {:.3}]deg{:.1}", g.line_distance(&l.start) / truth.gsd_m(), g.line_distance(&l.end) / truth.gsd_m(), g.angle_deg(&Seg::new(l.start, l.end))))
+                .collect();
+            eprintln!(
+                "edge {:?}-{:?} L{:.2}: {} seen, {} bests, score {:.2}; refined {:?}; lines near (GSD): {:?}",
+                g.a.map(|v| (v * 100.0).round() / 100.0),
+                g.b.map(|v| (v * 100.0).round() / 100.0),
+                g.length(),
+                seen.len(),
+                bests.len(),
+                b.score,
+                r.map(|m| (g.line_distance(&m.start) / truth.gsd_m(), g.line_distance(&m.end) / truth.gsd_m(), m.views)),
+                close
+            );
+        }
+    }
+    println!("\n| class | true edges ≥ 0.5 m | 2-D in ≥ 2 images | a pair proposes it | best of its segments | found |");
+    println!("|---|---|---|---|---|---|");
+    for (name, c) in names.iter().zip(counts) {
+        println!("| {name} | {} | {} | {} | {} | {} |", c[0], c[1], c[2], c[3], c[4]);
+    }
+}

@@ -1,0 +1,132 @@
+//! The linemap stage: 3-D lines from the 2-D segments of every oriented image, designed for completeness.
+//!
+//! Where `linematch` searches each master image's lines in depth in front of a wall and scores them by correlation
+//! over a few neighbours, linemap works on segments alone and treats every image alike:
+//! 1. [`hypotheses`]: every segment of every image is cut with the interpretation planes of the segments of every
+//!    other image that could show the same edge (no wall needed; the site model only bounds the search region).
+//! 2. [`support`]: each hypothesis is projected into all the other images, and each image adds the Gaussian weight
+//!    of its best segment along it; a segment keeps its best-supported hypothesis.
+//! 3. [`tracks`]: from the best-supported down, each hypothesis is re-estimated from every image's segment along
+//!    it, cut to the stretches that enough images cover without a gap, and claims its segments.
+#![warn(missing_docs)]
+
+pub mod guide;
+pub mod hypotheses;
+pub mod stage;
+pub mod support;
+pub mod tracks;
+pub mod views;
+
+use lineflow_runtime::params::{at_least, check, in_closed, in_half_open, non_negative, positive, ParamError};
+use serde::Deserialize;
+
+pub use guide::Guide;
+pub use hypotheses::{Bounds, Hypothesis};
+pub use stage::MapStage;
+pub use tracks::{best_hypothesis, map_lines, map_lines_with_stats, MapStats, MappedLine, Scored};
+pub use views::View;
+
+/// Parameters of the `linemap` node.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct MapParams {
+    /// Shortest 2-D segment used, pixels.
+    pub min_length_px: f64,
+    /// Smallest angle between an endpoint ray and the other image's interpretation plane, degrees: below it the
+    /// pair does not fix the depth.
+    pub min_plane_angle_deg: f64,
+    /// Smallest angle between a line and either image's line of sight, degrees.
+    pub min_ray_angle_deg: f64,
+    /// Smallest overlap of two segments along the line, as a share of the shorter.
+    pub min_overlap: f64,
+    /// Largest distance of a supporting segment's endpoints from the projected line, pixels.
+    pub max_distance_px: f64,
+    /// Largest angle between a supporting segment and the projected line, degrees.
+    pub max_angle_deg: f64,
+    /// Standard deviation of the support's Gaussian weight, pixels.
+    pub sigma_px: f64,
+    /// Support a hypothesis needs from images other than its pair (about one per confirming image).
+    pub min_score: f64,
+    /// Images a line needs to be re-estimated.
+    pub min_views: usize,
+    /// A segment whose interpretation plane misses the re-estimated line by more than this many pixels leaves it.
+    pub max_residual_px: f64,
+    /// A-priori standard deviation of a 2-D segment across itself, pixels (weights of the re-estimate).
+    pub segment_sigma_px: f64,
+    /// Directions across a line that its segments' planes determine worse than this (standard deviation, metres)
+    /// keep the hypothesis's position in the re-estimate.
+    pub max_sigma_m: f64,
+    /// Distinct images that must cover a stretch of a line for it to be kept.
+    pub min_cover: usize,
+    /// A line whose estimate lies within this angle of a preferred direction (the vertical, along or across a
+    /// wall of the site model) is re-estimated with that direction, degrees; 0 turns it off.
+    pub snap_angle_deg: f64,
+    /// Shortest 3-D line kept, metres.
+    pub min_length_m: f64,
+    /// Margin around the site model's walls within which lines are sought, metres (without a site model, every
+    /// depth in front of the cameras).
+    pub site_margin_m: f64,
+    /// Recompute the map after this many new oriented frames while the stream runs (the final map always uses
+    /// every frame and the final poses).
+    pub every_frames: usize,
+}
+
+impl Default for MapParams {
+    fn default() -> Self {
+        MapParams {
+            min_length_px: 15.0,
+            min_plane_angle_deg: 2.0,
+            min_ray_angle_deg: 5.0,
+            min_overlap: 0.25,
+            max_distance_px: 2.0,
+            max_angle_deg: 2.0,
+            sigma_px: 1.0,
+            min_score: 1.5,
+            min_views: 3,
+            max_residual_px: 1.0,
+            segment_sigma_px: 0.3,
+            max_sigma_m: 0.05,
+            min_cover: 2,
+            snap_angle_deg: 3.0,
+            min_length_m: 0.1,
+            site_margin_m: 3.0,
+            every_frames: 1,
+        }
+    }
+}
+
+impl MapParams {
+    /// The settings of the re-estimate from every image.
+    pub fn multiview(&self) -> lineflow_linegeom::MultiviewParams {
+        lineflow_linegeom::MultiviewParams {
+            max_distance_px: self.max_distance_px,
+            max_angle_deg: self.max_angle_deg,
+            sigma_px: self.segment_sigma_px,
+            max_sigma_m: self.max_sigma_m,
+            max_residual_px: self.max_residual_px,
+            min_views: self.min_views,
+        }
+    }
+}
+
+impl lineflow_runtime::StageParams for MapParams {
+    fn validate(&self) -> Result<(), ParamError> {
+        check(self.min_length_px >= 2.0, "min_length_px", "at least 2", self.min_length_px)?;
+        in_half_open("min_plane_angle_deg", self.min_plane_angle_deg, 0.0, 90.0)?;
+        in_half_open("min_ray_angle_deg", self.min_ray_angle_deg, 0.0, 90.0)?;
+        in_closed("min_overlap", self.min_overlap, 0.0, 1.0)?;
+        positive("max_distance_px", self.max_distance_px)?;
+        in_half_open("max_angle_deg", self.max_angle_deg, 0.0, 90.0)?;
+        positive("sigma_px", self.sigma_px)?;
+        non_negative("min_score", self.min_score)?;
+        at_least("min_views", self.min_views, 2)?;
+        positive("max_residual_px", self.max_residual_px)?;
+        positive("segment_sigma_px", self.segment_sigma_px)?;
+        positive("max_sigma_m", self.max_sigma_m)?;
+        at_least("min_cover", self.min_cover, 1)?;
+        in_half_open("snap_angle_deg", self.snap_angle_deg, 0.0, 45.0)?;
+        non_negative("min_length_m", self.min_length_m)?;
+        non_negative("site_margin_m", self.site_margin_m)?;
+        at_least("every_frames", self.every_frames, 1)
+    }
+}

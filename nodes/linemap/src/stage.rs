@@ -1,0 +1,110 @@
+//! What the linemap process keeps between messages, and when it maps: the camera, the search region from the site
+//! model, every frame's segments and the newest poses. The map is recomputed from every oriented frame after
+//! `every_frames` new ones (the poses of earlier frames move as the orientation adjusts them), and once more at the
+//! end with the final poses.
+use std::collections::BTreeMap;
+
+use lineflow_messages::Segment2;
+use lineflow_photogrammetry::{Camera, Pose, Vec3};
+
+use crate::guide::Guide;
+use crate::tracks::{map_lines, MappedLine};
+use crate::views::View;
+use crate::MapParams;
+
+/// The stage's state.
+#[derive(Debug, Clone)]
+pub struct MapStage {
+    params: MapParams,
+    camera: Option<Camera>,
+    guide: Guide,
+    segments: BTreeMap<u64, Vec<Segment2>>,
+    poses: BTreeMap<u64, Pose>,
+    /// Frames with both segments and a pose when the map was last computed.
+    mapped_frames: usize,
+    lines: Vec<MappedLine>,
+}
+
+impl MapStage {
+    /// An empty stage.
+    pub fn new(params: MapParams) -> Self {
+        MapStage {
+            params,
+            camera: None,
+            guide: Guide::default(),
+            segments: BTreeMap::new(),
+            poses: BTreeMap::new(),
+            mapped_frames: 0,
+            lines: Vec::new(),
+        }
+    }
+
+    /// The camera model.
+    pub fn set_camera(&mut self, camera: Camera) {
+        self.camera = Some(camera);
+    }
+
+    /// The site model's walls (corner lists): lines are sought within `site_margin_m` of them and may take their
+    /// directions. No walls: anywhere, and only the vertical.
+    pub fn set_walls(&mut self, walls: &[Vec<Vec3>]) {
+        self.guide = if walls.is_empty() {
+            Guide::default()
+        } else {
+            Guide::from_walls(walls, self.params.site_margin_m)
+        };
+    }
+
+    /// One frame's 2-D segments.
+    pub fn add_segments(&mut self, frame: u64, segments: Vec<Segment2>) {
+        self.segments.insert(frame, segments);
+    }
+
+    /// The newest poses of every oriented frame.
+    pub fn set_poses(&mut self, poses: BTreeMap<u64, Pose>) {
+        self.poses = poses;
+    }
+
+    /// Frames with both segments and a pose.
+    pub fn ready_frames(&self) -> usize {
+        self.segments.keys().filter(|f| self.poses.contains_key(f)).count()
+    }
+
+    /// Recomputes the map when `every_frames` frames became ready since the last time; true when it did.
+    pub fn update(&mut self) -> bool {
+        let ready = self.ready_frames();
+        if self.camera.is_none() || ready < self.mapped_frames + self.params.every_frames {
+            return false;
+        }
+        self.compute();
+        true
+    }
+
+    /// The final map from every ready frame.
+    pub fn finish(&mut self) -> &[MappedLine] {
+        if self.camera.is_some() {
+            self.compute();
+        }
+        &self.lines
+    }
+
+    /// The current lines.
+    pub fn lines(&self) -> &[MappedLine] {
+        &self.lines
+    }
+
+    /// Whether the camera model has arrived.
+    pub fn has_camera(&self) -> bool {
+        self.camera.is_some()
+    }
+
+    fn compute(&mut self) {
+        let Some(camera) = self.camera else { return };
+        let views: Vec<View> = self
+            .segments
+            .iter()
+            .filter_map(|(f, s)| Some(View::new(&camera, *f, *self.poses.get(f)?, s, self.params.min_length_px)))
+            .collect();
+        self.mapped_frames = views.len();
+        self.lines = map_lines(&camera, &views, &self.guide, &self.params);
+    }
+}

@@ -1,0 +1,63 @@
+//! How well the other images confirm a 3-D segment: each image contributes its best 2-D segment along the
+//! segment's projection, scored by a Gaussian of its distance across (in that image's pixels), so every image
+//! counts once however many segments it has there (LIMAP's and Line3D++'s symmetric scoring).
+use lineflow_photogrammetry::{Camera, Vec3};
+
+use crate::views::{Line2, View};
+use crate::MapParams;
+
+/// The best segment of one view along a projected 3-D segment.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Match {
+    /// Index of the view.
+    pub view: usize,
+    /// Its segment.
+    pub segment: usize,
+    /// Larger distance of the segment's endpoints from the projection, pixels.
+    pub distance_px: f64,
+}
+
+/// The segment of view `v` that best lies along the projection of `ends`, if any lies within the tolerances.
+pub fn best_match(camera: &Camera, (iv, v): (usize, &View), ends: &[Vec3; 2], p: &MapParams) -> Option<Match> {
+    let q = [v.pose.project_ideal(camera, &ends[0])?, v.pose.project_ideal(camera, &ends[1])?];
+    if !(v.sees(camera, &ends[0], 0.0) || v.sees(camera, &ends[1], 0.0)) {
+        return None;
+    }
+    let line = Line2::new(q[0], q[1])?;
+    let pixel = v.segments.pixel_mm;
+    if line.len < p.min_length_px * pixel {
+        return None;
+    }
+    let tolerance = p.max_distance_px * pixel;
+    v.segments
+        .near(q[0], q[1], tolerance, p.max_angle_deg.to_radians())
+        .into_iter()
+        .filter_map(|k| {
+            let s = v.segments.ends[k];
+            let distance = line.across(s[0]).abs().max(line.across(s[1]).abs());
+            (distance <= tolerance && line.overlap_share(s) >= p.min_overlap).then_some(Match {
+                view: iv,
+                segment: k,
+                distance_px: distance / pixel,
+            })
+        })
+        .min_by(|x, y| x.distance_px.total_cmp(&y.distance_px).then(x.segment.cmp(&y.segment)))
+}
+
+/// The support of a 3-D segment in `views`, leaving out the views in `skip`: the sum over views of the best
+/// segment's Gaussian weight, and those best segments.
+pub fn support(camera: &Camera, views: &[View], ends: &[Vec3; 2], skip: [usize; 2], p: &MapParams) -> (f64, Vec<Match>) {
+    let matches: Vec<Match> = views
+        .iter()
+        .enumerate()
+        .filter(|(k, _)| !skip.contains(k))
+        .filter_map(|(k, v)| best_match(camera, (k, v), ends, p))
+        .collect();
+    let score = matches.iter().map(|m| weight(m.distance_px, p.sigma_px)).sum();
+    (score, matches)
+}
+
+/// Gaussian weight of a distance.
+pub fn weight(distance_px: f64, sigma_px: f64) -> f64 {
+    (-0.5 * (distance_px / sigma_px).powi(2)).exp()
+}

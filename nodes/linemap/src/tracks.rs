@@ -1,0 +1,261 @@
+//! From hypotheses to 3-D lines: every segment's best-supported hypothesis, taken greedily from the best; each is
+//! re-estimated from the segments of every image along it ([`lineflow_linegeom::multiview`]), given the extent
+//! that enough images show without a gap (Line3D++'s coverage sweep), and claims its segments so that no edge is
+//! reconstructed twice.
+use lineflow_linegeom::{refine_line, refine_line_along, SlaveSegments};
+use lineflow_photogrammetry::{Camera, Vec3};
+use rayon::prelude::*;
+
+use crate::guide::Guide;
+use crate::hypotheses::{pair_hypotheses, Bounds, Hypothesis};
+use crate::support::support;
+use crate::views::{Line2, View};
+use crate::MapParams;
+
+/// A reconstructed 3-D line.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MappedLine {
+    /// First endpoint.
+    pub start: Vec3,
+    /// Second endpoint.
+    pub end: Vec3,
+    /// 2-D segments along it.
+    pub n_segments: u32,
+    /// Images those segments come from.
+    pub n_images: u32,
+    /// RMS distance of the segments' planes from the line, metres.
+    pub rms_m: f64,
+}
+
+/// A source segment's best hypothesis and its support.
+#[derive(Debug, Clone, Copy)]
+pub struct Scored {
+    /// Support from the images other than the pair.
+    pub score: f64,
+    /// The hypothesis.
+    pub hypothesis: Hypothesis,
+}
+
+/// What became of the segments' best hypotheses.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct MapStats {
+    /// Segments with a hypothesis supported enough.
+    pub supported: usize,
+    /// Of those, segments already claimed by a better line when their turn came.
+    pub claimed: usize,
+    /// Hypotheses the re-estimate from every image rejected (too few images agree within the residual).
+    pub not_refined: usize,
+    /// Re-estimated lines that too few images cover anywhere.
+    pub not_covered: usize,
+    /// Lines whose segments mostly belong to lines already made.
+    pub duplicates: usize,
+    /// Lines made (before cutting at gaps).
+    pub made: usize,
+    /// Re-estimates given a preferred direction.
+    pub snapped: usize,
+}
+
+/// The 3-D lines of `views` (every oriented image with its segments), sought inside `bounds` when given.
+pub fn map_lines(camera: &Camera, views: &[View], guide: &Guide, p: &MapParams) -> Vec<MappedLine> {
+    map_lines_with_stats(camera, views, guide, p).0
+}
+
+/// [`map_lines`], and what became of the hypotheses.
+pub fn map_lines_with_stats(camera: &Camera, views: &[View], guide: &Guide, p: &MapParams) -> (Vec<MappedLine>, MapStats) {
+    let bounds = guide.bounds.as_ref();
+    let sources: Vec<(usize, usize)> = views
+        .iter()
+        .enumerate()
+        .flat_map(|(i, v)| (0..v.len()).map(move |s| (i, s)))
+        .collect();
+    let mut best: Vec<Scored> = sources
+        .par_iter()
+        .filter_map(|&(i, s)| best_hypothesis(camera, views, i, s, bounds, p))
+        .collect();
+    // Best support first; ties in a fixed order of views and segments, so the result does not depend on threads.
+    best.sort_by(|a, b| {
+        b.score
+            .total_cmp(&a.score)
+            .then(a.hypothesis.view.cmp(&b.hypothesis.view))
+            .then(a.hypothesis.segment.cmp(&b.hypothesis.segment))
+    });
+    let slaves: Vec<SlaveSegments> = views.iter().map(View::as_slave).collect();
+    let refine = p.multiview();
+    let mut claimed: Vec<Vec<bool>> = views.iter().map(|v| vec![false; v.len()]).collect();
+    let mut lines = Vec::new();
+    let mut stats = MapStats {
+        supported: best.len(),
+        ..MapStats::default()
+    };
+    for b in &best {
+        let h = &b.hypothesis;
+        if claimed[h.view][h.segment] {
+            stats.claimed += 1;
+            continue;
+        }
+        let Some(free) = refine_line(camera, h.ends[0], h.ends[1], &slaves, &refine) else {
+            stats.not_refined += 1;
+            continue;
+        };
+        let snapped = (p.snap_angle_deg > 0.0)
+            .then(|| guide.snap(&(free.end - free.start), p.snap_angle_deg))
+            .flatten()
+            .and_then(|d| refine_line_along(camera, free.start, free.end, d, &slaves, &refine));
+        if snapped.is_some() {
+            stats.snapped += 1;
+        }
+        let r = snapped.unwrap_or(free);
+        let along = segments_along(camera, views, &[r.start, r.end], p);
+        let pieces = covered_pieces(&along, p.min_cover);
+        if pieces.is_empty() {
+            stats.not_covered += 1;
+            continue;
+        }
+        let fresh = along.iter().filter(|a| !claimed[a.view][a.segment]).count();
+        // Mostly segments of lines already made: the same edge again.
+        if 2 * fresh < along.len() {
+            stats.duplicates += 1;
+            continue;
+        }
+        stats.made += 1;
+        for a in &along {
+            claimed[a.view][a.segment] = true;
+        }
+        let dir = (r.end - r.start).normalize();
+        let rms_m = r.rms_px * views[h.view].metres_per_px(camera, &((r.start + r.end) * 0.5));
+        for (t0, t1, n_images, n_segments) in pieces {
+            if t1 - t0 >= p.min_length_m {
+                lines.push(MappedLine {
+                    start: r.start + dir * t0,
+                    end: r.start + dir * t1,
+                    n_segments,
+                    n_images,
+                    rms_m,
+                });
+            }
+        }
+    }
+    (lines, stats)
+}
+
+/// The best-supported hypothesis of segment `s` of view `i` over every other view, if it has enough support.
+pub fn best_hypothesis(camera: &Camera, views: &[View], i: usize, s: usize, bounds: Option<&Bounds>, p: &MapParams) -> Option<Scored> {
+    let mut best: Option<Scored> = None;
+    for (j, other) in views.iter().enumerate() {
+        if j == i {
+            continue;
+        }
+        for h in pair_hypotheses(camera, (i, &views[i]), s, (j, other), bounds, p) {
+            let (score, _) = support(camera, views, &h.ends, [i, j], p);
+            if score >= p.min_score && best.as_ref().is_none_or(|b| score > b.score) {
+                best = Some(Scored { score, hypothesis: h });
+            }
+        }
+    }
+    best
+}
+
+/// One 2-D segment along a 3-D line: its view, its index, and the stretch of the line it covers (metres from the
+/// line's start).
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Along {
+    view: usize,
+    segment: usize,
+    t0: f64,
+    t1: f64,
+}
+
+/// Every segment of every view that lies along the line `ends` (within the distance and angle tolerances) and
+/// covers part of it or of its continuation up to one line length on either side.
+fn segments_along(camera: &Camera, views: &[View], ends: &[Vec3; 2], p: &MapParams) -> Vec<Along> {
+    let length = (ends[1] - ends[0]).norm();
+    let dir = (ends[1] - ends[0]) / length;
+    let reach = [ends[0] - dir * length, ends[1] + dir * length];
+    let mut out = Vec::new();
+    for (k, v) in views.iter().enumerate() {
+        let (Some(a), Some(b)) = (v.pose.project_ideal(camera, &reach[0]), v.pose.project_ideal(camera, &reach[1])) else {
+            continue;
+        };
+        let Some(line) = Line2::new(a, b) else { continue };
+        let tolerance = p.max_residual_px * v.segments.pixel_mm;
+        for s in v.segments.near(a, b, tolerance, p.max_angle_deg.to_radians()) {
+            let e = v.segments.ends[s];
+            if line.across(e[0]).abs().max(line.across(e[1]).abs()) > tolerance {
+                continue;
+            }
+            let t = e.map(|q| parameter_on_line(&ends[0], &dir, &v.pose.center, &v.pose.ray_of_ideal(camera, q)));
+            if let [Some(t0), Some(t1)] = t {
+                let (t0, t1) = (t0.min(t1).max(-length), t0.max(t1).min(2.0 * length));
+                if t1 > t0 {
+                    out.push(Along { view: k, segment: s, t0, t1 });
+                }
+            }
+        }
+    }
+    out
+}
+
+/// The parameter along the line `origin + t·dir` of its point closest to the ray `center + u·ray`.
+fn parameter_on_line(origin: &Vec3, dir: &Vec3, center: &Vec3, ray: &Vec3) -> Option<f64> {
+    let w = origin - center;
+    let b = dir.dot(ray);
+    let denom = 1.0 - b * b;
+    (denom > 1e-9).then(|| (b * ray.dot(&w) - dir.dot(&w)) / denom)
+}
+
+/// The stretches of the line that at least `min_cover` distinct views cover without a gap, each with the number
+/// of views and of segments that cover it.
+fn covered_pieces(along: &[Along], min_cover: usize) -> Vec<(f64, f64, u32, u32)> {
+    let mut cuts: Vec<f64> = along.iter().flat_map(|a| [a.t0, a.t1]).collect();
+    cuts.sort_by(f64::total_cmp);
+    cuts.dedup();
+    let mut pieces: Vec<(f64, f64, u32, u32)> = Vec::new();
+    let mut open: Option<(f64, f64, std::collections::BTreeSet<usize>, std::collections::BTreeSet<(usize, usize)>)> = None;
+    for w in cuts.windows(2) {
+        let (lo, hi) = (w[0], w[1]);
+        let mid = 0.5 * (lo + hi);
+        let covering: Vec<&Along> = along.iter().filter(|a| a.t0 <= mid && a.t1 >= mid).collect();
+        let views: std::collections::BTreeSet<usize> = covering.iter().map(|a| a.view).collect();
+        if views.len() >= min_cover {
+            let o = open.get_or_insert_with(|| (lo, hi, Default::default(), Default::default()));
+            o.1 = hi;
+            o.2.extend(views);
+            o.3.extend(covering.iter().map(|a| (a.view, a.segment)));
+        } else if let Some((a, b, v, s)) = open.take() {
+            pieces.push((a, b, v.len() as u32, s.len() as u32));
+        }
+    }
+    if let Some((a, b, v, s)) = open.take() {
+        pieces.push((a, b, v.len() as u32, s.len() as u32));
+    }
+    pieces
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn along(view: usize, t0: f64, t1: f64) -> Along {
+        Along { view, segment: 0, t0, t1 }
+    }
+
+    #[test]
+    fn coverage_keeps_gaps_and_needs_distinct_views() {
+        // Views 0 and 1 cover 0–1 m, then a gap at 1.0–1.2 m that only view 0 covers, then views 1 and 2 again.
+        let a = [along(0, 0.0, 1.2), along(1, 0.0, 1.0), along(1, 1.2, 2.0), along(2, 1.2, 2.0), along(2, 0.5, 0.6)];
+        let pieces = covered_pieces(&a, 2);
+        assert_eq!(pieces.len(), 2, "{pieces:?}");
+        assert_eq!((pieces[0].0, pieces[0].1), (0.0, 1.0));
+        assert_eq!((pieces[1].0, pieces[1].1), (1.2, 2.0));
+        assert_eq!(pieces[0].2, 3, "views 0, 1 and (over 0.5–0.6) 2");
+        // Two segments of one view never make coverage of two.
+        assert!(covered_pieces(&[along(0, 0.0, 1.0), along(0, 0.0, 1.0)], 2).is_empty());
+    }
+
+    #[test]
+    fn the_point_of_a_line_nearest_a_ray() {
+        let t = parameter_on_line(&Vec3::zeros(), &Vec3::x(), &Vec3::new(2.0, -5.0, 1.0), &Vec3::y()).unwrap();
+        assert!((t - 2.0).abs() < 1e-12);
+        assert!(parameter_on_line(&Vec3::zeros(), &Vec3::x(), &Vec3::new(0.0, 1.0, 0.0), &Vec3::x()).is_none());
+    }
+}

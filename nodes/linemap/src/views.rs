@@ -1,0 +1,113 @@
+//! The oriented images a map is built from: each image's pose, its 2-D segments indexed in ideal photo
+//! coordinates, and every segment's interpretation plane (the plane through the perspective centre and the
+//! segment, on which the 3-D edge must lie).
+use lineflow_linegeom::{FrameSegments, SlaveSegments};
+use lineflow_messages::Segment2;
+use lineflow_photogrammetry::{Camera, Pose, Vec3};
+
+/// One oriented image and its segments.
+#[derive(Debug, Clone)]
+pub struct View {
+    /// Frame number (ties are broken by it, so the map does not depend on arrival order).
+    pub frame: u64,
+    /// Exterior orientation.
+    pub pose: Pose,
+    /// Segments of at least the minimum length, ideal photo coordinates.
+    pub segments: FrameSegments,
+    /// Unit normal of each segment's interpretation plane, object space.
+    pub normals: Vec<Vec3>,
+    /// Largest |x| and |y| of the image's corners in ideal photo coordinates, mm.
+    pub half_extent_mm: [f64; 2],
+}
+
+impl View {
+    /// The view of `frame`, keeping segments of at least `min_length_px`.
+    pub fn new(camera: &Camera, frame: u64, pose: Pose, segments: &[Segment2], min_length_px: f64) -> Self {
+        let segments = FrameSegments::new(camera, segments, min_length_px);
+        let normals = segments
+            .ends
+            .iter()
+            .map(|[a, b]| {
+                let n = pose.ray_of_ideal(camera, *a).cross(&pose.ray_of_ideal(camera, *b));
+                n.try_normalize(1e-15).unwrap_or_else(Vec3::zeros)
+            })
+            .collect();
+        let (w, h) = (camera.width as f64, camera.height as f64);
+        let corners = [[0.0, 0.0], [w, 0.0], [0.0, h], [w, h]].map(|px| camera.pixel_to_ideal(px));
+        let half_extent_mm = [0, 1].map(|k| corners.iter().map(|c| c[k].abs()).fold(0.0, f64::max));
+        View {
+            frame,
+            pose,
+            segments,
+            normals,
+            half_extent_mm,
+        }
+    }
+
+    /// The view as the multi-view estimate takes it.
+    pub fn as_slave(&self) -> SlaveSegments<'_> {
+        SlaveSegments {
+            pose: self.pose,
+            segments: &self.segments,
+        }
+    }
+
+    /// Number of segments.
+    pub fn len(&self) -> usize {
+        self.segments.ends.len()
+    }
+
+    /// Whether the view has no segments.
+    pub fn is_empty(&self) -> bool {
+        self.segments.ends.is_empty()
+    }
+
+    /// Metres per pixel across the line of sight at `point`.
+    pub fn metres_per_px(&self, camera: &Camera, point: &Vec3) -> f64 {
+        (point - self.pose.center).norm() * self.segments.pixel_mm / camera.focal_mm
+    }
+
+    /// Whether `point` projects into the image with `margin_px` to spare.
+    pub fn sees(&self, camera: &Camera, point: &Vec3, margin_px: f64) -> bool {
+        self.pose.project(camera, point).is_some_and(|px| camera.contains(px, margin_px))
+    }
+}
+
+/// A 2-D line in ideal photo coordinates from `a` to `b`, for distances and overlaps of segments against it.
+#[derive(Debug, Clone, Copy)]
+pub struct Line2 {
+    a: [f64; 2],
+    dir: [f64; 2],
+    /// Length, mm.
+    pub len: f64,
+}
+
+impl Line2 {
+    /// The line through `a` and `b`, if they are apart.
+    pub fn new(a: [f64; 2], b: [f64; 2]) -> Option<Self> {
+        let len = (b[0] - a[0]).hypot(b[1] - a[1]);
+        (len > 1e-12).then(|| Line2 {
+            a,
+            dir: [(b[0] - a[0]) / len, (b[1] - a[1]) / len],
+            len,
+        })
+    }
+
+    /// Signed distance of `q` from the line, mm.
+    pub fn across(&self, q: [f64; 2]) -> f64 {
+        (q[0] - self.a[0]) * -self.dir[1] + (q[1] - self.a[1]) * self.dir[0]
+    }
+
+    /// Position of `q`'s foot along the line from `a`, mm.
+    pub fn along(&self, q: [f64; 2]) -> f64 {
+        (q[0] - self.a[0]) * self.dir[0] + (q[1] - self.a[1]) * self.dir[1]
+    }
+
+    /// Overlap of the segment `s` with `a`–`b` along the line, as a share of the shorter of the two.
+    pub fn overlap_share(&self, s: [[f64; 2]; 2]) -> f64 {
+        let (t0, t1) = (self.along(s[0]), self.along(s[1]));
+        let (lo, hi) = (t0.min(t1), t0.max(t1));
+        let overlap = hi.min(self.len) - lo.max(0.0);
+        overlap / (hi - lo).min(self.len).max(1e-12)
+    }
+}
