@@ -1,10 +1,10 @@
 //! `lineflow bench` and `lineflow experiment`: every benchmark and seed experiment, each printing its figures
 //! beside a reference measured in the same run. The `lineflow` command parses [`BenchCmd`] and calls [`bench`].
 mod buildings;
-mod linemap;
 mod bundle;
 mod edges;
 mod features;
+mod linemap;
 mod linematch;
 mod lines2d;
 pub mod model;

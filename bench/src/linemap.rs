@@ -10,7 +10,7 @@ use anyhow::{Context, Result};
 use lineflow_eval::lines3d::evaluate;
 use lineflow_eval::Truth;
 use lineflow_formats::{read_lines2d, read_poses, Line3Row};
-use lineflow_linemap::{map_lines_with_stats, Bounds, Guide, MapParams, View};
+use lineflow_linemap::{map_lines_with_stats, Guide, MapParams, Scored, View};
 use lineflow_messages::{Line3, Segment2};
 use lineflow_photogrammetry::Vec3;
 use lineflow_synthetic::Synthetic;
@@ -18,7 +18,15 @@ use lineflow_synthetic::Synthetic;
 use crate::buildings::{print_header, print_row, row};
 
 /// `lineflow bench linemap RUN --building B [--scale S] [--seed N] [--truth-poses] [--set KEY=VALUE]...`
-pub fn bench_linemap(run: &Path, building: &str, scale: f64, seed: u64, truth_poses: bool, funnel: bool, set: &[String]) -> Result<ExitCode> {
+pub fn bench_linemap(
+    run: &Path,
+    building: &str,
+    scale: f64,
+    seed: u64,
+    truth_poses: bool,
+    funnel: bool,
+    set: &[String],
+) -> Result<ExitCode> {
     let params: MapParams = lineflow_runtime::launch::params_from_overrides(set)?;
     lineflow_runtime::StageParams::validate(&params)?;
     let scene = Synthetic::new(building, scale, seed).map_err(|e| anyhow::anyhow!("{e}"))?;
@@ -26,7 +34,6 @@ pub fn bench_linemap(run: &Path, building: &str, scale: f64, seed: u64, truth_po
     let walls = scene.approximate_walls();
     let walls: Vec<Vec<Vec3>> = walls.iter().map(|(_, c)| c.iter().map(|&p| Vec3::from(p)).collect()).collect();
     let guide = Guide::from_walls(&walls, params.site_margin_m);
-    let bounds = guide.bounds;
     let truth = Truth::from_scene(scene);
     let poses = if truth_poses {
         truth.poses.clone()
@@ -74,16 +81,23 @@ pub fn bench_linemap(run: &Path, building: &str, scale: f64, seed: u64, truth_po
     );
     println!("{stats:?}\n");
     print_header();
-    print_row(&row(building.to_owned(), &evaluate(&truth, &rows), seconds));
+    print_row(&row(format!("{building} linemap"), &evaluate(&truth, &rows), seconds));
+    if let Ok(theirs) = lineflow_formats::read_lines3d(&run.join("lines3d.csv")) {
+        print_row(&row(
+            format!("{building} the run's lines3d.csv"),
+            &evaluate(&truth, &theirs),
+            f64::NAN,
+        ));
+    }
     if funnel {
-        print_funnel(&camera, &views, bounds.as_ref(), &truth, &rows, &params);
+        print_funnel(&camera, &views, &guide, &truth, &rows, &params);
     }
     Ok(ExitCode::SUCCESS)
 }
 
 /// Where the true edges of at least 0.5 m are lost, per class: seen as a 2-D segment in two or more images, given
 /// a hypothesis within 2 GSD by some pair, given one as its segments' best hypothesis, and found among the lines.
-fn print_funnel(camera: &lineflow_photogrammetry::Camera, views: &[View], bounds: Option<&Bounds>, truth: &Truth, lines: &[Line3Row], p: &MapParams) {
+fn print_funnel(camera: &lineflow_photogrammetry::Camera, views: &[View], guide: &Guide, truth: &Truth, lines: &[Line3Row], p: &MapParams) {
     use lineflow_eval::geometry::{class_on_walls, Class, Seg, WallPlane};
     use lineflow_linemap::hypotheses::pair_hypotheses;
     use lineflow_linemap::support::best_match;
@@ -122,28 +136,54 @@ fn print_funnel(camera: &lineflow_photogrammetry::Camera, views: &[View], bounds
         }
         counts[c][1] += 1;
         let proposed = seen.iter().any(|&(i, s)| {
-            (0..views.len())
-                .filter(|&j| j != i)
-                .any(|j| pair_hypotheses(camera, (i, &views[i]), s, (j, &views[j]), bounds, p).iter().any(|h| near(&g, &h.ends[0], &h.ends[1])))
+            (0..views.len()).filter(|&j| j != i).any(|j| {
+                pair_hypotheses(camera, (i, &views[i]), s, (j, &views[j]), guide, p)
+                    .iter()
+                    .any(|h| near(&g, &h.ends[0], &h.ends[1]))
+            })
         });
         counts[c][2] += proposed as usize;
         let bests: Vec<_> = seen
             .iter()
-            .filter_map(|&(i, s)| lineflow_linemap::best_hypothesis(camera, views, i, s, bounds, p))
+            .filter_map(|&(i, s)| lineflow_linemap::best_hypothesis(camera, views, i, s, guide, p))
             .filter(|b| near(&g, &b.hypothesis.ends[0], &b.hypothesis.ends[1]))
             .collect();
         counts[c][3] += !bests.is_empty() as usize;
         let found = lines.iter().any(|l| near(&g, &l.start, &l.end));
         counts[c][4] += found as usize;
-        if !found && !bests.is_empty() && std::env::var_os("LINEMAP_TRACE").is_some() {
-            let b = &bests[0];
+        if !found && c == 0 && std::env::var_os("LINEMAP_TRACE").is_some() {
+            let b = bests.first().copied().unwrap_or(Scored {
+                score: 0.0,
+                hypothesis: lineflow_linemap::Hypothesis {
+                    view: 0,
+                    segment: 0,
+                    other: 0,
+                    other_segment: 0,
+                    ends: [g.a, g.b],
+                },
+            });
             let slaves: Vec<_> = views.iter().map(View::as_slave).collect();
             let mv = p.multiview();
             let r = lineflow_linegeom::refine_line(camera, b.hypothesis.ends[0], b.hypothesis.ends[1], &slaves, &mv);
             let close: Vec<String> = lines
                 .iter()
-                .filter(|l| g.line_distance(&l.start) < 0.3 && g.line_distance(&l.end) < 0.3)
-                .map(|l| format!("[{:.3} {:.3}]deg{:.1}", g.line_distance(&l.start) / truth.gsd_m(), g.line_distance(&l.end) / truth.gsd_m(), g.angle_deg(&Seg::new(l.start, l.end))))
+                .filter(|l| {
+                    g.line_distance(&l.start) < 0.3 && g.line_distance(&l.end) < 0.3 && {
+                        let (t0, t1) = (g.param(&l.start), g.param(&l.end));
+                        t0.max(t1) > 0.0 && t0.min(t1) < g.length()
+                    }
+                })
+                .map(|l| {
+                    let m = (l.start + l.end) * 0.5;
+                    let off = (m - g.at(g.param(&m).clamp(0.0, g.length()) / g.length())) * 100.0;
+                    format!(
+                        "off[{:.0} {:.0} {:.0}]cm deg{:.1}",
+                        off.x,
+                        off.y,
+                        off.z,
+                        g.angle_deg(&Seg::new(l.start, l.end))
+                    )
+                })
                 .collect();
             eprintln!(
                 "edge {:?}-{:?} L{:.2}: {} seen, {} bests, score {:.2}; refined {:?}; lines near (GSD): {:?}",
@@ -153,7 +193,11 @@ fn print_funnel(camera: &lineflow_photogrammetry::Camera, views: &[View], bounds
                 seen.len(),
                 bests.len(),
                 b.score,
-                r.map(|m| (g.line_distance(&m.start) / truth.gsd_m(), g.line_distance(&m.end) / truth.gsd_m(), m.views)),
+                r.map(|m| (
+                    g.line_distance(&m.start) / truth.gsd_m(),
+                    g.line_distance(&m.end) / truth.gsd_m(),
+                    m.views
+                )),
                 close
             );
         }

@@ -7,6 +7,7 @@
 //! (images of another strip, or a sloping path, give it one).
 use lineflow_photogrammetry::{Camera, Vec3};
 
+use crate::guide::Guide;
 use crate::views::{Line2, View};
 use crate::MapParams;
 
@@ -74,9 +75,10 @@ pub fn pair_hypotheses(
     (ia, a): (usize, &View),
     segment: usize,
     (ib, b): (usize, &View),
-    bounds: Option<&Bounds>,
+    guide: &Guide,
     p: &MapParams,
 ) -> Vec<Hypothesis> {
+    let bounds = guide.bounds.as_ref();
     let ends = a.segments.ends[segment];
     let center = a.pose.center;
     let rays = ends.map(|e| a.pose.ray_of_ideal(camera, e));
@@ -93,7 +95,12 @@ pub fn pair_hypotheses(
     };
     // Where in `b` the segment can appear: the box of the four ray ends' projections (clipped to the image where
     // an end lies behind `b`).
-    let corners = [center + rays[0] * r0.0, center + rays[0] * r0.1, center + rays[1] * r1.0, center + rays[1] * r1.1];
+    let corners = [
+        center + rays[0] * r0.0,
+        center + rays[0] * r0.1,
+        center + rays[1] * r1.0,
+        center + rays[1] * r1.1,
+    ];
     let projected: Vec<[f64; 2]> = corners.iter().filter_map(|x| b.pose.project_ideal(camera, x)).collect();
     let half = b.half_extent_mm;
     let (lo, hi) = if projected.len() == 4 {
@@ -107,6 +114,8 @@ pub fn pair_hypotheses(
         return Vec::new();
     }
     let min_sin = p.min_plane_angle_deg.to_radians().sin();
+    let weak_sin = p.weak_plane_angle_deg.to_radians().sin();
+    let max_sin_level = p.snap_angle_deg.to_radians().sin();
     let max_cos_ray = p.min_ray_angle_deg.to_radians().cos();
     let mid_ray = (rays[0] + rays[1]).normalize();
     b.segments
@@ -124,7 +133,16 @@ pub fn pair_hypotheses(
                 (t >= t0 && t <= t1).then(|| center + ray * t)
             };
             let x = [cut(&rays[0], r0)?, cut(&rays[1], r1)?];
+            if x.iter().any(|e| guide.hidden(e, p.max_behind_m)) {
+                return None;
+            }
             let d = (x[1] - x[0]).try_normalize(1e-12)?;
+            // A horizontal line from planes this close is placed to decimetres, and one line off among parallel
+            // ones (brick courses) to metres, which the images of both strips confirm alike: the corners it makes
+            // with the verticals place it instead.
+            if p.junctions && d.z.abs() < max_sin_level && a.normals[segment].cross(&n).norm() < weak_sin {
+                return None;
+            }
             // A line nearly along the line of sight of either image is placed by its endpoints alone.
             let mid_b = ((x[0] + x[1]) * 0.5 - b.pose.center).normalize();
             if d.dot(&mid_ray).abs() > max_cos_ray || d.dot(&mid_b).abs() > max_cos_ray {

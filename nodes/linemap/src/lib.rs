@@ -12,6 +12,7 @@
 
 pub mod guide;
 pub mod hypotheses;
+pub mod junctions;
 pub mod stage;
 pub mod support;
 pub mod tracks;
@@ -47,6 +48,11 @@ pub struct MapParams {
     pub sigma_px: f64,
     /// Support a hypothesis needs from images other than its pair (about one per confirming image).
     pub min_score: f64,
+    /// A segment whose best hypothesis has a rival placing it elsewhere with at least this share of its support is
+    /// ambiguous and left to the junctions (1 keeps every best).
+    pub max_ambiguity: f64,
+    /// Hypotheses whose midpoints lie this many pixels of the source image apart place a segment elsewhere.
+    pub distinct_px: f64,
     /// Images a line needs to be re-estimated.
     pub min_views: usize,
     /// A segment whose interpretation plane misses the re-estimated line by more than this many pixels leaves it.
@@ -61,11 +67,24 @@ pub struct MapParams {
     /// A line whose estimate lies within this angle of a preferred direction (the vertical, along or across a
     /// wall of the site model) is re-estimated with that direction, degrees; 0 turns it off.
     pub snap_angle_deg: f64,
+    /// Offer every segment the hypotheses of the corners it makes with the vertical lines of a first pass.
+    pub junctions: bool,
+    /// With `junctions`, a pair whose planes meet at less than this angle, degrees, proposes no horizontal line.
+    pub weak_plane_angle_deg: f64,
+    /// Largest distance of a segment's endpoint from a vertical's projection to make a corner with it, pixels.
+    pub junction_px: f64,
     /// Shortest 3-D line kept, metres.
     pub min_length_m: f64,
     /// Margin around the site model's walls within which lines are sought, metres (without a site model, every
     /// depth in front of the cameras).
     pub site_margin_m: f64,
+    /// A line more than this far behind every wall of the site model it lies over is inside the building, where
+    /// no image sees, and is not made, metres.
+    pub max_behind_m: f64,
+    /// A hypothesis within this distance of a wall of the site model (or over none) keeps its support, metres…
+    pub near_wall_m: f64,
+    /// …one farther off has its support multiplied by this (1 = no preference).
+    pub off_wall_weight: f64,
     /// Recompute the map after this many new oriented frames while the stream runs (the final map always uses
     /// every frame and the final poses).
     pub every_frames: usize,
@@ -82,14 +101,22 @@ impl Default for MapParams {
             max_angle_deg: 2.0,
             sigma_px: 1.0,
             min_score: 1.5,
+            max_ambiguity: 1.0,
+            distinct_px: 10.0,
             min_views: 3,
             max_residual_px: 1.0,
             segment_sigma_px: 0.3,
             max_sigma_m: 0.05,
             min_cover: 2,
-            snap_angle_deg: 3.0,
+            snap_angle_deg: 8.0,
+            junctions: true,
+            junction_px: 3.0,
+            weak_plane_angle_deg: 0.0,
             min_length_m: 0.1,
             site_margin_m: 3.0,
+            max_behind_m: 1.0,
+            near_wall_m: 0.6,
+            off_wall_weight: 0.2,
             every_frames: 1,
         }
     }
@@ -119,14 +146,21 @@ impl lineflow_runtime::StageParams for MapParams {
         in_half_open("max_angle_deg", self.max_angle_deg, 0.0, 90.0)?;
         positive("sigma_px", self.sigma_px)?;
         non_negative("min_score", self.min_score)?;
+        in_closed("max_ambiguity", self.max_ambiguity, 0.0, 1.0)?;
+        positive("distinct_px", self.distinct_px)?;
         at_least("min_views", self.min_views, 2)?;
         positive("max_residual_px", self.max_residual_px)?;
         positive("segment_sigma_px", self.segment_sigma_px)?;
         positive("max_sigma_m", self.max_sigma_m)?;
         at_least("min_cover", self.min_cover, 1)?;
         in_half_open("snap_angle_deg", self.snap_angle_deg, 0.0, 45.0)?;
+        positive("junction_px", self.junction_px)?;
+        in_closed("weak_plane_angle_deg", self.weak_plane_angle_deg, 0.0, 89.0)?;
         non_negative("min_length_m", self.min_length_m)?;
         non_negative("site_margin_m", self.site_margin_m)?;
+        non_negative("max_behind_m", self.max_behind_m)?;
+        non_negative("near_wall_m", self.near_wall_m)?;
+        in_closed("off_wall_weight", self.off_wall_weight, 0.0, 1.0)?;
         at_least("every_frames", self.every_frames, 1)
     }
 }

@@ -51,7 +51,11 @@ fn run(ctx: NodeContext) -> Result<()> {
         }
         if let Some(i) = &site_in {
             while let Some(m) = i.receive()? {
-                let walls: Vec<Vec<Vec3>> = m.payload().iter().map(|w| w.corners().iter().map(|&c| Vec3::from(c)).collect()).collect();
+                let walls: Vec<Vec<Vec3>> = m
+                    .payload()
+                    .iter()
+                    .map(|w| w.corners().iter().map(|&c| Vec3::from(c)).collect())
+                    .collect();
                 tracing::info!("site model: {} walls bound the search", walls.len());
                 stage.set_walls(&walls);
             }
@@ -76,11 +80,13 @@ fn run(ctx: NodeContext) -> Result<()> {
             }
         }
         let site_ended = site_in.as_ref().is_none_or(|i| i.is_ended());
-        Ok(if lines_in.is_ended() && poses_in.is_ended() && camera_in.is_ended() && site_ended {
-            Flow::Stop
-        } else {
-            Flow::Continue
-        })
+        Ok(
+            if lines_in.is_ended() && poses_in.is_ended() && camera_in.is_ended() && site_ended {
+                Flow::Stop
+            } else {
+                Flow::Continue
+            },
+        )
     })?;
     if !stage.has_camera() {
         tracing::warn!("no camera model arrived: no 3-D lines");

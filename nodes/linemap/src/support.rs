@@ -45,12 +45,30 @@ pub fn best_match(camera: &Camera, (iv, v): (usize, &View), ends: &[Vec3; 2], p:
 }
 
 /// The support of a 3-D segment in `views`, leaving out the views in `skip`: the sum over views of the best
-/// segment's Gaussian weight, and those best segments.
-pub fn support(camera: &Camera, views: &[View], ends: &[Vec3; 2], skip: [usize; 2], p: &MapParams) -> (f64, Vec<Match>) {
+/// segment's Gaussian weight, and those best segments. With `depth_from`, only views that see the segment's depth
+/// differently from that view count: those whose plane through the segment makes at least `min_plane_angle_deg`
+/// with its plane. A view in the same plane (a horizontal edge seen from the same horizontal strip) sees the segment
+/// where it sees every segment in front of or behind it, and would confirm any depth.
+pub fn support(
+    camera: &Camera,
+    views: &[View],
+    ends: &[Vec3; 2],
+    skip: [usize; 2],
+    depth_from: Option<usize>,
+    p: &MapParams,
+) -> (f64, Vec<Match>) {
+    let plane = |v: &View| (ends[0] - v.pose.center).cross(&(ends[1] - v.pose.center)).try_normalize(1e-15);
+    let reference = depth_from.and_then(|i| plane(&views[i]));
+    let max_cos = p.min_plane_angle_deg.to_radians().cos();
     let matches: Vec<Match> = views
         .iter()
         .enumerate()
         .filter(|(k, _)| !skip.contains(k))
+        .filter(|(_, v)| match (&reference, depth_from) {
+            (Some(n), Some(_)) => plane(v).is_some_and(|m| m.dot(n).abs() <= max_cos),
+            (None, Some(_)) => false,
+            _ => true,
+        })
         .filter_map(|(k, v)| best_match(camera, (k, v), ends, p))
         .collect();
     let score = matches.iter().map(|m| weight(m.distance_px, p.sigma_px)).sum();

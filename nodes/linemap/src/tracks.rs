@@ -7,7 +7,8 @@ use lineflow_photogrammetry::{Camera, Vec3};
 use rayon::prelude::*;
 
 use crate::guide::Guide;
-use crate::hypotheses::{pair_hypotheses, Bounds, Hypothesis};
+use crate::hypotheses::{pair_hypotheses, Hypothesis};
+use crate::junctions;
 use crate::support::support;
 use crate::views::{Line2, View};
 use crate::MapParams;
@@ -49,10 +50,14 @@ pub struct MapStats {
     pub not_covered: usize,
     /// Lines whose segments mostly belong to lines already made.
     pub duplicates: usize,
+    /// Re-estimated lines that moved inside the building.
+    pub hidden: usize,
     /// Lines made (before cutting at gaps).
     pub made: usize,
     /// Re-estimates given a preferred direction.
     pub snapped: usize,
+    /// Vertical lines of the first pass that offered junctions.
+    pub verticals: usize,
 }
 
 /// The 3-D lines of `views` (every oriented image with its segments), sought inside `bounds` when given.
@@ -62,16 +67,61 @@ pub fn map_lines(camera: &Camera, views: &[View], guide: &Guide, p: &MapParams) 
 
 /// [`map_lines`], and what became of the hypotheses.
 pub fn map_lines_with_stats(camera: &Camera, views: &[View], guide: &Guide, p: &MapParams) -> (Vec<MappedLine>, MapStats) {
-    let bounds = guide.bounds.as_ref();
     let sources: Vec<(usize, usize)> = views
         .iter()
         .enumerate()
         .flat_map(|(i, v)| (0..v.len()).map(move |s| (i, s)))
         .collect();
-    let mut best: Vec<Scored> = sources
+    let pairwise: Vec<Option<Scored>> = sources
         .par_iter()
-        .filter_map(|&(i, s)| best_hypothesis(camera, views, i, s, bounds, p))
+        .map(|&(i, s)| best_hypothesis(camera, views, i, s, guide, p))
         .collect();
+    let (first, stats) = build(camera, views, guide, pairwise.iter().flatten().copied().collect(), p);
+    if !p.junctions {
+        return (first, stats);
+    }
+    // Again, with every segment also offered the hypotheses of the corners it makes with the verticals just made.
+    let verticals = junctions::verticals(&first, 0.5);
+    let projected: Vec<junctions::ProjectedVerticals> = views
+        .iter()
+        .map(|v| junctions::ProjectedVerticals::new(camera, v, &verticals))
+        .collect();
+    let best: Vec<Scored> = sources
+        .par_iter()
+        .zip(pairwise)
+        .filter_map(|(&(i, s), pair)| {
+            let corner = junctions::junction_hypotheses(camera, &views[i], s, &projected[i], guide, p)
+                .into_iter()
+                .filter(|ends| !ends.iter().any(|e| guide.hidden(e, p.max_behind_m)))
+                .map(|ends| {
+                    let (score, _) = support(camera, views, &ends, [i, i], None, p);
+                    let hypothesis = Hypothesis {
+                        view: i,
+                        segment: s,
+                        other: i,
+                        other_segment: s,
+                        ends,
+                    };
+                    Scored { score, hypothesis }
+                })
+                .filter(|c| c.score >= p.min_score)
+                .fold(None, |best: Option<Scored>, c| match best {
+                    Some(b) if b.score >= c.score => Some(b),
+                    _ => Some(c),
+                });
+            match (pair, corner) {
+                (Some(a), Some(b)) => Some(if b.score > a.score { b } else { a }),
+                (a, b) => a.or(b),
+            }
+        })
+        .collect();
+    let (lines, mut stats) = build(camera, views, guide, best, p);
+    stats.verticals = verticals.len();
+    (lines, stats)
+}
+
+/// Lines from the segments' best hypotheses, greedily from the best-supported down.
+fn build(camera: &Camera, views: &[View], guide: &Guide, mut best: Vec<Scored>, p: &MapParams) -> (Vec<MappedLine>, MapStats) {
     // Best support first; ties in a fixed order of views and segments, so the result does not depend on threads.
     best.sort_by(|a, b| {
         b.score
@@ -105,6 +155,10 @@ pub fn map_lines_with_stats(camera: &Camera, views: &[View], guide: &Guide, p: &
             stats.snapped += 1;
         }
         let r = snapped.unwrap_or(free);
+        if guide.hidden(&r.start, p.max_behind_m) || guide.hidden(&r.end, p.max_behind_m) {
+            stats.hidden += 1;
+            continue;
+        }
         let along = segments_along(camera, views, &[r.start, r.end], p);
         let pieces = covered_pieces(&along, p.min_cover);
         if pieces.is_empty() {
@@ -139,20 +193,43 @@ pub fn map_lines_with_stats(camera: &Camera, views: &[View], guide: &Guide, p: &
 }
 
 /// The best-supported hypothesis of segment `s` of view `i` over every other view, if it has enough support.
-pub fn best_hypothesis(camera: &Camera, views: &[View], i: usize, s: usize, bounds: Option<&Bounds>, p: &MapParams) -> Option<Scored> {
-    let mut best: Option<Scored> = None;
+pub fn best_hypothesis(camera: &Camera, views: &[View], i: usize, s: usize, guide: &Guide, p: &MapParams) -> Option<Scored> {
+    let mut scored: Vec<Scored> = Vec::new();
     for (j, other) in views.iter().enumerate() {
         if j == i {
             continue;
         }
-        for h in pair_hypotheses(camera, (i, &views[i]), s, (j, other), bounds, p) {
-            let (score, _) = support(camera, views, &h.ends, [i, j], p);
-            if score >= p.min_score && best.as_ref().is_none_or(|b| score > b.score) {
-                best = Some(Scored { score, hypothesis: h });
+        for h in pair_hypotheses(camera, (i, &views[i]), s, (j, other), guide, p) {
+            let (score, _) = support(camera, views, &h.ends, [i, j], Some(i), p);
+            let score = score * guide.placement_weight(&h.ends, p.near_wall_m, p.off_wall_weight);
+            if score >= p.max_ambiguity * p.min_score {
+                scored.push(Scored { score, hypothesis: h });
             }
         }
     }
-    best
+    unambiguous_best(camera, &views[i], &scored, p)
+}
+
+/// The best of a segment's scored hypotheses, unless one placing it elsewhere (its midpoint `distinct_px` pixels of
+/// the source image or more away) scores nearly as well: a line among repeated parallel lines (brick courses,
+/// glazing bars) matched one line off in another strip lies at a wrong depth that every image of both strips
+/// confirms alike.
+fn unambiguous_best(camera: &Camera, view: &View, scored: &[Scored], p: &MapParams) -> Option<Scored> {
+    let best = scored
+        .iter()
+        .fold(None, |b: Option<&Scored>, c| match b {
+            Some(b) if b.score >= c.score => Some(b),
+            _ => Some(c),
+        })
+        .filter(|b| b.score >= p.min_score)?;
+    let mid = |h: &Hypothesis| (h.ends[0] + h.ends[1]) * 0.5;
+    let apart = p.distinct_px * view.metres_per_px(camera, &mid(&best.hypothesis));
+    let rival = scored
+        .iter()
+        .filter(|c| (mid(&c.hypothesis) - mid(&best.hypothesis)).norm() > apart)
+        .map(|c| c.score)
+        .fold(0.0, f64::max);
+    (rival < p.max_ambiguity * best.score).then_some(*best)
 }
 
 /// One 2-D segment along a 3-D line: its view, its index, and the stretch of the line it covers (metres from the
@@ -187,7 +264,12 @@ fn segments_along(camera: &Camera, views: &[View], ends: &[Vec3; 2], p: &MapPara
             if let [Some(t0), Some(t1)] = t {
                 let (t0, t1) = (t0.min(t1).max(-length), t0.max(t1).min(2.0 * length));
                 if t1 > t0 {
-                    out.push(Along { view: k, segment: s, t0, t1 });
+                    out.push(Along {
+                        view: k,
+                        segment: s,
+                        t0,
+                        t1,
+                    });
                 }
             }
         }
@@ -196,7 +278,7 @@ fn segments_along(camera: &Camera, views: &[View], ends: &[Vec3; 2], p: &MapPara
 }
 
 /// The parameter along the line `origin + t·dir` of its point closest to the ray `center + u·ray`.
-fn parameter_on_line(origin: &Vec3, dir: &Vec3, center: &Vec3, ray: &Vec3) -> Option<f64> {
+pub(crate) fn parameter_on_line(origin: &Vec3, dir: &Vec3, center: &Vec3, ray: &Vec3) -> Option<f64> {
     let w = origin - center;
     let b = dir.dot(ray);
     let denom = 1.0 - b * b;
@@ -210,7 +292,12 @@ fn covered_pieces(along: &[Along], min_cover: usize) -> Vec<(f64, f64, u32, u32)
     cuts.sort_by(f64::total_cmp);
     cuts.dedup();
     let mut pieces: Vec<(f64, f64, u32, u32)> = Vec::new();
-    let mut open: Option<(f64, f64, std::collections::BTreeSet<usize>, std::collections::BTreeSet<(usize, usize)>)> = None;
+    let mut open: Option<(
+        f64,
+        f64,
+        std::collections::BTreeSet<usize>,
+        std::collections::BTreeSet<(usize, usize)>,
+    )> = None;
     for w in cuts.windows(2) {
         let (lo, hi) = (w[0], w[1]);
         let mid = 0.5 * (lo + hi);
@@ -242,7 +329,13 @@ mod tests {
     #[test]
     fn coverage_keeps_gaps_and_needs_distinct_views() {
         // Views 0 and 1 cover 0–1 m, then a gap at 1.0–1.2 m that only view 0 covers, then views 1 and 2 again.
-        let a = [along(0, 0.0, 1.2), along(1, 0.0, 1.0), along(1, 1.2, 2.0), along(2, 1.2, 2.0), along(2, 0.5, 0.6)];
+        let a = [
+            along(0, 0.0, 1.2),
+            along(1, 0.0, 1.0),
+            along(1, 1.2, 2.0),
+            along(2, 1.2, 2.0),
+            along(2, 0.5, 0.6),
+        ];
         let pieces = covered_pieces(&a, 2);
         assert_eq!(pieces.len(), 2, "{pieces:?}");
         assert_eq!((pieces[0].0, pieces[0].1), (0.0, 1.0));
