@@ -10,7 +10,7 @@ use anyhow::{Context, Result};
 use lineflow_eval::lines3d::evaluate;
 use lineflow_eval::Truth;
 use lineflow_formats::{read_lines2d, read_poses, Line3Row};
-use lineflow_linemap::{map_lines_with_stats, Guide, MapParams, Scored, View};
+use lineflow_linemap::{map_lines_with_stats, Guide, MapParams, View};
 use lineflow_messages::{Line3, Segment2};
 use lineflow_photogrammetry::Vec3;
 use lineflow_synthetic::Synthetic;
@@ -151,56 +151,6 @@ fn print_funnel(camera: &lineflow_photogrammetry::Camera, views: &[View], guide:
         counts[c][3] += !bests.is_empty() as usize;
         let found = lines.iter().any(|l| near(&g, &l.start, &l.end));
         counts[c][4] += found as usize;
-        if !found && c == 0 && std::env::var_os("LINEMAP_TRACE").is_some() {
-            let b = bests.first().copied().unwrap_or(Scored {
-                score: 0.0,
-                hypothesis: lineflow_linemap::Hypothesis {
-                    view: 0,
-                    segment: 0,
-                    other: 0,
-                    other_segment: 0,
-                    ends: [g.a, g.b],
-                },
-            });
-            let slaves: Vec<_> = views.iter().map(View::as_slave).collect();
-            let mv = p.multiview();
-            let r = lineflow_linegeom::refine_line(camera, b.hypothesis.ends[0], b.hypothesis.ends[1], &slaves, &mv);
-            let close: Vec<String> = lines
-                .iter()
-                .filter(|l| {
-                    g.line_distance(&l.start) < 0.3 && g.line_distance(&l.end) < 0.3 && {
-                        let (t0, t1) = (g.param(&l.start), g.param(&l.end));
-                        t0.max(t1) > 0.0 && t0.min(t1) < g.length()
-                    }
-                })
-                .map(|l| {
-                    let m = (l.start + l.end) * 0.5;
-                    let off = (m - g.at(g.param(&m).clamp(0.0, g.length()) / g.length())) * 100.0;
-                    format!(
-                        "off[{:.0} {:.0} {:.0}]cm deg{:.1}",
-                        off.x,
-                        off.y,
-                        off.z,
-                        g.angle_deg(&Seg::new(l.start, l.end))
-                    )
-                })
-                .collect();
-            eprintln!(
-                "edge {:?}-{:?} L{:.2}: {} seen, {} bests, score {:.2}; refined {:?}; lines near (GSD): {:?}",
-                g.a.map(|v| (v * 100.0).round() / 100.0),
-                g.b.map(|v| (v * 100.0).round() / 100.0),
-                g.length(),
-                seen.len(),
-                bests.len(),
-                b.score,
-                r.map(|m| (
-                    g.line_distance(&m.start) / truth.gsd_m(),
-                    g.line_distance(&m.end) / truth.gsd_m(),
-                    m.views
-                )),
-                close
-            );
-        }
     }
     println!("\n| class | true edges ≥ 0.5 m | 2-D in ≥ 2 images | a pair proposes it | best of its segments | found |");
     println!("|---|---|---|---|---|---|");

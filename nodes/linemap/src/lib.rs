@@ -85,9 +85,10 @@ pub struct MapParams {
     pub near_wall_m: f64,
     /// …one farther off has its support multiplied by this (1 = no preference).
     pub off_wall_weight: f64,
-    /// Recompute the map after this many new oriented frames while the stream runs (the final map always uses
-    /// every frame and the final poses).
-    pub every_frames: usize,
+    /// While the stream runs, the map is recomputed from every oriented frame once their number has grown by this
+    /// factor since the last map (1 = after every frame; the cost of the whole stream stays within a few times
+    /// that of the final map). The final map always uses every frame and the final poses.
+    pub remap_growth: f64,
 }
 
 impl Default for MapParams {
@@ -117,7 +118,7 @@ impl Default for MapParams {
             max_behind_m: 1.0,
             near_wall_m: 0.6,
             off_wall_weight: 0.2,
-            every_frames: 1,
+            remap_growth: 1.5,
         }
     }
 }
@@ -161,6 +162,6 @@ impl lineflow_runtime::StageParams for MapParams {
         non_negative("max_behind_m", self.max_behind_m)?;
         non_negative("near_wall_m", self.near_wall_m)?;
         in_closed("off_wall_weight", self.off_wall_weight, 0.0, 1.0)?;
-        at_least("every_frames", self.every_frames, 1)
+        check(self.remap_growth >= 1.0, "remap_growth", "at least 1", self.remap_growth)
     }
 }

@@ -79,14 +79,12 @@ fn run(ctx: NodeContext) -> Result<()> {
                 last = stamp;
             }
         }
-        let site_ended = site_in.as_ref().is_none_or(|i| i.is_ended());
-        Ok(
-            if lines_in.is_ended() && poses_in.is_ended() && camera_in.is_ended() && site_ended {
-                Flow::Stop
-            } else {
-                Flow::Continue
-            },
-        )
+        // The camera and the site model are latched: they arrive first and never end.
+        Ok(if lines_in.is_ended() && poses_in.is_ended() {
+            Flow::Stop
+        } else {
+            Flow::Continue
+        })
     })?;
     if !stage.has_camera() {
         tracing::warn!("no camera model arrived: no 3-D lines");

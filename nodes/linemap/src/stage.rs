@@ -1,7 +1,8 @@
 //! What the linemap process keeps between messages, and when it maps: the camera, the search region from the site
-//! model, every frame's segments and the newest poses. The map is recomputed from every oriented frame after
-//! `every_frames` new ones (the poses of earlier frames move as the orientation adjusts them), and once more at the
-//! end with the final poses.
+//! model, every frame's segments and the newest poses. The map is recomputed from every oriented frame (the poses
+//! of earlier frames move as the orientation adjusts them) whenever their number has grown by `remap_growth`, and
+//! once more at the end with the final poses. The schedule depends on frame counts only, so a replay publishes the
+//! same sets.
 use std::collections::BTreeMap;
 
 use lineflow_messages::Segment2;
@@ -69,10 +70,12 @@ impl MapStage {
         self.segments.keys().filter(|f| self.poses.contains_key(f)).count()
     }
 
-    /// Recomputes the map when `every_frames` frames became ready since the last time; true when it did.
+    /// Recomputes the map when the ready frames have grown by `remap_growth` since the last time (and by one at
+    /// least); true when it did.
     pub fn update(&mut self) -> bool {
         let ready = self.ready_frames();
-        if self.camera.is_none() || ready < self.mapped_frames + self.params.every_frames {
+        let due = ((self.mapped_frames as f64 * self.params.remap_growth).ceil() as usize).max(self.mapped_frames + 1);
+        if self.camera.is_none() || ready < due.max(2) {
             return false;
         }
         self.compute();

@@ -57,22 +57,42 @@ pub fn support(
     depth_from: Option<usize>,
     p: &MapParams,
 ) -> (f64, Vec<Match>) {
+    support_above(camera, views, ends, skip, depth_from, 0.0, p).unwrap_or_default()
+}
+
+/// [`support`], or `None` as soon as the views left cannot lift it to `floor` (each adds at most 1).
+pub fn support_above(
+    camera: &Camera,
+    views: &[View],
+    ends: &[Vec3; 2],
+    skip: [usize; 2],
+    depth_from: Option<usize>,
+    floor: f64,
+    p: &MapParams,
+) -> Option<(f64, Vec<Match>)> {
     let plane = |v: &View| (ends[0] - v.pose.center).cross(&(ends[1] - v.pose.center)).try_normalize(1e-15);
     let reference = depth_from.and_then(|i| plane(&views[i]));
     let max_cos = p.min_plane_angle_deg.to_radians().cos();
-    let matches: Vec<Match> = views
-        .iter()
-        .enumerate()
-        .filter(|(k, _)| !skip.contains(k))
-        .filter(|(_, v)| match (&reference, depth_from) {
-            (Some(n), Some(_)) => plane(v).is_some_and(|m| m.dot(n).abs() <= max_cos),
+    let counted: Vec<usize> = (0..views.len())
+        .filter(|k| !skip.contains(k))
+        .filter(|&k| match (&reference, depth_from) {
+            (Some(n), Some(_)) => plane(&views[k]).is_some_and(|m| m.dot(n).abs() <= max_cos),
             (None, Some(_)) => false,
             _ => true,
         })
-        .filter_map(|(k, v)| best_match(camera, (k, v), ends, p))
         .collect();
-    let score = matches.iter().map(|m| weight(m.distance_px, p.sigma_px)).sum();
-    (score, matches)
+    let mut score = 0.0;
+    let mut matches = Vec::new();
+    for (done, &k) in counted.iter().enumerate() {
+        if score + ((counted.len() - done) as f64) < floor {
+            return None;
+        }
+        if let Some(m) = best_match(camera, (k, &views[k]), ends, p) {
+            score += weight(m.distance_px, p.sigma_px);
+            matches.push(m);
+        }
+    }
+    (score >= floor).then_some((score, matches))
 }
 
 /// Gaussian weight of a distance.

@@ -2,6 +2,8 @@
 //! re-estimated from the segments of every image along it ([`lineflow_linegeom::multiview`]), given the extent
 //! that enough images show without a gap (Line3D++'s coverage sweep), and claims its segments so that no edge is
 //! reconstructed twice.
+use std::collections::BTreeSet;
+
 use lineflow_linegeom::{refine_line, refine_line_along, SlaveSegments};
 use lineflow_photogrammetry::{Camera, Vec3};
 use rayon::prelude::*;
@@ -9,7 +11,7 @@ use rayon::prelude::*;
 use crate::guide::Guide;
 use crate::hypotheses::{pair_hypotheses, Hypothesis};
 use crate::junctions;
-use crate::support::support;
+use crate::support::{support, support_above};
 use crate::views::{Line2, View};
 use crate::MapParams;
 
@@ -31,8 +33,10 @@ pub struct MappedLine {
 /// A source segment's best hypothesis and its support.
 #[derive(Debug, Clone, Copy)]
 pub struct Scored {
-    /// Support from the images other than the pair.
+    /// Support from the images other than the pair, weighted by where the hypothesis lies (the ranking).
     pub score: f64,
+    /// The support itself (what must reach `min_score`).
+    pub support: f64,
     /// The hypothesis.
     pub hypothesis: Hypothesis,
 }
@@ -58,6 +62,9 @@ pub struct MapStats {
     pub snapped: usize,
     /// Vertical lines of the first pass that offered junctions.
     pub verticals: usize,
+    /// Milliseconds spent on pairwise hypotheses, on the first pass's lines, on junction hypotheses and on the
+    /// final lines.
+    pub milliseconds: [u64; 4],
 }
 
 /// The 3-D lines of `views` (every oriented image with its segments), sought inside `bounds` when given.
@@ -72,12 +79,25 @@ pub fn map_lines_with_stats(camera: &Camera, views: &[View], guide: &Guide, p: &
         .enumerate()
         .flat_map(|(i, v)| (0..v.len()).map(move |s| (i, s)))
         .collect();
+    let clock = std::time::Instant::now();
+    let mut lap = {
+        let mut last = clock.elapsed();
+        move || {
+            let now = clock.elapsed();
+            let ms = (now - last).as_millis() as u64;
+            last = now;
+            ms
+        }
+    };
     let pairwise: Vec<Option<Scored>> = sources
         .par_iter()
         .map(|&(i, s)| best_hypothesis(camera, views, i, s, guide, p))
         .collect();
-    let (first, stats) = build(camera, views, guide, pairwise.iter().flatten().copied().collect(), p);
+    let t_pairs = lap();
+    let (first, mut stats) = build(camera, views, guide, pairwise.iter().flatten().copied().collect(), p);
+    let t_first = lap();
     if !p.junctions {
+        stats.milliseconds = [t_pairs, t_first, 0, 0];
         return (first, stats);
     }
     // Again, with every segment also offered the hypotheses of the corners it makes with the verticals just made.
@@ -94,7 +114,7 @@ pub fn map_lines_with_stats(camera: &Camera, views: &[View], guide: &Guide, p: &
                 .into_iter()
                 .filter(|ends| !ends.iter().any(|e| guide.hidden(e, p.max_behind_m)))
                 .map(|ends| {
-                    let (score, _) = support(camera, views, &ends, [i, i], None, p);
+                    let (support, _) = support(camera, views, &ends, [i, i], None, p);
                     let hypothesis = Hypothesis {
                         view: i,
                         segment: s,
@@ -102,9 +122,13 @@ pub fn map_lines_with_stats(camera: &Camera, views: &[View], guide: &Guide, p: &
                         other_segment: s,
                         ends,
                     };
-                    Scored { score, hypothesis }
+                    Scored {
+                        score: support,
+                        support,
+                        hypothesis,
+                    }
                 })
-                .filter(|c| c.score >= p.min_score)
+                .filter(|c| c.support >= p.min_score)
                 .fold(None, |best: Option<Scored>, c| match best {
                     Some(b) if b.score >= c.score => Some(b),
                     _ => Some(c),
@@ -115,8 +139,10 @@ pub fn map_lines_with_stats(camera: &Camera, views: &[View], guide: &Guide, p: &
             }
         })
         .collect();
+    let t_junctions = lap();
     let (lines, mut stats) = build(camera, views, guide, best, p);
     stats.verticals = verticals.len();
+    stats.milliseconds = [t_pairs, t_first, t_junctions, lap()];
     (lines, stats)
 }
 
@@ -200,10 +226,17 @@ pub fn best_hypothesis(camera: &Camera, views: &[View], i: usize, s: usize, guid
             continue;
         }
         for h in pair_hypotheses(camera, (i, &views[i]), s, (j, other), guide, p) {
-            let (score, _) = support(camera, views, &h.ends, [i, j], Some(i), p);
-            let score = score * guide.placement_weight(&h.ends, p.near_wall_m, p.off_wall_weight);
-            if score >= p.max_ambiguity * p.min_score {
-                scored.push(Scored { score, hypothesis: h });
+            let weight = guide.placement_weight(&h.ends, p.near_wall_m, p.off_wall_weight);
+            // Only hypotheses that could still be the best, or (with the ambiguity test) its rival, are scored to
+            // the end.
+            let leader = scored.iter().map(|c| c.score).fold(0.0, f64::max);
+            let floor = (p.max_ambiguity * p.min_score).max(p.max_ambiguity * leader / weight);
+            if let Some((support, _)) = support_above(camera, views, &h.ends, [i, j], Some(i), floor, p) {
+                scored.push(Scored {
+                    score: support * weight,
+                    support,
+                    hypothesis: h,
+                });
             }
         }
     }
@@ -221,7 +254,7 @@ fn unambiguous_best(camera: &Camera, view: &View, scored: &[Scored], p: &MapPara
             Some(b) if b.score >= c.score => Some(b),
             _ => Some(c),
         })
-        .filter(|b| b.score >= p.min_score)?;
+        .filter(|b| b.support >= p.min_score)?;
     let mid = |h: &Hypothesis| (h.ends[0] + h.ends[1]) * 0.5;
     let apart = p.distinct_px * view.metres_per_px(camera, &mid(&best.hypothesis));
     let rival = scored
@@ -285,36 +318,50 @@ pub(crate) fn parameter_on_line(origin: &Vec3, dir: &Vec3, center: &Vec3, ray: &
     (denom > 1e-9).then(|| (b * ray.dot(&w) - dir.dot(&w)) / denom)
 }
 
+/// A stretch of a line that enough views cover: from `t0` to `t1` metres along it, the views and the segments
+/// that cover it.
+#[derive(Debug, Clone, PartialEq)]
+struct Piece {
+    t0: f64,
+    t1: f64,
+    views: BTreeSet<usize>,
+    segments: BTreeSet<(usize, usize)>,
+}
+
+impl Piece {
+    fn counted(self) -> (f64, f64, u32, u32) {
+        (self.t0, self.t1, self.views.len() as u32, self.segments.len() as u32)
+    }
+}
+
 /// The stretches of the line that at least `min_cover` distinct views cover without a gap, each with the number
 /// of views and of segments that cover it.
 fn covered_pieces(along: &[Along], min_cover: usize) -> Vec<(f64, f64, u32, u32)> {
     let mut cuts: Vec<f64> = along.iter().flat_map(|a| [a.t0, a.t1]).collect();
     cuts.sort_by(f64::total_cmp);
     cuts.dedup();
-    let mut pieces: Vec<(f64, f64, u32, u32)> = Vec::new();
-    let mut open: Option<(
-        f64,
-        f64,
-        std::collections::BTreeSet<usize>,
-        std::collections::BTreeSet<(usize, usize)>,
-    )> = None;
+    let mut pieces = Vec::new();
+    let mut open: Option<Piece> = None;
     for w in cuts.windows(2) {
         let (lo, hi) = (w[0], w[1]);
         let mid = 0.5 * (lo + hi);
         let covering: Vec<&Along> = along.iter().filter(|a| a.t0 <= mid && a.t1 >= mid).collect();
-        let views: std::collections::BTreeSet<usize> = covering.iter().map(|a| a.view).collect();
+        let views: BTreeSet<usize> = covering.iter().map(|a| a.view).collect();
         if views.len() >= min_cover {
-            let o = open.get_or_insert_with(|| (lo, hi, Default::default(), Default::default()));
-            o.1 = hi;
-            o.2.extend(views);
-            o.3.extend(covering.iter().map(|a| (a.view, a.segment)));
-        } else if let Some((a, b, v, s)) = open.take() {
-            pieces.push((a, b, v.len() as u32, s.len() as u32));
+            let o = open.get_or_insert_with(|| Piece {
+                t0: lo,
+                t1: hi,
+                views: BTreeSet::new(),
+                segments: BTreeSet::new(),
+            });
+            o.t1 = hi;
+            o.views.extend(views);
+            o.segments.extend(covering.iter().map(|a| (a.view, a.segment)));
+        } else if let Some(piece) = open.take() {
+            pieces.push(piece.counted());
         }
     }
-    if let Some((a, b, v, s)) = open.take() {
-        pieces.push((a, b, v.len() as u32, s.len() as u32));
-    }
+    pieces.extend(open.map(Piece::counted));
     pieces
 }
 

@@ -16,8 +16,8 @@ use lineflow_runtime::params::{self, ParamError};
 use rayon::prelude::*;
 use serde::Deserialize;
 
-pub use search::{match_segment, SegmentInput, SegmentMatch, Unmatched};
 pub use lineflow_linegeom::{FrameSegments, SlaveSegments};
+pub use search::{match_segment, SegmentInput, SegmentMatch, Unmatched};
 pub use view::{DistortionLut, View};
 pub use wall::{fit_wall, fit_walls, wall_of_ray, NoWall, WallPlane, WALL_MIN_POINTS};
 

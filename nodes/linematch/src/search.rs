@@ -7,10 +7,10 @@ use lineflow_photogrammetry::Vec3;
 
 use crate::ncc::{build_cross, master_window, ncc, BandScratch, BandSums, Bands, PatchSums, MIN_VARIANCE};
 use crate::slave_lines::refine_depths;
-use lineflow_linegeom::SlaveSegments;
 use crate::view::View;
 use crate::wall::{wall_of_ray, WallPlane};
 use crate::{MatchParams, MatchedPoint, Mode};
+use lineflow_linegeom::SlaveSegments;
 
 /// A 2-D segment of the master frame with its pixel chain (measured pixel coordinates).
 #[derive(Debug, Clone, Copy)]

@@ -13,7 +13,6 @@ use lineflow_photogrammetry::{Camera, Pose, Vec3};
 use crate::wall::WallPlane;
 use crate::{MatchParams, MatchedPoint};
 
-
 /// One slave segment, as seen from the master line: its interpretation plane and its extent in the slave image.
 struct Candidate {
     /// Ideal endpoints in the slave (mm).
@@ -204,6 +203,7 @@ fn consensus(cuts: &[Cut], prior: f64, min_slaves: usize) -> Option<f64> {
 mod tests {
     use super::*;
     use crate::Mode;
+    use lineflow_linegeom::FrameSegments;
     use lineflow_messages::Segment2;
     use lineflow_photogrammetry::rotation_from_opk;
 

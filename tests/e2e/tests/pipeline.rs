@@ -994,3 +994,43 @@ fn without_a_site_model_the_walls_are_fitted_to_the_tie_points_in_the_surveys_fr
     let success = figure_after(&stdout, "3-D lines:", "success rate ");
     assert!(success > 60.0, "{stdout}");
 }
+
+#[test]
+fn the_linemap_graph_maps_3d_lines_from_every_image_the_same_way_twice() {
+    let sb = Sandbox::new();
+    let graph = repo_file("launch/demo-linemap.toml");
+    let mut lines = Vec::new();
+    for k in 0..2 {
+        let out = sb.path().join(format!("out{k}"));
+        let r = sb.run(&[
+            "run",
+            graph.to_str().unwrap(),
+            "--set",
+            "capture.scale=0.15",
+            "--out",
+            out.to_str().unwrap(),
+        ]);
+        let log = String::from_utf8_lossy(&r.stderr).into_owned();
+        assert!(r.status.success(), "linemap run failed:\n{log}");
+        let lines3d = std::fs::read_to_string(out.join("lines3d.csv")).expect("no lines3d.csv");
+        assert!(lines3d.starts_with("id,X1,Y1,Z1,X2,Y2,Z2,n_points,n_images,rms_m"), "{lines3d}");
+        assert!(lines3d.lines().count() > 20, "few lines:\n{lines3d}");
+        assert!(out.join("lines3d.ply").is_file());
+        // Every frame got a set: the stage publishes once a frame's 2-D lines are in, and the final set.
+        for node in ["linemap", "model", "eval"] {
+            let row = summary_row(&out, node);
+            assert_eq!(row[1], "ok", "{node}: {row:?}");
+            assert_eq!(row[9], "-", "{node} missed frames: {row:?}");
+        }
+        let report = std::fs::read_to_string(out.join("eval/report.md")).unwrap();
+        let success = figure_after(&report, "### all edges", "success rate ");
+        assert!(success > 30.0, "success rate {success} %:\n{report}");
+        assert!(
+            out.join("model.obj").is_file(),
+            "the model stage built nothing from linemap's lines"
+        );
+        assert_nothing_left(&sb, &out);
+        lines.push(lines3d);
+    }
+    assert_eq!(lines[0], lines[1], "two runs of the linemap graph differ");
+}
