@@ -10,8 +10,8 @@ use anyhow::{Context, Result};
 use lineflow_eval::lines3d::evaluate;
 use lineflow_eval::Truth;
 use lineflow_formats::{read_lines2d, read_poses, Line3Row};
-use lineflow_linemap::{map_lines_with_stats, Guide, MapParams, View};
-use lineflow_messages::{Line3, Segment2};
+use lineflow_linemap::{line_messages, map_lines_with_stats, Guide, MapParams, View};
+use lineflow_messages::Segment2;
 use lineflow_photogrammetry::Vec3;
 use lineflow_synthetic::Synthetic;
 
@@ -56,20 +56,7 @@ pub fn bench_linemap(
     let start = std::time::Instant::now();
     let (lines, stats) = map_lines_with_stats(&camera, &views, &guide, &params);
     let seconds = start.elapsed().as_secs_f64();
-    let rows: Vec<Line3Row> = lines
-        .iter()
-        .enumerate()
-        .map(|(k, l)| {
-            Line3Row::from(&Line3 {
-                id: k as u64 + 1,
-                start_m: l.start.into(),
-                end_m: l.end.into(),
-                n_points: l.n_segments,
-                n_images: l.n_images,
-                rms_m: l.rms_m,
-            })
-        })
-        .collect();
+    let rows: Vec<Line3Row> = line_messages(&lines).iter().map(Line3Row::from).collect();
     lineflow_formats::write_lines3d(&run.join("lines3d_linemap.csv"), &rows)?;
     println!(
         "linemap on {} ({} views, {} segments, {} poses), {:.2} s:\n",

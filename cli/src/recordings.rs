@@ -211,8 +211,7 @@ pub fn export(path: &Path, topic: &str, out: &Path) -> Result<ExitCode> {
                     rms_m: Some(l.rms_m),
                 })
                 .collect();
-            lineflow_formats::write_lines3d(&out.join("lines3d.csv"), &rows)?;
-            lineflow_formats::write_lines_ply(&out.join("lines3d.ply"), &rows)?;
+            lineflow_formats::write_lines3d_results(out, &rows)?;
             format!("{} lines to lines3d.csv and lines3d.ply", rows.len())
         }
         MessageKind::Poses => {

@@ -413,6 +413,14 @@ pub fn read_obj_wireframe(path: &Path) -> Result<(Vec<Vec3>, Vec<[usize; 2]>), F
     read_obj(path).map(|o| (o.vertices, o.edges))
 }
 
+/// Writes a run's 3-D lines into `dir` as `lines3d.csv` and `lines3d.ply`, and returns the CSV's path.
+pub fn write_lines3d_results(dir: &Path, rows: &[Line3Row]) -> Result<std::path::PathBuf, FormatError> {
+    let csv = dir.join("lines3d.csv");
+    write_lines3d(&csv, rows)?;
+    write_lines_ply(&dir.join("lines3d.ply"), rows)?;
+    Ok(csv)
+}
+
 /// Writes 3-D segments as an ASCII PLY file of vertices and edges, readable by any 3-D viewer.
 pub fn write_lines_ply(path: &Path, rows: &[Line3Row]) -> Result<(), FormatError> {
     let mut out = create(path)?;

@@ -6,8 +6,8 @@
 //! segments once all of them and the final poses are in (docs/lines3d.md).
 use std::collections::BTreeMap;
 
-use anyhow::{Context, Result};
-use lineflow_formats::{write_lines3d, write_lines_ply, Line3Row};
+use anyhow::Result;
+use lineflow_formats::{write_lines3d_results, Line3Row};
 use lineflow_linefit::{fit_group, merge, refine_multiview, FitParams, Fragment, Merged, Method, MULTIVIEW_MIN_SEGMENT_PX};
 use lineflow_linegeom::{FrameSegments, SlaveSegments};
 use lineflow_messages::{kinds, parts, Line3, Lines3DHeader, Point3, PointGroup, Segment2, Stamp, StampFlags};
@@ -152,10 +152,7 @@ fn run(ctx: NodeContext, method: Method) -> Result<()> {
     publish(&output, last, &merged)?;
     output.end_of_stream()?;
     let rows: Vec<Line3Row> = elements(&merged).iter().map(Line3Row::from).collect();
-    let dir = ctx.out_dir();
-    let (csv, ply) = (dir.join("lines3d.csv"), dir.join("lines3d.ply"));
-    write_lines3d(&csv, &rows).with_context(|| format!("writing {}", csv.display()))?;
-    write_lines_ply(&ply, &rows).with_context(|| format!("writing {}", ply.display()))?;
+    let csv = write_lines3d_results(&ctx.out_dir(), &rows)?;
     let n_fragments: usize = fragments.values().map(Vec::len).sum();
     tracing::info!(
         "{} 3-D lines from {n_fragments} fragments of {} masters -> {}",

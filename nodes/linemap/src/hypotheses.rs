@@ -11,43 +11,6 @@ use crate::guide::Guide;
 use crate::views::{Line2, View};
 use crate::MapParams;
 
-/// The region where lines are sought, an axis-aligned box (the site model's walls grown by a margin), or none.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Bounds {
-    /// Lowest corner.
-    pub lo: Vec3,
-    /// Highest corner.
-    pub hi: Vec3,
-}
-
-impl Bounds {
-    /// The box around `points` grown by `margin` metres, if there are any points.
-    pub fn around(points: impl IntoIterator<Item = Vec3>, margin: f64) -> Option<Bounds> {
-        let mut it = points.into_iter();
-        let first = it.next()?;
-        let (lo, hi) = it.fold((first, first), |(lo, hi), p| (lo.inf(&p), hi.sup(&p)));
-        let m = Vec3::repeat(margin);
-        Some(Bounds { lo: lo - m, hi: hi + m })
-    }
-
-    /// The ray parameters (distances along the unit ray `dir` from `origin`) inside the box.
-    fn clip(&self, origin: &Vec3, dir: &Vec3) -> Option<(f64, f64)> {
-        let (mut t0, mut t1) = (f64::NEG_INFINITY, f64::INFINITY);
-        for k in 0..3 {
-            if dir[k].abs() < 1e-15 {
-                if origin[k] < self.lo[k] || origin[k] > self.hi[k] {
-                    return None;
-                }
-                continue;
-            }
-            let (a, b) = ((self.lo[k] - origin[k]) / dir[k], (self.hi[k] - origin[k]) / dir[k]);
-            t0 = t0.max(a.min(b));
-            t1 = t1.min(a.max(b));
-        }
-        (t1 > t0).then_some((t0, t1))
-    }
-}
-
 /// A hypothesis: the 3-D segment that segment `segment` of view `view` becomes on the interpretation plane of
 /// segment `other_segment` of view `other`.
 #[derive(Debug, Clone, Copy, PartialEq)]

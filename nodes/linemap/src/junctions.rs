@@ -9,7 +9,7 @@
 use lineflow_photogrammetry::{Camera, Vec3};
 
 use crate::guide::Guide;
-use crate::tracks::MappedLine;
+use crate::line::MappedLine;
 use crate::views::{Line2, View};
 use crate::MapParams;
 
@@ -77,7 +77,7 @@ pub fn junction_hypotheses(
                 continue;
             };
             for d in &directions {
-                let t = rays.map(|r| crate::tracks::parameter_on_line(&corner, d, &center, &r));
+                let t = rays.map(|r| crate::views::parameter_on_line(&corner, d, &center, &r));
                 if let [Some(t0), Some(t1)] = t {
                     if (t1 - t0).abs() > 1e-6 {
                         out.push([corner + d * t0, corner + d * t1]);

@@ -13,6 +13,7 @@
 pub mod guide;
 pub mod hypotheses;
 pub mod junctions;
+pub mod line;
 pub mod stage;
 pub mod support;
 pub mod tracks;
@@ -21,10 +22,11 @@ pub mod views;
 use lineflow_runtime::params::{at_least, check, in_closed, in_half_open, non_negative, positive, ParamError};
 use serde::Deserialize;
 
-pub use guide::Guide;
-pub use hypotheses::{Bounds, Hypothesis};
+pub use guide::{Bounds, Guide};
+pub use hypotheses::Hypothesis;
+pub use line::MappedLine;
 pub use stage::MapStage;
-pub use tracks::{best_hypothesis, map_lines, map_lines_with_stats, MapStats, MappedLine, Scored};
+pub use tracks::{best_hypothesis, line_messages, map_lines, map_lines_with_stats, MapStats, Scored};
 pub use views::View;
 
 /// Parameters of the `linemap` node.

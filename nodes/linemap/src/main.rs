@@ -4,10 +4,10 @@
 //! and writes `lines3d.csv` and `lines3d.ply`.
 use std::collections::BTreeMap;
 
-use anyhow::{Context, Result};
-use lineflow_formats::{write_lines3d, write_lines_ply, Line3Row};
-use lineflow_linemap::{MapParams, MapStage, MappedLine};
-use lineflow_messages::{kinds, Line3, Lines3DHeader, Stamp, StampFlags};
+use anyhow::Result;
+use lineflow_formats::{write_lines3d_results, Line3Row};
+use lineflow_linemap::{line_messages, MapParams, MapStage, MappedLine};
+use lineflow_messages::{kinds, Lines3DHeader, Stamp, StampFlags};
 use lineflow_photogrammetry::Vec3;
 use lineflow_runtime::{Flow, NodeContext, Output};
 
@@ -15,23 +15,8 @@ fn main() -> std::process::ExitCode {
     lineflow_runtime::run_stage("linemap", "tracks", &[("tracks", run)])
 }
 
-fn elements(lines: &[MappedLine]) -> Vec<Line3> {
-    lines
-        .iter()
-        .enumerate()
-        .map(|(k, l)| Line3 {
-            id: k as u64 + 1,
-            start_m: l.start.into(),
-            end_m: l.end.into(),
-            n_points: l.n_segments,
-            n_images: l.n_images,
-            rms_m: l.rms_m,
-        })
-        .collect()
-}
-
 fn publish(output: &Output<kinds::Lines3D>, stamp: Stamp, lines: &[MappedLine]) -> Result<()> {
-    output.publish(Lines3DHeader { stamp }, &elements(lines))
+    output.publish(Lines3DHeader { stamp }, &line_messages(lines))
 }
 
 fn run(ctx: NodeContext) -> Result<()> {
@@ -102,11 +87,8 @@ fn run(ctx: NodeContext) -> Result<()> {
     last.revision += 1;
     publish(&output, last, &lines)?;
     output.end_of_stream()?;
-    let rows: Vec<Line3Row> = elements(&lines).iter().map(Line3Row::from).collect();
-    let dir = ctx.out_dir();
-    let (csv, ply) = (dir.join("lines3d.csv"), dir.join("lines3d.ply"));
-    write_lines3d(&csv, &rows).with_context(|| format!("writing {}", csv.display()))?;
-    write_lines_ply(&ply, &rows).with_context(|| format!("writing {}", ply.display()))?;
+    let rows: Vec<Line3Row> = line_messages(&lines).iter().map(Line3Row::from).collect();
+    let csv = write_lines3d_results(&ctx.out_dir(), &rows)?;
     tracing::info!("{} 3-D lines -> {}", rows.len(), csv.display());
     ctx.finish();
     Ok(())

@@ -9,7 +9,8 @@ use lineflow_messages::Segment2;
 use lineflow_photogrammetry::{Camera, Pose, Vec3};
 
 use crate::guide::Guide;
-use crate::tracks::{map_lines, MappedLine};
+use crate::line::MappedLine;
+use crate::tracks::map_lines;
 use crate::views::View;
 use crate::MapParams;
 

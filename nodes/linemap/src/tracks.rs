@@ -11,23 +11,25 @@ use rayon::prelude::*;
 use crate::guide::Guide;
 use crate::hypotheses::{pair_hypotheses, Hypothesis};
 use crate::junctions;
+use crate::line::MappedLine;
 use crate::support::{support, support_above};
-use crate::views::{Line2, View};
+use crate::views::{parameter_on_line, Line2, View};
 use crate::MapParams;
 
-/// A reconstructed 3-D line.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct MappedLine {
-    /// First endpoint.
-    pub start: Vec3,
-    /// Second endpoint.
-    pub end: Vec3,
-    /// 2-D segments along it.
-    pub n_segments: u32,
-    /// Images those segments come from.
-    pub n_images: u32,
-    /// RMS distance of the segments' planes from the line, metres.
-    pub rms_m: f64,
+/// The lines as message elements, numbered from 1.
+pub fn line_messages(lines: &[MappedLine]) -> Vec<lineflow_messages::Line3> {
+    lines
+        .iter()
+        .enumerate()
+        .map(|(k, l)| lineflow_messages::Line3 {
+            id: k as u64 + 1,
+            start_m: l.start.into(),
+            end_m: l.end.into(),
+            n_points: l.n_segments,
+            n_images: l.n_images,
+            rms_m: l.rms_m,
+        })
+        .collect()
 }
 
 /// A source segment's best hypothesis and its support.
@@ -308,14 +310,6 @@ fn segments_along(camera: &Camera, views: &[View], ends: &[Vec3; 2], p: &MapPara
         }
     }
     out
-}
-
-/// The parameter along the line `origin + t·dir` of its point closest to the ray `center + u·ray`.
-pub(crate) fn parameter_on_line(origin: &Vec3, dir: &Vec3, center: &Vec3, ray: &Vec3) -> Option<f64> {
-    let w = origin - center;
-    let b = dir.dot(ray);
-    let denom = 1.0 - b * b;
-    (denom > 1e-9).then(|| (b * ray.dot(&w) - dir.dot(&w)) / denom)
 }
 
 /// A stretch of a line that enough views cover: from `t0` to `t1` metres along it, the views and the segments

@@ -111,3 +111,11 @@ impl Line2 {
         overlap / (hi - lo).min(self.len).max(1e-12)
     }
 }
+
+/// The parameter along the line `origin + t·dir` of its point closest to the ray `center + u·ray`.
+pub fn parameter_on_line(origin: &Vec3, dir: &Vec3, center: &Vec3, ray: &Vec3) -> Option<f64> {
+    let w = origin - center;
+    let b = dir.dot(ray);
+    let denom = 1.0 - b * b;
+    (denom > 1e-9).then(|| (b * ray.dot(&w) - dir.dot(&w)) / denom)
+}

@@ -11,11 +11,10 @@ const FRONT_ENDS: [&str; 2] = ["lineflow-cli", "lineflow-bench"];
 
 /// Stage-to-stage library dependencies still to go, each with the issue that removes it.
 const KNOWN_SIDEWAYS: [(&str, &str, &str); 1] = [(
-        "lineflow-modelfit",
-        "lineflow-model",
-        "#29 reworks model-image fitting on the model's types",
-    ),
-];
+    "lineflow-modelfit",
+    "lineflow-model",
+    "#29 reworks model-image fitting on the model's types",
+)];
 
 fn workspace_crates() -> Vec<PathBuf> {
     let root = repo_file("");
