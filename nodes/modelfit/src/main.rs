@@ -72,7 +72,10 @@ fn run(ctx: NodeContext) -> Result<()> {
             publish(&output, &wire, &fitted)?;
             busy = false;
         }
-        let ended = wire_in.is_ended() && edges_in.is_ended() && poses_in.is_ended();
+        // The faces of the last wire-frame follow it on their own topic: wait for their end too, or the fitted
+        // model can be written without them.
+        let faces_ended = faces_in.as_ref().is_none_or(|f| f.is_ended());
+        let ended = wire_in.is_ended() && edges_in.is_ended() && poses_in.is_ended() && faces_ended;
         if !busy {
             if let Some(job) = stage.live_job(ended) {
                 busy = jobs_tx.try_send(job).is_ok();
