@@ -5,15 +5,17 @@
 use std::collections::BTreeMap;
 use std::path::Path;
 use std::process::ExitCode;
+use std::sync::Arc;
 
 use anyhow::{Context, Result};
 use lineflow_eval::lines3d::evaluate;
 use lineflow_eval::Truth;
 use lineflow_formats::{read_lines2d, read_poses, Line3Row};
-use lineflow_linemap::{line_messages, map_lines_with_stats, Guide, MapParams, View};
+use lineflow_linemap::{line_messages, map_lines_with_stats, Guide, MapParams, Photo, View};
 use lineflow_messages::Segment2;
 use lineflow_photogrammetry::Vec3;
 use lineflow_synthetic::Synthetic;
+use rayon::prelude::*;
 
 use crate::buildings::{print_header, print_row, row};
 
@@ -34,6 +36,16 @@ pub fn bench_linemap(
     let walls = scene.approximate_walls();
     let walls: Vec<Vec<Vec3>> = walls.iter().map(|(_, c)| c.iter().map(|&p| Vec3::from(p)).collect()).collect();
     let guide = Guide::from_walls(&walls, params.site_margin_m);
+    // The images only for the appearance test, which is off with min_correlation = -1.
+    let photos: Vec<Option<Arc<Photo>>> = if params.min_correlation > -1.0 {
+        eprintln!("rendering {} frames for the appearance test...", scene.poses().len());
+        (0..scene.poses().len())
+            .into_par_iter()
+            .map(|f| rendered_photo(&scene, f))
+            .collect()
+    } else {
+        Vec::new()
+    };
     let truth = Truth::from_scene(scene);
     let poses = if truth_poses {
         truth.poses.clone()
@@ -51,7 +63,13 @@ pub fn bench_linemap(
     let views: Vec<View> = poses
         .iter()
         .enumerate()
-        .filter_map(|(f, p)| Some(View::new(&camera, f as u64, p.pose, segments.get(&p.image)?, params.min_length_px)))
+        .filter_map(|(f, p)| {
+            let view = View::new(&camera, f as u64, p.pose, segments.get(&p.image)?, params.min_length_px);
+            Some(match photos.get(f).cloned().flatten() {
+                Some(photo) => view.with_photo(photo),
+                None => view,
+            })
+        })
         .collect();
     let start = std::time::Instant::now();
     let (lines, stats) = map_lines_with_stats(&camera, &views, &guide, &params);
@@ -80,6 +98,15 @@ pub fn bench_linemap(
         print_funnel(&camera, &views, &guide, &truth, &rows, &params);
     }
     Ok(ExitCode::SUCCESS)
+}
+
+/// Frame `f` of the scene as the convert stage's grey image.
+fn rendered_photo(scene: &Synthetic, f: usize) -> Option<Arc<Photo>> {
+    let (w, h) = (scene.camera().width as usize, scene.camera().height as usize);
+    let rgb = scene.render(f);
+    let mut gray = vec![0u8; w * h];
+    lineflow_imaging::gray_into(lineflow_messages::Encoding::Rgb8, w, h, 3 * w, &rgb, &mut gray).ok()?;
+    Photo::new(w, h, gray).map(Arc::new)
 }
 
 /// Where the true edges of at least 0.5 m are lost, per class: seen as a 2-D segment in two or more images, given

@@ -10,6 +10,7 @@
 //!    it, cut to the stretches that enough images cover without a gap, and claims its segments.
 #![warn(missing_docs)]
 
+pub mod appearance;
 pub mod guide;
 pub mod hypotheses;
 pub mod junctions;
@@ -22,6 +23,7 @@ pub mod views;
 use lineflow_runtime::params::{at_least, check, in_closed, in_half_open, non_negative, positive, ParamError};
 use serde::Deserialize;
 
+pub use appearance::Photo;
 pub use guide::{Bounds, Guide};
 pub use hypotheses::Hypothesis;
 pub use line::MappedLine;
@@ -91,6 +93,17 @@ pub struct MapParams {
     /// factor since the last map (1 = after every frame; the cost of the whole stream stays within a few times
     /// that of the final map). The final map always uses every frame and the final poses.
     pub remap_growth: f64,
+    /// A line whose images correlate less than this along it (the median over its images of the normalised
+    /// cross-correlation of a ribbon on the better side of the line with the image that sees it longest) is at a
+    /// wrong depth and is not made; -1 turns the test off. Needs the images (the `images` input).
+    pub min_correlation: f64,
+    /// Rows of that ribbon on either side of the line, pixels.
+    pub correlation_half_width_px: usize,
+    /// The other images are also compared shifted across the line by up to this many pixels…
+    pub correlation_search_px: usize,
+    /// …and a line whose images match best farther than this from it (median over the images, pixels) is at a
+    /// slightly wrong depth and is not made.
+    pub max_offset_px: f64,
 }
 
 impl Default for MapParams {
@@ -121,11 +134,24 @@ impl Default for MapParams {
             near_wall_m: 0.6,
             off_wall_weight: 0.2,
             remap_growth: 1.5,
+            min_correlation: 0.85,
+            correlation_half_width_px: 3,
+            correlation_search_px: 2,
+            max_offset_px: 0.5,
         }
     }
 }
 
 impl MapParams {
+    /// The settings of the appearance test.
+    pub fn appearance(&self) -> appearance::AppearanceParams {
+        appearance::AppearanceParams {
+            half_width_px: self.correlation_half_width_px,
+            search_px: self.correlation_search_px,
+            ..Default::default()
+        }
+    }
+
     /// The settings of the re-estimate from every image.
     pub fn multiview(&self) -> lineflow_linegeom::MultiviewParams {
         lineflow_linegeom::MultiviewParams {
@@ -164,6 +190,9 @@ impl lineflow_runtime::StageParams for MapParams {
         non_negative("max_behind_m", self.max_behind_m)?;
         non_negative("near_wall_m", self.near_wall_m)?;
         in_closed("off_wall_weight", self.off_wall_weight, 0.0, 1.0)?;
+        in_closed("min_correlation", self.min_correlation, -1.0, 1.0)?;
+        at_least("correlation_half_width_px", self.correlation_half_width_px, 1)?;
+        non_negative("max_offset_px", self.max_offset_px)?;
         check(self.remap_growth >= 1.0, "remap_growth", "at least 1", self.remap_growth)
     }
 }

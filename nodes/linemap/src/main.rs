@@ -6,7 +6,7 @@ use std::collections::BTreeMap;
 
 use anyhow::Result;
 use lineflow_formats::{write_lines3d_results, Line3Row};
-use lineflow_linemap::{line_messages, MapParams, MapStage, MappedLine};
+use lineflow_linemap::{line_messages, MapParams, MapStage, MappedLine, Photo};
 use lineflow_messages::{kinds, Lines3DHeader, Stamp, StampFlags};
 use lineflow_photogrammetry::Vec3;
 use lineflow_runtime::{Flow, NodeContext, Output};
@@ -25,9 +25,16 @@ fn run(ctx: NodeContext) -> Result<()> {
     let poses_in = ctx.input::<kinds::Poses>("poses")?;
     let camera_in = ctx.input::<kinds::CameraModel>("camera")?;
     let site_in = ctx.optional_input::<kinds::Site>("site")?;
+    let images_in = ctx.optional_input::<kinds::Image>("images")?;
     let output = ctx.output::<kinds::Lines3D>("lines3d")?;
     ctx.connect()?;
     let mut stage = MapStage::new(params);
+    if images_in.is_some() {
+        stage.wait_for_photos();
+    } else {
+        tracing::info!("no images input: lines are made without the appearance test");
+    }
+    let mut gray = Vec::new();
     let mut waiting: Vec<Stamp> = Vec::new();
     let mut last = Stamp::default();
     ctx.run(|| {
@@ -44,6 +51,15 @@ fn run(ctx: NodeContext) -> Result<()> {
                 tracing::info!("site model: {} walls bound the search", walls.len());
                 stage.set_walls(&walls);
             }
+        }
+        if let Some(i) = &images_in {
+            lineflow_imaging::for_each_gray(i, &mut gray, |h, g| {
+                match Photo::new(h.width as usize, h.height as usize, g.to_vec()) {
+                    Some(photo) => stage.add_photo(h.stamp.frame, photo),
+                    None => tracing::warn!("frame {}: image of {}x{} too small to compare", h.stamp.frame, h.width, h.height),
+                }
+                Ok(())
+            })?;
         }
         lines_in.for_each_segments(|h, segments, _| {
             stage.add_segments(h.stamp.frame, segments.to_vec());
@@ -65,11 +81,13 @@ fn run(ctx: NodeContext) -> Result<()> {
             }
         }
         // The camera and the site model are latched: they arrive first and never end.
-        Ok(if lines_in.is_ended() && poses_in.is_ended() {
-            Flow::Stop
-        } else {
-            Flow::Continue
-        })
+        Ok(
+            if lines_in.is_ended() && poses_in.is_ended() && images_in.as_ref().is_none_or(|i| i.is_ended()) {
+                Flow::Stop
+            } else {
+                Flow::Continue
+            },
+        )
     })?;
     if !stage.has_camera() {
         tracing::warn!("no camera model arrived: no 3-D lines");

@@ -5,9 +5,12 @@
 //! same sets.
 use std::collections::BTreeMap;
 
+use std::sync::Arc;
+
 use lineflow_messages::Segment2;
 use lineflow_photogrammetry::{Camera, Pose, Vec3};
 
+use crate::appearance::Photo;
 use crate::guide::Guide;
 use crate::line::MappedLine;
 use crate::tracks::map_lines;
@@ -22,6 +25,9 @@ pub struct MapStage {
     guide: Guide,
     segments: BTreeMap<u64, Vec<Segment2>>,
     poses: BTreeMap<u64, Pose>,
+    photos: BTreeMap<u64, Arc<Photo>>,
+    /// Whether a frame waits for its image before it is mapped (the images are an input of the graph).
+    needs_photos: bool,
     /// Frames with both segments and a pose when the map was last computed.
     mapped_frames: usize,
     lines: Vec<MappedLine>,
@@ -36,6 +42,8 @@ impl MapStage {
             guide: Guide::default(),
             segments: BTreeMap::new(),
             poses: BTreeMap::new(),
+            photos: BTreeMap::new(),
+            needs_photos: false,
             mapped_frames: 0,
             lines: Vec::new(),
         }
@@ -61,14 +69,29 @@ impl MapStage {
         self.segments.insert(frame, segments);
     }
 
+    /// Frames are mapped only once their image is in, so that the appearance test sees the same images whatever
+    /// the order the topics arrive in (a replay maps the same lines).
+    pub fn wait_for_photos(&mut self) {
+        self.needs_photos = true;
+    }
+
+    /// One frame's grey image, for the appearance test.
+    pub fn add_photo(&mut self, frame: u64, photo: Photo) {
+        self.photos.insert(frame, Arc::new(photo));
+    }
+
     /// The newest poses of every oriented frame.
     pub fn set_poses(&mut self, poses: BTreeMap<u64, Pose>) {
         self.poses = poses;
     }
 
-    /// Frames with both segments and a pose.
+    /// Frames with both segments and a pose (and their image, when waited for).
     pub fn ready_frames(&self) -> usize {
-        self.segments.keys().filter(|f| self.poses.contains_key(f)).count()
+        self.segments.keys().filter(|f| self.is_ready(f)).count()
+    }
+
+    fn is_ready(&self, frame: &u64) -> bool {
+        self.poses.contains_key(frame) && (!self.needs_photos || self.photos.contains_key(frame))
     }
 
     /// Recomputes the map when the ready frames have grown by `remap_growth` since the last time (and by one at
@@ -83,8 +106,10 @@ impl MapStage {
         true
     }
 
-    /// The final map from every ready frame.
+    /// The final map from every frame with segments and a pose.
     pub fn finish(&mut self) -> &[MappedLine] {
+        // Every input has ended: an image still missing is not coming, and its frame is mapped without it.
+        self.needs_photos = false;
         if self.camera.is_some() {
             self.compute();
         }
@@ -106,7 +131,14 @@ impl MapStage {
         let views: Vec<View> = self
             .segments
             .iter()
-            .filter_map(|(f, s)| Some(View::new(&camera, *f, *self.poses.get(f)?, s, self.params.min_length_px)))
+            .filter(|(f, _)| self.is_ready(f))
+            .map(|(f, s)| {
+                let view = View::new(&camera, *f, self.poses[f], s, self.params.min_length_px);
+                match self.photos.get(f) {
+                    Some(photo) => view.with_photo(Arc::clone(photo)),
+                    None => view,
+                }
+            })
             .collect();
         self.mapped_frames = views.len();
         self.lines = map_lines(&camera, &views, &self.guide, &self.params);

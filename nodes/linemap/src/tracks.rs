@@ -8,6 +8,7 @@ use lineflow_linegeom::{refine_line, refine_line_along, SlaveSegments};
 use lineflow_photogrammetry::{Camera, Vec3};
 use rayon::prelude::*;
 
+use crate::appearance;
 use crate::guide::Guide;
 use crate::hypotheses::{pair_hypotheses, Hypothesis};
 use crate::junctions;
@@ -56,6 +57,8 @@ pub struct MapStats {
     pub not_covered: usize,
     /// Lines whose segments mostly belong to lines already made.
     pub duplicates: usize,
+    /// Lines none of whose covered stretches the images agree along (the appearance test).
+    pub inconsistent: usize,
     /// Re-estimated lines that moved inside the building.
     pub hidden: usize,
     /// Lines made (before cutting at gaps).
@@ -96,7 +99,9 @@ pub fn map_lines_with_stats(camera: &Camera, views: &[View], guide: &Guide, p: &
         .map(|&(i, s)| best_hypothesis(camera, views, i, s, guide, p))
         .collect();
     let t_pairs = lap();
-    let (first, mut stats) = build(camera, views, guide, pairwise.iter().flatten().copied().collect(), p);
+    // The first pass only offers its verticals to the second when junctions are on; the appearance test, which
+    // verticals rarely need, is left to the pass whose lines are kept.
+    let (first, mut stats) = build(camera, views, guide, pairwise.iter().flatten().copied().collect(), p, !p.junctions);
     let t_first = lap();
     if !p.junctions {
         stats.milliseconds = [t_pairs, t_first, 0, 0];
@@ -142,14 +147,22 @@ pub fn map_lines_with_stats(camera: &Camera, views: &[View], guide: &Guide, p: &
         })
         .collect();
     let t_junctions = lap();
-    let (lines, mut stats) = build(camera, views, guide, best, p);
+    let (lines, mut stats) = build(camera, views, guide, best, p, true);
     stats.verticals = verticals.len();
     stats.milliseconds = [t_pairs, t_first, t_junctions, lap()];
     (lines, stats)
 }
 
-/// Lines from the segments' best hypotheses, greedily from the best-supported down.
-fn build(camera: &Camera, views: &[View], guide: &Guide, mut best: Vec<Scored>, p: &MapParams) -> (Vec<MappedLine>, MapStats) {
+/// Lines from the segments' best hypotheses, greedily from the best-supported down, each stretch checked in the
+/// images when `appearance_test` is set.
+fn build(
+    camera: &Camera,
+    views: &[View],
+    guide: &Guide,
+    mut best: Vec<Scored>,
+    p: &MapParams,
+    appearance_test: bool,
+) -> (Vec<MappedLine>, MapStats) {
     // Best support first; ties in a fixed order of views and segments, so the result does not depend on threads.
     best.sort_by(|a, b| {
         b.score
@@ -199,25 +212,46 @@ fn build(camera: &Camera, views: &[View], guide: &Guide, mut best: Vec<Scored>, 
             stats.duplicates += 1;
             continue;
         }
+        let dir = (r.end - r.start).normalize();
+        let rms_m = r.rms_px * views[h.view].metres_per_px(camera, &((r.start + r.end) * 0.5));
+        let kept: Vec<MappedLine> = pieces
+            .into_iter()
+            .filter(|&(t0, t1, _, _)| t1 - t0 >= p.min_length_m)
+            .map(|(t0, t1, n_images, n_segments)| MappedLine {
+                start: r.start + dir * t0,
+                end: r.start + dir * t1,
+                n_segments,
+                n_images,
+                rms_m,
+            })
+            .filter(|l| !appearance_test || looks_consistent(camera, views, l, p))
+            .collect();
+        if kept.is_empty() {
+            stats.inconsistent += 1;
+            continue;
+        }
         stats.made += 1;
         for a in &along {
             claimed[a.view][a.segment] = true;
         }
-        let dir = (r.end - r.start).normalize();
-        let rms_m = r.rms_px * views[h.view].metres_per_px(camera, &((r.start + r.end) * 0.5));
-        for (t0, t1, n_images, n_segments) in pieces {
-            if t1 - t0 >= p.min_length_m {
-                lines.push(MappedLine {
-                    start: r.start + dir * t0,
-                    end: r.start + dir * t1,
-                    n_segments,
-                    n_images,
-                    rms_m,
-                });
-            }
-        }
+        lines.extend(kept);
     }
     (lines, stats)
+}
+
+/// Whether the images that see the whole of `line` agree along it (the appearance test), or cannot tell. Every
+/// image that sees it counts, not only those with a segment along it: the images of one strip agree at any depth
+/// of a horizontal line, and those that would disagree may have found no segment there.
+fn looks_consistent(camera: &Camera, views: &[View], line: &MappedLine, p: &MapParams) -> bool {
+    if p.min_correlation <= -1.0 {
+        return true;
+    }
+    let ends = [line.start, line.end];
+    let seen_by: Vec<usize> = (0..views.len())
+        .filter(|&k| ends.iter().all(|e| views[k].sees(camera, e, 0.0)))
+        .collect();
+    appearance::compare(camera, views, &seen_by, &ends, &p.appearance())
+        .is_none_or(|v| v.median().is_none_or(|c| c >= p.min_correlation) && v.median_offset().is_none_or(|d| d <= p.max_offset_px))
 }
 
 /// The best-supported hypothesis of segment `s` of view `i` over every other view, if it has enough support.

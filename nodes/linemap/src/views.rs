@@ -1,9 +1,13 @@
 //! The oriented images a map is built from: each image's pose, its 2-D segments indexed in ideal photo
 //! coordinates, and every segment's interpretation plane (the plane through the perspective centre and the
 //! segment, on which the 3-D edge must lie).
+use std::sync::Arc;
+
 use lineflow_linegeom::{FrameSegments, SlaveSegments};
 use lineflow_messages::Segment2;
 use lineflow_photogrammetry::{Camera, Pose, Vec3};
+
+use crate::appearance::Photo;
 
 /// One oriented image and its segments.
 #[derive(Debug, Clone)]
@@ -18,6 +22,8 @@ pub struct View {
     pub normals: Vec<Vec3>,
     /// Largest |x| and |y| of the image's corners in ideal photo coordinates, mm.
     pub half_extent_mm: [f64; 2],
+    /// The image's grey values, for the appearance test; without them the test has no say.
+    pub photo: Option<Arc<Photo>>,
 }
 
 impl View {
@@ -41,7 +47,14 @@ impl View {
             segments,
             normals,
             half_extent_mm,
+            photo: None,
         }
+    }
+
+    /// The view with its image's grey values.
+    pub fn with_photo(mut self, photo: Arc<Photo>) -> Self {
+        self.photo = Some(photo);
+        self
     }
 
     /// The view as the multi-view estimate takes it.

@@ -1,0 +1,277 @@
+//! The images' verdict on a line's depth. Among repeated parallel lines (brick courses, glazing bars) a line
+//! matched one line off between two strips lies at a wrong depth that every image's segments confirm alike; only
+//! the grey values can tell. A thin ribbon of object space along the line, a few pixels to either side, is sampled
+//! in the image that sees the line longest and in every other image whose segments lie along it: at the right
+//! depth each image shows the same pattern there (the bricks above and below a course, with their joints and
+//! tints), at a wrong one the images of the other strip show the neighbouring course. Each side of the line is
+//! compared on its own, and the better side counts, because an edge between two surfaces may have its far side
+//! hidden, or seen against another background, from some of the images.
+use lineflow_photogrammetry::{Camera, Vec3};
+
+use crate::views::View;
+
+/// An image's 8-bit grey values, row-major.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Photo {
+    width: usize,
+    height: usize,
+    gray: Vec<u8>,
+}
+
+impl Photo {
+    /// The photo of `gray`, if it holds `width × height` values.
+    pub fn new(width: usize, height: usize, gray: Vec<u8>) -> Option<Self> {
+        (width >= 2 && height >= 2 && gray.len() == width * height).then_some(Photo { width, height, gray })
+    }
+
+    /// Bilinear grey value at pixel position `px` (pixel centres at integer + 0.5, as in the conventions), if
+    /// inside the image.
+    pub fn sample(&self, px: [f64; 2]) -> Option<f32> {
+        let (x, y) = (px[0] - 0.5, px[1] - 0.5);
+        if !(x >= 0.0 && y >= 0.0 && x < (self.width - 1) as f64 && y < (self.height - 1) as f64) {
+            return None;
+        }
+        let (x0, y0) = (x as usize, y as usize);
+        let (fx, fy) = ((x - x0 as f64) as f32, (y - y0 as f64) as f32);
+        let at = |c: usize, r: usize| self.gray[r * self.width + c] as f32;
+        let top = at(x0, y0) + fx * (at(x0 + 1, y0) - at(x0, y0));
+        let bottom = at(x0, y0 + 1) + fx * (at(x0 + 1, y0 + 1) - at(x0, y0 + 1));
+        Some(top + fy * (bottom - top))
+    }
+}
+
+/// Settings of the test.
+#[derive(Debug, Clone, Copy)]
+pub struct AppearanceParams {
+    /// Rows of the ribbon on either side of the line, pixels of the reference image.
+    pub half_width_px: usize,
+    /// Most samples along the line (a longer line is sampled more sparsely).
+    pub max_samples: usize,
+    /// Grey-value variance a side needs in the reference image to be compared at all.
+    pub min_variance: f32,
+    /// The other images' ribbons are also compared shifted by up to this many rows either way, to find where they
+    /// match best (a line at a slightly wrong depth matches best off its own position in the images that see its
+    /// depth).
+    pub search_px: usize,
+}
+
+impl Default for AppearanceParams {
+    fn default() -> Self {
+        AppearanceParams {
+            half_width_px: 3,
+            max_samples: 64,
+            min_variance: 4.0,
+            search_px: 2,
+        }
+    }
+}
+
+/// What the images say of a line: for each image compared with the reference, the better side's normalised
+/// cross-correlation.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Verdict {
+    /// The reference view (index into the views).
+    pub reference: usize,
+    /// (view, correlation) of every other image with a photo that sees the whole ribbon.
+    pub correlations: Vec<(usize, f64)>,
+    /// The shift across the line, reference pixels, at which each of those images matches best.
+    pub shifts: Vec<i32>,
+}
+
+impl Verdict {
+    /// The median correlation, if any image was compared.
+    pub fn median(&self) -> Option<f64> {
+        median(self.correlations.iter().map(|&(_, c)| c).collect())
+    }
+
+    /// The median distance of the best match from the line, pixels, if any image was compared.
+    pub fn median_offset(&self) -> Option<f64> {
+        median(self.shifts.iter().map(|&d| d.unsigned_abs() as f64).collect())
+    }
+}
+
+/// Compares the ribbon along `ends` in the views `seen_by` (indices into `views`, those whose segments lie along
+/// the line). None when fewer than two of them have a photo, or the reference shows too little texture on both
+/// sides to compare: no verdict.
+pub fn compare(camera: &Camera, views: &[View], seen_by: &[usize], ends: &[Vec3; 2], p: &AppearanceParams) -> Option<Verdict> {
+    let with_photo: Vec<usize> = seen_by.iter().copied().filter(|&k| views[k].photo.is_some()).collect();
+    if with_photo.len() < 2 {
+        return None;
+    }
+    let projected_px = |k: usize| -> f64 {
+        let v = &views[k];
+        match (v.pose.project(camera, &ends[0]), v.pose.project(camera, &ends[1])) {
+            (Some(a), Some(b)) => (b[0] - a[0]).hypot(b[1] - a[1]),
+            _ => 0.0,
+        }
+    };
+    // The reference is the image that sees the line longest and shows its whole ribbon; ties go to the lowest
+    // index, so that the verdict does not depend on the order of `seen_by`.
+    let mut by_length: Vec<(usize, f64)> = with_photo.iter().map(|&k| (k, projected_px(k))).collect();
+    by_length.sort_by(|a, b| b.1.total_cmp(&a.1).then(a.0.cmp(&b.0)));
+    let (reference, grid, base) = by_length.iter().find_map(|&(k, len)| {
+        let grid = Ribbon::new(camera, &views[k], ends, len, p)?;
+        let base = grid.sample(camera, &views[k])?;
+        Some(((k, len), grid, base))
+    })?;
+    let sample = |k: usize| grid.sample(camera, &views[k]);
+    let (h, search) = (p.half_width_px, p.search_px);
+    // Rows of the two sides (each with the line's own row) in the unshifted window.
+    let sides = [search..search + h + 1, search + h..search + 2 * h + 1];
+    let textured: Vec<bool> = sides
+        .iter()
+        .map(|r| variance(&base, grid.cols, r.clone()) >= p.min_variance)
+        .collect();
+    if !textured.iter().any(|&t| t) {
+        return None;
+    }
+    let compared: Vec<(usize, f64, i32)> = with_photo
+        .iter()
+        .filter(|&&k| k != reference.0)
+        .filter_map(|&k| {
+            let other = sample(k)?;
+            let at = |shift: i32| {
+                sides
+                    .iter()
+                    .zip(&textured)
+                    .filter(|(_, &t)| t)
+                    .filter_map(|(r, _)| {
+                        let moved = (r.start as i32 + shift) as usize..(r.end as i32 + shift) as usize;
+                        ncc(&base, r.clone(), &other, moved, grid.cols)
+                    })
+                    .fold(f64::NEG_INFINITY, f64::max)
+            };
+            let here = at(0);
+            // Smallest shift first, so that a tie keeps the line where it is.
+            let (shift, _) = (1..=search as i32)
+                .flat_map(|d| [-d, d])
+                .map(|d| (d, at(d)))
+                .fold((0, here), |best, c| if c.1 > best.1 { c } else { best });
+            here.is_finite().then_some((k, here, shift))
+        })
+        .collect();
+    Some(Verdict {
+        reference: reference.0,
+        correlations: compared.iter().map(|&(k, c, _)| (k, c)).collect(),
+        shifts: compared.iter().map(|&(_, _, d)| d).collect(),
+    })
+}
+
+fn median(mut values: Vec<f64>) -> Option<f64> {
+    values.sort_by(f64::total_cmp);
+    let n = values.len();
+    (n > 0).then(|| {
+        if n % 2 == 1 {
+            values[n / 2]
+        } else {
+            0.5 * (values[n / 2 - 1] + values[n / 2])
+        }
+    })
+}
+
+/// The object-space sample points: `cols` along the line, `2·(half_width + search) + 1` rows across it, one
+/// reference pixel apart across, in the plane through the line that faces the reference image.
+struct Ribbon {
+    points: Vec<Vec3>,
+    cols: usize,
+}
+
+impl Ribbon {
+    fn new(camera: &Camera, reference: &View, ends: &[Vec3; 2], length_px: f64, p: &AppearanceParams) -> Option<Self> {
+        let along = ends[1] - ends[0];
+        let mid = (ends[0] + ends[1]) * 0.5;
+        let across = along.cross(&(mid - reference.pose.center)).try_normalize(1e-12)?;
+        let step = reference.metres_per_px(camera, &mid);
+        let cols = (length_px.floor() as usize).clamp(2, p.max_samples);
+        let half = p.half_width_px + p.search_px;
+        let h = half as f64;
+        let points = (0..2 * half + 1)
+            .flat_map(|r| {
+                let offset = across * ((r as f64 - h) * step);
+                (0..cols).map(move |c| ends[0] + along * ((c as f64 + 0.5) / cols as f64) + offset)
+            })
+            .collect();
+        Some(Ribbon { points, cols })
+    }
+
+    /// The ribbon's grey values in `view`, if its photo shows every point. Every `KNOT`-th point of a row is
+    /// projected through the camera model and the points between are interpolated: the projection bends too
+    /// little over a few pixels to matter, and the full model costs most of the test.
+    fn sample(&self, camera: &Camera, view: &View) -> Option<Vec<f32>> {
+        const KNOT: usize = 8;
+        let photo = view.photo.as_deref()?;
+        let mut out = Vec::with_capacity(self.points.len());
+        for row in self.points.chunks(self.cols) {
+            let mut knots = (0..self.cols).step_by(KNOT).chain(std::iter::once(self.cols - 1)).peekable();
+            let mut from = knots.next()?;
+            let mut a = view.pose.project(camera, &row[from])?;
+            out.push(photo.sample(a)?);
+            for to in knots {
+                if to == from {
+                    continue;
+                }
+                let b = view.pose.project(camera, &row[to])?;
+                for c in from + 1..=to {
+                    let f = (c - from) as f64 / (to - from) as f64;
+                    out.push(photo.sample([a[0] + f * (b[0] - a[0]), a[1] + f * (b[1] - a[1])])?);
+                }
+                (from, a) = (to, b);
+            }
+        }
+        Some(out)
+    }
+}
+
+fn variance(values: &[f32], cols: usize, rows: std::ops::Range<usize>) -> f32 {
+    let v = &values[rows.start * cols..rows.end * cols];
+    let n = v.len() as f32;
+    let mean = v.iter().sum::<f32>() / n;
+    v.iter().map(|x| (x - mean) * (x - mean)).sum::<f32>() / n
+}
+
+/// Normalised cross-correlation of the rows `ra` of grid `a` with the rows `rb` (as many) of grid `b`, None when
+/// either is flat there.
+fn ncc(a: &[f32], ra: std::ops::Range<usize>, b: &[f32], rb: std::ops::Range<usize>, cols: usize) -> Option<f64> {
+    let (a, b) = (&a[ra.start * cols..ra.end * cols], &b[rb.start * cols..rb.end * cols]);
+    let n = a.len() as f64;
+    let (ma, mb) = (
+        a.iter().map(|&x| x as f64).sum::<f64>() / n,
+        b.iter().map(|&x| x as f64).sum::<f64>() / n,
+    );
+    let (mut sab, mut saa, mut sbb) = (0.0, 0.0, 0.0);
+    for (&x, &y) in a.iter().zip(b) {
+        let (dx, dy) = (x as f64 - ma, y as f64 - mb);
+        sab += dx * dy;
+        saa += dx * dx;
+        sbb += dy * dy;
+    }
+    (saa > 1e-9 && sbb > 1e-9).then(|| sab / (saa * sbb).sqrt())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn bilinear_samples_at_pixel_centres_and_between() {
+        let p = Photo::new(2, 2, vec![0, 100, 200, 50]).unwrap();
+        assert_eq!(p.sample([0.5, 0.5]), Some(0.0));
+        assert_eq!(p.sample([1.0, 0.5]), Some(50.0));
+        assert!((p.sample([1.0, 1.0]).unwrap() - 87.5).abs() < 1e-4);
+        assert_eq!(p.sample([0.4, 0.5]), None);
+        assert_eq!(p.sample([1.5, 1.5]), None, "the last centre has no neighbour to interpolate with");
+        assert!(Photo::new(3, 2, vec![0; 5]).is_none());
+    }
+
+    #[test]
+    fn correlation_of_a_pattern_with_itself_its_negative_and_a_flat_grid() {
+        let a: Vec<f32> = (0..12).map(|i| (i * 7 % 5) as f32).collect();
+        let neg: Vec<f32> = a.iter().map(|x| 10.0 - x).collect();
+        assert!((ncc(&a, 0..3, &a, 0..3, 4).unwrap() - 1.0).abs() < 1e-12);
+        assert!((ncc(&a, 0..3, &neg, 0..3, 4).unwrap() + 1.0).abs() < 1e-12);
+        assert!(ncc(&a, 0..3, &[3.0; 12], 0..3, 4).is_none());
+        // Row 1 of `a` is row 0 of `b`: the two match best one row apart.
+        let b: Vec<f32> = a[4..].iter().chain(&a[..4]).copied().collect();
+        assert!((ncc(&a, 1..3, &b, 0..2, 4).unwrap() - 1.0).abs() < 1e-12);
+    }
+}
