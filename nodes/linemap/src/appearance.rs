@@ -94,6 +94,34 @@ impl Verdict {
 /// the line). None when fewer than two of them have a photo, or the reference shows too little texture on both
 /// sides to compare: no verdict.
 pub fn compare(camera: &Camera, views: &[View], seen_by: &[usize], ends: &[Vec3; 2], p: &AppearanceParams) -> Option<Verdict> {
+    compare_until(camera, views, seen_by, ends, p, None)
+}
+
+/// Whether the images agree along `ends` (as [`compare`]): the median correlation reaches `min_correlation` and the
+/// median best shift is within `max_offset_px`, or there is no verdict. Stops comparing once the answer is no.
+pub fn agrees(
+    camera: &Camera,
+    views: &[View],
+    seen_by: &[usize],
+    ends: &[Vec3; 2],
+    p: &AppearanceParams,
+    min_correlation: f64,
+    max_offset_px: f64,
+) -> bool {
+    compare_until(camera, views, seen_by, ends, p, Some((min_correlation, max_offset_px)))
+        .is_none_or(|v| v.median().is_none_or(|c| c >= min_correlation) && v.median_offset().is_none_or(|d| d <= max_offset_px))
+}
+
+/// [`compare`], stopping early once more than half of the images fall below `stop`'s correlation or beyond its
+/// offset (the medians then reject whatever the rest say).
+fn compare_until(
+    camera: &Camera,
+    views: &[View],
+    seen_by: &[usize],
+    ends: &[Vec3; 2],
+    p: &AppearanceParams,
+    stop: Option<(f64, f64)>,
+) -> Option<Verdict> {
     let with_photo: Vec<usize> = seen_by.iter().copied().filter(|&k| views[k].photo.is_some()).collect();
     if with_photo.len() < 2 {
         return None;
@@ -125,31 +153,42 @@ pub fn compare(camera: &Camera, views: &[View], seen_by: &[usize], ends: &[Vec3;
     if !textured.iter().any(|&t| t) {
         return None;
     }
-    let compared: Vec<(usize, f64, i32)> = with_photo
-        .iter()
-        .filter(|&&k| k != reference.0)
-        .filter_map(|&k| {
-            let other = sample(k)?;
-            let at = |shift: i32| {
-                sides
-                    .iter()
-                    .zip(&textured)
-                    .filter(|(_, &t)| t)
-                    .filter_map(|(r, _)| {
-                        let moved = (r.start as i32 + shift) as usize..(r.end as i32 + shift) as usize;
-                        ncc(&base, r.clone(), &other, moved, grid.cols)
-                    })
-                    .fold(f64::NEG_INFINITY, f64::max)
-            };
-            let here = at(0);
-            // Smallest shift first, so that a tie keeps the line where it is.
-            let (shift, _) = (1..=search as i32)
-                .flat_map(|d| [-d, d])
-                .map(|d| (d, at(d)))
-                .fold((0, here), |best, c| if c.1 > best.1 { c } else { best });
-            here.is_finite().then_some((k, here, shift))
-        })
-        .collect();
+    let others: Vec<usize> = with_photo.iter().copied().filter(|&k| k != reference.0).collect();
+    let mut compared: Vec<(usize, f64, i32)> = Vec::with_capacity(others.len());
+    let (mut low, mut off) = (0, 0);
+    for &k in &others {
+        let Some(other) = sample(k) else { continue };
+        let at = |shift: i32| {
+            sides
+                .iter()
+                .zip(&textured)
+                .filter(|(_, &t)| t)
+                .filter_map(|(r, _)| {
+                    let moved = (r.start as i32 + shift) as usize..(r.end as i32 + shift) as usize;
+                    ncc(&base, r.clone(), &other, moved, grid.cols)
+                })
+                .fold(f64::NEG_INFINITY, f64::max)
+        };
+        let here = at(0);
+        if !here.is_finite() {
+            continue;
+        }
+        // Smallest shift first, so that a tie keeps the line where it is.
+        let (shift, _) = (1..=search as i32)
+            .flat_map(|d| [-d, d])
+            .map(|d| (d, at(d)))
+            .fold((0, here), |best, c| if c.1 > best.1 { c } else { best });
+        compared.push((k, here, shift));
+        // More than half of every image that could still be compared already rejects: so does the median, of
+        // these and of all.
+        if let Some((min_correlation, max_offset)) = stop {
+            low += (here < min_correlation) as usize;
+            off += (shift.unsigned_abs() as f64 > max_offset) as usize;
+            if 2 * low.max(off) > others.len() {
+                break;
+            }
+        }
+    }
     Some(Verdict {
         reference: reference.0,
         correlations: compared.iter().map(|&(k, c, _)| (k, c)).collect(),

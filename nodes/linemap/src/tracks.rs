@@ -250,8 +250,7 @@ fn looks_consistent(camera: &Camera, views: &[View], line: &MappedLine, p: &MapP
     let seen_by: Vec<usize> = (0..views.len())
         .filter(|&k| ends.iter().all(|e| views[k].sees(camera, e, 0.0)))
         .collect();
-    appearance::compare(camera, views, &seen_by, &ends, &p.appearance())
-        .is_none_or(|v| v.median().is_none_or(|c| c >= p.min_correlation) && v.median_offset().is_none_or(|d| d <= p.max_offset_px))
+    appearance::agrees(camera, views, &seen_by, &ends, &p.appearance(), p.min_correlation, p.max_offset_px)
 }
 
 /// The best-supported hypothesis of segment `s` of view `i` over every other view, if it has enough support.

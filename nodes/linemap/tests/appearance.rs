@@ -4,7 +4,7 @@
 //! course) is rejected by the images of the other strip.
 use std::sync::Arc;
 
-use lineflow_linemap::appearance::{compare, AppearanceParams};
+use lineflow_linemap::appearance::{agrees, compare, AppearanceParams};
 use lineflow_linemap::{Photo, View};
 use lineflow_photogrammetry::{rotation_from_opk, Camera, Pose, Vec3};
 
@@ -84,6 +84,9 @@ fn a_course_at_its_depth_matches_and_one_off_it_does_not() {
     assert!(moved.iter().all(|e| (e.y + 0.6).abs() < 1e-9), "{moved:?}");
     let wrong = compare(&cam, &views, &all, &moved, &p).expect("a textured wall gives a verdict");
     assert!(wrong.median().unwrap() < 0.85, "{wrong:?}");
+    // The decision, which stops comparing once more than half of the images reject, says the same.
+    assert!(agrees(&cam, &views, &all, &truth, &p, 0.85, 0.5));
+    assert!(!agrees(&cam, &views, &all, &moved, &p, 0.85, 0.5));
 }
 
 #[test]
