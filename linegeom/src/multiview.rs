@@ -12,6 +12,7 @@
 use lineflow_photogrammetry::{Camera, Vec3};
 use nalgebra::{Matrix2, Vector2};
 
+use crate::line2::Line2;
 use crate::segments::SlaveSegments;
 
 /// Settings of the multi-view line estimate.
@@ -168,23 +169,15 @@ fn plane_view(camera: &Camera, start: &Vec3, end: &Vec3, view: &SlaveSegments, p
     let (a, b) = (pose.project_ideal(camera, start)?, pose.project_ideal(camera, end)?);
     let segments = view.segments;
     let pixel = segments.pixel_mm;
-    let len = (b[0] - a[0]).hypot(b[1] - a[1]);
-    if len < 10.0 * pixel {
-        return None;
-    }
-    let dir = [(b[0] - a[0]) / len, (b[1] - a[1]) / len];
-    let across = |q: [f64; 2]| ((q[0] - a[0]) * -dir[1] + (q[1] - a[1]) * dir[0]).abs();
-    let along = |q: [f64; 2]| (q[0] - a[0]) * dir[0] + (q[1] - a[1]) * dir[1];
+    let line = Line2::new(a, b).filter(|l| l.len >= 10.0 * pixel)?;
     let tolerance = p.max_distance_px * pixel;
     let best = segments
         .near(a, b, tolerance, p.max_angle_deg.to_radians())
         .into_iter()
         .filter_map(|k| {
             let [s, e] = segments.ends[k];
-            let distance = across(s).max(across(e));
-            let (t0, t1) = (along(s).min(along(e)), along(s).max(along(e)));
-            let overlap = t1.min(len) - t0.max(0.0);
-            (distance <= tolerance && overlap >= 0.5 * (t1 - t0).min(len)).then_some((distance, k))
+            let distance = line.across(s).abs().max(line.across(e).abs());
+            (distance <= tolerance && line.overlap_share(segments.ends[k]) >= 0.5).then_some((distance, k))
         })
         .min_by(|x, y| x.0.total_cmp(&y.0).then(x.1.cmp(&y.1)))?;
     let [s, e] = segments.ends[best.1];

@@ -15,7 +15,7 @@ pub mod ransac;
 mod rotation;
 
 pub use camera::Camera;
-pub use polygon::{point_in_polygon, signed_area};
+pub use polygon::{point_in_polygon, polygon_normal, signed_area};
 pub use pose::Pose;
 pub use rotation::{look_at, opk_from_rotation, rotation_from_opk};
 

@@ -1,8 +1,7 @@
 //! What the site model tells the mapping: the region worth searching, and the directions a façade's edges take
 //! (the vertical, and along and across each wall). Neither bounds what is reconstructed beyond that region's
 //! margin or forces a direction: a line takes a direction only where its own estimate already lies close to it.
-use lineflow_photogrammetry::point_in_polygon;
-use lineflow_photogrammetry::Vec3;
+use lineflow_photogrammetry::{point_in_polygon, polygon_normal, Vec3};
 
 /// The region where lines are sought, an axis-aligned box (the site model's walls grown by a margin), or none.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -168,15 +167,6 @@ fn outline_distance(q: [f64; 2], poly: &[[f64; 2]]) -> f64 {
             (q[0] - a[0] - t * dx).hypot(q[1] - a[1] - t * dy)
         })
         .fold(f64::INFINITY, f64::min)
-}
-
-/// The unit normal of a planar polygon (Newell's method), if it has an area.
-fn polygon_normal(corners: &[Vec3]) -> Option<Vec3> {
-    let n = corners
-        .iter()
-        .zip(corners.iter().cycle().skip(1))
-        .fold(Vec3::zeros(), |acc, (a, b)| acc + a.cross(b));
-    n.try_normalize(1e-12)
 }
 
 #[cfg(test)]

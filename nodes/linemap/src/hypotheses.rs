@@ -8,8 +8,9 @@
 use lineflow_photogrammetry::{Camera, Vec3};
 
 use crate::guide::Guide;
-use crate::views::{Line2, View};
+use crate::views::View;
 use crate::MapParams;
+use lineflow_linegeom::Line2;
 
 /// A hypothesis: the 3-D segment that segment `segment` of view `view` becomes on the interpretation plane of
 /// segment `other_segment` of view `other`.

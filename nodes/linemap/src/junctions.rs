@@ -10,8 +10,9 @@ use lineflow_photogrammetry::{Camera, Vec3};
 
 use crate::guide::Guide;
 use crate::line::MappedLine;
-use crate::views::{Line2, View};
+use crate::views::View;
 use crate::MapParams;
+use lineflow_linegeom::Line2;
 
 /// The vertical lines as one view sees them.
 pub struct ProjectedVerticals<'a> {

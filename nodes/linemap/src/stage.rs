@@ -10,9 +10,9 @@ use std::sync::Arc;
 use lineflow_messages::Segment2;
 use lineflow_photogrammetry::{Camera, Pose, Vec3};
 
-use crate::appearance::Photo;
 use crate::guide::Guide;
 use crate::line::MappedLine;
+use crate::photo::Photo;
 use crate::tracks::map_lines;
 use crate::views::View;
 use crate::MapParams;

@@ -3,8 +3,9 @@
 //! counts once however many segments it has there (LIMAP's and Line3D++'s symmetric scoring).
 use lineflow_photogrammetry::{Camera, Vec3};
 
-use crate::views::{Line2, View};
+use crate::views::View;
 use crate::MapParams;
+use lineflow_linegeom::Line2;
 
 /// The best segment of one view along a projected 3-D segment.
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -4,7 +4,7 @@
 //! reconstructed twice.
 use std::collections::BTreeSet;
 
-use lineflow_linegeom::{refine_line, refine_line_along, SlaveSegments};
+use lineflow_linegeom::{refine_line, refine_line_along, Line2, SlaveSegments};
 use lineflow_photogrammetry::{Camera, Vec3};
 use rayon::prelude::*;
 
@@ -14,7 +14,7 @@ use crate::hypotheses::{pair_hypotheses, Hypothesis};
 use crate::junctions;
 use crate::line::MappedLine;
 use crate::support::{support, support_above};
-use crate::views::{parameter_on_line, Line2, View};
+use crate::views::{parameter_on_line, View};
 use crate::MapParams;
 
 /// The lines as message elements, numbered from 1.

@@ -1,7 +1,7 @@
 //! Wall planes: the approximate building model the matching searches around (`site.toml`), or a plane fitted to
 //! tie points when there is none.
 use lineflow_photogrammetry::ransac::{best_of_samples, Sampling};
-use lineflow_photogrammetry::{point_in_polygon, Vec3};
+use lineflow_photogrammetry::{point_in_polygon, polygon_normal, Vec3};
 
 /// A planar wall polygon with its outward normal and an in-plane frame (u horizontal, w up).
 #[derive(Debug, Clone, PartialEq)]
@@ -29,13 +29,7 @@ impl WallPlane {
         if corners.len() < 3 {
             return None;
         }
-        // Newell's method: robust for non-convex and slightly non-planar polygons.
-        let mut n = Vec3::zeros();
-        for (k, a) in corners.iter().enumerate() {
-            let b = corners[(k + 1) % corners.len()];
-            n += Vec3::new((a.y - b.y) * (a.z + b.z), (a.z - b.z) * (a.x + b.x), (a.x - b.x) * (a.y + b.y));
-        }
-        let normal = n.try_normalize(1e-12)?;
+        let normal = polygon_normal(corners)?;
         let mut wall = Self::from_plane(name, normal, corners[0]);
         wall.polygon = corners.iter().map(|c| wall.in_plane(c)).collect();
         Some(wall)

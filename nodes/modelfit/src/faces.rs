@@ -3,7 +3,7 @@
 //! vertices only; the faces (rings of vertex indices, from the `faces` topic) hold as they are.
 use lineflow_messages::{FaceVertex, WireEdge};
 use lineflow_model::{Edge, Face, Model, SurfaceKind, Vertex};
-use lineflow_photogrammetry::Vec3;
+use lineflow_photogrammetry::{polygon_normal, Vec3};
 
 /// The model of `vertices` and `edges` with the faces of `faces` (rings in order, outer ring 0 first, then the
 /// holes); an error names a face that does not fit the wire-frame.
@@ -40,23 +40,13 @@ pub fn fitted_model(vertices: &[Vec3], edges: &[WireEdge], faces: &[FaceVertex])
         }
         let ring = rings.remove(0);
         model.faces.push(Face {
-            normal: newell_normal(vertices, &ring),
+            normal: polygon_normal(&ring.iter().map(|&v| vertices[v]).collect::<Vec<_>>()).unwrap_or_default(),
             ring,
             holes: rings,
             kind,
         });
     }
     Ok(model)
-}
-
-/// The unit normal of a ring by Newell's method (zero for a degenerate ring).
-fn newell_normal(vertices: &[Vec3], ring: &[usize]) -> Vec3 {
-    let mut n = Vec3::zeros();
-    for (i, &a) in ring.iter().enumerate() {
-        let (p, q) = (vertices[a], vertices[ring[(i + 1) % ring.len()]]);
-        n += Vec3::new((p.y - q.y) * (p.z + q.z), (p.z - q.z) * (p.x + q.x), (p.x - q.x) * (p.y + q.y));
-    }
-    n.try_normalize(1e-12).unwrap_or_default()
 }
 
 #[cfg(test)]
