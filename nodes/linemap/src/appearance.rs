@@ -110,7 +110,7 @@ fn compare_until(
     let (reference, grid, base) = by_length.iter().find_map(|&(k, len)| {
         let grid = Ribbon::new(camera, &views[k], ends, len, p)?;
         let base = grid.sample(camera, &views[k])?;
-        Some(((k, len), grid, base))
+        base.iter().all(|v| v.is_finite()).then_some(((k, len), grid, base))
     })?;
     let sample = |k: usize| grid.sample(camera, &views[k]);
     let (h, search) = (p.half_width_px, p.search_px);
@@ -203,26 +203,27 @@ impl Ribbon {
         Some(Ribbon { points, cols })
     }
 
-    /// The ribbon's grey values in `view`, if its photo shows every point. Every `KNOT`-th point of a row is
-    /// projected through the camera model and the points between are interpolated: the projection bends too
-    /// little over a few pixels to matter, and the full model costs most of the test.
+    /// The ribbon's grey values in `view` (NaN where its photo does not show the point), if it has a photo. Every
+    /// `KNOT`-th point of a row is projected through the camera model and the points between are interpolated:
+    /// the projection bends too little over a few pixels to matter, and the full model costs most of the test.
     fn sample(&self, camera: &Camera, view: &View) -> Option<Vec<f32>> {
         const KNOT: usize = 8;
         let photo = view.photo.as_deref()?;
+        let value = |px: Option<[f64; 2]>| px.and_then(|q| photo.sample(q)).unwrap_or(f32::NAN);
         let mut out = Vec::with_capacity(self.points.len());
         for row in self.points.chunks(self.cols) {
-            let mut knots = (0..self.cols).step_by(KNOT).chain(std::iter::once(self.cols - 1)).peekable();
-            let mut from = knots.next()?;
-            let mut a = view.pose.project(camera, &row[from])?;
-            out.push(photo.sample(a)?);
-            for to in knots {
+            let knots = (0..self.cols).step_by(KNOT).chain(std::iter::once(self.cols - 1));
+            let mut from = 0;
+            let mut a = view.pose.project(camera, &row[0]);
+            out.push(value(a));
+            for to in knots.skip(1) {
                 if to == from {
                     continue;
                 }
-                let b = view.pose.project(camera, &row[to])?;
+                let b = view.pose.project(camera, &row[to]);
                 for c in from + 1..=to {
                     let f = (c - from) as f64 / (to - from) as f64;
-                    out.push(photo.sample([a[0] + f * (b[0] - a[0]), a[1] + f * (b[1] - a[1])])?);
+                    out.push(value(a.zip(b).map(|(a, b)| [a[0] + f * (b[0] - a[0]), a[1] + f * (b[1] - a[1])])));
                 }
                 (from, a) = (to, b);
             }
@@ -238,17 +239,20 @@ fn variance(values: &[f32], cols: usize, rows: std::ops::Range<usize>) -> f32 {
     v.iter().map(|x| (x - mean) * (x - mean)).sum::<f32>() / n
 }
 
-/// Normalised cross-correlation of the rows `ra` of grid `a` with the rows `rb` (as many) of grid `b`, None when
-/// either is flat there.
+/// Normalised cross-correlation of the rows `ra` of grid `a` with the rows `rb` (as many) of grid `b`, over the
+/// samples both show (not NaN). None when they share less than half of them, or either is flat there: an image
+/// that sees part of a line still has its say on that part.
 fn ncc(a: &[f32], ra: std::ops::Range<usize>, b: &[f32], rb: std::ops::Range<usize>, cols: usize) -> Option<f64> {
     let (a, b) = (&a[ra.start * cols..ra.end * cols], &b[rb.start * cols..rb.end * cols]);
-    let n = a.len() as f64;
-    let (ma, mb) = (
-        a.iter().map(|&x| x as f64).sum::<f64>() / n,
-        b.iter().map(|&x| x as f64).sum::<f64>() / n,
-    );
+    let both = || a.iter().zip(b).filter(|(x, y)| x.is_finite() && y.is_finite());
+    let n = both().count();
+    if n < 4 || 2 * n < a.len() {
+        return None;
+    }
+    let (sa, sb) = both().fold((0.0, 0.0), |(sa, sb), (&x, &y)| (sa + x as f64, sb + y as f64));
+    let (ma, mb) = (sa / n as f64, sb / n as f64);
     let (mut sab, mut saa, mut sbb) = (0.0, 0.0, 0.0);
-    for (&x, &y) in a.iter().zip(b) {
+    for (&x, &y) in both() {
         let (dx, dy) = (x as f64 - ma, y as f64 - mb);
         sab += dx * dy;
         saa += dx * dx;
@@ -268,6 +272,12 @@ mod tests {
         assert!((ncc(&a, 0..3, &a, 0..3, 4).unwrap() - 1.0).abs() < 1e-12);
         assert!((ncc(&a, 0..3, &neg, 0..3, 4).unwrap() + 1.0).abs() < 1e-12);
         assert!(ncc(&a, 0..3, &[3.0; 12], 0..3, 4).is_none());
+        // Half of `b` unseen: compared on the rest; more than half unseen: no say.
+        let mut half: Vec<f32> = a.clone();
+        half[..6].fill(f32::NAN);
+        assert!((ncc(&a, 0..3, &half, 0..3, 4).unwrap() - 1.0).abs() < 1e-12);
+        half[6] = f32::NAN;
+        assert!(ncc(&a, 0..3, &half, 0..3, 4).is_none());
         // Row 1 of `a` is row 0 of `b`: the two match best one row apart.
         let b: Vec<f32> = a[4..].iter().chain(&a[..4]).copied().collect();
         assert!((ncc(&a, 1..3, &b, 0..2, 4).unwrap() - 1.0).abs() < 1e-12);

@@ -239,16 +239,22 @@ fn build(
     (lines, stats)
 }
 
-/// Whether the images that see the whole of `line` agree along it (the appearance test), or cannot tell. Every
-/// image that sees it counts, not only those with a segment along it: the images of one strip agree at any depth
+/// Whether the images that see `line` agree along it (the appearance test), or cannot tell. Every image that sees
+/// at least half of it counts, not only those with a segment along it: the images of one strip agree at any depth
 /// of a horizontal line, and those that would disagree may have found no segment there.
 fn looks_consistent(camera: &Camera, views: &[View], line: &MappedLine, p: &MapParams) -> bool {
     if p.min_correlation <= -1.0 {
         return true;
     }
     let ends = [line.start, line.end];
+    // Images that see at least half of it: each compares the part it sees.
     let seen_by: Vec<usize> = (0..views.len())
-        .filter(|&k| ends.iter().all(|e| views[k].sees(camera, e, 0.0)))
+        .filter(|&k| {
+            (0..5)
+                .filter(|&i| views[k].sees(camera, &(line.start + (line.end - line.start) * (i as f64 / 4.0)), 0.0))
+                .count()
+                >= 3
+        })
         .collect();
     appearance::agrees(camera, views, &seen_by, &ends, &p.appearance(), p.min_correlation, p.max_offset_px)
 }
