@@ -978,6 +978,27 @@ fn without_a_site_model_the_walls_are_fitted_to_the_tie_points_in_the_surveys_fr
     assert!(success > 60.0, "{stdout}");
 }
 
+/// Runs `graph` with the capture at scale 0.15 into `out`. The run must succeed, each of `nodes` finish ok with no
+/// frame missed, and nothing be left in shared memory.
+fn run_small(sb: &Sandbox, graph: &Path, out: &Path, nodes: &[&str]) {
+    let r = sb.run(&[
+        "run",
+        graph.to_str().unwrap(),
+        "--set",
+        "capture.scale=0.15",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    let log = String::from_utf8_lossy(&r.stderr).into_owned();
+    assert!(r.status.success(), "{} failed:\n{log}", graph.display());
+    for node in nodes {
+        let row = summary_row(out, node);
+        assert_eq!(row[1], "ok", "{node}: {row:?}");
+        assert_eq!(row[9], "-", "{node} missed frames: {row:?}");
+    }
+    assert_nothing_left(sb, out);
+}
+
 #[test]
 fn the_modelfit_graph_fits_the_model_to_the_images_the_same_way_twice() {
     let sb = Sandbox::new();
@@ -985,16 +1006,7 @@ fn the_modelfit_graph_fits_the_model_to_the_images_the_same_way_twice() {
     let mut fits = Vec::new();
     for k in 0..2 {
         let out = sb.path().join(format!("out{k}"));
-        let r = sb.run(&[
-            "run",
-            graph.to_str().unwrap(),
-            "--set",
-            "capture.scale=0.15",
-            "--out",
-            out.to_str().unwrap(),
-        ]);
-        let log = String::from_utf8_lossy(&r.stderr).into_owned();
-        assert!(r.status.success(), "modelfit run failed:\n{log}");
+        run_small(&sb, &graph, &out, &["model", "modelfit", "eval"]);
         let obj = std::fs::read_to_string(out.join("model.obj")).expect("no model.obj");
         // The modelfit stage fits the wire-frame to every image's edge pixels (seed 004), scored too.
         let fitted = std::fs::read_to_string(out.join("model_fitted.obj")).expect("no model_fitted.obj");
@@ -1015,12 +1027,6 @@ fn the_modelfit_graph_fits_the_model_to_the_images_the_same_way_twice() {
         assert!(out.join("model_fitted.city.json").is_file());
         let report = std::fs::read_to_string(out.join("eval/report.md")).unwrap();
         assert!(report.contains("| fitted to the images (`model_fitted.obj`) |"), "{report}");
-        for node in ["model", "modelfit", "eval"] {
-            let row = summary_row(&out, node);
-            assert_eq!(row[1], "ok", "{node}: {row:?}");
-            assert_eq!(row[9], "-", "{node} missed frames: {row:?}");
-        }
-        assert_nothing_left(&sb, &out);
         fits.push(fitted);
     }
     assert!(fits[0] == fits[1], "two runs gave different fitted models");
@@ -1033,26 +1039,12 @@ fn the_linemap_graph_maps_3d_lines_from_every_image_the_same_way_twice() {
     let mut lines = Vec::new();
     for k in 0..2 {
         let out = sb.path().join(format!("out{k}"));
-        let r = sb.run(&[
-            "run",
-            graph.to_str().unwrap(),
-            "--set",
-            "capture.scale=0.15",
-            "--out",
-            out.to_str().unwrap(),
-        ]);
-        let log = String::from_utf8_lossy(&r.stderr).into_owned();
-        assert!(r.status.success(), "linemap run failed:\n{log}");
+        // Every frame gets a set: the stage publishes once a frame's 2-D lines are in, and the final set.
+        run_small(&sb, &graph, &out, &["linemap", "model", "eval"]);
         let lines3d = std::fs::read_to_string(out.join("lines3d.csv")).expect("no lines3d.csv");
         assert!(lines3d.starts_with("id,X1,Y1,Z1,X2,Y2,Z2,n_points,n_images,rms_m"), "{lines3d}");
         assert!(lines3d.lines().count() > 20, "few lines:\n{lines3d}");
         assert!(out.join("lines3d.ply").is_file());
-        // Every frame got a set: the stage publishes once a frame's 2-D lines are in, and the final set.
-        for node in ["linemap", "model", "eval"] {
-            let row = summary_row(&out, node);
-            assert_eq!(row[1], "ok", "{node}: {row:?}");
-            assert_eq!(row[9], "-", "{node} missed frames: {row:?}");
-        }
         let report = std::fs::read_to_string(out.join("eval/report.md")).unwrap();
         // At this scale (about 640 px wide, GSD 4.5 cm) the stage found 24 % of the edges on 2026-11-26; a broken
         // stage finds none.
@@ -1062,7 +1054,6 @@ fn the_linemap_graph_maps_3d_lines_from_every_image_the_same_way_twice() {
             out.join("model.obj").is_file(),
             "the model stage built nothing from linemap's lines"
         );
-        assert_nothing_left(&sb, &out);
         lines.push(lines3d);
     }
     assert_eq!(lines[0], lines[1], "two runs of the linemap graph differ");
