@@ -1,7 +1,8 @@
 //! The images' verdict on a line's depth. Among repeated parallel lines (brick courses, glazing bars) a line
 //! matched one line off between two strips lies at a wrong depth that every image's segments confirm alike; only
 //! the grey values can tell. A thin ribbon of object space along the line, a few pixels to either side, is sampled
-//! in the image that sees the line longest and in every other image whose segments lie along it: at the right
+//! in the image that sees the line longest and in every other image given (the caller passes those that see at
+//! least half of it; each is compared on the part it shows): at the right
 //! depth each image shows the same pattern there (the bricks above and below a course, with their joints and
 //! tints), at a wrong one the images of the other strip show the neighbouring course. Each side of the line is
 //! compared on its own, and the better side counts, because an edge between two surfaces may have its far side
@@ -42,7 +43,7 @@ impl Default for AppearanceParams {
 pub struct Verdict {
     /// The reference view (index into the views).
     pub reference: usize,
-    /// (view, correlation) of every other image with a photo that sees the whole ribbon.
+    /// (view, correlation) of every other image with a photo that shows at least half of the ribbon.
     pub correlations: Vec<(usize, f64)>,
     /// The shift across the line, reference pixels, at which each of those images matches best.
     pub shifts: Vec<i32>,
