@@ -110,7 +110,10 @@ fn rendered_photo(scene: &Synthetic, f: usize) -> Option<Arc<Photo>> {
 }
 
 /// Where the true edges of at least 0.5 m are lost, per class: seen as a 2-D segment in two or more images, given
-/// a hypothesis within 2 GSD by some pair, given one as its segments' best hypothesis, and found among the lines.
+/// a hypothesis within 2 GSD and 2° by some pair (before any snapping), given one as its segments' best
+/// hypothesis, and found among the lines; and how many of them the images resolve from their parallel neighbours
+/// (`lineflow_eval::resolvable`: one image edge where the truth has two recovers at most one), and how many of
+/// those are found.
 fn print_funnel(camera: &lineflow_photogrammetry::Camera, views: &[View], guide: &Guide, truth: &Truth, lines: &[Line3Row], p: &MapParams) {
     use lineflow_eval::geometry::{class_on_walls, Class, Seg, WallPlane};
     use lineflow_linemap::hypotheses::pair_hypotheses;
@@ -129,10 +132,14 @@ fn print_funnel(camera: &lineflow_photogrammetry::Camera, views: &[View], guide:
         .into_iter()
         .filter_map(|(_, c)| WallPlane::new(c.into_iter().map(Vec3::from).collect()))
         .collect();
+    let truth_segs: Vec<Seg> = truth.lines.iter().map(|r| Seg::new(r.start, r.end)).collect();
+    let poses: Vec<lineflow_photogrammetry::Pose> = truth.poses.iter().map(|p| p.pose).collect();
+    let resolved = lineflow_eval::resolvable::resolvable(camera, &poses, &truth_segs);
     let names = ["horizontal", "vertical", "oblique", "depth"];
-    let mut counts = [[0usize; 5]; 4];
-    for r in truth.lines.iter().filter(|r| (r.end - r.start).norm() >= 0.5) {
+    let mut counts = [[0usize; 7]; 4];
+    for (r, &resolved) in truth.lines.iter().zip(&resolved).filter(|(r, _)| (r.end - r.start).norm() >= 0.5) {
         let g = Seg::new(r.start, r.end);
+        let found = lines.iter().any(|l| near(&g, &l.start, &l.end));
         let c = match class_on_walls(&g, &walls) {
             Class::Horizontal => 0,
             Class::Vertical => 1,
@@ -140,6 +147,8 @@ fn print_funnel(camera: &lineflow_photogrammetry::Camera, views: &[View], guide:
             Class::Depth => 3,
         };
         counts[c][0] += 1;
+        counts[c][5] += resolved as usize;
+        counts[c][6] += (resolved && found) as usize;
         let seen: Vec<(usize, usize)> = views
             .iter()
             .enumerate()
@@ -163,12 +172,16 @@ fn print_funnel(camera: &lineflow_photogrammetry::Camera, views: &[View], guide:
             .filter(|b| near(&g, &b.hypothesis.ends[0], &b.hypothesis.ends[1]))
             .collect();
         counts[c][3] += !bests.is_empty() as usize;
-        let found = lines.iter().any(|l| near(&g, &l.start, &l.end));
         counts[c][4] += found as usize;
     }
-    println!("\n| class | true edges ≥ 0.5 m | 2-D in ≥ 2 images | a pair proposes it | best of its segments | found |");
-    println!("|---|---|---|---|---|---|");
+    println!(
+        "\n| class | true edges ≥ 0.5 m | 2-D in ≥ 2 images | a pair proposes it | best of its segments | found | resolvable | found of those |"
+    );
+    println!("|---|---|---|---|---|---|---|---|");
     for (name, c) in names.iter().zip(counts) {
-        println!("| {name} | {} | {} | {} | {} | {} |", c[0], c[1], c[2], c[3], c[4]);
+        println!(
+            "| {name} | {} | {} | {} | {} | {} | {} | {} |",
+            c[0], c[1], c[2], c[3], c[4], c[5], c[6]
+        );
     }
 }
