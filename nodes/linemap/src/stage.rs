@@ -4,7 +4,6 @@
 //! once more at the end with the final poses. The schedule depends on frame counts only, so a replay publishes the
 //! same sets.
 use std::collections::BTreeMap;
-
 use std::sync::Arc;
 
 use lineflow_messages::Segment2;

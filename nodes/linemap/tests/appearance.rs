@@ -37,7 +37,8 @@ fn render(cam: &Camera, pose: &Pose) -> Photo {
         for c in 0..w {
             let mut sum = 0.0;
             for (dy, dx) in (0..9).map(|k| (k / 3, k % 3)) {
-                let px = [c as f64 + (dx as f64 + 0.5) / 3.0, r as f64 + (dy as f64 + 0.5) / 3.0];
+                // Pixel centres at integer values (docs/conventions.md): samples at -1/3, 0 and +1/3.
+                let px = [c as f64 + (dx as f64 - 1.0) / 3.0, r as f64 + (dy as f64 - 1.0) / 3.0];
                 let ray = pose.ray_of_pixel(cam, px);
                 let t = -pose.center.y / ray.y;
                 let p = pose.center + ray * t;

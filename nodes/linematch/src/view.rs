@@ -105,21 +105,7 @@ impl View<'_> {
     #[inline]
     pub fn sample(&self, px: [f32; 2]) -> f32 {
         let (w, h) = (self.camera.width as usize, self.camera.height as usize);
-        let (x, y) = (px[0], px[1]);
-        if !(x >= 0.0 && y >= 0.0) {
-            return f32::NAN;
-        }
-        let (c, r) = (x as usize, y as usize);
-        if c + 1 >= w || r + 1 >= h {
-            return f32::NAN;
-        }
-        let (fx, fy) = (x - c as f32, y - r as f32);
-        let i = r * w + c;
-        let g = self.gray;
-        let (a, b, d, e) = (g[i] as f32, g[i + 1] as f32, g[i + w] as f32, g[i + w + 1] as f32);
-        let top = a + fx * (b - a);
-        let bottom = d + fx * (e - d);
-        top + fy * (bottom - top)
+        lineflow_imaging::bilinear(self.gray, w, h, px[0], px[1])
     }
 
     /// [`sample`](Self::sample) from 16.16 fixed-point coordinates the caller knows to satisfy `0 ≤ x < width − 1`
