@@ -36,6 +36,8 @@ pub fn bench_linemap(
     let walls = scene.approximate_walls();
     let walls: Vec<Vec<Vec3>> = walls.iter().map(|(_, c)| c.iter().map(|&p| Vec3::from(p)).collect()).collect();
     let guide = Guide::from_walls(&walls, params.site_margin_m);
+    // Frames by image name: the run's poses.csv may leave frames out (not oriented).
+    let frames: BTreeMap<String, usize> = (0..scene.poses().len()).map(|f| (scene.image_name(f), f)).collect();
     // The images only for the appearance test, which is off with min_correlation = -1.
     let photos: Vec<Option<Arc<Photo>>> = if params.min_correlation > -1.0 {
         eprintln!("rendering {} frames for the appearance test...", scene.poses().len());
@@ -62,8 +64,8 @@ pub fn bench_linemap(
     }
     let views: Vec<View> = poses
         .iter()
-        .enumerate()
-        .filter_map(|(f, p)| {
+        .filter_map(|p| {
+            let f = *frames.get(&p.image)?;
             let view = View::new(&camera, f as u64, p.pose, segments.get(&p.image)?, params.min_length_px);
             Some(match photos.get(f).cloned().flatten() {
                 Some(photo) => view.with_photo(photo),

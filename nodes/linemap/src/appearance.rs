@@ -61,8 +61,8 @@ impl Verdict {
     }
 }
 
-/// Compares the ribbon along `ends` in the views `seen_by` (indices into `views`, those whose segments lie along
-/// the line). None when fewer than two of them have a photo, or the reference shows too little texture on both
+/// Compares the ribbon along `ends` in the views `seen_by` (indices into `views`; the stage passes those that see
+/// at least half of the line). None when fewer than two of them have a photo, or the reference shows too little texture on both
 /// sides to compare: no verdict.
 pub fn compare(camera: &Camera, views: &[View], seen_by: &[usize], ends: &[Vec3; 2], p: &AppearanceParams) -> Option<Verdict> {
     compare_until(camera, views, seen_by, ends, p, None)
@@ -111,7 +111,7 @@ fn compare_until(
     let (reference, grid, base) = by_length.iter().find_map(|&(k, len)| {
         let grid = Ribbon::new(camera, &views[k], ends, len, p)?;
         let base = grid.sample(camera, &views[k])?;
-        base.iter().all(|v| v.is_finite()).then_some(((k, len), grid, base))
+        base.iter().all(|v| v.is_finite()).then_some((k, grid, base))
     })?;
     let sample = |k: usize| grid.sample(camera, &views[k]);
     let (h, search) = (p.half_width_px, p.search_px);
@@ -124,7 +124,7 @@ fn compare_until(
     if !textured.iter().any(|&t| t) {
         return None;
     }
-    let others: Vec<usize> = with_photo.iter().copied().filter(|&k| k != reference.0).collect();
+    let others: Vec<usize> = with_photo.iter().copied().filter(|&k| k != reference).collect();
     let mut compared: Vec<(usize, f64, i32)> = Vec::with_capacity(others.len());
     let (mut low, mut off) = (0, 0);
     for &k in &others {
@@ -161,7 +161,7 @@ fn compare_until(
         }
     }
     Some(Verdict {
-        reference: reference.0,
+        reference,
         correlations: compared.iter().map(|&(k, c, _)| (k, c)).collect(),
         shifts: compared.iter().map(|&(_, _, d)| d).collect(),
     })
