@@ -9,7 +9,7 @@
 //! (the planes through each camera centre and its segment), in pixels of each image; directions the planes do not
 //! determine (the depth of a horizontal edge seen along a horizontal strip) keep the current position. Views whose
 //! plane disagrees by more than a pixel are dropped and the line solved again.
-use lineflow_photogrammetry::{Camera, Vec3};
+use lineflow_photogrammetry::{Camera, Mat3, Vec3};
 use nalgebra::{Matrix2, Vector2};
 
 use crate::line2::Line2;
@@ -57,6 +57,16 @@ pub struct MultiviewLine {
     pub views: usize,
     /// RMS of their residuals, pixels.
     pub rms_px: f64,
+    /// Covariance of the line's position across itself, m², from its segments' planes at the a-priori σ
+    /// (`sigma_px`); a direction the planes barely determine has a huge variance.
+    pub across_cov: Mat3,
+}
+
+impl MultiviewLine {
+    /// Standard deviation of the line's position along the unit direction `w` (across the line), metres.
+    pub fn sigma_along(&self, w: &Vec3) -> f64 {
+        w.dot(&(self.across_cov * w)).max(0.0).sqrt()
+    }
 }
 
 /// One image's view of the edge: its camera centre, the unit normal of its segment's interpretation plane, and
@@ -127,17 +137,23 @@ fn solve_line(camera: &Camera, ends: [Vec3; 2], views: &[SlaveSegments], p: &Mul
                 end: moved[1],
                 views: planes.len(),
                 rms_px: (sum / (2 * planes.len()) as f64).sqrt(),
+                across_cov: across_covariance(&moved, &u, &v, &planes, p),
             });
         }
     }
     None
 }
 
-/// The offset across the line (along `u` and `v`) that moves the endpoints `which` of `ends` to lie best on the
-/// views' planes, weighted in pixels. Only directions the planes determine to `max_sigma_m` move: a horizontal
-/// edge seen along a horizontal strip has planes that all contain the cameras' line, its depth is barely observed,
-/// and letting the noise move each endpoint's depth on its own would tilt the line.
-fn solve_offset(ends: &[Vec3; 2], which: &[usize], u: &Vec3, v: &Vec3, planes: &[PlaneView], p: &MultiviewParams) -> Vec3 {
+/// The normal matrix of an offset across the line (along `u` and `v`) of the endpoints `which`, and its right-hand
+/// side, from the views' planes weighted in pixels.
+fn normal_equations(
+    ends: &[Vec3; 2],
+    which: &[usize],
+    u: &Vec3,
+    v: &Vec3,
+    planes: &[PlaneView],
+    p: &MultiviewParams,
+) -> (Matrix2<f64>, Vector2<f64>) {
     let mut n = Matrix2::zeros();
     let mut b = Vector2::zeros();
     for pv in planes {
@@ -150,6 +166,35 @@ fn solve_offset(ends: &[Vec3; 2], which: &[usize], u: &Vec3, v: &Vec3, planes: &
             b -= row * (r0 * w);
         }
     }
+    (n, b)
+}
+
+/// The covariance of the line's position across itself (both endpoints moved together), in object space.
+fn across_covariance(ends: &[Vec3; 2], u: &Vec3, v: &Vec3, planes: &[PlaneView], p: &MultiviewParams) -> Mat3 {
+    // Variance given to a direction no plane determines: far beyond any façade's relief.
+    const UNDETERMINED_M2: f64 = 1e6;
+    let (n, _) = normal_equations(ends, &[0, 1], u, v, planes, p);
+    let eigen = n.symmetric_eigen();
+    let mut cov = Mat3::zeros();
+    for k in 0..2 {
+        let e = eigen.eigenvectors.column(k);
+        let axis = u * e[0] + v * e[1];
+        let variance = if eigen.eigenvalues[k] > 1.0 / UNDETERMINED_M2 {
+            1.0 / eigen.eigenvalues[k]
+        } else {
+            UNDETERMINED_M2
+        };
+        cov += axis * axis.transpose() * variance;
+    }
+    cov
+}
+
+/// The offset across the line (along `u` and `v`) that moves the endpoints `which` of `ends` to lie best on the
+/// views' planes, weighted in pixels. Only directions the planes determine to `max_sigma_m` move: a horizontal
+/// edge seen along a horizontal strip has planes that all contain the cameras' line, its depth is barely observed,
+/// and letting the noise move each endpoint's depth on its own would tilt the line.
+fn solve_offset(ends: &[Vec3; 2], which: &[usize], u: &Vec3, v: &Vec3, planes: &[PlaneView], p: &MultiviewParams) -> Vec3 {
+    let (n, b) = normal_equations(ends, which, u, v, planes, p);
     let eigen = n.symmetric_eigen();
     let min_information = 1.0 / (p.max_sigma_m * p.max_sigma_m);
     let mut d = Vector2::zeros();
@@ -260,6 +305,29 @@ mod tests {
         assert_eq!(r.views, 9);
         assert!(distance(&r.start, &a, &b) < 1e-3 && distance(&r.end, &a, &b) < 1e-3, "{r:?}");
         assert!(r.rms_px < 0.3, "{r:?}");
+    }
+
+    #[test]
+    fn the_covariance_knows_a_vertical_edges_depth_and_not_a_horizontal_ones_from_one_strip() {
+        let cam = camera();
+        let poses = strip(9);
+        let p = MultiviewParams::default();
+        let (a, b) = (Vec3::new(0.3, 0.0, 0.5), Vec3::new(0.3, 0.0, 2.5));
+        let frames_v = frames(&cam, &poses, a, b, |_| 0.0);
+        let v = refine_line(&cam, a, b, &views(&poses, &frames_v), &p).expect("vertical");
+        // Nine views over 8 m at 12 m, 0.3 px of 3 mm: the depth to a few millimetres, across to a fraction.
+        let depth = v.sigma_along(&Vec3::y());
+        assert!(depth > 1e-4 && depth < 0.01, "{depth}");
+        assert!(v.sigma_along(&Vec3::x()) < depth, "{v:?}");
+        let (a, b) = (Vec3::new(-1.0, 0.0, 2.0), Vec3::new(1.0, 0.0, 2.0));
+        let frames_h = frames(&cam, &poses, a, b, |_| 0.0);
+        let h = refine_line(&cam, a, b, &views(&poses, &frames_h), &p).expect("horizontal");
+        // One horizontal strip: every plane holds the cameras' line, so the position along the line of sight from
+        // the strip (12 m across, 0.5 m up) is not determined at all; square to it, it is.
+        let sight = Vec3::new(0.0, 12.0, 0.5).normalize();
+        let square = Vec3::new(0.0, -0.5, 12.0).normalize();
+        assert!(h.sigma_along(&sight) > 100.0, "{h:?}");
+        assert!(h.sigma_along(&square) < 0.01, "{h:?}");
     }
 
     #[test]

@@ -241,6 +241,40 @@ pub(crate) struct OutputInner<M: Message> {
     last_stamp: RefCell<Stamp>,
 }
 
+/// What a lossless publisher does while a subscriber's buffer stays full. A slow stage (a full-size map taking
+/// minutes) is waited for as long as every node of the run is alive, with a warning each `timeout`: a lossless
+/// edge loses nothing to a slow subscriber. A crashed subscriber never empties its buffer: once the run has a dead
+/// node, the message is dropped (and counted) after `timeout` instead of hanging.
+fn backpressure_handler(
+    cfg: iceoryx2::config::Config,
+    topic: String,
+    timeout: Duration,
+) -> impl Fn(&BackpressureInfo) -> BackpressureAction + Send + 'static {
+    use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+    let last_check_s = AtomicU64::new(u64::MAX);
+    let all_alive = AtomicBool::new(true);
+    move |i: &BackpressureInfo| {
+        if i.elapsed_time <= timeout {
+            return BackpressureAction::Retry;
+        }
+        let s = i.elapsed_time.as_secs();
+        // Listing the nodes reads the run's iceoryx2 root: once a second at most.
+        if last_check_s.swap(s, Ordering::Relaxed) != s {
+            let alive = transport::no_dead_node(&cfg);
+            all_alive.store(alive, Ordering::Relaxed);
+            let every = timeout.as_secs().max(1);
+            if alive && s.is_multiple_of(every) {
+                tracing::warn!("'{topic}': a subscriber has taken no message for {s} s; waiting, every node is alive");
+            }
+        }
+        if all_alive.load(Ordering::Relaxed) {
+            BackpressureAction::Retry
+        } else {
+            BackpressureAction::DiscardData
+        }
+    }
+}
+
 impl<M: Message> Output<M> {
     pub(crate) fn open(node: &Node<ipc::Service>, name: &str, edge: &EdgeSpec, reporter: Rc<Reporter>) -> Result<Self> {
         let service = transport::open_pubsub::<M>(node, edge, 0)?;
@@ -253,14 +287,7 @@ impl<M: Message> Output<M> {
             .allocation_strategy(AllocationStrategy::PowerOfTwo)
             .max_loaned_samples(2)
             .backpressure_strategy(BackpressureStrategy::RetryUntilDelivered)
-            // A crashed subscriber never empties its buffer: give up after the edge's timeout instead of hanging.
-            .set_backpressure_handler(move |i: &BackpressureInfo| {
-                if i.elapsed_time > timeout {
-                    BackpressureAction::DiscardData
-                } else {
-                    BackpressureAction::Retry
-                }
-            })
+            .set_backpressure_handler(backpressure_handler(node.config().clone(), edge.topic.clone(), timeout))
             .create()
             .map_err(|e| anyhow::anyhow!("node '{name}': cannot publish on '{}': {e:?}", edge.topic))?;
         let notifier = event

@@ -40,6 +40,21 @@ pub fn config(prefix: &str, root: &std::path::Path) -> Result<Config> {
     Ok(cfg)
 }
 
+/// Whether no node of the run (`cfg`) has died: a process that crashed or was killed leaves its node dead until the
+/// supervisor cleans it up.
+pub fn no_dead_node(cfg: &Config) -> bool {
+    let mut alive = true;
+    let listed = Node::<ipc::Service>::list(cfg, |state| {
+        if matches!(state, NodeState::Dead(_)) {
+            alive = false;
+            CallbackProgression::Stop
+        } else {
+            CallbackProgression::Continue
+        }
+    });
+    alive && listed.is_ok()
+}
+
 /// Creates this process's iceoryx2 node in the run.
 ///
 /// # Errors

@@ -144,6 +144,16 @@ impl Guide {
         over.peek().is_some() && over.all(|d| d < -depth_m)
     }
 
+    /// The walls' outward unit normals, in order.
+    pub fn wall_normals(&self) -> impl Iterator<Item = Vec3> + '_ {
+        self.walls.iter().map(|w| w.normal)
+    }
+
+    /// Signed distance of `p` in front of wall `wall`, if `p` lies over its outline grown by `margin` metres.
+    pub fn in_front_of_wall(&self, wall: usize, p: &Vec3, margin: f64) -> Option<f64> {
+        self.walls.get(wall)?.in_front_within(p, margin)
+    }
+
     /// The preferred direction within `max_angle_deg` of `d` (closest first), if any.
     pub fn snap(&self, d: &Vec3, max_angle_deg: f64) -> Option<Vec3> {
         let d = d.try_normalize(1e-12)?;

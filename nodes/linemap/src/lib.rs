@@ -18,6 +18,7 @@ pub mod line;
 pub mod photo;
 pub mod stage;
 pub mod support;
+pub mod surfaces;
 pub mod tracks;
 pub mod views;
 
@@ -105,6 +106,13 @@ pub struct MapParams {
     /// …and a line whose images match best farther than this from it (median over the images, pixels) is at a
     /// slightly wrong depth and is not made.
     pub max_offset_px: f64,
+    /// A line whose own segments leave its depth within this many of its σ of its wall's surface (the mode of the
+    /// depths of the lines along the wall) is moved onto that surface; 0 turns this off.
+    pub surface_k: f64,
+    /// Lines along a wall within this distance of the site model's wall are candidates of its surface, metres.
+    pub surface_search_m: f64,
+    /// Fewest lines that make a wall's surface.
+    pub min_surface_lines: usize,
 }
 
 impl Default for MapParams {
@@ -139,6 +147,9 @@ impl Default for MapParams {
             correlation_half_width_px: 3,
             correlation_search_px: 2,
             max_offset_px: 0.5,
+            surface_k: 3.0,
+            surface_search_m: 0.3,
+            min_surface_lines: 10,
         }
     }
 }
@@ -150,6 +161,15 @@ impl MapParams {
             half_width_px: self.correlation_half_width_px,
             search_px: self.correlation_search_px,
             ..Default::default()
+        }
+    }
+
+    /// The settings of the wall surfaces.
+    pub fn surfaces(&self) -> surfaces::SurfaceParams {
+        surfaces::SurfaceParams {
+            k: self.surface_k,
+            search_m: self.surface_search_m,
+            min_lines: self.min_surface_lines,
         }
     }
 
@@ -194,6 +214,9 @@ impl lineflow_runtime::StageParams for MapParams {
         in_closed("min_correlation", self.min_correlation, -1.0, 1.0)?;
         at_least("correlation_half_width_px", self.correlation_half_width_px, 1)?;
         non_negative("max_offset_px", self.max_offset_px)?;
+        non_negative("surface_k", self.surface_k)?;
+        non_negative("surface_search_m", self.surface_search_m)?;
+        at_least("min_surface_lines", self.min_surface_lines, 1)?;
         check(self.remap_growth >= 1.0, "remap_growth", "at least 1", self.remap_growth)
     }
 }

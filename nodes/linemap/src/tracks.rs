@@ -14,6 +14,7 @@ use crate::hypotheses::{pair_hypotheses, Hypothesis};
 use crate::junctions;
 use crate::line::MappedLine;
 use crate::support::{support, support_above};
+use crate::surfaces;
 use crate::views::{parameter_on_line, View};
 use crate::MapParams;
 
@@ -67,6 +68,8 @@ pub struct MapStats {
     pub snapped: usize,
     /// Vertical lines of the first pass that offered junctions.
     pub verticals: usize,
+    /// Lines moved onto their wall's surface.
+    pub settled: usize,
     /// Milliseconds spent on pairwise hypotheses, on the first pass's lines, on junction hypotheses and on the
     /// final lines.
     pub milliseconds: [u64; 4],
@@ -104,6 +107,8 @@ pub fn map_lines_with_stats(camera: &Camera, views: &[View], guide: &Guide, p: &
     let (first, mut stats) = build(camera, views, guide, pairwise.iter().flatten().copied().collect(), p, !p.junctions);
     let t_first = lap();
     if !p.junctions {
+        let mut first = first;
+        stats.settled = surfaces::settle_on_walls(&mut first, guide, &p.surfaces());
         stats.milliseconds = [t_pairs, t_first, 0, 0];
         return (first, stats);
     }
@@ -147,7 +152,8 @@ pub fn map_lines_with_stats(camera: &Camera, views: &[View], guide: &Guide, p: &
         })
         .collect();
     let t_junctions = lap();
-    let (lines, mut stats) = build(camera, views, guide, best, p, true);
+    let (mut lines, mut stats) = build(camera, views, guide, best, p, true);
+    stats.settled = surfaces::settle_on_walls(&mut lines, guide, &p.surfaces());
     stats.verticals = verticals.len();
     stats.milliseconds = [t_pairs, t_first, t_junctions, lap()];
     (lines, stats)
@@ -223,6 +229,8 @@ fn build(
                 n_segments,
                 n_images,
                 rms_m,
+                across_cov: r.across_cov,
+                from_corner: h.other == h.view,
             })
             .filter(|l| !appearance_test || looks_consistent(camera, views, l, p))
             .collect();

@@ -144,6 +144,10 @@ pub struct ModelParams {
     pub align_k: f64,
     /// The fewest lines that make a shared value.
     pub align_min_lines: usize,
+    /// Keep the lines that reach no corner as loose edges of the model. On brick most of them are lines inside the
+    /// wall (mortar courses), which are no edges of the building; on plaster most are true edges whose neighbours
+    /// were not found. Measured both ways in docs/model.md ("Loose lines"); on by default.
+    pub loose_lines: bool,
 }
 
 impl Default for ModelParams {
@@ -172,6 +176,7 @@ impl Default for ModelParams {
             align: true,
             align_k: 2.0,
             align_min_lines: 3,
+            loose_lines: true,
         }
     }
 }
@@ -290,8 +295,10 @@ pub struct Edge {
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct Diagnostics {
     pub lines_in: usize,
-    /// Lines that reached at least one corner (the others are kept as loose edges).
+    /// Lines that reached at least one corner (the others are loose: left out unless `loose_lines`).
     pub lines_used: usize,
+    /// Loose lines left out of the model.
+    pub loose_dropped: usize,
     pub junction_candidates: usize,
     pub junctions_accepted: usize,
     /// Line ends resolved by stage 1, 2 and 3, and left free.
@@ -355,9 +362,10 @@ impl Model {
     pub fn summary(&self) -> String {
         let d = &self.diagnostics;
         format!(
-            "{} of {} lines used, {} objects ({} left unadjusted), {} vertices, {} edges, {} faces ({} walls, {} window/door, {} roof), ends resolved by stage 1/2/3: {}/{}/{}, free {}, median sigma0 {}, {} edges refined by image lines, {} occluded boundaries completed, {} objects inside another in plan, lines turned plumb/level/level on a plan direction/sloped on one: {}/{}/{}/{} ({} plan directions), line coordinates aligned along/across the wall/in height: {}/{}/{} ({}/{}/{} shared values)",
+            "{} of {} lines used ({} loose lines left out), {} objects ({} left unadjusted), {} vertices, {} edges, {} faces ({} walls, {} window/door, {} roof), ends resolved by stage 1/2/3: {}/{}/{}, free {}, median sigma0 {}, {} edges refined by image lines, {} occluded boundaries completed, {} objects inside another in plan, lines turned plumb/level/level on a plan direction/sloped on one: {}/{}/{}/{} ({} plan directions), line coordinates aligned along/across the wall/in height: {}/{}/{} ({}/{}/{} shared values)",
             d.lines_used,
             d.lines_in,
+            d.loose_dropped,
             d.objects,
             d.objects_unadjusted,
             self.vertices.len(),
@@ -606,7 +614,17 @@ pub fn build_with_images(lines: &[ModelLine], params: &ModelParams, cameras: &Ca
     }
     let inside = inside::objects_inside(&object_edges);
     diagnostics.chains_completed = occlusion::complete(&mut vertices, &mut edges, params, cameras.mean());
-    let faces = faces::find(&mut vertices, &mut edges, params, cameras);
+    let mut faces = faces::find(&mut vertices, &mut edges, params, cameras);
+    if !params.loose_lines {
+        let mut loose = vec![false; lines.len()];
+        for (l, corners_on) in on_line.iter().enumerate() {
+            loose[kept[l]] = corners_on.is_empty();
+        }
+        diagnostics.loose_dropped = loose.iter().filter(|&&x| x).count();
+        drop_loose_edges(&mut vertices, &mut edges, &mut faces, corners.len(), |line| {
+            loose.get(line).copied().unwrap_or(false)
+        });
+    }
     Model {
         vertices,
         edges,
@@ -615,6 +633,61 @@ pub fn build_with_images(lines: &[ModelLine], params: &ModelParams, cameras: &Ca
         inside,
         diagnostics,
     }
+}
+
+/// Removes the edges of loose lines that no face uses, and the vertices left without an edge or a face. The first
+/// `n_corners` vertices (the corners, which the objects index) keep their indices; the others are renumbered in
+/// order.
+fn drop_loose_edges(
+    vertices: &mut Vec<Vertex>,
+    edges: &mut Vec<Edge>,
+    faces: &mut [Face],
+    n_corners: usize,
+    is_loose: impl Fn(usize) -> bool,
+) {
+    let on_face: std::collections::HashSet<[usize; 2]> = faces
+        .iter()
+        .flat_map(|f| std::iter::once(&f.ring).chain(&f.holes))
+        .flat_map(|ring| (0..ring.len()).map(move |i| sorted_pair(ring[i], ring[(i + 1) % ring.len()])))
+        .collect();
+    edges.retain(|e| !is_loose(e.line) || on_face.contains(&sorted_pair(e.a, e.b)));
+    let mut used = vec![false; vertices.len()];
+    used[..n_corners.min(vertices.len())].fill(true);
+    for e in edges.iter() {
+        used[e.a] = true;
+        used[e.b] = true;
+    }
+    for f in faces.iter() {
+        for &v in f.ring.iter().chain(f.holes.iter().flatten()) {
+            used[v] = true;
+        }
+    }
+    let mut new_index = vec![usize::MAX; vertices.len()];
+    let mut next = 0;
+    for (v, &u) in used.iter().enumerate() {
+        if u {
+            new_index[v] = next;
+            next += 1;
+        }
+    }
+    let mut v = 0;
+    vertices.retain(|_| {
+        v += 1;
+        used[v - 1]
+    });
+    for e in edges.iter_mut() {
+        e.a = new_index[e.a];
+        e.b = new_index[e.b];
+    }
+    for f in faces.iter_mut() {
+        for idx in f.ring.iter_mut().chain(f.holes.iter_mut().flatten()) {
+            *idx = new_index[*idx];
+        }
+    }
+}
+
+fn sorted_pair(a: usize, b: usize) -> [usize; 2] {
+    [a.min(b), a.max(b)]
 }
 
 /// The image-line estimates of an adjusted object's lines, by local line index: each line's span between its
@@ -699,5 +772,35 @@ mod tests {
         for rms in [None, Some(0.0), Some(1e-15), Some(f64::NAN)] {
             assert_eq!(p.line_sigma(rms, Some(12)), p.sigma_m, "{rms:?}");
         }
+    }
+
+    #[test]
+    fn loose_lines_stay_in_the_model_only_when_asked() {
+        // A box's four edges meeting at corners, and a mortar course 2 m away that meets nothing.
+        let sq = [[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]];
+        let mut lines: Vec<ModelLine> = (0..4)
+            .map(|i| {
+                let (a, b) = (sq[i], sq[(i + 1) % 4]);
+                ModelLine::new(Vec3::new(a[0], 0.0, a[1]), Vec3::new(b[0], 0.0, b[1]), 0.002)
+            })
+            .collect();
+        lines.push(ModelLine::new(Vec3::new(3.0, 0.0, 0.5), Vec3::new(4.0, 0.0, 0.5), 0.002));
+        let cameras = Cameras::from(Vec3::new(0.5, -10.0, 0.5));
+        let with = build(&lines, &ModelParams::default(), &cameras);
+        let without = build(
+            &lines,
+            &ModelParams {
+                loose_lines: false,
+                ..ModelParams::default()
+            },
+            &cameras,
+        );
+        assert_eq!(with.edges.len(), 5, "{:?}", with.edges);
+        assert_eq!(without.edges.len(), 4, "{:?}", without.edges);
+        assert_eq!(without.diagnostics.loose_dropped, 1);
+        assert_eq!(without.vertices.len(), 4, "the loose line's ends went with it");
+        assert!(without.edges.iter().all(|e| e.line < 4 && e.a < 4 && e.b < 4));
+        assert_eq!(without.faces.len(), with.faces.len());
+        assert!(without.faces.iter().flat_map(|f| &f.ring).all(|&v| v < without.vertices.len()));
     }
 }
