@@ -454,3 +454,34 @@ mod frames_to_publish_tests {
         assert!(frames_to_publish(&[], &mut published).is_empty());
     }
 }
+
+#[cfg(test)]
+mod backpressure_tests {
+    use super::*;
+
+    fn waited(elapsed: Duration) -> BackpressureInfo {
+        BackpressureInfo {
+            service_id: 0,
+            sender_port_id: 0,
+            receiver_port_id: 0,
+            retries: 1000,
+            elapsed_time: elapsed,
+        }
+    }
+
+    #[test]
+    fn a_slow_but_living_subscriber_is_waited_for_past_the_timeout() {
+        let root = tempfile::tempdir().unwrap();
+        let cfg = transport::config("lfbp_test_", root.path()).unwrap();
+        let _publisher = transport::create_node(&cfg, "publisher").unwrap();
+        let _subscriber = transport::create_node(&cfg, "subscriber").unwrap();
+        assert!(transport::no_dead_node(&cfg));
+        let handler = backpressure_handler(cfg, "images".into(), Duration::from_millis(100));
+        for ms in [50, 100, 150, 5000, 60_000] {
+            assert!(
+                matches!(handler(&waited(Duration::from_millis(ms))), BackpressureAction::Retry),
+                "gave up after {ms} ms on a living subscriber"
+            );
+        }
+    }
+}
