@@ -52,6 +52,9 @@ pub struct OrientationParams {
     /// component, the targets' `target_sigma_px` held), so that ties and targets are weighted as precise as they
     /// are; `tie_sigma_px` is then only the start.
     pub estimate_tie_sigma: bool,
+    /// `bundle`: once georeferenced, the whole block is moved into the control frame again whenever its
+    /// intersected control points lie this far off (RMS, metres).
+    pub regeoreference_m: f64,
 }
 
 impl lineflow_runtime::StageParams for OrientationParams {
@@ -62,6 +65,7 @@ impl lineflow_runtime::StageParams for OrientationParams {
         at_least("min_init_tracks", self.min_init_tracks, 8)?;
         at_least("min_resect_points", self.min_resect_points, 6)?;
         in_half_open("min_angle_deg", self.min_angle_deg, 0.0, 90.0)?;
+        positive("regeoreference_m", self.regeoreference_m)?;
         at_least("window", self.window, 2)
     }
 }
@@ -78,6 +82,7 @@ impl Default for OrientationParams {
             refine_relative: true,
             check_points_as_ties: true,
             estimate_tie_sigma: true,
+            regeoreference_m: 0.25,
         }
     }
 }
@@ -277,6 +282,9 @@ impl Block {
                 Method::Bundle => {
                     self.georeference();
                     self.adjust_block(false);
+                    // The adjustment can leave a young block off its control points by metres (its first
+                    // frames a step apart, thousands of ties against four targets): moved back at once.
+                    self.georeference();
                     if first {
                         self.pair.truncate(1);
                     }
@@ -460,11 +468,12 @@ impl Block {
         }
     }
 
-    /// Moves the block into the control frame once three control points are intersected.
+    /// Moves the block into the control frame once three control points are intersected, and again whenever the
+    /// intersected control points lie `regeoreference_m` (RMS) or more off their surveyed places. The first move
+    /// rests on targets triangulated from a pair a step apart; on full-size images it left a block metres off,
+    /// which the adjustments then pulled over only slowly, frame by frame (the live poses and lines were metres
+    /// off until the end-of-stream adjustment), and the frames of a second strip failed their resection.
     fn georeference(&mut self) {
-        if self.georeferenced {
-            return;
-        }
         let pairs = self.control_pairs();
         if pairs.len() < 3 {
             return;
@@ -473,9 +482,23 @@ impl Block {
         let Some(s) = similarity(&from, &to) else {
             return;
         };
+        let rms = |moved: &dyn Fn(&Vec3) -> Vec3| {
+            (from.iter().zip(&to).map(|(a, b)| (moved(a) - b).norm_squared()).sum::<f64>() / from.len() as f64).sqrt()
+        };
+        let (before, after) = (rms(&|x| *x), rms(&|x| s.apply(x)));
+        if self.georeferenced {
+            if before < self.params.regeoreference_m || after > 0.5 * before {
+                return;
+            }
+            tracing::info!(
+                "moved into the control frame again with {} control points: they lay {before:.3} m (RMS) off, now {after:.3} m",
+                from.len()
+            );
+        } else {
+            tracing::info!("georeferenced with {} control points (scale {:.4})", from.len(), s.scale);
+        }
         self.move_block(|x| s.apply(x), |m| m * s.rotation.transpose());
         self.georeferenced = true;
-        tracing::info!("georeferenced with {} control points (scale {:.4})", from.len(), s.scale);
     }
 
     /// The adjustment problem of the oriented frames, and the track id of each point.
@@ -782,6 +805,53 @@ mod tests {
             assert_eq!(p.observations.len(), 2 + 2 * usize::from(ties), "ties {ties}");
             assert!(p.priors.iter().all(|prior| (prior.xyz - Vec3::new(0.5, 0.0, 1.0)).norm() < 1e-12));
         }
+    }
+
+    #[test]
+    fn a_georeferenced_block_found_metres_off_its_control_points_is_moved_back_and_one_centimetres_off_is_not() {
+        let camera = Camera::pinhole(1000, 800, 0.01, 20.0);
+        let mut block = Block::new(OrientationParams::default(), camera);
+        let targets = [
+            ("C1", Vec3::new(0.5, 0.0, 1.0)),
+            ("C2", Vec3::new(2.5, 0.0, 1.2)),
+            ("C3", Vec3::new(1.2, 0.0, 2.6)),
+        ];
+        block.set_surveyed(
+            targets
+                .iter()
+                .map(|&(id, xyz)| {
+                    let s = Surveyed {
+                        xyz,
+                        sigma_m: [0.002; 3],
+                        control: true,
+                    };
+                    (id.to_owned(), s)
+                })
+                .collect(),
+        );
+        for (frame, x) in [(0u64, 0.0), (1, 3.0)] {
+            let center = Vec3::new(x, -10.0, 1.5);
+            let pose = Pose {
+                center,
+                rotation: look_at(&center, &Vec3::new(1.5, 0.0, 1.5), &Vec3::z()),
+            };
+            block.add_supplied(frame, pose, None);
+            for (id, xyz) in &targets {
+                block.add_target(id, frame, pose.project(&camera, xyz).expect("in view"));
+            }
+        }
+        let truth = block.poses.clone();
+        let off_by = |block: &Block| (block.poses[&0].center - truth[&0].center).norm();
+        // A datum a few centimetres off is the adjustment's to mend, not a jump's.
+        block.move_block(|x| x + Vec3::new(0.03, 0.0, 0.0), |m| *m);
+        block.georeference();
+        assert!((off_by(&block) - 0.03).abs() < 1e-9, "moved at {} m", off_by(&block));
+        // Metres off, turned and scaled: moved back onto the control points.
+        let turn = lineflow_photogrammetry::rotation_from_opk(0.0, 0.0, 0.05);
+        block.move_block(|x| turn * (x * 1.2) + Vec3::new(2.0, -0.5, 3.0), |m| m * turn.transpose());
+        assert!(off_by(&block) > 2.0);
+        block.georeference();
+        assert!(off_by(&block) < 1e-6, "still {} m off", off_by(&block));
     }
 
     #[test]
