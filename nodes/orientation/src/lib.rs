@@ -761,13 +761,19 @@ mod tests {
 
     /// Two frames in the control frame facing a wall, each measuring a control and a check target.
     fn two_frames(check_points_as_ties: bool) -> Block {
-        let camera = Camera::pinhole(1000, 800, 0.01, 20.0);
         let params = OrientationParams {
             check_points_as_ties,
             ..OrientationParams::default()
         };
-        let mut block = Block::new(params, camera);
         let targets = [("C1", Vec3::new(0.5, 0.0, 1.0), true), ("K1", Vec3::new(1.5, 0.0, 1.8), false)];
+        two_frames_seeing(params, &targets, 2.0, Vec3::new(1.0, 0.0, 1.5))
+    }
+
+    /// Frames 0 and 1, at x = 0 and `x1`, 10 m in front of the wall y = 0 and aimed at `aim`, with their poses
+    /// supplied, each measuring every target (id, surveyed coordinates, control).
+    fn two_frames_seeing(params: OrientationParams, targets: &[(&str, Vec3, bool)], x1: f64, aim: Vec3) -> Block {
+        let camera = Camera::pinhole(1000, 800, 0.01, 20.0);
+        let mut block = Block::new(params, camera);
         block.set_surveyed(
             targets
                 .iter()
@@ -781,14 +787,14 @@ mod tests {
                 })
                 .collect(),
         );
-        for (frame, x) in [(0u64, 0.0), (1, 2.0)] {
+        for (frame, x) in [(0u64, 0.0), (1, x1)] {
             let center = Vec3::new(x, -10.0, 1.5);
             let pose = Pose {
                 center,
-                rotation: look_at(&center, &Vec3::new(1.0, 0.0, 1.5), &Vec3::z()),
+                rotation: look_at(&center, &aim, &Vec3::z()),
             };
             block.add_supplied(frame, pose, None);
-            for (id, xyz, _) in &targets {
+            for (id, xyz, _) in targets {
                 block.add_target(id, frame, pose.project(&camera, xyz).expect("in view"));
             }
         }
@@ -809,37 +815,12 @@ mod tests {
 
     #[test]
     fn a_georeferenced_block_found_metres_off_its_control_points_is_moved_back_and_one_centimetres_off_is_not() {
-        let camera = Camera::pinhole(1000, 800, 0.01, 20.0);
-        let mut block = Block::new(OrientationParams::default(), camera);
         let targets = [
-            ("C1", Vec3::new(0.5, 0.0, 1.0)),
-            ("C2", Vec3::new(2.5, 0.0, 1.2)),
-            ("C3", Vec3::new(1.2, 0.0, 2.6)),
+            ("C1", Vec3::new(0.5, 0.0, 1.0), true),
+            ("C2", Vec3::new(2.5, 0.0, 1.2), true),
+            ("C3", Vec3::new(1.2, 0.0, 2.6), true),
         ];
-        block.set_surveyed(
-            targets
-                .iter()
-                .map(|&(id, xyz)| {
-                    let s = Surveyed {
-                        xyz,
-                        sigma_m: [0.002; 3],
-                        control: true,
-                    };
-                    (id.to_owned(), s)
-                })
-                .collect(),
-        );
-        for (frame, x) in [(0u64, 0.0), (1, 3.0)] {
-            let center = Vec3::new(x, -10.0, 1.5);
-            let pose = Pose {
-                center,
-                rotation: look_at(&center, &Vec3::new(1.5, 0.0, 1.5), &Vec3::z()),
-            };
-            block.add_supplied(frame, pose, None);
-            for (id, xyz) in &targets {
-                block.add_target(id, frame, pose.project(&camera, xyz).expect("in view"));
-            }
-        }
+        let mut block = two_frames_seeing(OrientationParams::default(), &targets, 3.0, Vec3::new(1.5, 0.0, 1.5));
         let truth = block.poses.clone();
         let off_by = |block: &Block| (block.poses[&0].center - truth[&0].center).norm();
         // A datum a few centimetres off is the adjustment's to mend, not a jump's.
