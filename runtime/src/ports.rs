@@ -263,7 +263,7 @@ fn backpressure_handler(
             let alive = transport::no_dead_node(&cfg);
             all_alive.store(alive, Ordering::Relaxed);
             let every = timeout.as_secs().max(1);
-            if alive && s.is_multiple_of(every) {
+            if alive && s > 0 && s.is_multiple_of(every) {
                 tracing::warn!("'{topic}': a subscriber has taken no message for {s} s; waiting, every node is alive");
             }
         }

@@ -37,56 +37,72 @@ pub fn settle_on_walls(lines: &mut [MappedLine], guide: &Guide, p: &SurfaceParam
     let mut moved = vec![false; lines.len()];
     for (w, normal) in normals.iter().enumerate() {
         let depth = |q: &Vec3| guide.in_front_of_wall(w, q, p.search_m);
-        // (line, depth of its midpoint, its σ along the wall's normal, its length)
-        let members: Vec<(usize, f64, f64, f64)> = lines
+        let members: Vec<Member> = lines
             .iter()
             .enumerate()
             .filter(|(_, l)| !l.from_corner)
-            .filter_map(|(i, l)| {
+            .filter_map(|(line, l)| {
                 let dir = (l.end - l.start).try_normalize(1e-12)?;
                 if dir.dot(normal).abs() > IN_PLANE_SIN {
                     return None;
                 }
-                let (a, b) = (depth(&l.start)?, depth(&l.end)?);
-                (a.abs() <= p.search_m && b.abs() <= p.search_m)
-                    .then(|| (i, 0.5 * (a + b), l.sigma_along(normal), (l.end - l.start).norm()))
+                let ends = [depth(&l.start)?, depth(&l.end)?];
+                ends.iter().all(|d| d.abs() <= p.search_m).then(|| Member {
+                    line,
+                    ends,
+                    sigma: l.sigma_along(normal),
+                    length: (l.end - l.start).norm(),
+                })
             })
             .collect();
         let Some(surface) = surface_depth(&members, p.min_lines) else {
             continue;
         };
-        for &(i, d, sigma, _) in &members {
-            if (d - surface).abs() > p.k * sigma {
+        for m in &members {
+            if (m.depth() - surface).abs() > p.k * m.sigma {
                 continue;
             }
-            let l = &mut lines[i];
-            for end in [&mut l.start, &mut l.end] {
-                if let Some(e) = guide.in_front_of_wall(w, end, p.search_m) {
-                    *end += normal * (surface - e);
-                }
-            }
-            moved[i] = true;
+            let l = &mut lines[m.line];
+            l.start += normal * (surface - m.ends[0]);
+            l.end += normal * (surface - m.ends[1]);
+            moved[m.line] = true;
         }
     }
     moved.iter().filter(|&&m| m).count()
 }
 
+/// A line lying along a wall: its index, its endpoints' depths in front of the wall, its σ along the wall's
+/// normal, and its length.
+struct Member {
+    line: usize,
+    ends: [f64; 2],
+    sigma: f64,
+    length: f64,
+}
+
+impl Member {
+    /// Depth of its midpoint.
+    fn depth(&self) -> f64 {
+        0.5 * (self.ends[0] + self.ends[1])
+    }
+}
+
 /// The mode of the members' depths nearest the site model's wall (depth 0): a mean shift weighted by length, with
 /// the members' median σ as its bandwidth; none unless `min_lines` lie within two bandwidths of it.
-fn surface_depth(members: &[(usize, f64, f64, f64)], min_lines: usize) -> Option<f64> {
+fn surface_depth(members: &[Member], min_lines: usize) -> Option<f64> {
     if members.len() < min_lines.max(1) {
         return None;
     }
-    let mut sigmas: Vec<f64> = members.iter().map(|m| m.2).collect();
+    let mut sigmas: Vec<f64> = members.iter().map(|m| m.sigma).collect();
     sigmas.sort_by(f64::total_cmp);
     let h = sigmas[sigmas.len() / 2].max(1e-3);
     let mut x = 0.0;
     for _ in 0..100 {
         let (mut sw, mut swd) = (0.0, 0.0);
-        for &(_, d, _, len) in members {
-            let w = len * (-0.5 * ((d - x) / h).powi(2)).exp();
+        for m in members {
+            let w = m.length * (-0.5 * ((m.depth() - x) / h).powi(2)).exp();
             sw += w;
-            swd += w * d;
+            swd += w * m.depth();
         }
         if sw <= 0.0 {
             return None;
@@ -98,7 +114,7 @@ fn surface_depth(members: &[(usize, f64, f64, f64)], min_lines: usize) -> Option
             break;
         }
     }
-    let near = members.iter().filter(|m| (m.1 - x).abs() <= 2.0 * h).count();
+    let near = members.iter().filter(|m| (m.depth() - x).abs() <= 2.0 * h).count();
     (near >= min_lines).then_some(x)
 }
 

@@ -662,19 +662,18 @@ fn drop_loose_edges(
             used[v] = true;
         }
     }
-    let mut new_index = vec![usize::MAX; vertices.len()];
-    let mut next = 0;
-    for (v, &u) in used.iter().enumerate() {
-        if u {
-            new_index[v] = next;
-            next += 1;
-        }
-    }
-    let mut v = 0;
-    vertices.retain(|_| {
-        v += 1;
-        used[v - 1]
-    });
+    let new_index: Vec<usize> = used
+        .iter()
+        .scan(0, |next, &u| {
+            *next += u as usize;
+            Some(if u { *next - 1 } else { usize::MAX })
+        })
+        .collect();
+    *vertices = std::mem::take(vertices)
+        .into_iter()
+        .zip(&used)
+        .filter_map(|(v, &u)| u.then_some(v))
+        .collect();
     for e in edges.iter_mut() {
         e.a = new_index[e.a];
         e.b = new_index[e.b];
