@@ -137,6 +137,17 @@ pub struct FrameResult {
     pub unrefined: usize,
 }
 
+/// The hypotheses with at least half the matches of the best supported one. The camera's steady motion only tells
+/// apart transfers that differ by more than its own irregularity (at full size the step between frames of a
+/// hand-held strip varies by 30–200 px); a small hypothesis (a few hundred matches on a sub-plane or on repeated
+/// texture) can fall closer to the previous step than the true transfer of thousands, and must not win on that.
+/// A transfer one bay off, which the step is there to refuse, is supported comparably to the true one.
+fn comparable_support(mut hypotheses: Vec<Hypothesis>) -> Vec<Hypothesis> {
+    let most = hypotheses.iter().map(|h| h.matches.len()).max().unwrap_or(0);
+    hypotheses.retain(|h| 2 * h.matches.len() >= most);
+    hypotheses
+}
+
 /// Which matches move like their neighbours. The epipolar constraint cannot see a match shifted along its
 /// epipolar line, and on a façade the epipolar lines of a strip run along the brick courses, whose repetition makes
 /// exactly such matches; their displacement differs from their neighbours' by a brick period.
@@ -531,7 +542,7 @@ impl Matcher {
         // The previous frame's step to its own predecessor, when this partner is that previous frame.
         let step = (p + 1 == new).then(|| self.plane_between(p, p.checked_sub(1)?)).flatten();
         match step {
-            Some(step) if hypotheses.len() > 1 => hypotheses
+            Some(step) if hypotheses.len() > 1 => comparable_support(hypotheses)
                 .into_iter()
                 .min_by(|a, b| gap(a, &step).total_cmp(&gap(b, &step)).then(b.matches.len().cmp(&a.matches.len())))
                 .unwrap_or_default(),
@@ -633,6 +644,24 @@ impl Matcher {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_steady_motion_only_chooses_among_hypotheses_of_comparable_support() {
+        // Frame 12 of the A55 strips at full size: the true transfer (9,306 matches), one a bay off (3,439) and a
+        // small one (698) that lay closer to the previous step than the true one and was chosen.
+        let of = |n: usize| Hypothesis {
+            matches: vec![(0, 0); n],
+            plane: None,
+        };
+        let kept: Vec<usize> = comparable_support(vec![of(9306), of(3439), of(698)])
+            .iter()
+            .map(|h| h.matches.len())
+            .collect();
+        assert_eq!(kept, [9306]);
+        // A transfer one bay off, supported like the true one, stays for the steady motion to refuse.
+        let kept: Vec<usize> = comparable_support(vec![of(905), of(666)]).iter().map(|h| h.matches.len()).collect();
+        assert_eq!(kept, [905, 666]);
+    }
 
     #[test]
     fn the_grid_finds_the_same_nearest_neighbours_as_a_full_search() {

@@ -410,11 +410,18 @@ impl Block {
                 self.poses.insert(k, pose);
                 true
             }
-            other => {
+            Some((_, median)) => {
                 tracing::warn!(
-                    "frame {k}: resection failed (median residual {:?} mm), not oriented yet",
-                    other.map(|o| o.1)
+                    "frame {k}: resection failed: median residual {:.1} px of {} tie points (at most {:.1} px), \
+                     not oriented yet",
+                    median / self.camera.pixel_size_mm,
+                    xyz.len(),
+                    3.0 * self.params.tie_sigma_px
                 );
+                false
+            }
+            None => {
+                tracing::warn!("frame {k}: resection did not converge, not oriented yet");
                 false
             }
         }
