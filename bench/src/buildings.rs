@@ -103,7 +103,7 @@ fn run_one(a: &BuildingsArgs<'_>, graph: &Path, building: &str, out: &Path) -> R
     let truth = Truth::from_scene(scene);
     eprintln!("{building}: {} -> {}", graph.display(), out.display());
     let start = std::time::Instant::now();
-    if lineflow_runtime::run::run_graph(&g, out, Some(truth.poses.len() as u64))? != ExitCode::SUCCESS {
+    if lineflow_runtime::run::run_graph(&g, out, Some(truth.poses.len() as u64), Default::default())? != ExitCode::SUCCESS {
         bail!("the run on {building} failed; see {}", out.display());
     }
     let seconds = start.elapsed().as_secs_f64();

@@ -120,6 +120,8 @@ pub fn bench_record(frames: usize, width: u32, height: u32, preview_max_px: u32)
                 out: out.clone(),
                 expected_frames: None,
                 progress: false,
+                echo_logs: true,
+                node_log_level: None,
                 connect_timeout: None,
             },
         )?;

@@ -107,7 +107,7 @@ pub fn bench_stream(a: StreamArgs<'_>) -> Result<ExitCode> {
         a.fps,
         out.display()
     );
-    if lineflow_runtime::run::run_graph(&g, &out, Some(frames as u64))? != ExitCode::SUCCESS {
+    if lineflow_runtime::run::run_graph(&g, &out, Some(frames as u64), Default::default())? != ExitCode::SUCCESS {
         bail!("the run failed; see {}", out.display());
     }
 

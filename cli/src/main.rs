@@ -1,6 +1,7 @@
 //! `lineflow`: run launch graphs, process project folders, inspect running graphs, benchmark the transport.
 mod attach;
 mod doctor;
+mod logs;
 mod model_cmd;
 mod recordings;
 mod run;
@@ -20,6 +21,13 @@ use clap::{Parser, Subcommand};
 struct Cli {
     #[command(subcommand)]
     command: Cmd,
+    /// Runs: no progress line and no node lines on the terminal (they are kept in OUT/logs/); the summary and
+    /// errors still print.
+    #[arg(short, long, global = true)]
+    quiet: bool,
+    /// Runs: the nodes log at debug level (LINEFLOW_LOG, when set, wins).
+    #[arg(short, long, global = true, conflicts_with = "quiet")]
+    verbose: bool,
 }
 
 #[derive(Subcommand)]
@@ -48,6 +56,16 @@ enum Cmd {
         /// Override a node parameter: NODE.PARAM=VALUE. Repeatable.
         #[arg(long = "set", value_name = "NODE.PARAM=VALUE")]
         set: Vec<String>,
+    },
+    /// Show the nodes' logs a run keeps in OUT/logs/ (while it runs, or after).
+    Logs {
+        /// The run's output folder (`--out` of `lineflow run`, FOLDER/out of `lineflow process`).
+        out: PathBuf,
+        /// Only this node's log.
+        node: Option<String>,
+        /// Keep printing what the nodes append, until interrupted.
+        #[arg(short, long)]
+        follow: bool,
     },
     /// List the topics of a running graph.
     Topics {
@@ -220,9 +238,14 @@ enum Cmd {
 fn main() -> ExitCode {
     lineflow_runtime::logging::init("lineflow");
     let cli = Cli::parse();
+    let verbosity = lineflow_runtime::run::Verbosity {
+        quiet: cli.quiet,
+        verbose: cli.verbose,
+    };
     let result = match cli.command {
-        Cmd::Run { graph, set, out } => run::run(&graph, &set, &out, None),
-        Cmd::Process { folder, out, graph, set } => run::process(&folder, out, graph, &set),
+        Cmd::Run { graph, set, out } => run::run(&graph, &set, &out, None, verbosity),
+        Cmd::Process { folder, out, graph, set } => run::process(&folder, out, graph, &set, verbosity),
+        Cmd::Logs { out, node, follow } => logs::logs(&out, node.as_deref(), follow),
         Cmd::Topics { run } => attach::topics(run.as_deref()),
         Cmd::Echo { topic, run, count } => attach::echo(&topic, run.as_deref(), count),
         Cmd::Hz { topic, run, seconds } => attach::hz(&topic, run.as_deref(), seconds),
@@ -246,6 +269,7 @@ fn main() -> ExitCode {
             rate: if max { 0.0 } else { rate.unwrap_or(if rerun { 0.0 } else { 1.0 }) },
             repeat,
             topics: &topics,
+            verbosity,
         }),
         Cmd::Info { recording } => recordings::info(&recording),
         Cmd::Diff { a, b } => recordings::diff(&a, &b),

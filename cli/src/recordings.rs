@@ -10,6 +10,7 @@ use lineflow_messages::{parts, EdgeMapHeader, Encoding, ImageHeader, Line3, Line
 use lineflow_recordings::replay::{playback_graph, rerun_graph, Pace};
 use lineflow_recordings::{tools, Recording};
 use lineflow_runtime::launch::Resolver;
+use lineflow_runtime::run::Verbosity;
 
 /// Options of `lineflow replay`.
 pub struct ReplayArgs<'a> {
@@ -29,6 +30,8 @@ pub struct ReplayArgs<'a> {
     pub repeat: bool,
     /// Topics to play (playback only; default all).
     pub topics: &'a [String],
+    /// What the terminal shows.
+    pub verbosity: Verbosity,
 }
 
 /// `lineflow replay`.
@@ -49,7 +52,7 @@ pub fn replay(a: ReplayArgs<'_>) -> Result<ExitCode> {
         let g = rerun_graph(&rec, a.graph, a.set, &resolver, pace)?;
         let out = a.out.unwrap_or_else(|| rec.path.parent().unwrap_or(Path::new(".")).join("rerun"));
         eprintln!("re-running graph '{}' on {} -> {}", g.name, rec.path.display(), out.display());
-        return lineflow_runtime::run::run_graph(&g, &out, None);
+        return lineflow_runtime::run::run_graph(&g, &out, None, a.verbosity);
     }
     if a.graph.is_some() || !a.set.is_empty() {
         bail!("--graph and --set apply to --rerun");
@@ -61,7 +64,7 @@ pub fn replay(a: ReplayArgs<'_>) -> Result<ExitCode> {
         g.edges.len(),
         rec.path.display()
     );
-    lineflow_runtime::run::run_graph(&g, &out, None)
+    lineflow_runtime::run::run_graph(&g, &out, None, a.verbosity)
 }
 
 /// `lineflow info`.

@@ -4,12 +4,12 @@ use std::process::ExitCode;
 
 use anyhow::{bail, Context, Result};
 use lineflow_runtime::launch::{self, Resolver};
-use lineflow_runtime::run::{launch_dir, run_graph};
+use lineflow_runtime::run::{launch_dir, run_graph, Verbosity};
 
 /// Runs a launch graph; prints the per-node summary and writes it to `out/summary.txt`.
-pub fn run(graph: &Path, set: &[String], out: &Path, expected_frames: Option<u64>) -> Result<ExitCode> {
+pub fn run(graph: &Path, set: &[String], out: &Path, expected_frames: Option<u64>, verbosity: Verbosity) -> Result<ExitCode> {
     let g = launch::load(graph, set, &Resolver::beside_current_exe())?;
-    run_graph(&g, out, expected_frames)
+    run_graph(&g, out, expected_frames, verbosity)
 }
 
 /// Whether the launch file `graph` declares a node `name` (false when it cannot be read; loading it reports why).
@@ -22,7 +22,7 @@ fn has_node(graph: &Path, name: &str) -> bool {
 }
 
 /// Runs a graph (default `launch/folder.toml`) over a project folder.
-pub fn process(folder: &Path, out: Option<PathBuf>, graph: Option<PathBuf>, set: &[String]) -> Result<ExitCode> {
+pub fn process(folder: &Path, out: Option<PathBuf>, graph: Option<PathBuf>, set: &[String], verbosity: Verbosity) -> Result<ExitCode> {
     let project = lineflow_formats::project::Project::open(folder, false).map_err(|e| anyhow::anyhow!("{e}"))?;
     let graph = graph.unwrap_or_else(|| launch_dir().join("folder.toml"));
     if !graph.is_file() {
@@ -47,5 +47,5 @@ pub fn process(folder: &Path, out: Option<PathBuf>, graph: Option<PathBuf>, set:
         folder.display(),
         graph.display()
     );
-    run(&graph, &set, &out, Some(project.images.len() as u64))
+    run(&graph, &set, &out, Some(project.images.len() as u64), verbosity)
 }

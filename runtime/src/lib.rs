@@ -1,6 +1,7 @@
 //! The lineflow runtime: node SDK over iceoryx2, launch graphs, and the supervisor that runs them.
 #![warn(missing_docs)]
 
+pub mod console;
 pub mod describe;
 pub mod env;
 pub mod launch;
@@ -28,7 +29,8 @@ pub fn run_node(body: impl FnOnce() -> anyhow::Result<()>) -> std::process::Exit
         Ok(()) => std::process::ExitCode::SUCCESS,
         Err(e) => {
             let node = std::env::var(env::NODE).unwrap_or_else(|_| "node".into());
-            eprintln!("[{node}] error: {e:#}");
+            // Not eprintln!: with the supervisor gone (its end of the pipe closed) that would panic instead.
+            let _ = std::io::Write::write_all(&mut std::io::stderr(), format!("[{node}] error: {e:#}\n").as_bytes());
             std::process::ExitCode::FAILURE
         }
     }

@@ -9,12 +9,24 @@ use anyhow::Result;
 use crate::launch;
 use crate::supervisor::{self, RunOptions};
 
-/// Runs a resolved graph; prints the per-node summary and writes it to `out/summary.txt`.
-pub fn run_graph(g: &launch::Graph, out: &Path, expected_frames: Option<u64>) -> Result<ExitCode> {
+/// How much of a run the terminal shows (`-q`, `-v`).
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Verbosity {
+    /// No progress line and no node lines (they are still kept in `out/logs/`); the summary and errors print.
+    pub quiet: bool,
+    /// The nodes log at debug level (unless `LINEFLOW_LOG` says otherwise).
+    pub verbose: bool,
+}
+
+/// Runs a resolved graph; prints the per-node summary and writes it to `out/summary.txt`. The nodes' lines are
+/// shown above a progress line and kept in `out/logs/NODE.log`.
+pub fn run_graph(g: &launch::Graph, out: &Path, expected_frames: Option<u64>, verbosity: Verbosity) -> Result<ExitCode> {
     let opts = RunOptions {
         out: out.to_owned(),
         expected_frames,
-        progress: expected_frames.is_some(),
+        progress: !verbosity.quiet,
+        echo_logs: !verbosity.quiet,
+        node_log_level: (verbosity.verbose && std::env::var_os("LINEFLOW_LOG").is_none()).then(|| "debug".into()),
         connect_timeout: None,
     };
     let outcome = supervisor::run(g, &opts)?;

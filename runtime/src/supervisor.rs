@@ -2,15 +2,16 @@
 //! the sources, reaps and restarts children by policy, and ends when every node has finished.
 
 use std::collections::{BTreeMap, BTreeSet};
-use std::io::Write;
 use std::path::PathBuf;
 use std::process::{Command, Stdio};
+use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use anyhow::{bail, Context, Result};
 use iceoryx2::prelude::*;
 use lineflow_messages::NodeStatus;
 
+use crate::console::{clear_logs, log_path, progress_line, relay, Console, NodeProgress};
 use crate::describe::Ports;
 use crate::env;
 use crate::launch::{self, Graph, NodeSpec, RestartPolicy};
@@ -27,6 +28,10 @@ pub struct RunOptions {
     pub expected_frames: Option<u64>,
     /// Print progress to stderr.
     pub progress: bool,
+    /// Show the nodes' log lines on the terminal (they are kept in `out/logs/` either way).
+    pub echo_logs: bool,
+    /// The nodes' `LINEFLOW_LOG` (default: inherited).
+    pub node_log_level: Option<String>,
     /// How long nodes may take to connect.
     pub connect_timeout: Option<Duration>,
 }
@@ -205,6 +210,8 @@ struct Child {
     wired_inputs: Vec<String>,
     /// Deepest subscriber buffer among the node's outputs.
     output_depth: usize,
+    /// The threads relaying the node's output (every instance's) to the terminal and its log file.
+    relays: Vec<std::thread::JoinHandle<()>>,
 }
 
 impl Child {
@@ -298,6 +305,8 @@ fn supervise(graph: &Graph, run: &RunRecord, ports: &BTreeMap<String, Ports>, op
         .create()
         .map_err(|e| anyhow::anyhow!("{e:?}"))?;
 
+    let console = Console::new(opts.echo_logs);
+    clear_logs(&opts.out);
     let mut children: Vec<Child> = graph
         .nodes
         .iter()
@@ -326,13 +335,14 @@ fn supervise(graph: &Graph, run: &RunRecord, ports: &BTreeMap<String, Ports>, op
                     .map(|e| e.depth + 2)
                     .max()
                     .unwrap_or(0),
+                relays: Vec::new(),
             }
         })
         .collect();
 
     let mut error: Option<String> = None;
     for c in &mut children {
-        match spawn(c, run, opts) {
+        match spawn(c, run, opts, &console) {
             Ok(pid) => c.pid = Some(pid),
             Err(e) => {
                 error = Some(format!("{e:#}"));
@@ -372,11 +382,7 @@ fn supervise(graph: &Graph, run: &RunRecord, ports: &BTreeMap<String, Ports>, op
         tracing::debug!("all {} nodes connected; sources started", children.len());
     }
 
-    let mut progress = Progress::new(opts.expected_frames.filter(|_| opts.progress));
-    // The recorder hears every topic, latched ones included; its first input says nothing about progress.
-    let sinks: Vec<usize> = (0..children.len())
-        .filter(|&i| graph.is_sink(&children[i].spec.name) && children[i].spec.name != launch::RECORDER)
-        .collect();
+    let mut progress = opts.progress.then(|| Progress::new(opts.expected_frames, console.is_tty()));
     loop {
         drain_status(&status_sub, &mut children);
         if error.is_none() {
@@ -395,7 +401,7 @@ fn supervise(graph: &Graph, run: &RunRecord, ports: &BTreeMap<String, Ports>, op
         for c in children.iter_mut().filter(|c| c.restart_at.is_some_and(|t| Instant::now() >= t)) {
             node.try_cleanup_dead_nodes();
             c.restart_at = None;
-            match spawn(c, run, opts) {
+            match spawn(c, run, opts, &console) {
                 Ok(pid) => c.pid = Some(pid),
                 Err(e) => error = Some(format!("{e:#}")),
             }
@@ -404,13 +410,19 @@ fn supervise(graph: &Graph, run: &RunRecord, ports: &BTreeMap<String, Ports>, op
             break;
         }
         if let Some(p) = progress.as_mut() {
-            p.show(frames_done(&children, &sinks));
+            p.show(&children, graph, &console);
         }
         std::thread::sleep(Duration::from_millis(20));
     }
     drain_status(&status_sub, &mut children);
+    // The nodes' last lines before the summary.
+    for c in &mut children {
+        for t in c.relays.drain(..) {
+            let _ = t.join();
+        }
+    }
     if let Some(p) = progress.as_mut() {
-        p.finish(frames_done(&children, &sinks));
+        p.finish(&children, graph, &console);
     }
 
     let nodes = children
@@ -444,7 +456,7 @@ fn supervise(graph: &Graph, run: &RunRecord, ports: &BTreeMap<String, Ports>, op
     })
 }
 
-fn spawn(c: &Child, run: &RunRecord, opts: &RunOptions) -> Result<i32> {
+fn spawn(c: &mut Child, run: &RunRecord, opts: &RunOptions, console: &Arc<Console>) -> Result<i32> {
     // Outputs the dead instance sent but its subscribers had not yet taken die with its shared memory: replay up to
     // one output buffer's worth of frames (subscribers drop what they already have).
     let replay = c.output_depth as u64;
@@ -472,13 +484,19 @@ fn spawn(c: &Child, run: &RunRecord, opts: &RunOptions) -> Result<i32> {
         .env(env::RESTART, c.restarts.to_string())
         .env(env::RESUME, resume.join(","))
         .env_remove(env::DESCRIBE)
-        .stdin(Stdio::null());
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped());
+    if let Some(level) = &opts.node_log_level {
+        cmd.env("LINEFLOW_LOG", level);
+    }
     if let Some(t) = opts.connect_timeout {
         cmd.env(env::CONNECT_TIMEOUT_S, t.as_secs().max(1).to_string());
     }
-    let child = cmd
+    let mut child = cmd
         .spawn()
         .with_context(|| format!("node '{}': cannot start {}", c.spec.name, c.spec.command[0]))?;
+    c.relays.extend(relay(&mut child, &log_path(&opts.out, &c.spec.name), console));
     if c.restarts > 0 {
         tracing::warn!(
             "node '{}' restarted ({} of {}), resuming at {}",
@@ -598,66 +616,68 @@ fn merge_ranges(ranges: &[(u64, u64)]) -> Vec<(u64, u64)> {
     out
 }
 
+/// The progress line, redrawn four times a second on a terminal and every ten seconds (when it changed) in a log.
 struct Progress {
-    total: u64,
+    total: Option<u64>,
     start: Instant,
-    last: Option<Instant>,
-    tty: bool,
-}
-
-/// Frames every sink has consumed (the progress of the run).
-fn frames_done(children: &[Child], sinks: &[usize]) -> u64 {
-    sinks
-        .iter()
-        .map(|&i| children[i].current.last_frame_plus1[0].max(children[i].done.last_frame_plus1[0]))
-        .min()
-        .unwrap_or(0)
+    period: Duration,
+    last: Option<(Instant, String)>,
 }
 
 impl Progress {
-    fn new(total: Option<u64>) -> Option<Self> {
-        use std::io::IsTerminal;
-        total.map(|total| Self {
+    fn new(total: Option<u64>, tty: bool) -> Self {
+        Self {
             total,
             start: Instant::now(),
+            period: Duration::from_millis(if tty { 250 } else { 10_000 }),
             last: None,
-            tty: std::io::stderr().is_terminal(),
-        })
+        }
     }
 
-    fn show(&mut self, done: u64) {
-        let period = if self.tty {
-            Duration::from_millis(250)
-        } else {
-            Duration::from_secs(2)
-        };
-        if self.last.is_some_and(|t| t.elapsed() < period) {
+    fn line(&self, children: &[Child], graph: &Graph) -> String {
+        let nodes: Vec<NodeProgress> = children
+            .iter()
+            .map(|c| {
+                let s = &c.current;
+                NodeProgress {
+                    name: c.spec.name.clone(),
+                    frames: s.last_frame_plus1[..(s.n_inputs as usize).min(NodeStatus::MAX_INPUTS)]
+                        .iter()
+                        .copied()
+                        .max()
+                        .unwrap_or(0),
+                    finished: s.flags & NodeStatus::FINISHED != 0 || c.end == NodeEnd::Finished,
+                    tracked: !graph.is_source(&c.spec.name) && c.spec.name != launch::RECORDER,
+                }
+            })
+            .collect();
+        // Sources that have ended have published every frame: the furthest stage's count is the total.
+        let sources_ended = children
+            .iter()
+            .filter(|c| graph.is_source(&c.spec.name))
+            .all(|c| c.current.flags & NodeStatus::FINISHED != 0 || c.end == NodeEnd::Finished);
+        let furthest = nodes.iter().filter(|n| n.tracked).map(|n| n.frames).max();
+        let total = self.total.or(furthest.filter(|_| sources_ended));
+        progress_line(&nodes, total, self.start.elapsed())
+    }
+
+    fn show(&mut self, children: &[Child], graph: &Graph, console: &Console) {
+        if self.last.as_ref().is_some_and(|(t, _)| t.elapsed() < self.period) {
             return;
         }
-        self.last = Some(Instant::now());
-        let secs = self.start.elapsed().as_secs_f64();
-        let rate = if secs > 0.0 { done as f64 / secs } else { 0.0 };
-        let eta = if rate > 0.0 {
-            format!("{:.0} s", (self.total.saturating_sub(done)) as f64 / rate)
-        } else {
-            "?".into()
-        };
-        let line = format!("[lineflow] {done}/{} frames  {rate:.2} frames/s  ETA {eta}", self.total);
-        let mut err = std::io::stderr().lock();
-        let _ = if self.tty {
-            write!(err, "\r{line}\x1b[K")
-        } else {
-            writeln!(err, "{line}")
-        };
+        let line = self.line(children, graph);
+        // In a log, an unchanged line says nothing new.
+        let changed = self.last.as_ref().is_none_or(|(_, l)| *l != line) || console.is_tty();
+        if changed {
+            console.progress(&line);
+        }
+        self.last = Some((Instant::now(), line));
     }
 
     /// The last line, always: a short run may end before the first periodic one.
-    fn finish(&mut self, done: u64) {
-        self.last = None;
-        self.show(done);
-        if self.tty {
-            let _ = writeln!(std::io::stderr());
-        }
+    fn finish(&mut self, children: &[Child], graph: &Graph, console: &Console) {
+        console.progress(&self.line(children, graph));
+        console.end_progress();
     }
 }
 

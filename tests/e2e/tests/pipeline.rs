@@ -145,16 +145,38 @@ fn folder_capture_delivers_every_frame_once_in_order_and_byte_identical() {
 }
 
 #[test]
-fn process_streams_a_folder_with_progress_and_writes_into_its_out_folder() {
+fn process_streams_a_folder_with_progress_and_keeps_every_nodes_log_in_its_out_folder() {
     let sb = Sandbox::new();
     let folder = sb.project(5, 80, 60);
     let graph = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../launch/folder.toml");
     let r = sb.run(&["process", folder.to_str().unwrap(), "--graph", graph.to_str().unwrap()]);
     assert!(r.status.success());
     let stderr = String::from_utf8_lossy(&r.stderr);
-    assert!(stderr.contains("frames/s") && stderr.contains("ETA"), "no progress shown");
-    assert_eq!(frames(&folder.join("out")).len(), 5);
-    assert_nothing_left(&sb, &folder.join("out"));
+    assert!(stderr.contains("frames in 5/5"), "no progress shown: {stderr}");
+    let out = folder.join("out");
+    assert_eq!(frames(&out).len(), 5);
+    // The node's lines reach the terminal and its log file alike; `lineflow logs` shows the file.
+    let log = std::fs::read_to_string(out.join("logs/capture.log")).unwrap();
+    assert!(log.contains("[capture] INFO  5 frames published"), "capture.log: {log}");
+    assert!(stderr.contains("[capture] INFO  5 frames published"));
+    let shown = sb.run(&["logs", out.to_str().unwrap(), "capture"]);
+    assert!(shown.status.success());
+    assert_eq!(String::from_utf8_lossy(&shown.stdout), log);
+    let missing = sb.run(&["logs", out.to_str().unwrap(), "no-such-node"]);
+    assert!(!missing.status.success());
+    assert!(String::from_utf8_lossy(&missing.stderr).contains("nodes with logs: capture"));
+    // -q: the summary and nothing of the nodes on the terminal, the logs kept all the same.
+    let q = sb.run(&["process", folder.to_str().unwrap(), "--graph", graph.to_str().unwrap(), "-q"]);
+    assert!(q.status.success());
+    let quiet = String::from_utf8_lossy(&q.stderr);
+    assert!(
+        !quiet.contains("[capture]") && !quiet.contains("frames in") && quiet.contains("finished in"),
+        "{quiet}"
+    );
+    assert!(std::fs::read_to_string(out.join("logs/capture.log"))
+        .unwrap()
+        .contains("5 frames published"));
+    assert_nothing_left(&sb, &out);
 }
 
 /// Starts the chain graph, SIGKILLs `gray` once it has run a while, and waits for the run to end.

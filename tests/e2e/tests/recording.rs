@@ -186,7 +186,12 @@ fn ctrl_c_finishes_a_valid_recording_and_a_killed_recorder_leaves_a_recoverable_
             .spawn()
             .unwrap();
         wait_for_child(child.id(), "lineflow-record");
-        std::thread::sleep(Duration::from_millis(2500));
+        // Mid-run with a few complete chunks (4 MiB each) written, however slow the machine is today.
+        let start = Instant::now();
+        let written = || std::fs::metadata(out.join("recording.mcap")).map_or(0, |m| m.len());
+        while written() < 12 << 20 && start.elapsed() < Duration::from_secs(60) {
+            std::thread::sleep(Duration::from_millis(50));
+        }
         // The first recorder process seen may have been the short `--describe` run; ask again.
         let target = if signal == libc::SIGINT {
             child.id()
