@@ -21,13 +21,27 @@ use clap::{Parser, Subcommand};
 struct Cli {
     #[command(subcommand)]
     command: Cmd,
-    /// Runs: no progress line and no node lines on the terminal (they are kept in OUT/logs/); the summary and
-    /// errors still print.
-    #[arg(short, long, global = true)]
+}
+
+/// What the terminal shows of a run.
+#[derive(clap::Args, Clone, Copy)]
+struct VerbosityArgs {
+    /// No progress line and no node lines on the terminal (they are kept in OUT/logs/); the summary and errors
+    /// still print.
+    #[arg(short, long)]
     quiet: bool,
-    /// Runs: the nodes log at debug level (LINEFLOW_LOG, when set, wins).
-    #[arg(short, long, global = true, conflicts_with = "quiet")]
+    /// The nodes log at debug level (LINEFLOW_LOG, when set, wins).
+    #[arg(short, long, conflicts_with = "quiet")]
     verbose: bool,
+}
+
+impl From<VerbosityArgs> for lineflow_runtime::run::Verbosity {
+    fn from(a: VerbosityArgs) -> Self {
+        Self {
+            quiet: a.quiet,
+            verbose: a.verbose,
+        }
+    }
 }
 
 #[derive(Subcommand)]
@@ -42,6 +56,8 @@ enum Cmd {
         /// Output folder of the run.
         #[arg(long, default_value = "out")]
         out: PathBuf,
+        #[command(flatten)]
+        verbosity: VerbosityArgs,
     },
     /// Process a project folder (images/, camera.toml, ...) and write results into FOLDER/out/.
     Process {
@@ -56,6 +72,8 @@ enum Cmd {
         /// Override a node parameter: NODE.PARAM=VALUE. Repeatable.
         #[arg(long = "set", value_name = "NODE.PARAM=VALUE")]
         set: Vec<String>,
+        #[command(flatten)]
+        verbosity: VerbosityArgs,
     },
     /// Show the nodes' logs a run keeps in OUT/logs/ (while it runs, or after).
     Logs {
@@ -124,6 +142,8 @@ enum Cmd {
         /// Play only these topics (playback only). Repeatable.
         #[arg(long = "topic")]
         topics: Vec<String>,
+        #[command(flatten)]
+        verbosity: VerbosityArgs,
     },
     /// Summarise a recording: topics, counts, rates, duration, schemas, completeness.
     Info {
@@ -238,13 +258,20 @@ enum Cmd {
 fn main() -> ExitCode {
     lineflow_runtime::logging::init("lineflow");
     let cli = Cli::parse();
-    let verbosity = lineflow_runtime::run::Verbosity {
-        quiet: cli.quiet,
-        verbose: cli.verbose,
-    };
     let result = match cli.command {
-        Cmd::Run { graph, set, out } => run::run(&graph, &set, &out, None, verbosity),
-        Cmd::Process { folder, out, graph, set } => run::process(&folder, out, graph, &set, verbosity),
+        Cmd::Run {
+            graph,
+            set,
+            out,
+            verbosity,
+        } => run::run(&graph, &set, &out, None, verbosity.into()),
+        Cmd::Process {
+            folder,
+            out,
+            graph,
+            set,
+            verbosity,
+        } => run::process(&folder, out, graph, &set, verbosity.into()),
         Cmd::Logs { out, node, follow } => logs::logs(&out, node.as_deref(), follow),
         Cmd::Topics { run } => attach::topics(run.as_deref()),
         Cmd::Echo { topic, run, count } => attach::echo(&topic, run.as_deref(), count),
@@ -259,6 +286,7 @@ fn main() -> ExitCode {
             max,
             repeat,
             topics,
+            verbosity,
         } => recordings::replay(recordings::ReplayArgs {
             recording: &recording,
             rerun,
@@ -269,7 +297,7 @@ fn main() -> ExitCode {
             rate: if max { 0.0 } else { rate.unwrap_or(if rerun { 0.0 } else { 1.0 }) },
             repeat,
             topics: &topics,
-            verbosity,
+            verbosity: verbosity.into(),
         }),
         Cmd::Info { recording } => recordings::info(&recording),
         Cmd::Diff { a, b } => recordings::diff(&a, &b),
