@@ -117,6 +117,24 @@ macro_rules! with_kind {
 }
 use with_kind;
 
+/// How `lineflow echo` prints a message.
+#[derive(Debug, Clone, Copy)]
+pub enum EchoForm {
+    /// The stamp line, then the fields by name (indented JSON), with the first N elements of each sequence.
+    Fields(usize),
+    /// One JSON object a line (the topic added), with the first N elements of each sequence.
+    Json(usize),
+    /// The stamp line, then the header's bytes and the payload's first [`RAW_BYTES`] in hex.
+    Raw,
+}
+
+/// Payload bytes `echo --raw` shows.
+const RAW_BYTES: usize = 256;
+
+fn hex(bytes: &[u8]) -> String {
+    bytes.iter().map(|b| format!("{b:02x}")).collect::<Vec<_>>().join(" ")
+}
+
 /// One line per message: stamp and payload size (and the image geometry for images).
 fn describe<M: Message>(header: &M::Header, elements: usize) -> String {
     let s = M::stamp(header);
@@ -151,7 +169,7 @@ fn describe<M: Message>(header: &M::Header, elements: usize) -> String {
 fn subscribe_loop<M: Message>(
     node: &Node<ipc::Service>,
     e: &EdgeSpec,
-    mut on_msg: impl FnMut(Option<(&M::Header, usize)>) -> bool,
+    mut on_msg: impl FnMut(Option<(&M::Header, &[M::Element])>) -> bool,
 ) -> Result<()> {
     let svc = transport::open_pubsub::<M>(node, e, 0)?;
     let sub = svc.subscriber_builder().buffer_size(e.depth).create().map_err(|err| {
@@ -172,7 +190,7 @@ fn subscribe_loop<M: Message>(
         let _ = listener.timed_wait(|_| {}, Duration::from_millis(200));
         let _ = sub.update_connections();
         while let Some(sample) = sub.receive().map_err(|err| anyhow::anyhow!("{err:?}"))? {
-            if !on_msg(Some((sample.user_header(), sample.payload().len()))) {
+            if !on_msg(Some((sample.user_header(), sample.payload()))) {
                 return Ok(());
             }
         }
@@ -183,13 +201,34 @@ fn subscribe_loop<M: Message>(
 }
 
 /// Prints each message of a topic until end-of-stream, `count`, or Ctrl-C.
-pub fn echo(topic: &str, run: Option<&str>, count: Option<u64>) -> Result<ExitCode> {
+pub fn echo(topic: &str, run: Option<&str>, count: Option<u64>, form: EchoForm) -> Result<ExitCode> {
     let (_rec, graph, node) = attach(run)?;
     let e = edge(&graph, topic)?.clone();
     let mut n = 0u64;
     with_kind!(e.kind(), M => subscribe_loop::<M>(&node, &e, |m| {
-        let Some((h, len)) = m else { return true };
-        println!("{topic}: {}", describe::<M>(h, len));
+        let Some((h, elements)) = m else { return true };
+        let header = lineflow_messages::schema::bytes_of(h);
+        let payload = lineflow_messages::schema::slice_bytes(elements);
+        match form {
+            EchoForm::Fields(shown) => {
+                println!("{topic}: {}", describe::<M>(h, elements.len()));
+                let fields = crate::fields::message_json(M::KIND, header, payload, shown);
+                println!("{}", serde_json::to_string_pretty(&fields).unwrap_or_default());
+            }
+            EchoForm::Json(shown) => {
+                let mut fields = crate::fields::message_json(M::KIND, header, payload, shown);
+                if let Some(o) = fields.as_object_mut() {
+                    o.insert("topic".into(), topic.into());
+                }
+                println!("{fields}");
+            }
+            EchoForm::Raw => {
+                println!("{topic}: {}", describe::<M>(h, elements.len()));
+                println!("header  {}", hex(header));
+                let more = if payload.len() > RAW_BYTES { " ..." } else { "" };
+                println!("payload {}{more}", hex(&payload[..payload.len().min(RAW_BYTES)]));
+            }
+        }
         n += 1;
         !M::stamp(h).is_end_of_stream() && count.is_none_or(|c| n < c)
     }))?;

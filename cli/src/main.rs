@@ -1,6 +1,7 @@
 //! `lineflow`: run launch graphs, process project folders, inspect running graphs, benchmark the transport.
 mod attach;
 mod doctor;
+mod fields;
 mod logs;
 mod model_cmd;
 mod recordings;
@@ -101,6 +102,15 @@ enum Cmd {
         /// Stop after this many messages.
         #[arg(long, short = 'n')]
         count: Option<u64>,
+        /// One JSON object a line.
+        #[arg(long, conflicts_with = "raw")]
+        json: bool,
+        /// The header's bytes and the payload's first 256 bytes in hex, instead of the fields.
+        #[arg(long)]
+        raw: bool,
+        /// Elements of each payload sequence shown (lines, keypoints, ...); with --json every one unless given.
+        #[arg(long)]
+        elements: Option<usize>,
     },
     /// Print a topic's message rate once a second.
     Hz {
@@ -274,7 +284,21 @@ fn main() -> ExitCode {
         } => run::process(&folder, out, graph, &set, verbosity.into()),
         Cmd::Logs { out, node, follow } => logs::logs(&out, node.as_deref(), follow),
         Cmd::Topics { run } => attach::topics(run.as_deref()),
-        Cmd::Echo { topic, run, count } => attach::echo(&topic, run.as_deref(), count),
+        Cmd::Echo {
+            topic,
+            run,
+            count,
+            json,
+            raw,
+            elements,
+        } => {
+            let form = match (json, raw) {
+                (_, true) => attach::EchoForm::Raw,
+                (true, _) => attach::EchoForm::Json(elements.unwrap_or(usize::MAX)),
+                _ => attach::EchoForm::Fields(elements.unwrap_or(3)),
+            };
+            attach::echo(&topic, run.as_deref(), count, form)
+        }
         Cmd::Hz { topic, run, seconds } => attach::hz(&topic, run.as_deref(), seconds),
         Cmd::Replay {
             recording,

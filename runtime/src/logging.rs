@@ -12,6 +12,8 @@ pub fn init(node: &str) {
         .with_writer(std::io::stderr)
         .with_target(false)
         .without_time()
+        // The lines go through the supervisor into log files as well as to a terminal: no escape codes.
+        .with_ansi(false)
         .event_format(NodeFormat { node })
         .try_init();
 }

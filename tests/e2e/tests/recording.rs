@@ -298,6 +298,22 @@ fn a_recording_plays_back_for_viewers_until_ctrl_c() {
         std::thread::sleep(Duration::from_millis(200));
     };
     assert_eq!(lines.lines().filter(|l| l.starts_with("lines2d: frame")).count(), 3, "{lines}");
+    // The fields by name, from the schema: the header's stamp, and the segments' count with the first ones.
+    assert!(lines.contains("\"stamp\": {") && lines.contains("\"count\": "), "{lines}");
+    let json = stdout(&sb.run(&["echo", "lines2d", "-n", "1", "--json", "--elements", "2"]));
+    let v: serde_json::Value = serde_json::from_str(json.trim()).unwrap_or_else(|e| panic!("{e}: {json}"));
+    assert_eq!(v["topic"], "lines2d");
+    assert!(v["stamp"]["frame"].is_u64(), "{v}");
+    let segments = v
+        .as_object()
+        .unwrap()
+        .values()
+        .find(|x| x.get("count").is_some())
+        .expect("a sequence");
+    assert!(
+        segments["count"].as_u64().unwrap() > 0 && segments["first"].as_array().unwrap().len() == 2,
+        "{v}"
+    );
     // `topics` lists what the player publishes; `hz` measures a topic's rate (its value is not asserted: timing).
     let topics = stdout(&sb.run(&["topics"]));
     for t in ["images", "lines2d", "tiepoints", "camera"] {
