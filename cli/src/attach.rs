@@ -235,22 +235,57 @@ pub fn echo(topic: &str, run: Option<&str>, count: Option<u64>, form: EchoForm) 
     Ok(ExitCode::SUCCESS)
 }
 
-/// Prints the message rate of a topic once a second.
+/// One second of a topic's messages: their arrival times and sizes.
+struct RateWindow {
+    start: Instant,
+    arrivals: Vec<Instant>,
+    bytes: usize,
+}
+
+impl RateWindow {
+    fn new() -> Self {
+        Self {
+            start: Instant::now(),
+            arrivals: Vec::new(),
+            bytes: 0,
+        }
+    }
+
+    /// Rate, the period's min / max / standard deviation between arrivals, and bandwidth, as `ros2 topic hz`
+    /// and `bw` print them.
+    fn line(&self, topic: &str) -> String {
+        let dt = self.start.elapsed().as_secs_f64().max(1e-9);
+        let n = self.arrivals.len();
+        let mut line = format!("{topic}: {:.2} Hz ({n} messages in {dt:.2} s)", n as f64 / dt);
+        let periods: Vec<f64> = self.arrivals.windows(2).map(|w| (w[1] - w[0]).as_secs_f64()).collect();
+        if !periods.is_empty() {
+            let mean = periods.iter().sum::<f64>() / periods.len() as f64;
+            let std = (periods.iter().map(|p| (p - mean).powi(2)).sum::<f64>() / periods.len() as f64).sqrt();
+            let (min, max) = periods.iter().fold((f64::INFINITY, 0.0f64), |(a, b), &p| (a.min(p), b.max(p)));
+            line += &format!("  period min {min:.3} s max {max:.3} s std {std:.3} s");
+        }
+        line + &format!("  {:.2} MB/s", self.bytes as f64 / dt / 1e6)
+    }
+}
+
+/// Prints a topic's message rate, period statistics and bandwidth once a second.
 pub fn hz(topic: &str, run: Option<&str>, seconds: Option<u64>) -> Result<ExitCode> {
     let (_rec, graph, node) = attach(run)?;
     let e = edge(&graph, topic)?.clone();
     let start = Instant::now();
-    let mut window = (Instant::now(), 0u64);
+    let mut window = RateWindow::new();
     with_kind!(e.kind(), M => subscribe_loop::<M>(&node, &e, |m| {
         let mut ended = false;
-        if let Some((h, _)) = m {
+        if let Some((h, elements)) = m {
             ended = M::stamp(h).is_end_of_stream();
-            if !ended { window.1 += 1; }
+            if !ended {
+                window.arrivals.push(Instant::now());
+                window.bytes += size_of_val(h) + size_of_val(elements);
+            }
         }
-        let dt = window.0.elapsed().as_secs_f64();
-        if dt >= 1.0 || ended {
-            println!("{topic}: {:.2} Hz ({} messages in {dt:.2} s)", window.1 as f64 / dt.max(1e-9), window.1);
-            window = (Instant::now(), 0);
+        if window.start.elapsed() >= Duration::from_secs(1) || ended {
+            println!("{}", window.line(topic));
+            window = RateWindow::new();
         }
         !ended && seconds.is_none_or(|s| start.elapsed().as_secs() < s)
     }))?;

@@ -4,6 +4,7 @@ mod doctor;
 mod fields;
 mod logs;
 mod model_cmd;
+mod ps;
 mod recordings;
 mod run;
 mod synth;
@@ -112,7 +113,7 @@ enum Cmd {
         #[arg(long)]
         elements: Option<usize>,
     },
-    /// Print a topic's message rate once a second.
+    /// Print a topic's message rate, period (min, max, std) and bandwidth once a second.
     Hz {
         /// Topic name.
         topic: String,
@@ -185,6 +186,20 @@ enum Cmd {
         /// The new file.
         #[arg(long)]
         out: PathBuf,
+    },
+    /// List the running runs: id, supervisor pid, age, graph, nodes, output folder.
+    Ps {
+        /// One JSON object a line.
+        #[arg(long)]
+        json: bool,
+    },
+    /// Stop a running run as Ctrl-C would: the nodes stop, the recorder finishes its file.
+    Stop {
+        /// Run id (`lineflow ps`).
+        run: String,
+        /// Seconds to wait for it to end.
+        #[arg(long, default_value_t = 30)]
+        wait: u64,
     },
     /// Check shared memory and leftovers of crashed runs; --fix removes them.
     Doctor {
@@ -328,6 +343,8 @@ fn main() -> ExitCode {
         Cmd::Export { recording, topic, out } => recordings::export(&recording, &topic, &out),
         Cmd::Recover { recording, out } => recordings::recover(&recording, &out),
         Cmd::Doctor { fix } => doctor::doctor(fix),
+        Cmd::Ps { json } => ps::ps(json),
+        Cmd::Stop { run, wait } => ps::stop(&run, std::time::Duration::from_secs(wait)),
         Cmd::Synth {
             preset,
             scale,

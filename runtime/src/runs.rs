@@ -25,6 +25,9 @@ pub struct RunRecord {
     pub started_unix_s: u64,
     /// Whether the supervisor has ended the run.
     pub ended: bool,
+    /// The run's output folder (absolute; absent in records of older versions).
+    #[serde(default)]
+    pub out: Option<PathBuf>,
 }
 
 /// The registry folder.
@@ -35,11 +38,11 @@ pub fn state_dir() -> PathBuf {
 }
 
 impl RunRecord {
-    /// A new run with a fresh id and prefix, its folder created.
+    /// A new run writing into `out`, with a fresh id and prefix, its folder created.
     ///
     /// # Errors
     /// When the folder cannot be created.
-    pub fn create() -> Result<Self> {
+    pub fn create(out: &Path) -> Result<Self> {
         let now = std::time::SystemTime::now()
             .duration_since(std::time::UNIX_EPOCH)
             .unwrap_or_default();
@@ -56,6 +59,7 @@ impl RunRecord {
             pid,
             started_unix_s: now.as_secs(),
             ended: false,
+            out: Some(std::path::absolute(out).unwrap_or_else(|_| out.to_owned())),
         };
         rec.save()?;
         Ok(rec)
@@ -80,6 +84,12 @@ impl RunRecord {
     /// Whether the supervisor process still lives and has not ended the run.
     pub fn is_running(&self) -> bool {
         !self.ended && pid_alive(self.pid)
+    }
+
+    /// Asks the run's supervisor to stop as Ctrl-C does (SIGINT). Returns whether the signal was delivered.
+    pub fn interrupt(&self) -> bool {
+        // SAFETY: kill only sends a signal to the process the registry names.
+        unsafe { libc::kill(self.pid as libc::pid_t, libc::SIGINT) == 0 }
     }
 
     /// Reads one run.

@@ -248,7 +248,7 @@ impl Child {
 /// Set-up failures (ports, shared memory, spawning); node failures are reported in the [`Outcome`].
 pub fn run(graph: &Graph, opts: &RunOptions) -> Result<Outcome> {
     let started = Instant::now();
-    let run = RunRecord::create()?;
+    let run = RunRecord::create(&opts.out)?;
     let mut graph = graph.clone();
     let described = (|| -> Result<BTreeMap<String, Ports>> {
         std::fs::write(&run.graph, serde_json::to_vec(&graph)?).with_context(|| format!("cannot write {}", run.graph.display()))?;

@@ -325,14 +325,23 @@ fn a_recording_plays_back_for_viewers_until_ctrl_c() {
         "{}",
         stdout(&hz)
     );
-    // SAFETY: signalling the process this test started.
-    unsafe { libc::kill(player.id() as i32, libc::SIGINT) };
+    // `ps` lists the playback; `stop` ends it as Ctrl-C would.
+    let ps = stdout(&sb.run(&["ps", "--json"]));
+    let runs: Vec<serde_json::Value> = ps.lines().map(|l| serde_json::from_str(l).unwrap()).collect();
+    assert_eq!(runs.len(), 1, "{ps}");
+    assert_eq!(runs[0]["pid"], player.id(), "{ps}");
+    let id = runs[0]["id"].as_str().unwrap().to_owned();
+    assert!(stdout(&sb.run(&["ps"])).lines().any(|l| l.starts_with(&id)));
+    let stopped = sb.run(&["stop", &id]);
+    assert!(stopped.status.success(), "{}", String::from_utf8_lossy(&stopped.stderr));
     let r = player.wait_with_output().unwrap();
     let err = String::from_utf8_lossy(&r.stderr);
     assert!(
         err.contains("player") && !err.contains("[player] error"),
         "the player stops cleanly on Ctrl-C: {err}"
     );
+    assert!(stdout(&sb.run(&["ps"])).contains("no lineflow run is running"));
+    assert!(!sb.run(&["stop", &id]).status.success(), "a run that ended cannot be stopped");
 }
 
 #[test]
