@@ -93,16 +93,25 @@ impl MapStage {
         self.poses.contains_key(frame) && (!self.needs_photos || self.photos.contains_key(frame))
     }
 
-    /// Recomputes the map when the ready frames have grown by `remap_growth` since the last time (and by one at
-    /// least); true when it did.
-    pub fn update(&mut self) -> bool {
-        let ready = self.ready_frames();
+    /// Whether the ready frames have grown by `remap_growth` since the last map (and by one at least), so that
+    /// [`MapStage::remap`] is due.
+    pub fn remap_due(&self) -> bool {
         let due = ((self.mapped_frames as f64 * self.params.remap_growth).ceil() as usize).max(self.mapped_frames + 1);
-        if self.camera.is_none() || ready < due.max(2) {
-            return false;
-        }
+        self.camera.is_some() && self.ready_frames() >= due.max(2)
+    }
+
+    /// Recomputes the map from the ready frames.
+    pub fn remap(&mut self) {
         self.compute();
-        true
+    }
+
+    /// [`MapStage::remap`] when it is due; true when it ran.
+    pub fn update(&mut self) -> bool {
+        let due = self.remap_due();
+        if due {
+            self.remap();
+        }
+        due
     }
 
     /// The final map from every frame with segments and a pose.
