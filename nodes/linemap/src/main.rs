@@ -105,8 +105,8 @@ impl Arrivals {
 
 /// Remaps in a worker thread while this one keeps taking the inputs: a remap takes minutes at full size, and a
 /// stage that stops taking its inputs for that long holds every lossless publisher upstream (the orientation's
-/// final adjustment waited four minutes on it). What arrives meanwhile is handed over after the remap, so the map
-/// itself does not depend on the timing.
+/// final adjustment waited four minutes on it). What arrives meanwhile is handed over after the remap, which
+/// works on the frames it started with.
 fn remap_taking_inputs(stage: &mut MapStage, ports: &Ports, arrivals: &mut Arrivals, gray: &mut Vec<u8>) -> Result<()> {
     std::thread::scope(|s| {
         let worker = s.spawn(|| stage.remap());
