@@ -212,11 +212,11 @@ pub fn echo(topic: &str, run: Option<&str>, count: Option<u64>, form: EchoForm) 
         match form {
             EchoForm::Fields(shown) => {
                 println!("{topic}: {}", describe::<M>(h, elements.len()));
-                let fields = crate::fields::message_json(M::KIND, header, payload, shown);
+                let fields = lineflow_recordings::fields::message_json(M::KIND, header, payload, shown);
                 println!("{}", serde_json::to_string_pretty(&fields).unwrap_or_default());
             }
             EchoForm::Json(shown) => {
-                let mut fields = crate::fields::message_json(M::KIND, header, payload, shown);
+                let mut fields = lineflow_recordings::fields::message_json(M::KIND, header, payload, shown);
                 if let Some(o) = fields.as_object_mut() {
                     o.insert("topic".into(), topic.into());
                 }

@@ -1,7 +1,6 @@
 //! `lineflow`: run launch graphs, process project folders, inspect running graphs, benchmark the transport.
 mod attach;
 mod doctor;
-mod fields;
 mod logs;
 mod model_cmd;
 mod ps;

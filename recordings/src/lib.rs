@@ -8,6 +8,7 @@
 //! replayed into a graph. Metadata records: [`META_RUN`] (versions, the launch file, the resolved graph) at the start,
 //! [`META_END`] (completeness and every node's counters) at the end.
 #![warn(missing_docs)]
+pub mod fields;
 pub mod replay;
 pub mod tools;
 pub mod views;

@@ -1,5 +1,5 @@
-//! A message's fields by name, from its schema (`lineflow_messages::schema`): what `lineflow echo` prints. The
-//! bytes are the in-memory form (the header struct and the payload as published), not CDR.
+//! A message's fields by name, from its schema (`lineflow_messages::schema`), as JSON: what `lineflow echo`
+//! prints. The bytes are the in-memory form (the header struct and the payload as published), not CDR.
 use lineflow_messages::schema::{Elem, FieldType, Layout, Payload, Scalar};
 use lineflow_messages::MessageKind;
 use serde_json::{json, Map, Value};
