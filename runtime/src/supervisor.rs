@@ -415,11 +415,15 @@ fn supervise(graph: &Graph, run: &RunRecord, ports: &BTreeMap<String, Ports>, op
         std::thread::sleep(Duration::from_millis(20));
     }
     drain_status(&status_sub, &mut children);
-    // The nodes' last lines before the summary.
-    for c in &mut children {
-        for t in c.relays.drain(..) {
-            let _ = t.join();
-        }
+    // The nodes' last lines before the summary. A pipe that a node's own child process still holds open would
+    // keep its relay waiting: such a relay is left behind after a few seconds.
+    let relays: Vec<_> = children.iter_mut().flat_map(|c| c.relays.drain(..)).collect();
+    let deadline = Instant::now() + Duration::from_secs(5);
+    while relays.iter().any(|t| !t.is_finished()) && Instant::now() < deadline {
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    for t in relays.into_iter().filter(std::thread::JoinHandle::is_finished) {
+        let _ = t.join();
     }
     if let Some(p) = progress.as_mut() {
         p.finish(&children, graph, &console);
