@@ -181,9 +181,12 @@ pub struct NodeProgress {
     pub tracked: bool,
 }
 
-/// The progress line of a run: frames in (the furthest node), the slowest unfinished stage with its count, an ETA
-/// from the slowest stage's rate, and, once every frame is in everywhere, the stages still working. `total`: the
-/// frames the source will produce, when known.
+/// Stages named on the progress line as behind, at most.
+const BEHIND_SHOWN: usize = 3;
+
+/// The progress line of a run: frames in (the furthest node), the stages behind it with their counts (the slowest
+/// first), an ETA from the slowest stage's rate, and, once every frame is in everywhere, the stages still working.
+/// `total`: the frames the source will produce, when known.
 pub fn progress_line(nodes: &[NodeProgress], total: Option<u64>, elapsed: Duration) -> String {
     let secs = elapsed.as_secs_f64();
     let clock = |s: f64| {
@@ -203,7 +206,22 @@ pub fn progress_line(nodes: &[NodeProgress], total: Option<u64>, elapsed: Durati
             line += &format!("  finishing: {}", names.join(", "));
         }
         (Some(s), _) => {
-            line += &format!("  slowest {} {}", s.name, of_total(s.frames));
+            let mut behind: Vec<&&NodeProgress> = working.iter().filter(|n| n.frames < furthest).collect();
+            behind.sort_by_key(|n| n.frames);
+            if behind.is_empty() {
+                behind.push(s);
+            }
+            let shown: Vec<String> = behind
+                .iter()
+                .take(BEHIND_SHOWN)
+                .map(|n| format!("{} {}", n.name, n.frames))
+                .collect();
+            let more = behind.len().saturating_sub(BEHIND_SHOWN);
+            line += &format!(
+                "  behind: {}{}",
+                shown.join(", "),
+                if more > 0 { format!(" +{more}") } else { String::new() }
+            );
             if let Some(t) = total {
                 let eta = if s.frames > 0 && secs > 0.0 {
                     clock(t.saturating_sub(s.frames) as f64 * secs / s.frames as f64)
@@ -231,10 +249,18 @@ mod tests {
     }
 
     #[test]
-    fn the_line_names_the_slowest_stage_and_its_eta_not_the_frames_captured() {
-        let nodes = [node("features", 18, false), node("linemap", 6, false), node("recorder", 18, false)];
+    fn the_line_names_the_stages_behind_and_the_eta_not_the_frames_captured() {
+        let nodes = [
+            node("features", 18, false),
+            node("orientation", 12, false),
+            node("linemap", 6, false),
+            node("recorder", 18, false),
+        ];
         let line = progress_line(&nodes, Some(18), Duration::from_secs(60));
-        assert_eq!(line, "[lineflow] 1:00  frames in 18/18  slowest linemap 6/18  ETA 2:00");
+        assert_eq!(
+            line,
+            "[lineflow] 1:00  frames in 18/18  behind: linemap 6, orientation 12  ETA 2:00"
+        );
     }
 
     #[test]
@@ -252,6 +278,6 @@ mod tests {
         };
         let nodes = [source, node("features", 4, false), node("orientation", 3, false)];
         let line = progress_line(&nodes, None, Duration::from_secs(5));
-        assert_eq!(line, "[lineflow] 0:05  frames in 4  slowest orientation 3");
+        assert_eq!(line, "[lineflow] 0:05  frames in 4  behind: orientation 3");
     }
 }
