@@ -12,7 +12,7 @@ use lineflow_runtime::transport;
 
 fn attach(run: Option<&str>) -> Result<(RunRecord, Graph, Node<ipc::Service>)> {
     let rec = RunRecord::find(run)?;
-    let graph: Graph = serde_json::from_slice(&std::fs::read(&rec.graph).with_context(|| format!("run {}: graph file missing", rec.id))?)?;
+    let graph = rec.load_graph()?;
     let cfg = transport::config(&rec.prefix, &rec.root)?;
     let node = transport::create_node(&cfg, &format!("cli-{}", std::process::id()))?;
     Ok((rec, graph, node))

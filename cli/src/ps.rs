@@ -3,13 +3,12 @@ use std::process::ExitCode;
 use std::time::{Duration, Instant};
 
 use anyhow::{bail, Result};
-use lineflow_runtime::launch::Graph;
 use lineflow_runtime::runs::{pid_alive, RunRecord};
 use serde_json::json;
 
 /// The graph's name and its node count, when its file can be read.
 fn graph_of(run: &RunRecord) -> Option<(String, usize)> {
-    let g: Graph = serde_json::from_slice(&std::fs::read(&run.graph).ok()?).ok()?;
+    let g = run.load_graph().ok()?;
     Some((g.name, g.nodes.len()))
 }
 

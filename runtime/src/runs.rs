@@ -86,6 +86,15 @@ impl RunRecord {
         !self.ended && pid_alive(self.pid)
     }
 
+    /// The run's resolved graph.
+    ///
+    /// # Errors
+    /// When its file is missing or malformed.
+    pub fn load_graph(&self) -> Result<crate::launch::Graph> {
+        let bytes = std::fs::read(&self.graph).with_context(|| format!("run {}: graph file missing", self.id))?;
+        serde_json::from_slice(&bytes).with_context(|| format!("run {}: malformed {}", self.id, self.graph.display()))
+    }
+
     /// Asks the run's supervisor to stop as Ctrl-C does (SIGINT). Returns whether the signal was delivered.
     pub fn interrupt(&self) -> bool {
         // SAFETY: kill only sends a signal to the process the registry names.

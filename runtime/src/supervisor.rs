@@ -215,6 +215,11 @@ struct Child {
 }
 
 impl Child {
+    /// Whether the node has reported its work finished, or exited cleanly.
+    fn finished(&self) -> bool {
+        self.current.flags & NodeStatus::FINISHED != 0 || self.end == NodeEnd::Finished
+    }
+
     fn totals(&self) -> (u64, u64, u64, u64) {
         (
             self.done.msgs_in + self.current.msgs_in,
@@ -650,16 +655,13 @@ impl Progress {
                         .copied()
                         .max()
                         .unwrap_or(0),
-                    finished: s.flags & NodeStatus::FINISHED != 0 || c.end == NodeEnd::Finished,
+                    finished: c.finished(),
                     tracked: !graph.is_source(&c.spec.name) && c.spec.name != launch::RECORDER,
                 }
             })
             .collect();
         // Sources that have ended have published every frame: the furthest stage's count is the total.
-        let sources_ended = children
-            .iter()
-            .filter(|c| graph.is_source(&c.spec.name))
-            .all(|c| c.current.flags & NodeStatus::FINISHED != 0 || c.end == NodeEnd::Finished);
+        let sources_ended = children.iter().filter(|c| graph.is_source(&c.spec.name)).all(Child::finished);
         let furthest = nodes.iter().filter(|n| n.tracked).map(|n| n.frames).max();
         let total = self.total.or(furthest.filter(|_| sources_ended));
         progress_line(&nodes, total, self.start.elapsed())
