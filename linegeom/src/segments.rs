@@ -7,6 +7,10 @@ use lineflow_photogrammetry::{Camera, Pose};
 pub struct FrameSegments {
     /// Endpoints of each kept segment, ideal mm.
     pub ends: Vec<[[f64; 2]; 2]>,
+    /// Unit direction of each segment (start to end).
+    dirs: Vec<[f64; 2]>,
+    /// Inclusive cell range (c0, r0, c1, r1) each segment is listed in.
+    spans: Vec<[u32; 4]>,
     /// Grid origin (ideal mm), cell size (mm) and size in cells.
     origin: [f64; 2],
     cell_mm: f64,
@@ -19,7 +23,7 @@ pub struct FrameSegments {
 }
 
 /// Grid cell, pixels: a segment lands in the cells its bounding box covers.
-const CELL_PX: f64 = 64.0;
+const CELL_PX: f64 = 16.0;
 
 impl FrameSegments {
     /// The segments of at least `min_length_px`, endpoints corrected to ideal photo coordinates (where 2-D lines
@@ -42,6 +46,8 @@ impl FrameSegments {
         let (cols, rows) = (size(0), size(1));
         let mut frame = FrameSegments {
             ends: Vec::new(),
+            dirs: ends.iter().map(|e| unit([e[1][0] - e[0][0], e[1][1] - e[0][1]])).collect(),
+            spans: Vec::with_capacity(ends.len()),
             origin,
             cell_mm,
             cols,
@@ -51,6 +57,7 @@ impl FrameSegments {
         };
         for (k, e) in ends.iter().enumerate() {
             let (c0, r0, c1, r1) = frame.cell_range(e[0], e[1], 0.0);
+            frame.spans.push([c0, r0, c1, r1].map(|v| v as u32));
             for r in r0..=r1 {
                 for c in c0..=c1 {
                     frame.cells[r * cols + c].push(k as u32);
@@ -79,17 +86,26 @@ impl FrameSegments {
     pub fn near(&self, a: [f64; 2], b: [f64; 2], margin: f64, max_angle: f64) -> Vec<usize> {
         let dir = unit([b[0] - a[0], b[1] - a[1]]);
         let cos_max = max_angle.cos();
+        let any_angle = max_angle >= std::f64::consts::FRAC_PI_2;
         let (c0, r0, c1, r1) = self.cell_range(a, b, margin);
-        let mut out: Vec<usize> = (r0..=r1)
-            .flat_map(|r| (c0..=c1).flat_map(move |c| self.cells[r * self.cols + c].iter().map(|&k| k as usize)))
-            .collect();
+        let mut out = Vec::new();
+        for r in r0..=r1 {
+            for c in c0..=c1 {
+                for &k in &self.cells[r * self.cols + c] {
+                    let k = k as usize;
+                    // A segment listed in several cells of the window is taken from the first of them only.
+                    let s = self.spans[k];
+                    if c != (s[0] as usize).max(c0) || r != (s[1] as usize).max(r0) {
+                        continue;
+                    }
+                    let d = self.dirs[k];
+                    if any_angle || (d[0] * dir[0] + d[1] * dir[1]).abs() >= cos_max {
+                        out.push(k);
+                    }
+                }
+            }
+        }
         out.sort_unstable();
-        out.dedup();
-        out.retain(|&k| {
-            let [p, q] = self.ends[k];
-            let d = unit([q[0] - p[0], q[1] - p[1]]);
-            (d[0] * dir[0] + d[1] * dir[1]).abs() >= cos_max
-        });
         out
     }
 }
@@ -107,4 +123,57 @@ pub struct SlaveSegments<'a> {
     pub pose: Pose,
     /// Its segments.
     pub segments: &'a FrameSegments,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use lineflow_photogrammetry::random::Rng;
+
+    /// What `near` promises, by a scan of every segment: bounding boxes within the margin of the window's box and
+    /// directions within the angle, each once, in index order.
+    fn scanned(f: &FrameSegments, a: [f64; 2], b: [f64; 2], margin: f64, max_angle: f64) -> Vec<usize> {
+        let dir = unit([b[0] - a[0], b[1] - a[1]]);
+        let (c0, r0, c1, r1) = f.cell_range(a, b, margin);
+        (0..f.ends.len())
+            .filter(|&k| {
+                let s = f.spans[k];
+                s[0] as usize <= c1 && s[2] as usize >= c0 && s[1] as usize <= r1 && s[3] as usize >= r0
+            })
+            .filter(|&k| {
+                let e = f.ends[k];
+                let d = unit([e[1][0] - e[0][0], e[1][1] - e[0][1]]);
+                max_angle >= std::f64::consts::FRAC_PI_2 || (d[0] * dir[0] + d[1] * dir[1]).abs() >= max_angle.cos()
+            })
+            .collect()
+    }
+
+    #[test]
+    fn a_window_query_finds_each_segment_of_its_cells_once_in_index_order() {
+        let camera = Camera::pinhole(800, 600, 0.01, 10.0);
+        let mut rng = Rng::new(7, 0);
+        let segments: Vec<Segment2> = (0..2000)
+            .map(|id| {
+                let start_px = [rng.uniform(0.0, 800.0), rng.uniform(0.0, 600.0)];
+                let (angle, length) = (rng.uniform(0.0, std::f64::consts::PI), rng.uniform(5.0, 300.0));
+                Segment2 {
+                    id,
+                    chain_start: 0,
+                    chain_len: 0,
+                    reserved: 0,
+                    start_px,
+                    end_px: [start_px[0] + length * angle.cos(), start_px[1] + length * angle.sin()],
+                }
+            })
+            .collect();
+        let f = FrameSegments::new(&camera, &segments, 10.0);
+        assert!(f.ends.len() > 1500);
+        for _ in 0..200 {
+            let a = [rng.uniform(-4.0, 4.0), rng.uniform(-3.0, 3.0)];
+            let b = [a[0] + rng.uniform(-2.0, 2.0), a[1] + rng.uniform(-2.0, 2.0)];
+            let (margin, angle) = (rng.uniform(0.0, 0.1), [0.03, 0.3, std::f64::consts::FRAC_PI_2][rng.below(3)]);
+            let found = f.near(a, b, margin, angle);
+            assert_eq!(found, scanned(&f, a, b, margin, angle));
+        }
+    }
 }
