@@ -170,7 +170,10 @@ fn print_funnel(camera: &lineflow_photogrammetry::Camera, views: &[View], guide:
         counts[c][2] += proposed as usize;
         let bests: Vec<_> = seen
             .iter()
-            .filter_map(|&(i, s)| lineflow_linemap::best_hypothesis(camera, views, i, s, guide, p))
+            .filter_map(|&(i, s)| {
+                let partners = lineflow_linemap::views::partners(views, i, p.max_partners);
+                lineflow_linemap::best_hypothesis(camera, views, (i, s), &partners, guide, p)
+            })
             .filter(|b| near(&g, &b.hypothesis.ends[0], &b.hypothesis.ends[1]))
             .collect();
         counts[c][3] += !bests.is_empty() as usize;

@@ -46,6 +46,8 @@ pub struct MapParams {
     pub min_ray_angle_deg: f64,
     /// Smallest overlap of two segments along the line, as a share of the shorter.
     pub min_overlap: f64,
+    /// Each image's segments are paired with those of this many other images, the nearest (0 = every image).
+    pub max_partners: usize,
     /// Largest distance of a supporting segment's endpoints from the projected line, pixels.
     pub max_distance_px: f64,
     /// Largest angle between a supporting segment and the projected line, degrees.
@@ -122,6 +124,7 @@ impl Default for MapParams {
             min_plane_angle_deg: 2.0,
             min_ray_angle_deg: 5.0,
             min_overlap: 0.25,
+            max_partners: 10,
             max_distance_px: 2.0,
             max_angle_deg: 2.0,
             sigma_px: 1.0,

@@ -15,7 +15,7 @@ use crate::junctions;
 use crate::line::MappedLine;
 use crate::support::{support, support_above};
 use crate::surfaces;
-use crate::views::{parameter_on_line, View};
+use crate::views::{parameter_on_line, partners, View};
 use crate::MapParams;
 
 /// The lines as message elements, numbered from 1.
@@ -97,9 +97,10 @@ pub fn map_lines_with_stats(camera: &Camera, views: &[View], guide: &Guide, p: &
             ms
         }
     };
+    let partners: Vec<Vec<usize>> = (0..views.len()).map(|i| partners(views, i, p.max_partners)).collect();
     let pairwise: Vec<Option<Scored>> = sources
         .par_iter()
-        .map(|&(i, s)| best_hypothesis(camera, views, i, s, guide, p))
+        .map(|&(i, s)| best_hypothesis(camera, views, (i, s), &partners[i], guide, p))
         .collect();
     let t_pairs = lap();
     // The first pass only offers its verticals to the second when junctions are on; the appearance test, which
@@ -267,13 +268,19 @@ fn looks_consistent(camera: &Camera, views: &[View], line: &MappedLine, p: &MapP
     appearance::agrees(camera, views, &seen_by, &ends, &p.appearance(), p.min_correlation, p.max_offset_px)
 }
 
-/// The best-supported hypothesis of segment `s` of view `i` over every other view, if it has enough support.
-pub fn best_hypothesis(camera: &Camera, views: &[View], i: usize, s: usize, guide: &Guide, p: &MapParams) -> Option<Scored> {
+/// The best-supported hypothesis of segment `s` of view `i` over its `partners` (`views::partners`), if it has
+/// enough support.
+pub fn best_hypothesis(
+    camera: &Camera,
+    views: &[View],
+    (i, s): (usize, usize),
+    partners: &[usize],
+    guide: &Guide,
+    p: &MapParams,
+) -> Option<Scored> {
     let mut scored: Vec<Scored> = Vec::new();
-    for (j, other) in views.iter().enumerate() {
-        if j == i {
-            continue;
-        }
+    for &j in partners {
+        let other = &views[j];
         for h in pair_hypotheses(camera, (i, &views[i]), s, (j, other), guide, p) {
             let weight = guide.placement_weight(&h.ends, p.near_wall_m, p.off_wall_weight);
             // Only hypotheses that could still be the best, or (with the ambiguity test) its rival, are scored to

@@ -86,10 +86,46 @@ impl View {
     }
 }
 
+/// The views whose segments view `i`'s segments are paired with: the others, nearest first (so that the strong
+/// hypotheses come early and the rest can stop once they cannot beat them; ties by index), the `max` nearest
+/// when `max` is not 0.
+pub fn partners(views: &[View], i: usize, max: usize) -> Vec<usize> {
+    let distance = |j: usize| (views[j].pose.center - views[i].pose.center).norm();
+    let mut order: Vec<usize> = (0..views.len()).filter(|&j| j != i).collect();
+    order.sort_by(|&a, &b| distance(a).total_cmp(&distance(b)).then(a.cmp(&b)));
+    if max > 0 {
+        order.truncate(max);
+    }
+    order
+}
+
 /// The parameter along the line `origin + t·dir` of its point closest to the ray `center + u·ray`.
 pub fn parameter_on_line(origin: &Vec3, dir: &Vec3, center: &Vec3, ray: &Vec3) -> Option<f64> {
     let w = origin - center;
     let b = dir.dot(ray);
     let denom = 1.0 - b * b;
     (denom > 1e-9).then(|| (b * ray.dot(&w) - dir.dot(&w)) / denom)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use lineflow_photogrammetry::Mat3;
+
+    #[test]
+    fn partners_are_the_other_views_nearest_first_ties_by_index() {
+        let camera = Camera::pinhole(100, 80, 0.01, 10.0);
+        let at = |x: f64, z: f64| {
+            let pose = Pose {
+                center: Vec3::new(x, -25.0, z),
+                rotation: Mat3::identity(),
+            };
+            View::new(&camera, 0, pose, &[], 15.0)
+        };
+        // A strip at z = 1.5 and one at 4.5; view 0 has views 1 and 3 at 1 m, view 2 at 2 m, view 4 at 3 m.
+        let views = [at(0.0, 1.5), at(1.0, 1.5), at(2.0, 1.5), at(-1.0, 1.5), at(0.0, 4.5)];
+        assert_eq!(partners(&views, 0, 0), vec![1, 3, 2, 4]);
+        assert_eq!(partners(&views, 0, 2), vec![1, 3]);
+        assert_eq!(partners(&views, 4, 1), vec![0]);
+    }
 }
