@@ -159,6 +159,9 @@ enum Cmd {
     Info {
         /// The recording (.mcap).
         recording: PathBuf,
+        /// Print one JSON object instead of the table.
+        #[arg(long)]
+        json: bool,
     },
     /// Compare two recordings topic by topic, message by message; exit status 1 when they differ.
     Diff {
@@ -337,7 +340,7 @@ fn main() -> ExitCode {
             topics: &topics,
             verbosity: verbosity.into(),
         }),
-        Cmd::Info { recording } => recordings::info(&recording),
+        Cmd::Info { recording, json } => recordings::info(&recording, json),
         Cmd::Diff { a, b } => recordings::diff(&a, &b),
         Cmd::Export { recording, topic, out } => recordings::export(&recording, &topic, &out),
         Cmd::Recover { recording, out } => recordings::recover(&recording, &out),

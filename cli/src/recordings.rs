@@ -68,9 +68,13 @@ pub fn replay(a: ReplayArgs<'_>) -> Result<ExitCode> {
 }
 
 /// `lineflow info`.
-pub fn info(path: &Path) -> Result<ExitCode> {
+pub fn info(path: &Path, json: bool) -> Result<ExitCode> {
     let rec = Recording::open(path)?;
-    print!("{}", tools::info(&rec));
+    if json {
+        println!("{}", serde_json::to_string(&tools::summarize(&rec))?);
+    } else {
+        print!("{}", tools::info(&rec));
+    }
     Ok(if rec.damage.is_some() {
         ExitCode::from(2)
     } else {

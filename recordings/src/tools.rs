@@ -19,8 +19,61 @@ struct TopicStats {
     last: u64,
 }
 
-/// A human-readable summary: topics, message counts, rates, duration, schemas, completeness.
-pub fn info(rec: &Recording) -> String {
+/// What `lineflow info` says of a recording (and `--json` prints).
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct Summary {
+    /// The file.
+    pub file: String,
+    /// Its size, bytes.
+    pub size_bytes: u64,
+    /// The run that wrote it, when the recorder stored one.
+    pub run: Option<RunSummary>,
+    /// From the first message to the last, seconds.
+    pub duration_s: f64,
+    /// Messages over every topic.
+    pub messages: u64,
+    /// Whether it ends with the recorder's end record, end-of-stream on every topic and nothing dropped.
+    pub complete: bool,
+    /// Its state in words (complete, incomplete and why, damaged up to where).
+    pub status: String,
+    /// Each topic, by name.
+    pub topics: Vec<TopicSummary>,
+    /// Messages each node dropped, where any did.
+    pub drops: BTreeMap<String, String>,
+}
+
+/// The run a recording holds.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct RunSummary {
+    /// Run id.
+    pub id: String,
+    /// The graph's name.
+    pub graph: String,
+    /// The launch file it was started from.
+    pub launch: String,
+    /// The lineflow version that ran it.
+    pub version: String,
+}
+
+/// One topic of a recording.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct TopicSummary {
+    /// Topic.
+    pub topic: String,
+    /// Its messages.
+    pub messages: u64,
+    /// Their bytes.
+    pub bytes: u64,
+    /// Messages a second between its first and last, when it has two or more.
+    pub rate_hz: Option<f64>,
+    /// Schema name.
+    pub schema: String,
+    /// Message encoding.
+    pub encoding: String,
+}
+
+/// Topics, message counts, rates, duration, schemas and completeness of a recording.
+pub fn summarize(rec: &Recording) -> Summary {
     let mut stats: BTreeMap<String, TopicStats> = BTreeMap::new();
     for c in rec.channels() {
         let s = stats.entry(c.topic.clone()).or_default();
@@ -40,48 +93,81 @@ pub fn info(rec: &Recording) -> String {
         t1 = t1.max(m.log_time);
         Ok(())
     });
+    let meta = |k: &str| rec.run_meta(k).unwrap_or("?").to_owned();
+    let run = rec.run_meta("graph_name").map(|graph| RunSummary {
+        id: meta("run_id"),
+        graph: graph.to_owned(),
+        launch: meta("launch_path"),
+        version: meta("version"),
+    });
+    let read_error = read.as_ref().err().map(|e| format!("{e:#}"));
+    let topics: Vec<TopicSummary> = stats
+        .into_iter()
+        .map(|(topic, s)| {
+            let span = (s.last.saturating_sub(s.first)) as f64 * 1e-9;
+            TopicSummary {
+                topic,
+                messages: s.messages,
+                bytes: s.bytes,
+                rate_hz: (s.messages > 1 && span > 0.0).then(|| (s.messages - 1) as f64 / span),
+                schema: s.schema,
+                encoding: s.encoding,
+            }
+        })
+        .collect();
+    let drops = rec
+        .metadata
+        .get(META_END)
+        .map(|end| {
+            end.iter()
+                .filter_map(|(k, v)| k.strip_prefix("node.").and_then(|k| k.strip_suffix(".drops")).map(|n| (n, v)))
+                .filter(|(_, v)| v.as_str() != "0")
+                .map(|(n, v)| (n.to_owned(), v.clone()))
+                .collect()
+        })
+        .unwrap_or_default();
+    Summary {
+        file: rec.path.display().to_string(),
+        size_bytes: std::fs::metadata(&rec.path).map(|m| m.len()).unwrap_or(0),
+        run,
+        duration_s: if t1 > t0 { (t1 - t0) as f64 * 1e-9 } else { 0.0 },
+        messages: topics.iter().map(|t| t.messages).sum(),
+        complete: rec.damage.is_none() && read.is_ok() && rec.metadata.contains_key(META_END) && rec.is_complete(),
+        status: completeness(rec, read_error),
+        topics,
+        drops,
+    }
+}
+
+/// A human-readable summary: topics, message counts, rates, duration, schemas, completeness.
+pub fn info(rec: &Recording) -> String {
+    let s = summarize(rec);
     let mut out = String::new();
-    let duration = if t1 > t0 { (t1 - t0) as f64 * 1e-9 } else { 0.0 };
-    let size = std::fs::metadata(&rec.path).map(|m| m.len()).unwrap_or(0);
-    let _ = writeln!(out, "file:      {} ({:.1} MB)", rec.path.display(), size as f64 / 1e6);
-    if let Some(name) = rec.run_meta("graph_name") {
+    let _ = writeln!(out, "file:      {} ({:.1} MB)", s.file, s.size_bytes as f64 / 1e6);
+    if let Some(r) = &s.run {
         let _ = writeln!(
             out,
-            "run:       {} (graph '{name}', {}, lineflow {})",
-            rec.run_meta("run_id").unwrap_or("?"),
-            rec.run_meta("launch_path").unwrap_or("?"),
-            rec.run_meta("version").unwrap_or("?")
+            "run:       {} (graph '{}', {}, lineflow {})",
+            r.id, r.graph, r.launch, r.version
         );
     }
-    let total: u64 = stats.values().map(|s| s.messages).sum();
-    let _ = writeln!(out, "duration:  {duration:.3} s, {total} messages");
-    let _ = writeln!(out, "{}", completeness(rec, read.err().map(|e| format!("{e:#}"))));
+    let _ = writeln!(out, "duration:  {:.3} s, {} messages", s.duration_s, s.messages);
+    let _ = writeln!(out, "status:    {}", s.status);
     let _ = writeln!(out, "\n{:<28} {:>8} {:>10} {:>9}  schema", "topic", "messages", "MB", "rate Hz");
-    for (topic, s) in &stats {
-        let span = (s.last.saturating_sub(s.first)) as f64 * 1e-9;
-        let rate = if s.messages > 1 && span > 0.0 {
-            format!("{:.2}", (s.messages - 1) as f64 / span)
-        } else {
-            "-".into()
-        };
+    for t in &s.topics {
+        let rate = t.rate_hz.map(|r| format!("{r:.2}")).unwrap_or_else(|| "-".into());
         let _ = writeln!(
             out,
-            "{topic:<28} {:>8} {:>10.2} {rate:>9}  {} ({})",
-            s.messages,
-            s.bytes as f64 / 1e6,
-            s.schema,
-            s.encoding
+            "{:<28} {:>8} {:>10.2} {rate:>9}  {} ({})",
+            t.topic,
+            t.messages,
+            t.bytes as f64 / 1e6,
+            t.schema,
+            t.encoding
         );
     }
-    if let Some(end) = rec.metadata.get(META_END) {
-        let nodes: Vec<_> = end
-            .iter()
-            .filter_map(|(k, v)| k.strip_prefix("node.").and_then(|k| k.strip_suffix(".drops")).map(|n| (n, v)))
-            .filter(|(_, v)| v.as_str() != "0")
-            .collect();
-        for (node, drops) in nodes {
-            let _ = writeln!(out, "node '{node}' dropped {drops} messages");
-        }
+    for (node, drops) in &s.drops {
+        let _ = writeln!(out, "node '{node}' dropped {drops} messages");
     }
     out
 }
@@ -89,20 +175,17 @@ pub fn info(rec: &Recording) -> String {
 fn completeness(rec: &Recording, read_error: Option<String>) -> String {
     if let Some(damage) = &rec.damage {
         return format!(
-            "status:    INCOMPLETE: {damage}{}; `lineflow recover` rebuilds the file",
+            "INCOMPLETE: {damage}{}; `lineflow recover` rebuilds the file",
             read_error.map(|e| format!("; readable up to: {e}")).unwrap_or_default()
         );
     }
     if let Some(e) = read_error {
-        return format!("status:    CORRUPT: {e}");
+        return format!("CORRUPT: {e}");
     }
     match rec.metadata.get(META_END) {
-        Some(_) if rec.is_complete() => "status:    complete (end-of-stream on every topic, nothing dropped)".into(),
-        Some(end) => format!(
-            "status:    incomplete: {}",
-            end.get("reason").map(String::as_str).unwrap_or("unknown")
-        ),
-        None => "status:    finished, but without the recorder's end record".into(),
+        Some(_) if rec.is_complete() => "complete (end-of-stream on every topic, nothing dropped)".into(),
+        Some(end) => format!("incomplete: {}", end.get("reason").map(String::as_str).unwrap_or("unknown")),
+        None => "finished, but without the recorder's end record".into(),
     }
 }
 

@@ -74,6 +74,18 @@ fn a_demo_recording_replays_byte_for_byte_swaps_a_stage_and_decodes_in_python() 
             "{topic} missing:\n{text}"
         );
     }
+    // The same as one JSON object.
+    let json: serde_json::Value = serde_json::from_str(&stdout(&sb.run(&["info", "--json", rec.to_str().unwrap()]))).unwrap();
+    assert_eq!(json["complete"], true, "{json}");
+    let topics = json["topics"].as_array().unwrap();
+    let gray = topics.iter().find(|t| t["topic"] == "gray").expect("gray in the JSON");
+    let line = text.lines().find(|l| l.starts_with("gray ")).unwrap();
+    assert_eq!(
+        gray["messages"].as_u64().unwrap().to_string(),
+        line.split_whitespace().nth(1).unwrap(),
+        "{line}"
+    );
+    assert_eq!(gray["schema"], "lineflow_msgs/msg/Image");
 
     // The same graph on the recorded source topics: every derived topic byte for byte the same.
     let again = sb.path().join("again");
