@@ -240,6 +240,9 @@ enum Cmd {
         /// Report folder [default: RESULTS/eval].
         #[arg(long)]
         out: Option<PathBuf>,
+        /// Print the figures as one JSON object (also written to the report folder as metrics.json).
+        #[arg(long)]
+        json: bool,
     },
     /// Build the wire-frame model (model.obj, model.city.json) from a lines3d.csv, as the model stage does.
     Model {
@@ -362,7 +365,7 @@ fn main() -> ExitCode {
             jpeg_quality: jpeg,
             noise_dn: noise,
         }),
-        Cmd::Eval { results, gt, out } => eval(&results, &gt, out),
+        Cmd::Eval { results, gt, out, json } => eval(&results, &gt, out, json),
         Cmd::Model {
             lines,
             poses,
@@ -399,12 +402,16 @@ fn main() -> ExitCode {
     }
 }
 
-fn eval(results: &std::path::Path, gt: &std::path::Path, out: Option<PathBuf>) -> anyhow::Result<ExitCode> {
+fn eval(results: &std::path::Path, gt: &std::path::Path, out: Option<PathBuf>, json: bool) -> anyhow::Result<ExitCode> {
     let truth = lineflow_eval::Truth::load(gt)?;
     let found = lineflow_eval::Results::load(results)?;
     let evaluation = lineflow_eval::evaluate(&truth, &found);
     let out = out.unwrap_or_else(|| results.join("eval"));
     let report = lineflow_eval::report::write(&truth, results, &evaluation, &out)?;
+    if json {
+        println!("{}", serde_json::to_string(&lineflow_eval::summary::summary(&evaluation))?);
+        return Ok(ExitCode::SUCCESS);
+    }
     if let Some(o) = &evaluation.orientation {
         println!(
             "orientation: {} images, centre RMS {:.1} mm, rotation RMS {:.4} deg",

@@ -8,6 +8,7 @@ pub mod orientation;
 mod plot;
 pub mod report;
 pub mod resolvable;
+pub mod summary;
 
 use std::path::{Path, PathBuf};
 

@@ -23,7 +23,7 @@ fn mm(x: f64) -> String {
     }
 }
 
-/// Writes `report.md` and its pictures into `out`; returns the report's path.
+/// Writes `report.md`, its pictures and `metrics.json` (`summary::summary`) into `out`; returns the report's path.
 pub fn write(truth: &Truth, results: &Path, eval: &Evaluation, out: &Path) -> Result<PathBuf> {
     std::fs::create_dir_all(out).with_context(|| format!("cannot create {}", out.display()))?;
     let mut md = String::new();
@@ -47,6 +47,9 @@ pub fn write(truth: &Truth, results: &Path, eval: &Evaluation, out: &Path) -> Re
     lines2d_section(&mut md, eval);
     lines3d_section(&mut md, eval, out)?;
     model_section(&mut md, eval);
+    let metrics = out.join("metrics.json");
+    let json = serde_json::to_string_pretty(&crate::summary::summary(eval))?;
+    std::fs::write(&metrics, json + "\n").with_context(|| format!("cannot write {}", metrics.display()))?;
     let path = out.join("report.md");
     std::fs::write(&path, md).with_context(|| format!("cannot write {}", path.display()))?;
     Ok(path)

@@ -765,6 +765,13 @@ fn poses_supplied_with_the_project_replace_the_orientation() {
     let r = sb.run(&["eval", out.to_str().unwrap(), "--gt", scene.to_str().unwrap()]);
     let stdout = String::from_utf8_lossy(&r.stdout);
     assert!(r.status.success() && stdout.contains("centre RMS 0.0 mm"), "{stdout}");
+    // The same figures as one JSON object, and in the report folder.
+    let r = sb.run(&["eval", out.to_str().unwrap(), "--gt", scene.to_str().unwrap(), "--json"]);
+    let json: serde_json::Value = serde_json::from_slice(&r.stdout).unwrap();
+    assert!(json["orientation"]["rms_center_m"].as_f64().unwrap() < 1e-4, "{json}");
+    assert!(json["lines3d"]["classes"][0]["success_rate"].is_number(), "{json}");
+    let kept: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(out.join("eval/metrics.json")).unwrap()).unwrap();
+    assert_eq!(kept, json);
     let checks = std::fs::read_to_string(out.join("checkpoints.csv")).unwrap();
     assert!(checks.lines().count() > 1, "{checks}");
     assert!(out.join("lines3d.csv").is_file());
