@@ -34,6 +34,9 @@ struct VerbosityArgs {
     /// The nodes log at debug level (LINEFLOW_LOG, when set, wins).
     #[arg(short, long, conflicts_with = "quiet")]
     verbose: bool,
+    /// Print the run's summary on stdout as one JSON object (also kept in OUT/summary.json) instead of the table.
+    #[arg(long)]
+    json: bool,
 }
 
 impl From<VerbosityArgs> for lineflow_runtime::run::Verbosity {
@@ -41,6 +44,7 @@ impl From<VerbosityArgs> for lineflow_runtime::run::Verbosity {
         Self {
             quiet: a.quiet,
             verbose: a.verbose,
+            json: a.json,
         }
     }
 }

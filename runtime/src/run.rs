@@ -1,5 +1,5 @@
 //! Running a graph for a person at a terminal: the shipped launch graphs' folder, and a run whose per-node summary
-//! is printed and kept in `out/summary.txt`. `lineflow run`, `process`, `replay --rerun` and the benchmarks that
+//! is printed and kept in `out/summary.txt` (and as JSON in `out/summary.json`). `lineflow run`, `process`, `replay --rerun` and the benchmarks that
 //! run the shipped graphs share it.
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -16,6 +16,8 @@ pub struct Verbosity {
     pub quiet: bool,
     /// The nodes log at debug level (unless `LINEFLOW_LOG` says otherwise).
     pub verbose: bool,
+    /// The summary goes to stdout as one JSON object (`out/summary.json`) instead of the table.
+    pub json: bool,
 }
 
 /// Runs a resolved graph; prints the per-node summary and writes it to `out/summary.txt`. The nodes' lines are
@@ -31,7 +33,13 @@ pub fn run_graph(g: &launch::Graph, out: &Path, expected_frames: Option<u64>, ve
     };
     let outcome = supervisor::run(g, &opts)?;
     let table = outcome.table();
-    eprint!("{table}");
+    let json = outcome.json(&g.source).to_string();
+    if verbosity.json {
+        println!("{json}");
+    } else {
+        eprint!("{table}");
+    }
+    let _ = std::fs::write(out.join("summary.json"), json + "\n");
     let _ = std::fs::write(
         out.join("summary.txt"),
         format!(

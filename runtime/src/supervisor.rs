@@ -104,13 +104,7 @@ impl Outcome {
             "node", "status", "in", "out", "drops", "dups", "missed", "cpu s", "restarts", "frames missed"
         );
         for n in &self.nodes {
-            let status = match n.end {
-                NodeEnd::Finished => "ok".to_string(),
-                NodeEnd::Failed(c) => format!("exit {c}"),
-                NodeEnd::Signalled(sig) => format!("signal {sig}"),
-                NodeEnd::Stopped => "stopped".into(),
-                NodeEnd::Unknown => "?".into(),
-            };
+            let status = n.end.status();
             let ranges: Vec<String> = n
                 .missed_ranges
                 .iter()
@@ -131,6 +125,51 @@ impl Outcome {
             );
         }
         s
+    }
+}
+
+impl NodeEnd {
+    /// How it ended, in one word or two (the summary's status column).
+    pub fn status(&self) -> String {
+        match self {
+            NodeEnd::Finished => "ok".to_string(),
+            NodeEnd::Failed(c) => format!("exit {c}"),
+            NodeEnd::Signalled(sig) => format!("signal {sig}"),
+            NodeEnd::Stopped => "stopped".into(),
+            NodeEnd::Unknown => "?".into(),
+        }
+    }
+}
+
+impl Outcome {
+    /// The summary as one JSON object (`summary.json`, `--json`).
+    pub fn json(&self, graph: &std::path::Path) -> serde_json::Value {
+        let nodes: Vec<serde_json::Value> = self
+            .nodes
+            .iter()
+            .map(|n| {
+                serde_json::json!({
+                    "name": n.name,
+                    "status": n.end.status(),
+                    "in": n.msgs_in,
+                    "out": n.msgs_out,
+                    "drops": n.drops,
+                    "duplicates": n.duplicates,
+                    "missed": n.missed(),
+                    "missed_ranges": n.missed_ranges,
+                    "cpu_s": n.cpu.as_secs_f64(),
+                    "restarts": n.restarts,
+                })
+            })
+            .collect();
+        serde_json::json!({
+            "run": self.run_id,
+            "graph": graph.display().to_string(),
+            "ok": self.ok,
+            "error": self.error,
+            "wall_s": self.wall.as_secs_f64(),
+            "nodes": nodes,
+        })
     }
 }
 

@@ -176,6 +176,24 @@ fn process_streams_a_folder_with_progress_and_keeps_every_nodes_log_in_its_out_f
     assert!(std::fs::read_to_string(out.join("logs/capture.log"))
         .unwrap()
         .contains("5 frames published"));
+    // --json: the summary on stdout as one object, the same as summary.json and the table.
+    let j = sb.run(&[
+        "process",
+        folder.to_str().unwrap(),
+        "--graph",
+        graph.to_str().unwrap(),
+        "-q",
+        "--json",
+    ]);
+    assert!(j.status.success());
+    let json: serde_json::Value = serde_json::from_slice(&j.stdout).unwrap();
+    let kept: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
+    assert_eq!(json, kept);
+    assert_eq!(json["ok"], true);
+    assert_eq!(json["run"].as_str().unwrap(), run_id(&out));
+    let capture = json["nodes"].as_array().unwrap().iter().find(|n| n["name"] == "capture").unwrap();
+    assert_eq!(capture["status"], "ok");
+    assert_eq!(capture["out"].as_u64().unwrap().to_string(), summary_row(&out, "capture")[3]);
     assert_nothing_left(&sb, &out);
 }
 
