@@ -11,7 +11,7 @@ mod synth;
 use std::path::PathBuf;
 use std::process::ExitCode;
 
-use clap::{Parser, Subcommand};
+use clap::{CommandFactory, Parser, Subcommand};
 
 #[derive(Parser)]
 #[command(
@@ -207,6 +207,17 @@ enum Cmd {
         #[arg(long, default_value_t = 30)]
         wait: u64,
     },
+    /// Shell completions on stdout, e.g. `lineflow completions bash > ~/.local/share/bash-completion/completions/lineflow`.
+    Completions {
+        /// bash, zsh, fish, elvish or powershell.
+        shell: clap_complete::Shell,
+    },
+    /// Man pages: lineflow.1 and one per command (lineflow-run.1, ...), written into a folder.
+    Man {
+        /// Folder for the pages (created).
+        #[arg(long, default_value = "man")]
+        out: PathBuf,
+    },
     /// Check shared memory and leftovers of crashed runs; --fix removes them.
     Doctor {
         /// Remove stale runs' shared memory and folders.
@@ -352,6 +363,11 @@ fn main() -> ExitCode {
         Cmd::Export { recording, topic, out } => recordings::export(&recording, &topic, &out),
         Cmd::Recover { recording, out } => recordings::recover(&recording, &out),
         Cmd::Doctor { fix } => doctor::doctor(fix),
+        Cmd::Completions { shell } => {
+            clap_complete::generate(shell, &mut Cli::command(), "lineflow", &mut std::io::stdout());
+            Ok(ExitCode::SUCCESS)
+        }
+        Cmd::Man { out } => man_pages(&out),
         Cmd::Ps { json } => ps::ps(json),
         Cmd::Stop { run, wait } => ps::stop(&run, std::time::Duration::from_secs(wait)),
         Cmd::Synth {
@@ -442,5 +458,22 @@ fn eval(results: &std::path::Path, gt: &std::path::Path, out: Option<PathBuf>, j
         );
     }
     println!("report: {}", report.display());
+    Ok(ExitCode::SUCCESS)
+}
+
+/// `lineflow man`: one page for the tool and one for each command.
+fn man_pages(out: &std::path::Path) -> anyhow::Result<ExitCode> {
+    use anyhow::Context as _;
+    std::fs::create_dir_all(out).with_context(|| format!("cannot create {}", out.display()))?;
+    clap_mangen::generate_to(Cli::command(), out).with_context(|| format!("cannot write the man pages into {}", out.display()))?;
+    let pages = std::fs::read_dir(out)?
+        .flatten()
+        .filter(|e| e.path().extension().is_some_and(|x| x == "1"))
+        .count();
+    eprintln!(
+        "{pages} man pages in {} (read one with `man -l {}/lineflow.1`)",
+        out.display(),
+        out.display()
+    );
     Ok(ExitCode::SUCCESS)
 }

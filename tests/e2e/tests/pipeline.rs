@@ -1105,3 +1105,20 @@ fn the_linemap_graph_maps_3d_lines_from_every_image_the_same_way_twice() {
     }
     assert_eq!(lines[0], lines[1], "two runs of the linemap graph differ");
 }
+
+#[test]
+fn completions_and_man_pages_cover_every_command() {
+    let sb = Sandbox::new();
+    let r = sb.run(&["completions", "bash"]);
+    assert!(r.status.success());
+    let script = String::from_utf8_lossy(&r.stdout);
+    for command in ["run", "process", "replay", "echo", "logs", "ps", "stop", "eval"] {
+        assert!(script.contains(command), "bash completion lacks '{command}'");
+    }
+    assert!(!sb.run(&["completions", "tcsh"]).status.success(), "an unknown shell is refused");
+    let man = sb.path().join("man");
+    assert!(sb.run(&["man", "--out", man.to_str().unwrap()]).status.success());
+    let page = std::fs::read_to_string(man.join("lineflow-run.1")).unwrap();
+    assert!(page.contains(r"\-\-json") && page.contains(".TH lineflow-run"), "{page}");
+    assert!(man.join("lineflow.1").is_file() && man.join("lineflow-bench-linemap.1").is_file());
+}
