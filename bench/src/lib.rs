@@ -4,6 +4,7 @@ mod buildings;
 mod bundle;
 mod edges;
 mod features;
+pub mod fuzz;
 mod linemap;
 mod linematch;
 mod lines2d;
@@ -227,6 +228,15 @@ pub enum BenchCmd {
         #[arg(long)]
         set: Vec<String>,
     },
+    /// Every parser a user's file reaches, fed mutated copies of valid files: executions, panics, slowest call.
+    Fuzz {
+        /// Mutated inputs per parser.
+        #[arg(long, default_value_t = 100_000)]
+        executions: u64,
+        /// Seed of the mutations (the same seed finds the same inputs).
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+    },
     /// The recorder node: MB/s of raw 12 MP RGB frames written with nothing dropped, against the disk.
     Record {
         /// Frames.
@@ -301,6 +311,7 @@ pub fn bench(cmd: BenchCmd) -> Result<ExitCode> {
             set,
         } => linemap::bench_linemap(&run, &building, scale, seed, truth_poses, funnel, &set),
         BenchCmd::Bundle { cameras, points } => bundle::bench_bundle(cameras, points),
+        BenchCmd::Fuzz { executions, seed } => fuzz::bench_fuzz(executions, seed),
         BenchCmd::Buildings {
             preset,
             scale,

@@ -105,9 +105,10 @@ impl Recording {
         }
         let finished = bytes.len() >= 2 * MAGIC.len() && &bytes[bytes.len() - MAGIC.len()..] == MAGIC;
         let (summary, damage) = if finished {
-            match mcap::Summary::read(&bytes) {
-                Ok(s) => (s, None),
-                Err(e) => (None, Some(format!("the summary section is corrupt ({e})"))),
+            match std::panic::catch_unwind(|| mcap::Summary::read(&bytes)) {
+                Ok(Ok(s)) => (s, None),
+                Ok(Err(e)) => (None, Some(format!("the summary section is corrupt ({e})"))),
+                Err(_) => (None, Some("the summary section is corrupt".to_owned())),
             }
         } else {
             (
@@ -237,11 +238,44 @@ impl Recording {
 }
 
 // Lenient about a missing end (unfinished files), strict about chunk checksums (corrupt files).
-fn message_stream(bytes: &[u8]) -> mcap::McapResult<mcap::MessageStream<'_>> {
-    mcap::MessageStream::new_with_options(bytes, mcap::read::Options::IgnoreEndMagic | mcap::read::Options::ValidateChunkCrcs)
+fn message_stream(bytes: &[u8]) -> mcap::McapResult<Guarded<mcap::MessageStream<'_>>> {
+    mcap::MessageStream::new_with_options(bytes, mcap::read::Options::IgnoreEndMagic | mcap::read::Options::ValidateChunkCrcs).map(Guarded)
 }
-fn record_stream(bytes: &[u8]) -> mcap::McapResult<mcap::read::LinearReader<'_>> {
-    mcap::read::LinearReader::new_with_options(bytes, mcap::read::Options::IgnoreEndMagic.into())
+fn record_stream(bytes: &[u8]) -> mcap::McapResult<Guarded<mcap::read::LinearReader<'_>>> {
+    mcap::read::LinearReader::new_with_options(bytes, mcap::read::Options::IgnoreEndMagic.into()).map(Guarded)
+}
+
+/// Why a record could not be read.
+#[derive(Debug)]
+enum ReadError {
+    /// The mcap crate's own verdict.
+    Mcap(mcap::McapError),
+    /// The mcap crate panicked: 0.26 subtracts a record's length from what is left of its chunk unchecked, so a
+    /// damaged length panics in a build with overflow checks (found by `lineflow bench fuzz`).
+    Panicked,
+}
+
+impl std::fmt::Display for ReadError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            ReadError::Mcap(e) => e.fmt(f),
+            ReadError::Panicked => f.write_str("a damaged record stopped the MCAP reader"),
+        }
+    }
+}
+
+/// An iterator of the mcap crate whose panics on damaged input become a last error.
+struct Guarded<I>(I);
+
+impl<T, I: Iterator<Item = mcap::McapResult<T>>> Iterator for Guarded<I> {
+    type Item = Result<T, ReadError>;
+
+    fn next(&mut self) -> Option<Self::Item> {
+        match std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| self.0.next())) {
+            Ok(item) => item.map(|r| r.map_err(ReadError::Mcap)),
+            Err(_) => Some(Err(ReadError::Panicked)),
+        }
+    }
 }
 
 fn channel_info(c: &mcap::Channel<'_>) -> ChannelInfo {
