@@ -38,6 +38,18 @@ pub enum DecodeError {
         /// The cause.
         source: image::ImageError,
     },
+    /// The header claims more pixels than any camera makes (a damaged or hostile file).
+    #[error("{}: the header claims {width} x {height} pixels ({bytes} bytes decoded), more than the {MAX_DECODED_BYTES} bytes lineflow decodes: a damaged file?", path.display())]
+    TooLarge {
+        /// The file.
+        path: PathBuf,
+        /// Width the header claims.
+        width: u32,
+        /// Height the header claims.
+        height: u32,
+        /// Bytes the decoded pixels would take.
+        bytes: u64,
+    },
     /// The pixels cannot be decoded.
     #[error("{}: corrupt or truncated image: {source}", path.display())]
     Corrupt {
@@ -47,6 +59,11 @@ pub enum DecodeError {
         source: image::ImageError,
     },
 }
+
+/// Most bytes an image's decoded pixels may take: 1 GiB, a 170 MP 16-bit RGB frame. image 0.25 checks its
+/// allocation limit against a TIFF's intermediate buffers but not against the pixels themselves, so a damaged
+/// header asked for 79 GB and aborted the process (found by `lineflow bench fuzz`).
+pub const MAX_DECODED_BYTES: u64 = 1 << 30;
 
 /// Decodes `path`, applying its EXIF orientation. Alpha is dropped; grey stays grey.
 ///
@@ -68,6 +85,15 @@ pub fn decode_file(path: &Path) -> Result<DecodedImage, DecodeError> {
         path: path.to_owned(),
         source,
     })?;
+    if decoder.total_bytes() > MAX_DECODED_BYTES {
+        let (width, height) = decoder.dimensions();
+        return Err(DecodeError::TooLarge {
+            path: path.to_owned(),
+            width,
+            height,
+            bytes: decoder.total_bytes(),
+        });
+    }
     let orientation = decoder.orientation().unwrap_or(image::metadata::Orientation::NoTransforms);
     let mut img = DynamicImage::from_decoder(decoder).map_err(|source| DecodeError::Corrupt {
         path: path.to_owned(),
@@ -120,6 +146,15 @@ pub fn looks_complete(bytes: &[u8]) -> bool {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_header_claiming_gigabytes_is_refused_before_decoding() {
+        // The TIFF `lineflow bench fuzz` made: its header claims 79 GB of pixels; decoding it aborted the process.
+        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/huge-header.tif");
+        let e = decode_file(&path).unwrap_err();
+        assert!(matches!(e, DecodeError::TooLarge { .. }), "{e}");
+        assert!(e.to_string().contains("huge-header.tif"), "{e}");
+    }
 
     #[test]
     fn exif_orientation_is_applied() {
