@@ -137,6 +137,9 @@ fn print_funnel(camera: &lineflow_photogrammetry::Camera, views: &[View], guide:
     let truth_segs: Vec<Seg> = truth.lines.iter().map(|r| Seg::new(r.start, r.end)).collect();
     let poses: Vec<lineflow_photogrammetry::Pose> = truth.poses.iter().map(|p| p.pose).collect();
     let resolved = lineflow_eval::resolvable::resolvable(camera, &poses, &truth_segs);
+    let partners: Vec<Vec<usize>> = (0..views.len())
+        .map(|i| lineflow_linemap::views::partners(views, i, p.max_partners))
+        .collect();
     let names = ["horizontal", "vertical", "oblique", "depth"];
     let mut counts = [[0usize; 7]; 4];
     for (r, &resolved) in truth.lines.iter().zip(&resolved).filter(|(r, _)| (r.end - r.start).norm() >= 0.5) {
@@ -170,10 +173,7 @@ fn print_funnel(camera: &lineflow_photogrammetry::Camera, views: &[View], guide:
         counts[c][2] += proposed as usize;
         let bests: Vec<_> = seen
             .iter()
-            .filter_map(|&(i, s)| {
-                let partners = lineflow_linemap::views::partners(views, i, p.max_partners);
-                lineflow_linemap::best_hypothesis(camera, views, (i, s), &partners, guide, p)
-            })
+            .filter_map(|&(i, s)| lineflow_linemap::best_hypothesis(camera, views, (i, s), &partners[i], guide, p))
             .filter(|b| near(&g, &b.hypothesis.ends[0], &b.hypothesis.ends[1]))
             .collect();
         counts[c][3] += !bests.is_empty() as usize;

@@ -77,7 +77,6 @@ pub fn summary(eval: &Evaluation) -> Value {
         })
     });
     json!({
-        "gsd_m": eval.lines3d.as_ref().map(|l| l.gsd_m),
         "orientation": orientation,
         "lines2d": lines2d,
         "lines3d": lines3d,

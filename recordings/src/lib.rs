@@ -239,10 +239,11 @@ impl Recording {
 
 // Lenient about a missing end (unfinished files), strict about chunk checksums (corrupt files).
 fn message_stream(bytes: &[u8]) -> mcap::McapResult<Guarded<mcap::MessageStream<'_>>> {
-    mcap::MessageStream::new_with_options(bytes, mcap::read::Options::IgnoreEndMagic | mcap::read::Options::ValidateChunkCrcs).map(Guarded)
+    mcap::MessageStream::new_with_options(bytes, mcap::read::Options::IgnoreEndMagic | mcap::read::Options::ValidateChunkCrcs)
+        .map(|r| Guarded(Some(r)))
 }
 fn record_stream(bytes: &[u8]) -> mcap::McapResult<Guarded<mcap::read::LinearReader<'_>>> {
-    mcap::read::LinearReader::new_with_options(bytes, mcap::read::Options::IgnoreEndMagic.into()).map(Guarded)
+    mcap::read::LinearReader::new_with_options(bytes, mcap::read::Options::IgnoreEndMagic.into()).map(|r| Guarded(Some(r)))
 }
 
 /// Why a record could not be read.
@@ -264,16 +265,21 @@ impl std::fmt::Display for ReadError {
     }
 }
 
-/// An iterator of the mcap crate whose panics on damaged input become a last error.
-struct Guarded<I>(I);
+/// An iterator of the mcap crate whose panic on damaged input becomes its last item, an error: a reader that
+/// panicked is in no state to be asked again.
+struct Guarded<I>(Option<I>);
 
 impl<T, I: Iterator<Item = mcap::McapResult<T>>> Iterator for Guarded<I> {
     type Item = Result<T, ReadError>;
 
     fn next(&mut self) -> Option<Self::Item> {
-        match std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| self.0.next())) {
+        let inner = self.0.as_mut()?;
+        match std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| inner.next())) {
             Ok(item) => item.map(|r| r.map_err(ReadError::Mcap)),
-            Err(_) => Some(Err(ReadError::Panicked)),
+            Err(_) => {
+                self.0 = None;
+                Some(Err(ReadError::Panicked))
+            }
         }
     }
 }

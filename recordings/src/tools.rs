@@ -132,7 +132,7 @@ pub fn summarize(rec: &Recording) -> Summary {
         run,
         duration_s: if t1 > t0 { (t1 - t0) as f64 * 1e-9 } else { 0.0 },
         messages: topics.iter().map(|t| t.messages).sum(),
-        complete: rec.damage.is_none() && read.is_ok() && rec.metadata.contains_key(META_END) && rec.is_complete(),
+        complete: rec.damage.is_none() && read.is_ok() && rec.is_complete(),
         status: completeness(rec, read_error),
         topics,
         drops,
