@@ -115,7 +115,7 @@ fn rendered_photo(scene: &Synthetic, f: usize) -> Option<Arc<Photo>> {
 /// a hypothesis within 2 GSD and 2° by some pair (before any snapping), given one as its segments' best
 /// hypothesis, and found among the lines; and how many of them the images resolve from their parallel neighbours
 /// (`lineflow_eval::resolvable`: one image edge where the truth has two recovers at most one), and how many of
-/// those are found.
+/// those are found; then how far the images' segments along those edges lie from them.
 fn print_funnel(camera: &lineflow_photogrammetry::Camera, views: &[View], guide: &Guide, truth: &Truth, lines: &[Line3Row], p: &MapParams) {
     use lineflow_eval::geometry::{class_on_walls, Class, Seg, WallPlane};
     use lineflow_linemap::hypotheses::pair_hypotheses;
@@ -142,6 +142,7 @@ fn print_funnel(camera: &lineflow_photogrammetry::Camera, views: &[View], guide:
         .collect();
     let names = ["horizontal", "vertical", "oblique", "depth"];
     let mut counts = [[0usize; 7]; 4];
+    let mut offsets: [Vec<f64>; 4] = Default::default();
     for (r, &resolved) in truth.lines.iter().zip(&resolved).filter(|(r, _)| (r.end - r.start).norm() >= 0.5) {
         let g = Seg::new(r.start, r.end);
         let found = lines.iter().any(|l| near(&g, &l.start, &l.end));
@@ -154,11 +155,13 @@ fn print_funnel(camera: &lineflow_photogrammetry::Camera, views: &[View], guide:
         counts[c][0] += 1;
         counts[c][5] += resolved as usize;
         counts[c][6] += (resolved && found) as usize;
-        let seen: Vec<(usize, usize)> = views
+        let matches: Vec<_> = views
             .iter()
             .enumerate()
-            .filter_map(|(k, v)| best_match(camera, (k, v), &[r.start, r.end], p).map(|m| (k, m.segment)))
+            .filter_map(|(k, v)| best_match(camera, (k, v), &[r.start, r.end], p))
             .collect();
+        offsets[c].extend(matches.iter().map(|m| m.distance_px));
+        let seen: Vec<(usize, usize)> = matches.iter().map(|m| (m.view, m.segment)).collect();
         if seen.len() < 2 {
             continue;
         }
@@ -188,5 +191,15 @@ fn print_funnel(camera: &lineflow_photogrammetry::Camera, views: &[View], guide:
             "| {name} | {} | {} | {} | {} | {} | {} | {} |",
             c[0], c[1], c[2], c[3], c[4], c[5], c[6]
         );
+    }
+    println!(
+        "\nHow far the 2-D segments lie from the true edges (each image's best segment along an edge, the larger \
+         distance of its two ends from the edge's projection with the poses used):\n"
+    );
+    println!("| class | segments | median (px) | 90th percentile (px) |\n|---|---|---|---|");
+    for (name, mut d) in names.iter().zip(offsets) {
+        d.sort_by(f64::total_cmp);
+        let at = |q: f64| d.get(((d.len() as f64 - 1.0) * q).round() as usize).copied().unwrap_or(f64::NAN);
+        println!("| {name} | {} | {:.3} | {:.3} |", d.len(), at(0.5), at(0.9));
     }
 }

@@ -15,6 +15,7 @@ pub mod guide;
 pub mod hypotheses;
 pub mod junctions;
 pub mod line;
+pub mod meeting;
 pub mod photo;
 pub mod stage;
 pub mod support;
@@ -115,6 +116,11 @@ pub struct MapParams {
     pub surface_search_m: f64,
     /// Fewest lines that make a wall's surface.
     pub min_surface_lines: usize,
+    /// A level line of a wall whose end meets a vertical line (within `corner_reach_px`, and within this many joint
+    /// σ in depth) takes that vertical's depth; 0 turns this off.
+    pub corner_k: f64,
+    /// How far a level line's end may lie from the vertical it meets, pixels of the nearest image.
+    pub corner_reach_px: f64,
 }
 
 impl Default for MapParams {
@@ -153,6 +159,8 @@ impl Default for MapParams {
             surface_k: 3.0,
             surface_search_m: 0.3,
             min_surface_lines: 10,
+            corner_k: 3.0,
+            corner_reach_px: 4.0,
         }
     }
 }
@@ -173,6 +181,14 @@ impl MapParams {
             k: self.surface_k,
             search_m: self.surface_search_m,
             min_lines: self.min_surface_lines,
+        }
+    }
+
+    /// The settings of the corner depths.
+    pub fn meeting(&self) -> meeting::MeetingParams {
+        meeting::MeetingParams {
+            k: self.corner_k,
+            reach_px: self.corner_reach_px,
         }
     }
 
@@ -220,6 +236,8 @@ impl lineflow_runtime::StageParams for MapParams {
         non_negative("surface_k", self.surface_k)?;
         non_negative("surface_search_m", self.surface_search_m)?;
         at_least("min_surface_lines", self.min_surface_lines, 1)?;
+        non_negative("corner_k", self.corner_k)?;
+        positive("corner_reach_px", self.corner_reach_px)?;
         check(self.remap_growth >= 1.0, "remap_growth", "at least 1", self.remap_growth)
     }
 }

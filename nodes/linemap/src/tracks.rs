@@ -13,6 +13,7 @@ use crate::guide::Guide;
 use crate::hypotheses::{pair_hypotheses, Hypothesis};
 use crate::junctions;
 use crate::line::MappedLine;
+use crate::meeting;
 use crate::support::{support, support_above};
 use crate::surfaces;
 use crate::views::{parameter_on_line, partners, View};
@@ -70,6 +71,8 @@ pub struct MapStats {
     pub verticals: usize,
     /// Lines moved onto their wall's surface.
     pub settled: usize,
+    /// Level lines that took the depth of a vertical they meet.
+    pub cornered: usize,
     /// Milliseconds spent on pairwise hypotheses, on the first pass's lines, on junction hypotheses and on the
     /// final lines.
     pub milliseconds: [u64; 4],
@@ -109,7 +112,7 @@ pub fn map_lines_with_stats(camera: &Camera, views: &[View], guide: &Guide, p: &
     let t_first = lap();
     if !p.junctions {
         let mut first = first;
-        stats.settled = surfaces::settle_on_walls(&mut first, guide, &p.surfaces());
+        (stats.settled, stats.cornered) = settle(camera, views, guide, &mut first, p);
         stats.milliseconds = [t_pairs, t_first, 0, 0];
         return (first, stats);
     }
@@ -154,10 +157,18 @@ pub fn map_lines_with_stats(camera: &Camera, views: &[View], guide: &Guide, p: &
         .collect();
     let t_junctions = lap();
     let (mut lines, mut stats) = build(camera, views, guide, best, p, true);
-    stats.settled = surfaces::settle_on_walls(&mut lines, guide, &p.surfaces());
+    (stats.settled, stats.cornered) = settle(camera, views, guide, &mut lines, p);
     stats.verticals = verticals.len();
     stats.milliseconds = [t_pairs, t_first, t_junctions, lap()];
     (lines, stats)
+}
+
+/// The lines whose depth their own segments leave open, moved onto their wall's surface and then onto the
+/// verticals they meet; how many moved in each step.
+fn settle(camera: &Camera, views: &[View], guide: &Guide, lines: &mut [MappedLine], p: &MapParams) -> (usize, usize) {
+    let settled = surfaces::settle_on_walls(lines, guide, &p.surfaces());
+    let pixel = |x: &Vec3| views.iter().map(|v| v.metres_per_px(camera, x)).fold(f64::INFINITY, f64::min);
+    (settled, meeting::settle_on_verticals(lines, guide, pixel, &p.meeting()))
 }
 
 /// Lines from the segments' best hypotheses, greedily from the best-supported down, each stretch checked in the
