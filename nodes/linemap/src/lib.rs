@@ -117,7 +117,8 @@ pub struct MapParams {
     /// Fewest lines that make a wall's surface.
     pub min_surface_lines: usize,
     /// A level line of a wall whose end meets a vertical line (within `corner_reach_px`, and within this many joint
-    /// σ in depth) takes that vertical's depth; 0 turns this off.
+    /// σ in depth) takes that vertical's depth; 0 (the default) turns this off: it gains at full size on the
+    /// tuning buildings and not on the held-out ones (`docs/lines3d.md`).
     pub corner_k: f64,
     /// How far a level line's end may lie from the vertical it meets, pixels of the nearest image.
     pub corner_reach_px: f64,
@@ -159,7 +160,7 @@ impl Default for MapParams {
             surface_k: 3.0,
             surface_search_m: 0.3,
             min_surface_lines: 10,
-            corner_k: 3.0,
+            corner_k: 0.0,
             corner_reach_px: 4.0,
         }
     }
