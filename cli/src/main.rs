@@ -144,6 +144,9 @@ enum Cmd {
         /// Output folder of a re-run [default: rerun/ beside the recording].
         #[arg(long)]
         out: Option<PathBuf>,
+        /// With --rerun: start the programs (non-stage executables) the recorded launch file names without asking.
+        #[arg(long)]
+        yes: bool,
         /// Speed relative to the recorded timing (2 = twice as fast).
         #[arg(long, conflicts_with = "max")]
         rate: Option<f64>,
@@ -341,6 +344,7 @@ fn main() -> ExitCode {
             graph,
             set,
             out,
+            yes,
             rate,
             max,
             repeat,
@@ -352,6 +356,7 @@ fn main() -> ExitCode {
             graph: graph.as_deref(),
             set: &set,
             out,
+            yes,
             // Playback for viewers keeps the recorded timing unless told otherwise; a re-run goes flat out.
             rate: if max { 0.0 } else { rate.unwrap_or(if rerun { 0.0 } else { 1.0 }) },
             repeat,

@@ -7,7 +7,7 @@ use anyhow::{bail, Context, Result};
 use lineflow_formats::{Line2Row, Line3Row, PoseRow};
 use lineflow_messages::schema::{decode, decode_view, read_elements, read_pod, Decoded};
 use lineflow_messages::{parts, EdgeMapHeader, Encoding, ImageHeader, Line3, Lines2DHeader, MessageKind, Pose, Segment2};
-use lineflow_recordings::replay::{playback_graph, rerun_graph, Pace};
+use lineflow_recordings::replay::{playback_graph, recorded_programs, rerun_graph, Pace};
 use lineflow_recordings::{tools, Recording};
 use lineflow_runtime::launch::Resolver;
 use lineflow_runtime::run::Verbosity;
@@ -24,6 +24,8 @@ pub struct ReplayArgs<'a> {
     pub set: &'a [String],
     /// Output folder of a re-run.
     pub out: Option<PathBuf>,
+    /// Start the programs the recorded launch file names without asking.
+    pub yes: bool,
     /// Speed; 0 = as fast as possible.
     pub rate: f64,
     /// Loop (playback only).
@@ -50,6 +52,10 @@ pub fn replay(a: ReplayArgs<'_>) -> Result<ExitCode> {
             bail!("--loop plays a recording for viewers; a --rerun runs the graph once");
         }
         let g = rerun_graph(&rec, a.graph, a.set, &resolver, pace)?;
+        let programs = recorded_programs(&g, a.graph, a.set);
+        if !programs.is_empty() && !a.yes {
+            confirm_programs(&rec, &programs)?;
+        }
         let out = a.out.unwrap_or_else(|| rec.path.parent().unwrap_or(Path::new(".")).join("rerun"));
         eprintln!("re-running graph '{}' on {} -> {}", g.name, rec.path.display(), out.display());
         return lineflow_runtime::run::run_graph(&g, &out, None, a.verbosity);
@@ -65,6 +71,31 @@ pub fn replay(a: ReplayArgs<'_>) -> Result<ExitCode> {
         rec.path.display()
     );
     lineflow_runtime::run::run_graph(&g, &out, None, a.verbosity)
+}
+
+/// Shows the programs a recording's launch file would start and asks before starting them; without a terminal to
+/// ask on, refuses.
+fn confirm_programs(rec: &Recording, programs: &[(String, String)]) -> Result<()> {
+    use std::io::{BufRead, IsTerminal, Write};
+    let list: Vec<String> = programs.iter().map(|(n, c)| format!("  {n}: {c}")).collect();
+    let list = list.join("\n");
+    if !std::io::stdin().is_terminal() {
+        bail!(
+            "{}: the recorded launch file starts programs that are not lineflow stages:\n{list}\nnothing was started; \
+             pass --yes to run them, or --graph with a launch file of your own",
+            rec.path.display()
+        );
+    }
+    eprintln!("The launch file stored in {}:\n", rec.path.display());
+    eprintln!("{}\n", rec.run_meta("launch_text").unwrap_or_default());
+    eprint!("It starts programs that are not lineflow stages:\n{list}\nStart them? [y/N] ");
+    std::io::stderr().flush()?;
+    let mut answer = String::new();
+    std::io::stdin().lock().read_line(&mut answer)?;
+    if !matches!(answer.trim(), "y" | "Y" | "yes") {
+        bail!("not started");
+    }
+    Ok(())
 }
 
 /// `lineflow info`.

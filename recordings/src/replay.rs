@@ -107,6 +107,21 @@ pub fn playback_graph(rec: &Recording, topics: &[String], resolver: &Resolver, p
     })
 }
 
+/// The programs a re-run would start that are not lineflow's own stages and that the recording, not the user,
+/// names: with no `graph` given, the nodes of `g` with an `executable` that `set` does not replace, as (node,
+/// command line). A recording from someone else may name any program there.
+pub fn recorded_programs(g: &Graph, graph: Option<&Path>, set: &[String]) -> Vec<(String, String)> {
+    if graph.is_some() {
+        return Vec::new();
+    }
+    g.nodes
+        .iter()
+        .filter(|n| n.stage.is_none())
+        .filter(|n| !set.iter().any(|s| s.starts_with(&format!("{}.executable=", n.name))))
+        .map(|n| (n.name.clone(), n.command.join(" ")))
+        .collect()
+}
+
 /// A launch graph with its sources (nodes without inputs: capture) replaced by the player of `rec`. The graph is
 /// `graph` when given, else the launch file stored in the recording; `set` overrides parameters as in `run`.
 ///

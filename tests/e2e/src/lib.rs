@@ -114,6 +114,46 @@ pub fn children_of(pid: u32, comm_prefix: &str) -> Vec<u32> {
 }
 
 /// A file of the repository.
+/// A launch file `name` in the sandbox: the images of `folder` into a node run from `script` (an executable, not a
+/// stage: e.g. the Python Sobel node) on the `edges` port, and `stats` on both.
+pub fn executable_edges_graph(sb: &Sandbox, name: &str, folder: &Path, script: &Path) -> PathBuf {
+    sb.graph(
+        name,
+        &format!(
+            r#"
+[[node]]
+name = "capture"
+stage = "capture"
+impl = "folder"
+params = {{ folder = "{}" }}
+
+[[node]]
+name = "edges"
+executable = "{}"
+params = {{ threshold = 100.0 }}
+
+[[node]]
+name = "stats"
+stage = "stats"
+
+[[edge]]
+topic = "images"
+type = "Image"
+from = "capture"
+to = ["edges", "stats"]
+
+[[edge]]
+topic = "edges"
+type = "EdgeMap"
+from = "edges"
+to = ["stats"]
+"#,
+            folder.display(),
+            script.display()
+        ),
+    )
+}
+
 pub fn repo_file(rel: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../..").join(rel)
 }

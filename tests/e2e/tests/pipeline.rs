@@ -696,41 +696,7 @@ fn an_input_whose_publisher_leaves_without_end_of_stream_is_ended_and_the_run_fi
     let forgetful = sb.path().join("forgetful_sobel.py");
     std::fs::write(&forgetful, script.replace(eos, "")).unwrap();
     std::fs::set_permissions(&forgetful, std::os::unix::fs::PermissionsExt::from_mode(0o755)).unwrap();
-    let graph = sb.graph(
-        "g.toml",
-        &format!(
-            r#"
-[[node]]
-name = "capture"
-stage = "capture"
-impl = "folder"
-params = {{ folder = "{}" }}
-
-[[node]]
-name = "edges"
-executable = "{}"
-params = {{ threshold = 100.0 }}
-
-[[node]]
-name = "stats"
-stage = "stats"
-
-[[edge]]
-topic = "images"
-type = "Image"
-from = "capture"
-to = ["edges", "stats"]
-
-[[edge]]
-topic = "edges"
-type = "EdgeMap"
-from = "edges"
-to = ["stats"]
-"#,
-            folder.display(),
-            forgetful.display()
-        ),
-    );
+    let graph = executable_edges_graph(&sb, "g.toml", &folder, &forgetful);
     let out = sb.path().join("out");
     // Without the rule the run would wait forever: bounded here so that the test fails instead of hanging.
     // The log goes to a file: a pipe nobody reads while we wait could fill up and stall the run.

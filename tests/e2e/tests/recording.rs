@@ -357,6 +357,52 @@ fn a_recording_plays_back_for_viewers_until_ctrl_c() {
 }
 
 #[test]
+fn a_recorded_launch_file_that_starts_programs_is_not_rerun_without_consent() {
+    let sb = Sandbox::new();
+    let folder = sb.project(4, 48, 32);
+    let graph = executable_edges_graph(&sb, "g.toml", &folder, &repo_file("nodes/python/sobel_node.py"));
+    let live = sb.path().join("live");
+    let r = sb.run(&["run", graph.to_str().unwrap(), "--out", live.to_str().unwrap()]);
+    assert!(r.status.success(), "the Python node's run failed");
+    let rec = live.join("recording.mcap");
+    // A recording from someone else can name any program in its launch file. Without a terminal to ask on, the
+    // re-run refuses, names the program and starts nothing.
+    let refused = sb.path().join("refused");
+    let r = sb.run(&["replay", rec.to_str().unwrap(), "--rerun", "--out", refused.to_str().unwrap()]);
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert!(!r.status.success(), "{err}");
+    assert!(err.contains("sobel_node.py") && err.contains("--yes"), "{err}");
+    assert!(!refused.join("recording.mcap").exists(), "nothing was started");
+    // With consent it runs; a launch file of the user's own (--graph) needs none.
+    let again = sb.path().join("again");
+    let r = sb.run(&[
+        "replay",
+        rec.to_str().unwrap(),
+        "--rerun",
+        "--yes",
+        "--out",
+        again.to_str().unwrap(),
+    ]);
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    let own = sb.path().join("own");
+    let args = [
+        "replay",
+        rec.to_str().unwrap(),
+        "--rerun",
+        "--graph",
+        graph.to_str().unwrap(),
+        "--out",
+        own.to_str().unwrap(),
+    ];
+    assert!(sb.run(&args).status.success());
+    assert_eq!(
+        std::fs::read(again.join("edges.csv")).ok(),
+        std::fs::read(own.join("edges.csv")).ok(),
+        "the same graph on the same frames"
+    );
+}
+
+#[test]
 fn the_python_sobel_node_swaps_in_on_replay_and_matches_the_rust_sobel() {
     let sb = Sandbox::new();
     let rec = record_demo(&sb, &sb.path().join("live"), &[]);
