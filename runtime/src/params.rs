@@ -40,6 +40,21 @@ pub fn check(ok: bool, name: &str, requirement: &str, value: impl Display) -> Re
     }
 }
 
+/// A file's name in the run's output folder: not empty and without a folder, so that no launch file (`..`, an
+/// absolute path) can have a node write outside the run's output folder.
+///
+/// # Errors
+/// When `value` is empty, `.` or `..`, or holds a path separator.
+pub fn file_name(name: &str, value: &str) -> Result<(), ParamError> {
+    let plain = !value.is_empty() && !value.contains(['/', '\\']) && value != "." && value != "..";
+    check(
+        plain,
+        name,
+        "a file name without a folder (files go into the run's output folder)",
+        value,
+    )
+}
+
 /// A finite number above zero.
 ///
 /// # Errors

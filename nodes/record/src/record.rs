@@ -18,7 +18,7 @@ use lineflow_runtime::{Flow, Input, NodeContext, RunEnd};
 #[derive(serde::Deserialize)]
 #[serde(deny_unknown_fields)]
 struct Params {
-    /// Recording file, relative to the run's output folder.
+    /// Recording file's name in the run's output folder (no folder: nothing is written outside it).
     #[serde(default = "default_file")]
     file: String,
     /// Chunk compression: none, lz4, zstd.
@@ -111,6 +111,7 @@ fn update_ended(topics: &mut [Topic], status: Option<&mut lineflow_runtime::Stat
 fn body() -> Result<()> {
     let ctx = NodeContext::from_env()?;
     let p: Params = ctx.params()?;
+    lineflow_runtime::params::file_name("file", &p.file)?;
     let graph = ctx.graph().clone();
     let mut topics = Vec::new();
     for e in graph.edges.iter().filter(|e| e.to.iter().any(|t| t == ctx.name())) {

@@ -39,8 +39,7 @@ impl Default for StatsParams {
 
 impl lineflow_runtime::StageParams for StatsParams {
     fn validate(&self) -> Result<(), lineflow_runtime::ParamError> {
-        let plain = !self.file.is_empty() && !self.file.contains(['/', '\\']);
-        lineflow_runtime::params::check(plain, "file", "a file name without a folder", &self.file)
+        lineflow_runtime::params::file_name("file", &self.file)
     }
 }
 

@@ -274,20 +274,34 @@ fn foreign_truncated_and_unwritable_recordings_get_clear_errors() {
     assert!(String::from_utf8_lossy(&r.stderr).contains("the recording was not finished"));
     let r = sb.run(&["export", rec.to_str().unwrap(), "--topic", "nope", "--out", "x"]);
     assert!(String::from_utf8_lossy(&r.stderr).contains("no topic 'nope' (topics: "));
-    // A disk that is full from the start: the run stops before any frame flows, naming the file and the cause.
-    let r = sb.run(&[
-        "run",
-        demo().to_str().unwrap(),
-        "--set",
-        SCALE,
-        "--set",
-        "record.file=\"/dev/full\"",
-        "--out",
-        sb.path().join("full").to_str().unwrap(),
-    ]);
+    // A disk that is full from the start (the recording's name linked to /dev/full): the run stops before any
+    // frame flows, naming the file and the cause.
+    let full = sb.path().join("full");
+    std::fs::create_dir_all(&full).unwrap();
+    std::os::unix::fs::symlink("/dev/full", full.join("full.mcap")).unwrap();
+    let run_with = |set: &str, out: &Path| {
+        sb.run(&[
+            "run",
+            demo().to_str().unwrap(),
+            "--set",
+            SCALE,
+            "--set",
+            set,
+            "--out",
+            out.to_str().unwrap(),
+        ])
+    };
+    let r = run_with("record.file=\"full.mcap\"", &full);
     assert!(!r.status.success());
     let err = String::from_utf8_lossy(&r.stderr);
-    assert!(err.contains("/dev/full") && err.contains("No space left on device"), "{err}");
+    assert!(err.contains("full.mcap") && err.contains("No space left on device"), "{err}");
+    // A launch file cannot have the recorder write outside the run's output folder.
+    for outside in ["../outside.mcap", "/tmp/outside.mcap"] {
+        let r = run_with(&format!("record.file=\"{outside}\""), &sb.path().join("confined"));
+        let err = String::from_utf8_lossy(&r.stderr);
+        assert!(!r.status.success() && err.contains("a file name without a folder"), "{err}");
+    }
+    assert!(!sb.path().join("outside.mcap").exists());
 }
 
 #[test]
