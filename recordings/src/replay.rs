@@ -103,6 +103,7 @@ pub fn playback_graph(rec: &Recording, topics: &[String], resolver: &Resolver, p
         text: String::new(),
         nodes: vec![node],
         edges,
+        connect_timeout_s: None,
         replaced: Vec::new(),
     })
 }

@@ -94,6 +94,8 @@ struct GraphMeta {
     description: Option<String>,
     /// camera.toml whose size sets the default payload of image topics.
     camera: Option<String>,
+    /// Seconds every node has to connect its ports before the run ends with an error naming those that did not.
+    connect_timeout_s: Option<f64>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -226,6 +228,9 @@ pub struct Graph {
     pub nodes: Vec<NodeSpec>,
     /// Edges in file order.
     pub edges: Vec<EdgeSpec>,
+    /// Seconds every node has to connect its ports (`[graph] connect_timeout_s`; 60 when not given).
+    #[serde(default)]
+    pub connect_timeout_s: Option<f64>,
     /// Nodes of the launch file that a replay's player stands in for (`lineflow replay --rerun`); stages that need
     /// a source's parameters (eval regenerating the synthetic scene) find them here.
     #[serde(default)]
@@ -336,6 +341,12 @@ pub fn parse(path: &Path, text: &str, overrides: &[String], resolver: &Resolver)
         Some(toml::Value::Boolean(b)) => b,
         Some(v) => return Err(invalid(("[record]".into(), format!("`enabled` must be true or false, got {v}")))),
     };
+    if let Some(t) = file.graph.connect_timeout_s.filter(|t| !(t.is_finite() && *t > 0.0 && *t < 1e9)) {
+        return Err(invalid((
+            "[graph]".into(),
+            format!("`connect_timeout_s` must be a positive number of seconds, got {t}"),
+        )));
+    }
     let camera_bytes = default_image_bytes(&file, &base);
     let mut edges: Vec<EdgeSpec> = Vec::new();
     let mut topics = BTreeSet::new();
@@ -370,6 +381,7 @@ pub fn parse(path: &Path, text: &str, overrides: &[String], resolver: &Resolver)
         description: file.graph.description.clone().unwrap_or_default(),
         source: path.to_owned(),
         text: text.to_owned(),
+        connect_timeout_s: file.graph.connect_timeout_s,
         nodes,
         edges,
         replaced: Vec::new(),

@@ -181,15 +181,23 @@ impl Outcome {
 pub fn describe_all(graph: &Graph, graph_file: &std::path::Path) -> Result<BTreeMap<String, Ports>> {
     let mut out = BTreeMap::new();
     for node in &graph.nodes {
-        let output = Command::new(&node.command[0])
+        let child = Command::new(&node.command[0])
             .args(&node.command[1..])
             .env(env::DESCRIBE, "1")
             .env(env::GRAPH, graph_file)
             .env(env::NODE, &node.name)
             .env("LINEFLOW_LOG", "error")
             .stdin(Stdio::null())
-            .output()
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
             .with_context(|| format!("node '{}': cannot start {}", node.name, node.command[0]))?;
+        let output = output_within(child, connect_timeout(graph, None)).with_context(|| {
+            format!(
+                "node '{}': {} did not describe its ports (`--describe`, docs/nodes.md)",
+                node.name, node.command[0]
+            )
+        })?;
         let stderr = String::from_utf8_lossy(&output.stderr);
         if !output.status.success() {
             let why = stderr
@@ -213,6 +221,47 @@ pub fn describe_all(graph: &Graph, graph_file: &std::path::Path) -> Result<BTree
         out.insert(node.name.clone(), ports);
     }
     Ok(out)
+}
+
+/// How long nodes have to describe themselves and to connect: the run's option, else the launch file's
+/// `connect_timeout_s`, else 60 s.
+fn connect_timeout(graph: &Graph, option: Option<Duration>) -> Duration {
+    let from_graph = graph.connect_timeout_s.and_then(|s| Duration::try_from_secs_f64(s).ok());
+    option.or(from_graph).unwrap_or(Duration::from_secs(60))
+}
+
+/// The child's exit status and output, or an error once `timeout` has passed (the child is killed then). Its
+/// output is read beside it, so a chatty child cannot stall on a full pipe.
+fn output_within(mut child: std::process::Child, timeout: Duration) -> Result<std::process::Output> {
+    use std::io::Read;
+    let drain = |pipe: Option<Box<dyn Read + Send>>| {
+        std::thread::spawn(move || {
+            let mut buf = Vec::new();
+            if let Some(mut p) = pipe {
+                let _ = p.read_to_end(&mut buf);
+            }
+            buf
+        })
+    };
+    let stdout = drain(child.stdout.take().map(|p| Box::new(p) as Box<dyn Read + Send>));
+    let stderr = drain(child.stderr.take().map(|p| Box::new(p) as Box<dyn Read + Send>));
+    let deadline = Instant::now() + timeout;
+    let status = loop {
+        if let Some(status) = child.try_wait()? {
+            break status;
+        }
+        if Instant::now() > deadline {
+            let _ = child.kill();
+            let _ = child.wait();
+            bail!("no answer after {timeout:?}");
+        }
+        std::thread::sleep(Duration::from_millis(10));
+    };
+    Ok(std::process::Output {
+        status,
+        stdout: stdout.join().unwrap_or_default(),
+        stderr: stderr.join().unwrap_or_default(),
+    })
 }
 
 /// Checks that `/dev/shm` can hold the graph's worst case.
@@ -396,7 +445,7 @@ fn supervise(graph: &Graph, run: &RunRecord, ports: &BTreeMap<String, Ports>, op
     }
 
     // Readiness: every node announces itself once its ports are connected.
-    let connect_timeout = opts.connect_timeout.unwrap_or(Duration::from_secs(60));
+    let connect_timeout = connect_timeout(graph, opts.connect_timeout);
     let mut ready_set = BTreeSet::new();
     let ready_deadline = Instant::now() + connect_timeout;
     while error.is_none() && ready_set.len() < children.len() {

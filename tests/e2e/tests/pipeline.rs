@@ -735,6 +735,68 @@ fn an_input_whose_publisher_leaves_without_end_of_stream_is_ended_and_the_run_fi
 
 /// Poses from elsewhere (`poses.csv` in the project folder) replace the orientation stage: every frame gets the
 /// given pose, the 3-D stages run on them, and the check points are intersected from them.
+/// A node that never becomes ready, whether it hangs before describing its ports or after: the run ends after the
+/// launch file's `connect_timeout_s`, naming the node, and leaves no process behind; what the recorder has is a
+/// readable file.
+#[test]
+fn a_node_that_never_becomes_ready_ends_the_run_naming_it() {
+    let sb = Sandbox::new();
+    let folder = sb.project(3, 48, 32);
+    let ports = r#"{"inputs":[{"port":"images","message":"Image","required":true}],"outputs":[]}"#;
+    for (case, script) in [
+        ("mute", "#!/bin/sh\nexec sleep 6011\n".to_owned()),
+        (
+            "stuck",
+            format!("#!/bin/sh\nif [ \"$LINEFLOW_DESCRIBE\" = 1 ]; then echo '{ports}'; exit 0; fi\nexec sleep 6012\n"),
+        ),
+    ] {
+        let exe = sb.path().join(format!("{case}.sh"));
+        std::fs::write(&exe, script).unwrap();
+        std::fs::set_permissions(&exe, std::os::unix::fs::PermissionsExt::from_mode(0o755)).unwrap();
+        let graph = sb.graph(
+            &format!("{case}.toml"),
+            &format!(
+                "[graph]\nconnect_timeout_s = 3\n\n[[node]]\nname = \"capture\"\nstage = \"capture\"\nimpl = \"folder\"\n\
+                 params = {{ folder = \"{}\" }}\n\n[[node]]\nname = \"{case}\"\nexecutable = \"{}\"\n\n[[edge]]\n\
+                 topic = \"images\"\ntype = \"Image\"\nfrom = \"capture\"\nto = [\"{case}\"]\n",
+                folder.display(),
+                exe.display()
+            ),
+        );
+        let out = sb.path().join(case);
+        let start = Instant::now();
+        let r = sb.run(&["run", graph.to_str().unwrap(), "--out", out.to_str().unwrap()]);
+        let err = String::from_utf8_lossy(&r.stderr);
+        assert!(!r.status.success(), "{err}");
+        assert!(start.elapsed() < Duration::from_secs(60), "the timeout held: {:?}", start.elapsed());
+        let why = if case == "mute" {
+            "did not describe its ports"
+        } else {
+            "not connected after"
+        };
+        assert!(err.contains(case) && err.contains(why), "{err}");
+        let left = std::process::Command::new("pgrep").args(["-f", "sleep 601"]).output().unwrap();
+        assert!(
+            left.stdout.is_empty(),
+            "a node was left running: {}",
+            String::from_utf8_lossy(&left.stdout)
+        );
+        if case == "stuck" {
+            let info = sb.run(&["info", out.join("recording.mcap").to_str().unwrap()]);
+            assert!(info.status.code().is_some_and(|c| c == 0 || c == 2), "the recording opens");
+        }
+    }
+    let bad = sb.graph(
+        "bad.toml",
+        "[graph]\nconnect_timeout_s = -1\n[[node]]\nname = \"a\"\nstage = \"stats\"\n",
+    );
+    let err = String::from_utf8_lossy(&sb.run(&["run", bad.to_str().unwrap()]).stderr).into_owned();
+    assert!(
+        err.contains("connect_timeout_s") && err.contains("positive number of seconds"),
+        "{err}"
+    );
+}
+
 #[test]
 fn poses_supplied_with_the_project_replace_the_orientation() {
     let sb = Sandbox::new();
