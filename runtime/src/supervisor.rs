@@ -341,6 +341,7 @@ impl Child {
 /// Set-up failures (ports, shared memory, spawning); node failures are reported in the [`Outcome`].
 pub fn run(graph: &Graph, opts: &RunOptions) -> Result<Outcome> {
     let started = Instant::now();
+    raise_open_files_limit();
     let run = RunRecord::create(&opts.out)?;
     let mut graph = graph.clone();
     let described = (|| -> Result<BTreeMap<String, Ports>> {
@@ -544,6 +545,7 @@ fn supervise(graph: &Graph, run: &RunRecord, ports: &BTreeMap<String, Ports>, op
     if error.is_none() && !ok {
         error = Some("a node did not finish".into());
     }
+    let error = error.map(|e| with_cause(e, &opts.out, graph));
     Ok(Outcome {
         run_id: run.id.clone(),
         ok,
@@ -551,6 +553,54 @@ fn supervise(graph: &Graph, run: &RunRecord, ports: &BTreeMap<String, Ports>, op
         nodes,
         wall: started.elapsed(),
     })
+}
+
+/// A run's error with the cause a failed node gave: the last line of its log (`out/logs/NODE.log`), which the
+/// message naming the node does not carry; and, where shared-memory ports could not be made under a low limit of
+/// open files, that limit.
+fn with_cause(error: String, out: &std::path::Path, graph: &Graph) -> String {
+    let Some(name) = error.strip_prefix("node '").and_then(|r| r.split('\'').next()) else {
+        return error;
+    };
+    if graph.node(name).is_none() {
+        return error;
+    }
+    let log = std::fs::read_to_string(log_path(out, name)).unwrap_or_default();
+    let Some(last) = log.lines().rev().map(str::trim).find(|l| !l.is_empty()) else {
+        return error;
+    };
+    let mut text = format!("{error}: {last}");
+    let limit = open_files_limit();
+    if limit.is_some_and(|n| n < FILES_PER_GRAPH) {
+        text += &format!(
+            " (open files are limited to {} here, `ulimit -n`; a node needs up to about 15 per topic it uses: raise the limit)",
+            limit.unwrap_or_default()
+        );
+    }
+    text
+}
+
+/// Open files a default graph's busiest node (the recorder) can use, with room to spare.
+const FILES_PER_GRAPH: u64 = 1024;
+
+/// The soft limit of open files, if known.
+fn open_files_limit() -> Option<u64> {
+    let mut r = libc::rlimit { rlim_cur: 0, rlim_max: 0 };
+    // SAFETY: a valid out-pointer.
+    (unsafe { libc::getrlimit(libc::RLIMIT_NOFILE, &mut r) } == 0).then_some(r.rlim_cur)
+}
+
+/// Raises the soft limit of open files to the hard one, for this process and the nodes it starts: every port of a
+/// node holds shared-memory and event files, and the recorder subscribes to every topic.
+pub fn raise_open_files_limit() {
+    let mut r = libc::rlimit { rlim_cur: 0, rlim_max: 0 };
+    // SAFETY: valid pointers to a local rlimit.
+    unsafe {
+        if libc::getrlimit(libc::RLIMIT_NOFILE, &mut r) == 0 && r.rlim_cur < r.rlim_max {
+            r.rlim_cur = r.rlim_max;
+            libc::setrlimit(libc::RLIMIT_NOFILE, &r);
+        }
+    }
 }
 
 fn spawn(c: &mut Child, run: &RunRecord, opts: &RunOptions, console: &Arc<Console>) -> Result<i32> {

@@ -797,6 +797,41 @@ fn a_node_that_never_becomes_ready_ends_the_run_naming_it() {
     );
 }
 
+/// Too few open files (every port holds shared-memory and event files; the recorder subscribes to every topic): a
+/// soft limit below what the demo graph needs is raised to the hard one and the run completes; a hard limit that
+/// low ends the run with the failing node's own error and the limit named.
+#[test]
+fn a_low_limit_of_open_files_is_raised_or_named() {
+    let sb = Sandbox::new();
+    let demo = repo_file("launch/demo.toml");
+    let run = |soft_only: bool, out: &str| {
+        let mut cmd = sb.lineflow(&["run", demo.to_str().unwrap(), "--set", "capture.scale=0.06", "--out", out, "-q"]);
+        // SAFETY: only setrlimit, which is async-signal-safe, between fork and exec.
+        unsafe {
+            std::os::unix::process::CommandExt::pre_exec(&mut cmd, move || {
+                let mut r = libc::rlimit { rlim_cur: 0, rlim_max: 0 };
+                libc::getrlimit(libc::RLIMIT_NOFILE, &mut r);
+                r.rlim_cur = 100;
+                if !soft_only {
+                    r.rlim_max = 100;
+                }
+                libc::setrlimit(libc::RLIMIT_NOFILE, &r);
+                Ok(())
+            });
+        }
+        cmd.output().unwrap()
+    };
+    let raised = run(true, sb.path().join("soft").to_str().unwrap());
+    assert!(raised.status.success(), "{}", String::from_utf8_lossy(&raised.stderr));
+    let capped = run(false, sb.path().join("hard").to_str().unwrap());
+    let err = String::from_utf8_lossy(&capped.stderr);
+    assert!(!capped.status.success(), "{err}");
+    assert!(
+        err.contains("open files are limited to 100") && err.contains("error: topic '"),
+        "{err}"
+    );
+}
+
 #[test]
 fn poses_supplied_with_the_project_replace_the_orientation() {
     let sb = Sandbox::new();
