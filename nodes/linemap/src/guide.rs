@@ -179,6 +179,18 @@ fn outline_distance(q: [f64; 2], poly: &[[f64; 2]]) -> f64 {
         .fold(f64::INFINITY, f64::min)
 }
 
+/// A wall y = 0 from x = 0 to 20 m, 10 m high, facing −y (the cameras), searched within 3 m: the tests' façade.
+#[cfg(test)]
+pub(crate) fn one_wall() -> Guide {
+    let corners = vec![
+        Vec3::new(0.0, 0.0, 0.0),
+        Vec3::new(20.0, 0.0, 0.0),
+        Vec3::new(20.0, 0.0, 10.0),
+        Vec3::new(0.0, 0.0, 10.0),
+    ];
+    Guide::from_walls(&[corners], 3.0)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

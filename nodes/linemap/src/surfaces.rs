@@ -123,16 +123,7 @@ mod tests {
     use super::*;
     use lineflow_photogrammetry::Mat3;
 
-    /// A wall y = 0 from x = 0 to 20 m, 10 m high, facing −y (the cameras).
-    fn guide() -> Guide {
-        let corners = vec![
-            Vec3::new(0.0, 0.0, 0.0),
-            Vec3::new(20.0, 0.0, 0.0),
-            Vec3::new(20.0, 0.0, 10.0),
-            Vec3::new(0.0, 0.0, 10.0),
-        ];
-        Guide::from_walls(&[corners], 3.0)
-    }
+    use crate::guide::one_wall as guide;
 
     /// A horizontal line at height `z`, `y` from the wall, with depth σ `sigma` (across it in z: 1 mm).
     fn line(z: f64, y: f64, sigma: f64) -> MappedLine {
