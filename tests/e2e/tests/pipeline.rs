@@ -775,12 +775,14 @@ fn a_node_that_never_becomes_ready_ends_the_run_naming_it() {
             "not connected after"
         };
         assert!(err.contains(case) && err.contains(why), "{err}");
-        let left = std::process::Command::new("pgrep").args(["-f", "sleep 601"]).output().unwrap();
-        assert!(
-            left.stdout.is_empty(),
-            "a node was left running: {}",
-            String::from_utf8_lossy(&left.stdout)
-        );
+        let left: Vec<String> = std::fs::read_dir("/proc")
+            .unwrap()
+            .flatten()
+            .filter_map(|e| std::fs::read(e.path().join("cmdline")).ok())
+            .map(|c| String::from_utf8_lossy(&c).replace('\0', " "))
+            .filter(|c| c.starts_with("sleep 601"))
+            .collect();
+        assert!(left.is_empty(), "a node was left running: {left:?}");
         if case == "stuck" {
             let info = sb.run(&["info", out.join("recording.mcap").to_str().unwrap()]);
             assert!(info.status.code().is_some_and(|c| c == 0 || c == 2), "the recording opens");
