@@ -52,7 +52,12 @@ pub fn replay(a: ReplayArgs<'_>) -> Result<ExitCode> {
             bail!("--loop plays a recording for viewers; a --rerun runs the graph once");
         }
         let g = rerun_graph(&rec, a.graph, a.set, &resolver, pace)?;
-        let programs = recorded_programs(&g, a.graph, a.set);
+        // A launch file of the user's own (--graph) starts what the user chose.
+        let programs = if a.graph.is_none() {
+            recorded_programs(&g, a.set)
+        } else {
+            Vec::new()
+        };
         if !programs.is_empty() && !a.yes {
             confirm_programs(&rec, &programs)?;
         }

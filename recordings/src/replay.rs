@@ -108,13 +108,10 @@ pub fn playback_graph(rec: &Recording, topics: &[String], resolver: &Resolver, p
     })
 }
 
-/// The programs a re-run would start that are not lineflow's own stages and that the recording, not the user,
-/// names: with no `graph` given, the nodes of `g` with an `executable` that `set` does not replace, as (node,
+/// The programs a re-run of the recorded launch file would start that are not lineflow's own stages and that the
+/// recording, not the user, names: the nodes of `g` with an `executable` that `set` does not replace, as (node,
 /// command line). A recording from someone else may name any program there.
-pub fn recorded_programs(g: &Graph, graph: Option<&Path>, set: &[String]) -> Vec<(String, String)> {
-    if graph.is_some() {
-        return Vec::new();
-    }
+pub fn recorded_programs(g: &Graph, set: &[String]) -> Vec<(String, String)> {
     g.nodes
         .iter()
         .filter(|n| n.stage.is_none())

@@ -178,7 +178,7 @@ impl Outcome {
 ///
 /// # Errors
 /// The first node that fails to describe itself, or the first port mismatch.
-pub fn describe_all(graph: &Graph, graph_file: &std::path::Path) -> Result<BTreeMap<String, Ports>> {
+pub fn describe_all(graph: &Graph, graph_file: &std::path::Path, timeout: Duration) -> Result<BTreeMap<String, Ports>> {
     let mut out = BTreeMap::new();
     for node in &graph.nodes {
         let child = Command::new(&node.command[0])
@@ -192,7 +192,7 @@ pub fn describe_all(graph: &Graph, graph_file: &std::path::Path) -> Result<BTree
             .stderr(Stdio::piped())
             .spawn()
             .with_context(|| format!("node '{}': cannot start {}", node.name, node.command[0]))?;
-        let output = output_within(child, connect_timeout(graph, None)).with_context(|| {
+        let output = output_within(child, timeout).with_context(|| {
             format!(
                 "node '{}': {} did not describe its ports (`--describe`, docs/nodes.md)",
                 node.name, node.command[0]
@@ -233,8 +233,7 @@ fn connect_timeout(graph: &Graph, option: Option<Duration>) -> Duration {
 /// The child's exit status and output, or an error once `timeout` has passed (the child is killed then). Its
 /// output is read beside it, so a chatty child cannot stall on a full pipe.
 fn output_within(mut child: std::process::Child, timeout: Duration) -> Result<std::process::Output> {
-    use std::io::Read;
-    let drain = |pipe: Option<Box<dyn Read + Send>>| {
+    fn drain<R: std::io::Read + Send + 'static>(pipe: Option<R>) -> std::thread::JoinHandle<Vec<u8>> {
         std::thread::spawn(move || {
             let mut buf = Vec::new();
             if let Some(mut p) = pipe {
@@ -242,9 +241,9 @@ fn output_within(mut child: std::process::Child, timeout: Duration) -> Result<st
             }
             buf
         })
-    };
-    let stdout = drain(child.stdout.take().map(|p| Box::new(p) as Box<dyn Read + Send>));
-    let stderr = drain(child.stderr.take().map(|p| Box::new(p) as Box<dyn Read + Send>));
+    }
+    let stdout = drain(child.stdout.take());
+    let stderr = drain(child.stderr.take());
     let deadline = Instant::now() + timeout;
     let status = loop {
         if let Some(status) = child.try_wait()? {
@@ -346,7 +345,7 @@ pub fn run(graph: &Graph, opts: &RunOptions) -> Result<Outcome> {
     let mut graph = graph.clone();
     let described = (|| -> Result<BTreeMap<String, Ports>> {
         std::fs::write(&run.graph, serde_json::to_vec(&graph)?).with_context(|| format!("cannot write {}", run.graph.display()))?;
-        let ports = describe_all(&graph, &run.graph)?;
+        let ports = describe_all(&graph, &run.graph, connect_timeout(&graph, opts.connect_timeout))?;
         // Edges sized by their producers: the nodes read the graph with the sizes filled in.
         launch::resolve_payloads(&mut graph, &ports)?;
         std::fs::write(&run.graph, serde_json::to_vec(&graph)?).with_context(|| format!("cannot write {}", run.graph.display()))?;
@@ -435,6 +434,8 @@ fn supervise(graph: &Graph, run: &RunRecord, ports: &BTreeMap<String, Ports>, op
         .collect();
 
     let mut error: Option<String> = None;
+    // The node whose failure `error` reports, if one did.
+    let mut failed: Option<String> = None;
     for c in &mut children {
         match spawn(c, run, opts, &console) {
             Ok(pid) => c.pid = Some(pid),
@@ -456,8 +457,9 @@ fn supervise(graph: &Graph, run: &RunRecord, ports: &BTreeMap<String, Ports>, op
             },
             Duration::from_millis(20),
         );
-        if let Some(msg) = reap(&mut children, false) {
-            error = Some(format!("{msg} before the graph was connected"));
+        if let Some(f) = reap(&mut children, false) {
+            error = Some(format!("{} before the graph was connected", f.message));
+            failed = Some(f.node);
         }
         if node.wait(Duration::ZERO).is_err() {
             error = Some("interrupted".into());
@@ -480,8 +482,9 @@ fn supervise(graph: &Graph, run: &RunRecord, ports: &BTreeMap<String, Ports>, op
     loop {
         drain_status(&status_sub, &mut children);
         if error.is_none() {
-            if let Some(msg) = reap(&mut children, true) {
-                error = Some(msg);
+            if let Some(f) = reap(&mut children, true) {
+                error = Some(f.message);
+                failed = Some(f.node);
             }
             if node.wait(Duration::ZERO).is_err() {
                 error = Some("interrupted".into());
@@ -545,7 +548,7 @@ fn supervise(graph: &Graph, run: &RunRecord, ports: &BTreeMap<String, Ports>, op
     if error.is_none() && !ok {
         error = Some("a node did not finish".into());
     }
-    let error = error.map(|e| with_cause(e, &opts.out, graph));
+    let error = error.map(|e| with_cause(e, failed.as_deref(), &opts.out));
     Ok(Outcome {
         run_id: run.id.clone(),
         ok,
@@ -555,26 +558,20 @@ fn supervise(graph: &Graph, run: &RunRecord, ports: &BTreeMap<String, Ports>, op
     })
 }
 
-/// A run's error with the cause a failed node gave: the last line of its log (`out/logs/NODE.log`), which the
-/// message naming the node does not carry; and, where shared-memory ports could not be made under a low limit of
-/// open files, that limit.
-fn with_cause(error: String, out: &std::path::Path, graph: &Graph) -> String {
-    let Some(name) = error.strip_prefix("node '").and_then(|r| r.split('\'').next()) else {
-        return error;
-    };
-    if graph.node(name).is_none() {
-        return error;
-    }
+/// A run's error with the cause the failed node gave: the last line of its log (`out/logs/NODE.log`), which the
+/// message naming the node does not carry; and, where the limit of open files is low (shared-memory ports that
+/// could not be made look like any other failure), that limit.
+fn with_cause(error: String, failed: Option<&str>, out: &std::path::Path) -> String {
+    let Some(name) = failed else { return error };
     let log = std::fs::read_to_string(log_path(out, name)).unwrap_or_default();
     let Some(last) = log.lines().rev().map(str::trim).find(|l| !l.is_empty()) else {
         return error;
     };
     let mut text = format!("{error}: {last}");
-    let limit = open_files_limit();
-    if limit.is_some_and(|n| n < FILES_PER_GRAPH) {
+    if let Some(limit) = open_files_limit().filter(|&n| n < FILES_PER_GRAPH) {
         text += &format!(
-            " (open files are limited to {} here, `ulimit -n`; a node needs up to about 15 per topic it uses: raise the limit)",
-            limit.unwrap_or_default()
+            " (open files are limited to {limit} here, `ulimit -n`; a node needs up to about 15 per topic it uses: if \
+             the node could not open a port, raise the limit)"
         );
     }
     text
@@ -592,7 +589,7 @@ fn open_files_limit() -> Option<u64> {
 
 /// Raises the soft limit of open files to the hard one, for this process and the nodes it starts: every port of a
 /// node holds shared-memory and event files, and the recorder subscribes to every topic.
-pub fn raise_open_files_limit() {
+fn raise_open_files_limit() {
     let mut r = libc::rlimit { rlim_cur: 0, rlim_max: 0 };
     // SAFETY: valid pointers to a local rlimit.
     unsafe {
@@ -656,9 +653,15 @@ fn spawn(c: &mut Child, run: &RunRecord, opts: &RunOptions, console: &Arc<Consol
     Ok(child.id() as i32)
 }
 
-/// Reaps exited children; schedules restarts. Returns a message when a node failed for good (only when `restart`
+/// A node that failed for good, and the message naming it.
+struct Failure {
+    node: String,
+    message: String,
+}
+
+/// Reaps exited children; schedules restarts. Returns the first node that failed for good (only when `restart`
 /// is allowed; before the graph is connected every failure is final).
-fn reap(children: &mut [Child], restart: bool) -> Option<String> {
+fn reap(children: &mut [Child], restart: bool) -> Option<Failure> {
     let mut failure = None;
     for c in children.iter_mut() {
         let Some(pid) = c.pid else { continue };
@@ -697,7 +700,10 @@ fn reap(children: &mut [Child], restart: bool) -> Option<String> {
             c.restart_at = Some(Instant::now() + Duration::from_millis(backoff));
             tracing::warn!("node '{}' {what}; restarting in {backoff} ms", c.spec.name);
         } else if failure.is_none() {
-            failure = Some(format!("node '{}' {what}", c.spec.name));
+            failure = Some(Failure {
+                node: c.spec.name.clone(),
+                message: format!("node '{}' {what}", c.spec.name),
+            });
         }
     }
     failure

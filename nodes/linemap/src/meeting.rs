@@ -76,35 +76,32 @@ pub fn settle_on_verticals(lines: &mut [MappedLine], guide: &Guide, metres_per_p
                 continue;
             }
             let sigma = l.sigma_along(normal);
-            let shifts: Vec<(f64, f64)> = [l.start, l.end]
-                .iter()
-                .filter_map(|e| {
-                    let de = depth(e)?;
-                    let reach = p.reach_px * metres_per_px(e);
-                    let (u, z) = (along.dot(e), e.z);
-                    verticals
-                        .iter()
-                        .filter(|v| (v.along - u).abs() <= reach && z >= v.z[0] - reach && z <= v.z[1] + reach)
-                        .map(|v| (v.depth - de, (v.depth - de).abs() / sigma.hypot(v.sigma).max(1e-6), v.sigma))
-                        .filter(|&(_, score, _)| score <= p.k)
-                        .min_by(|a, b| a.1.total_cmp(&b.1))
-                        .map(|(shift, _, sigma)| (shift, sigma))
-                })
-                .collect();
-            let shift = match shifts[..] {
-                [] => continue,
-                [(s, _)] => s,
+            // The depth shift to the vertical an end meets, and that vertical's σ.
+            let meet = |e: &Vec3| -> Option<(f64, f64)> {
+                let de = depth(e)?;
+                let reach = p.reach_px * metres_per_px(e);
+                let (u, z) = (along.dot(e), e.z);
+                verticals
+                    .iter()
+                    .filter(|v| (v.along - u).abs() <= reach && z >= v.z[0] - reach && z <= v.z[1] + reach)
+                    .map(|v| (v.depth - de, (v.depth - de).abs() / sigma.hypot(v.sigma).max(1e-6), v.sigma))
+                    .filter(|&(_, score, _)| score <= p.k)
+                    .min_by(|a, b| a.1.total_cmp(&b.1))
+                    .map(|(shift, _, sigma)| (shift, sigma))
+            };
+            let shift = match (meet(&l.start), meet(&l.end)) {
+                (None, None) => continue,
+                (Some((s, _)), None) | (None, Some((s, _))) => s,
                 // Both ends meet verticals: one depth if they agree, else the nearer (a frame's jamb at one end
                 // and the opening's at the other).
-                [(a, sa), (b, sb)] if (a - b).abs() <= p.k * sa.hypot(sb) => 0.5 * (a + b),
-                [(a, _), (b, _)] => {
+                (Some((a, sa)), Some((b, sb))) if (a - b).abs() <= p.k * sa.hypot(sb) => 0.5 * (a + b),
+                (Some((a, _)), Some((b, _))) => {
                     if a.abs() <= b.abs() {
                         a
                     } else {
                         b
                     }
                 }
-                _ => unreachable!("two ends"),
             };
             l.start += normal * shift;
             l.end += normal * shift;

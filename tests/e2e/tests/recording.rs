@@ -410,8 +410,8 @@ fn a_recorded_launch_file_that_starts_programs_is_not_rerun_without_consent() {
     ];
     assert!(sb.run(&args).status.success());
     assert_eq!(
-        std::fs::read(again.join("edges.csv")).ok(),
-        std::fs::read(own.join("edges.csv")).ok(),
+        std::fs::read(again.join("edges.csv")).unwrap(),
+        std::fs::read(own.join("edges.csv")).unwrap(),
         "the same graph on the same frames"
     );
 }
