@@ -66,7 +66,7 @@ pub fn find(vertices: &mut Vec<Vertex>, edges: &mut Vec<Edge>, params: &ModelPar
     }
     if viewpoint.is_some() {
         recessed_openings(vertices, &incident, edges, &mut faces);
-        let inferred = crate::openings::infer(vertices, edges, &planes, &plane_edges, &faces, tol, params, cameras);
+        let inferred = crate::openings::infer(vertices, edges_out, &planes, &plane_edges, &faces, tol, params, cameras);
         crate::openings::add(inferred, vertices, edges_out, &mut faces);
     }
     nest_openings(vertices, &mut faces, params);

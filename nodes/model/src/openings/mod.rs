@@ -32,6 +32,15 @@ const MAX_OPENING_M: f64 = 4.0;
 const FRAME_M: (f64, f64) = (0.02, 0.15);
 /// …and run along at least this share of the glazing's height.
 const MIN_OUTER_COVER: f64 = 0.8;
+/// How far the foot and top of a nearly flush opening may lie from where its standing sides end, metres: no frame
+/// behind the wall tells them.
+const FLUSH_END_REACH_M: f64 = 0.1;
+/// The most distinct heights of lying edges inside a nearly flush opening ([`WallView::courses_within`]): a
+/// frame's rails and its panes' edges.
+const MAX_FLUSH_LEVELS: usize = 6;
+/// Openings of one column have their sides within this of each other, and those of one row their foot and top,
+/// metres ([`grid`]).
+const GRID_TOLERANCE_M: f64 = 0.06;
 /// Pieces of one side leave gaps of at most this, metres.
 const MAX_SIDE_GAP_M: f64 = 0.3;
 /// Edges a plane must carry to count as the wall an opening is cut into…
@@ -57,11 +66,15 @@ pub(crate) enum Inferred {
     New(Vec<Vertex>, Vec3),
 }
 
+#[cfg(test)]
+mod flush_tests;
+mod grid;
 mod recesses;
 mod rectangles;
 mod sides;
 mod wall;
 
+use grid::*;
 use recesses::*;
 use rectangles::*;
 use sides::*;
@@ -76,7 +89,8 @@ struct Proposal {
 }
 
 /// Openings inferred from recessed faces and from rectangles of recessed edges, for a model seen from `cameras`.
-/// `edges` are those the faces were traced on, `plane_edges` those lying in each plane.
+/// `edges` are the observed edges, before nearby vertices were merged for tracing the faces (noisy vertices
+/// merged in chains take whole frames with them); `plane_edges` are the traced edges lying in each plane.
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn infer(
     vertices: &[Vertex],
@@ -143,6 +157,19 @@ pub(crate) fn infer(
                 found.push(Outline::of(&corners.iter().map(|v| v.point).collect::<Vec<_>>(), wall.out));
                 out.push(Inferred::New(corners, wall.out));
             }
+        }
+    }
+    // The rows and columns of what was found on each wall predict what was missed.
+    for view in &walls {
+        let wall = &view.wall;
+        let on_this_wall = |o: &&Outline| o.normal.dot(&wall.out).abs() > cos_par && wall.depth(&o.centroid).abs() < RECESS_M.0;
+        let taken: Vec<[f64; 4]> = found.iter().filter(on_this_wall).map(|o| o.bounds_in(wall)).collect();
+        for rect in from_grid(view, &taken) {
+            let [x0, x1, z0, z1] = rect.bounds;
+            let centre = wall.point((x0 + x1) / 2.0, (z0 + z1) / 2.0, &viewpoint);
+            let corners = opening_corners(wall, rect, 0.0, centres, None, &centre);
+            found.push(Outline::of(&corners.iter().map(|v| v.point).collect::<Vec<_>>(), wall.out));
+            out.push(Inferred::New(corners, wall.out));
         }
     }
     out
@@ -217,9 +244,12 @@ fn walls(
     chosen
         .into_iter()
         .filter_map(|(_, k)| {
-            let wall = Wall::facing(planes[k], viewpoint)?;
-            let on_wall = (-DEPTH_TOLERANCE_M, DEPTH_TOLERANCE_M);
+            let wall = Wall::facing(planes[k], viewpoint)?.settled(vertices, edges, RECESS_M.0);
+            // Up to where a recess starts, so that a nearly flush frame (3 to 6 cm back) is on the wall, not lost
+            // between the two.
+            let on_wall = (-DEPTH_TOLERANCE_M, RECESS_M.0);
             Some(WallView {
+                lying_pieces_on_wall: pieces(&wall, vertices, edges, false, on_wall),
                 standing: sides(&wall, vertices, edges, true, RECESS_M),
                 lying: sides(&wall, vertices, edges, false, RECESS_M),
                 standing_on_wall: sides(&wall, vertices, edges, true, on_wall),
@@ -231,7 +261,7 @@ fn walls(
 }
 
 #[cfg(test)]
-mod tests {
+pub(super) mod tests {
     use super::*;
     use crate::faces::find;
 
@@ -240,14 +270,14 @@ mod tests {
     /// First point of the frame's sides.
     const FRAME: usize = 4 + 2 * JOINTS;
 
-    fn vertex(p: [f64; 3]) -> Vertex {
+    pub(super) fn vertex(p: [f64; 3]) -> Vertex {
         Vertex {
             point: Vec3::from(p),
             sigma: Some(Vec3::repeat(0.002)),
         }
     }
 
-    fn edge(a: usize, b: usize) -> Edge {
+    pub(super) fn edge(a: usize, b: usize) -> Edge {
         Edge {
             a,
             b,

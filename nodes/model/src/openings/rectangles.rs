@@ -9,6 +9,10 @@ use super::*;
 /// edge on the wall may stand in for it, if at least one standing and one lying side lie behind the wall: brick
 /// courses on the wall alone would make openings anywhere. Largest first (of one size, those with fewer sides on the
 /// wall); one inside another already taken (the panes of a frame) is left out. Each with its depth and a σ.
+///
+/// A nearly flush opening (its frame within [`RECESS_M`]'s lower bound of the wall) shows all four sides on the
+/// wall: there the rectangle of the wall's own edges is the opening where no course of the wall runs across it
+/// ([`WallView::crossed`]).
 pub(super) fn from_rectangles(view: &WallView, centres: &[Vec3]) -> Vec<(Rect, f64, Option<Vec3>)> {
     let on_wall = |s: &Side| s.depth < RECESS_M.0;
     let mut standing: Vec<&Side> = view.standing.iter().chain(&view.standing_on_wall).collect();
@@ -22,8 +26,10 @@ pub(super) fn from_rectangles(view: &WallView, centres: &[Vec3]) -> Vec<(Rect, f
                 (false, false) if (r.depth - l.depth).abs() <= DEPTH_TOLERANCE_M => (l.depth + r.depth) / 2.0,
                 (false, true) => l.depth,
                 (true, false) => r.depth,
+                (true, true) => 0.0,
                 _ => continue,
             };
+            let flush = on_wall(l) && on_wall(r);
             if !(MIN_OPENING_M..=MAX_OPENING_M).contains(&width) {
                 continue;
             }
@@ -39,8 +45,15 @@ pub(super) fn from_rectangles(view: &WallView, centres: &[Vec3]) -> Vec<(Rect, f
             let (behind_ends, all_ends) = (ends(&recessed), ends(&[*l, *r]));
             let end = |top: bool| {
                 let pick = |e: (f64, f64)| if top { e.1 } else { e.0 };
-                let near =
-                    |at: f64| move |s: &&&Side| (s.at - at).abs() <= 3.0 * SIDE_TOLERANCE_M && s.cover(l.at, r.at) >= MIN_LYING_COVER;
+                let reach = if flush { FLUSH_END_REACH_M } else { 3.0 * SIDE_TOLERANCE_M };
+                // A flush opening's foot and top end at its sides: a course of the wall runs on past them.
+                let ends_at_sides = move |s: &Side| {
+                    let (from, to) = s.extent();
+                    !flush || (from >= l.at - MAX_SIDE_GAP_M && to <= r.at + MAX_SIDE_GAP_M)
+                };
+                let near = move |at: f64| {
+                    move |s: &&&Side| (s.at - at).abs() <= reach && s.cover(l.at, r.at) >= MIN_LYING_COVER && ends_at_sides(s)
+                };
                 let behind = |s: &&&Side| !on_wall(s) && (s.depth - depth).abs() <= DEPTH_TOLERANCE_M;
                 let on = |s: &&&Side| on_wall(s);
                 let nearest = |at: f64| move |a: &&&Side, b: &&&Side| (a.at - at).abs().total_cmp(&(b.at - at).abs());
@@ -48,11 +61,19 @@ pub(super) fn from_rectangles(view: &WallView, centres: &[Vec3]) -> Vec<(Rect, f
                 (lying.iter().filter(near(b)).filter(behind).min_by(nearest(b)))
                     .or_else(|| lying.iter().filter(near(w)).filter(on).min_by(nearest(w)))
             };
-            let (Some(top), Some(bottom)) = (end(true), end(false)) else {
+            // A flush opening's foot or top may be hidden (a sill in front of the foot) or unmatched: where both
+            // standing sides end together there, their ends are that side.
+            let jambs_end = |top: bool| {
+                let pick = |s: &Side| if top { s.extent().1 } else { s.extent().0 };
+                let (a, b) = (pick(l), pick(r));
+                (flush && (a - b).abs() <= FLUSH_END_REACH_M).then_some(((a + b) / 2.0, true))
+            };
+            let side = |top: bool| end(top).map(|s| (s.at, on_wall(s))).or_else(|| jambs_end(top));
+            let (Some((z1, top_on_wall)), Some((z0, bottom_on_wall))) = (side(true), side(false)) else {
                 continue;
             };
-            let (z0, z1) = (bottom.at, top.at);
-            if (on_wall(top) && on_wall(bottom))
+            if (end(true).is_none() && end(false).is_none())
+                || (top_on_wall && bottom_on_wall && !flush)
                 || !(MIN_OPENING_M..=MAX_OPENING_M).contains(&(z1 - z0))
                 || l.cover(z0, z1) < MIN_STANDING_COVER
                 || r.cover(z0, z1) < MIN_STANDING_COVER
@@ -61,8 +82,11 @@ pub(super) fn from_rectangles(view: &WallView, centres: &[Vec3]) -> Vec<(Rect, f
             }
             let rect = Rect {
                 bounds: [l.at, r.at, z0, z1],
-                on_wall: [on_wall(l), on_wall(r), on_wall(bottom), on_wall(top)],
+                on_wall: [on_wall(l), on_wall(r), bottom_on_wall, top_on_wall],
             };
+            if flush && (view.courses_within(rect.bounds, FLUSH_END_REACH_M / 2.0) > MAX_FLUSH_LEVELS) {
+                continue;
+            }
             found.push((rect, depth, l.sigma.or(r.sigma)));
         }
     }

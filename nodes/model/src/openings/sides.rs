@@ -50,10 +50,15 @@ impl Side {
     }
 }
 
-/// The observed edges parallel to `wall` with both ends `depths` behind it, standing (`upright`) or lying,
-/// gathered into sides. Completed edges are left out: they run along occluders, not along what was seen.
-pub(super) fn sides(wall: &Wall, vertices: &[Vertex], edges: &[Edge], upright: bool, depths: (f64, f64)) -> Vec<Side> {
-    let mut pieces: Vec<(f64, f64, f64, f64, Option<Vec3>)> = edges
+/// One observed edge in a wall's coordinates: its position across its direction, its depth, the interval it
+/// covers along its direction, and the σ of one of its vertices.
+pub(super) type Piece = (f64, f64, f64, f64, Option<Vec3>);
+
+/// The observed edges parallel to `wall` with both ends `depths` behind it, standing (`upright`) or lying, one
+/// [`Piece`] each, in order across. Completed edges are left out: they run along occluders, not along what was
+/// seen.
+pub(super) fn pieces(wall: &Wall, vertices: &[Vertex], edges: &[Edge], upright: bool, depths: (f64, f64)) -> Vec<Piece> {
+    let mut pieces: Vec<Piece> = edges
         .iter()
         .filter(|e| !e.completed)
         .filter_map(|e| {
@@ -79,6 +84,12 @@ pub(super) fn sides(wall: &Wall, vertices: &[Vertex], edges: &[Edge], upright: b
         })
         .collect();
     pieces.sort_by(|x, y| x.0.total_cmp(&y.0).then(x.1.total_cmp(&y.1)).then(x.2.total_cmp(&y.2)));
+    pieces
+}
+
+/// The [`pieces`] gathered into sides.
+pub(super) fn sides(wall: &Wall, vertices: &[Vertex], edges: &[Edge], upright: bool, depths: (f64, f64)) -> Vec<Side> {
+    let pieces = self::pieces(wall, vertices, edges, upright, depths);
     // Greedy gathering in order across: a piece joins the first side within the tolerances.
     let mut out: Vec<(Side, f64)> = Vec::new();
     for (cross, depth, a, b, sigma) in pieces {

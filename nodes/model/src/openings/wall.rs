@@ -23,6 +23,28 @@ impl Wall {
         Some(Wall { plane, out, across })
     }
 
+    /// The wall moved along its normal onto the length-weighted median depth of the observed edges parallel to it
+    /// within `reach` of it. The plane of the faces is fitted to corners, which noise and the frames a few
+    /// centimetres behind pull off the wall by up to a few centimetres; its own edges, most of them on it, say
+    /// where it is.
+    pub(super) fn settled(mut self, vertices: &[Vertex], edges: &[Edge], reach: f64) -> Wall {
+        let mut depths: Vec<(f64, f64)> = [true, false]
+            .into_iter()
+            .flat_map(|upright| pieces(&self, vertices, edges, upright, (-reach, reach)))
+            .map(|(_, depth, a, b, _)| (depth, b - a))
+            .collect();
+        depths.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let half = depths.iter().map(|d| d.1).sum::<f64>() / 2.0;
+        let mut cumulative = 0.0;
+        if let Some(&(median, _)) = depths.iter().find(|d| {
+            cumulative += d.1;
+            cumulative >= half
+        }) {
+            self.plane.offset -= median * self.plane.normal.dot(&self.out);
+        }
+        self
+    }
+
     /// How far behind the wall `p` lies (negative in front).
     pub(super) fn depth(&self, p: &Vec3) -> f64 {
         (self.plane.offset - self.plane.normal.dot(p)) / self.plane.normal.dot(&self.out)
@@ -44,11 +66,31 @@ pub(super) struct WallView {
     /// The standing and lying sides on the wall itself: an opening's own edges.
     pub(super) standing_on_wall: Vec<Side>,
     pub(super) lying_on_wall: Vec<Side>,
+    /// The lying edges on the wall one by one: courses of brick or tiles run across the wall and stop at its
+    /// openings ([`WallView::courses_within`]).
+    pub(super) lying_pieces_on_wall: Vec<Piece>,
+}
+
+impl WallView {
+    /// How many distinct heights (`margin` apart) the lying edges on the wall inside the rectangle
+    /// `[x0, x1, z0, z1]` take, more than `margin` from its sides: a frame's rails and panes take a few, the courses
+    /// of the wall between two openings many.
+    pub(super) fn courses_within(&self, [x0, x1, z0, z1]: [f64; 4], margin: f64) -> usize {
+        let mut heights: Vec<f64> = self
+            .lying_pieces_on_wall
+            .iter()
+            .filter(|&&(z, _, a, b, _)| z > z0 + margin && z < z1 - margin && a >= x0 - margin && b <= x1 + margin)
+            .map(|p| p.0)
+            .collect();
+        heights.sort_by(f64::total_cmp);
+        heights.windows(2).filter(|w| w[1] - w[0] > margin).count() + usize::from(!heights.is_empty())
+    }
 }
 
 /// A ring flattened in its plane, for containment tests.
 #[derive(Clone)]
 pub(super) struct Outline {
+    pub(super) points: Vec<Vec3>,
     pub(super) normal: Vec3,
     pub(super) centroid: Vec3,
     pub(super) basis: (Vec3, Vec3),
@@ -61,12 +103,20 @@ impl Outline {
         let basis = plane_basis(normal);
         let polygon: Vec<[f64; 2]> = points.iter().map(|p| [p.dot(&basis.0), p.dot(&basis.1)]).collect();
         Outline {
+            points: points.to_vec(),
             normal,
             centroid: points.iter().sum::<Vec3>() / points.len().max(1) as f64,
             basis,
             area: signed_area(&polygon).abs(),
             polygon,
         }
+    }
+
+    /// The ring's bounds `[x0, x1, z0, z1]` in `wall`'s coordinates.
+    pub(super) fn bounds_in(&self, wall: &Wall) -> [f64; 4] {
+        let xs: Vec<f64> = self.points.iter().map(|p| p.dot(&wall.across)).collect();
+        let zs: Vec<f64> = self.points.iter().map(|p| p.z).collect();
+        [min(&xs), max(&xs), min(&zs), max(&zs)]
     }
 
     /// Whether `p`, moved along the normal into the ring's plane, lies inside it.

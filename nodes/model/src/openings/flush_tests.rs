@@ -1,0 +1,112 @@
+//! Nearly flush openings (rule two on the wall's own edges) and the openings their rows and columns predict (rule
+//! three), on a brick wall whose courses stop at the openings.
+use super::tests::{edge, vertex};
+use super::*;
+use crate::faces::find;
+
+/// Four windows 1.2 × 1.5 m in a row (x from 1 + 3k, z 1–2.5) in a wall y = 0 facing −y, each side its own line
+/// a centimetre past the corners (no junction, no face), a transom 2 cm behind the wall inside each; brick courses
+/// every 10 cm, across the whole wall below and above the windows and between them beside them. The sides listed
+/// in `missing` ([window, side], sides left, right, foot, top) are not seen.
+fn row_of_flush_windows(missing: &[[usize; 2]]) -> (Vec<Vertex>, Vec<Edge>, Vec3) {
+    let viewpoint = Vec3::new(6.0, -19.0, 1.6);
+    let mut points: Vec<[f64; 3]> = vec![[-1.0, 0.0, 0.0], [13.0, 0.0, 0.0], [13.0, 0.0, 6.0], [-1.0, 0.0, 6.0]];
+    let mut edges: Vec<Edge> = (0..4).map(|k| edge(k, (k + 1) % 4)).collect();
+    let mut line = |points: &mut Vec<[f64; 3]>, a: [f64; 3], b: [f64; 3]| {
+        points.extend([a, b]);
+        edges.push(edge(points.len() - 2, points.len() - 1));
+    };
+    let o = 0.01;
+    for k in 0..4 {
+        let (x0, x1) = (1.0 + 3.0 * k as f64, 2.2 + 3.0 * k as f64);
+        let sides = [
+            ([x0, 0.0, 1.0 - o], [x0, 0.0, 2.5 + o]),
+            ([x1, 0.0, 1.0 - o], [x1, 0.0, 2.5 + o]),
+            ([x0 - o, 0.0, 1.0], [x1 + o, 0.0, 1.0]),
+            ([x0 - o, 0.0, 2.5], [x1 + o, 0.0, 2.5]),
+        ];
+        for (s, (a, b)) in sides.into_iter().enumerate() {
+            if !missing.contains(&[k, s]) {
+                line(&mut points, a, b);
+            }
+        }
+        line(&mut points, [x0 + 0.05, 0.02, 1.8], [x1 - 0.05, 0.02, 1.8]);
+    }
+    for c in 0..58 {
+        let z = 0.15 + 0.1 * c as f64;
+        if (1.0..=2.5).contains(&z) {
+            for k in 0..3 {
+                line(&mut points, [2.2 + 3.0 * k as f64, 0.0, z], [4.0 + 3.0 * k as f64, 0.0, z]);
+            }
+        } else {
+            line(&mut points, [-1.0, 0.0, z], [13.0, 0.0, z]);
+        }
+    }
+    (points.into_iter().map(vertex).collect(), edges, viewpoint)
+}
+
+/// The window faces' bounds [x0, x1, z0, z1] among the vertices from `first` on, in order along the wall.
+fn openings(vertices: &[Vertex], faces: &[Face], first: usize) -> Vec<[f64; 4]> {
+    let mut found: Vec<[f64; 4]> = faces
+        .iter()
+        .filter(|f| f.kind == SurfaceKind::Window && f.ring.iter().all(|&k| k >= first))
+        .map(|f| {
+            let xs: Vec<f64> = f.ring.iter().map(|&k| vertices[k].point.x).collect();
+            let zs: Vec<f64> = f.ring.iter().map(|&k| vertices[k].point.z).collect();
+            [min(&xs), max(&xs), min(&zs), max(&zs)]
+        })
+        .collect();
+    found.sort_by(|a, b| a[0].total_cmp(&b[0]));
+    found
+}
+
+fn assert_windows(found: &[[f64; 4]], expected: &[usize]) {
+    assert_eq!(found.len(), expected.len(), "{found:?}");
+    for (f, &k) in found.iter().zip(expected) {
+        let truth = [1.0 + 3.0 * k as f64, 2.2 + 3.0 * k as f64, 1.0, 2.5];
+        for (a, b) in f.iter().zip(truth) {
+            assert!((a - b).abs() < 0.02, "window {k}: {f:?} against {truth:?}");
+        }
+    }
+}
+
+#[test]
+fn nearly_flush_windows_on_a_brick_wall_are_found_and_the_piers_between_them_are_not() {
+    let (mut vertices, mut edges, viewpoint) = row_of_flush_windows(&[]);
+    let first = vertices.len();
+    let faces = find(&mut vertices, &mut edges, &ModelParams::default(), &viewpoint.into());
+    assert_windows(&openings(&vertices, &faces, first), &[0, 1, 2, 3]);
+}
+
+#[test]
+fn a_flush_window_whose_foot_is_hidden_ends_where_both_its_sides_end() {
+    let (mut vertices, mut edges, viewpoint) = row_of_flush_windows(&[[1, 2]]);
+    let first = vertices.len();
+    let faces = find(&mut vertices, &mut edges, &ModelParams::default(), &viewpoint.into());
+    assert_windows(&openings(&vertices, &faces, first), &[0, 1, 2, 3]);
+}
+
+#[test]
+fn a_window_missing_a_side_is_predicted_by_its_row_and_the_bays_spacing_and_one_missing_two_is_not() {
+    // Window 2 lacks its left side: no rectangle of its own, but its row and the bays' spacing place it, and three
+    // of its sides are seen.
+    let (mut vertices, mut edges, viewpoint) = row_of_flush_windows(&[[2, 0]]);
+    let first = vertices.len();
+    let faces = find(&mut vertices, &mut edges, &ModelParams::default(), &viewpoint.into());
+    assert_windows(&openings(&vertices, &faces, first), &[0, 1, 2, 3]);
+    // Lacking its top too, too little of it is seen.
+    let (mut vertices, mut edges, viewpoint) = row_of_flush_windows(&[[2, 0], [2, 3]]);
+    let first = vertices.len();
+    let faces = find(&mut vertices, &mut edges, &ModelParams::default(), &viewpoint.into());
+    assert_windows(&openings(&vertices, &faces, first), &[0, 1, 3]);
+}
+
+#[test]
+fn the_period_of_bays_is_found_from_the_centres_found_and_none_without_two() {
+    let p = grid::period(&[5.03, 11.0, 17.04, 27.03]).expect("a period");
+    assert!((p - 2.0).abs() < 0.01, "{p}");
+    assert_eq!(grid::period(&[5.0]), None);
+    assert_eq!(grid::period(&[]), None);
+    // Gaps of 2.0 and 3.45 m share no period of at least the smallest opening.
+    assert_eq!(grid::period(&[0.0, 2.0, 5.45]), None);
+}
