@@ -119,13 +119,10 @@ pub(super) fn period(starts: &[f64]) -> Option<f64> {
 /// [`MAX_SIDE_GAP_M`] of its ends (a course running across the wall past the opening is none of its sides).
 fn seen_sides(view: &WallView, [x0, x1, z0, z1]: [f64; 4]) -> usize {
     let seen = |sides: &[&Vec<Side>], at: f64, lo: f64, hi: f64| {
-        sides.iter().flat_map(|s| s.iter()).any(|s| {
-            let (from, to) = s.extent();
-            (s.at - at).abs() <= GRID_TOLERANCE_M
-                && s.cover(lo, hi) >= MIN_STANDING_COVER
-                && from >= lo - MAX_SIDE_GAP_M
-                && to <= hi + MAX_SIDE_GAP_M
-        })
+        sides
+            .iter()
+            .flat_map(|s| s.iter())
+            .any(|s| (s.at - at).abs() <= GRID_TOLERANCE_M && s.cover(lo, hi) >= MIN_STANDING_COVER && ends_within(s, lo, hi))
     };
     let standing = [&view.standing, &view.standing_on_wall];
     let lying = [&view.lying, &view.lying_on_wall];

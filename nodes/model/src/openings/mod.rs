@@ -73,12 +73,14 @@ mod recesses;
 mod rectangles;
 mod sides;
 mod wall;
+mod wall_from_edges;
 
 use grid::*;
 use recesses::*;
 use rectangles::*;
 use sides::*;
 use wall::*;
+use wall_from_edges::*;
 
 /// A rectangle behind a wall proposed as an opening, its depth behind the wall and the σ of its corners.
 struct Proposal {
@@ -205,7 +207,7 @@ pub(crate) fn add(inferred: Vec<Inferred>, vertices: &mut Vec<Vertex>, edges: &m
 /// The walls, most edges first: vertical planes whose edges (at least [`MIN_WALL_EDGES`]) spread
 /// [`MIN_WALL_SPAN_M`] across and up and outnumber those of every parallel plane within [`RECESS_M`] of them (a row
 /// of sill fronts, the reveals of a column of windows or a frame's own plane are no wall), each with the observed
-/// edges behind it gathered into sides.
+/// edges behind it gathered into sides. Where no face makes a wall, the edges alone may ([`wall_from_edges`]).
 fn walls(
     vertices: &[Vertex],
     edges: &[Edge],
@@ -241,10 +243,17 @@ fn walls(
         .map(|k| (plane_edges[k].len(), k))
         .collect();
     chosen.sort_by(|a, b| b.0.cmp(&a.0).then(a.1.cmp(&b.1)));
+    let mut chosen: Vec<Plane> = chosen.into_iter().map(|(_, k)| planes[k]).collect();
+    // The faces' planes count closed faces, and deep frames close more of them than the wall in front: the wall of
+    // the edges comes first, in place of the planes within a recess of it.
+    if let Some(wall) = wall_from_edges(vertices, edges, viewpoint) {
+        chosen.retain(|p| !parallel_near(p, &wall));
+        chosen.insert(0, wall);
+    }
     chosen
         .into_iter()
-        .filter_map(|(_, k)| {
-            let wall = Wall::facing(planes[k], viewpoint)?.settled(vertices, edges, RECESS_M.0);
+        .filter_map(|plane| {
+            let wall = Wall::facing(plane, viewpoint)?.settled(vertices, edges, RECESS_M.0);
             // Up to where a recess starts, so that a nearly flush frame (3 to 6 cm back) is on the wall, not lost
             // between the two.
             let on_wall = (-DEPTH_TOLERANCE_M, RECESS_M.0);

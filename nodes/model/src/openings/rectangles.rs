@@ -46,11 +46,9 @@ pub(super) fn from_rectangles(view: &WallView, centres: &[Vec3]) -> Vec<(Rect, f
             let end = |top: bool| {
                 let pick = |e: (f64, f64)| if top { e.1 } else { e.0 };
                 let reach = if flush { FLUSH_END_REACH_M } else { 3.0 * SIDE_TOLERANCE_M };
-                // A flush opening's foot and top end at its sides: a course of the wall runs on past them.
-                let ends_at_sides = move |s: &Side| {
-                    let (from, to) = s.extent();
-                    !flush || (from >= l.at - MAX_SIDE_GAP_M && to <= r.at + MAX_SIDE_GAP_M)
-                };
+                // A flush opening's foot and top end at its sides: a course of the wall runs on past them (and its
+                // sides end at its foot and top: a pipe or a corner runs on).
+                let ends_at_sides = move |s: &Side| !flush || ends_within(s, l.at, r.at);
                 let near = move |at: f64| {
                     move |s: &&&Side| (s.at - at).abs() <= reach && s.cover(l.at, r.at) >= MIN_LYING_COVER && ends_at_sides(s)
                 };
@@ -77,6 +75,7 @@ pub(super) fn from_rectangles(view: &WallView, centres: &[Vec3]) -> Vec<(Rect, f
                 || !(MIN_OPENING_M..=MAX_OPENING_M).contains(&(z1 - z0))
                 || l.cover(z0, z1) < MIN_STANDING_COVER
                 || r.cover(z0, z1) < MIN_STANDING_COVER
+                || (flush && !(ends_within(l, z0, z1) && ends_within(r, z0, z1)))
             {
                 continue;
             }
@@ -229,4 +228,10 @@ pub(super) fn widened_to_frame(rect: Rect, depth: f64, view: &WallView, centres:
     let z1 = lying_side(3, ends1, 1.0);
     let bounds = [l, r, z0, z1];
     (bounds != rect.bounds).then_some(Rect { bounds, on_wall })
+}
+
+/// Whether `side` ends within [`MAX_SIDE_GAP_M`] beyond `lo` and `hi` along its direction.
+pub(super) fn ends_within(side: &Side, lo: f64, hi: f64) -> bool {
+    let (from, to) = side.extent();
+    from >= lo - MAX_SIDE_GAP_M && to <= hi + MAX_SIDE_GAP_M
 }
