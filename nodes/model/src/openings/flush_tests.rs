@@ -60,7 +60,13 @@ fn openings(vertices: &[Vertex], faces: &[Face], first: usize) -> Vec<[f64; 4]> 
     found
 }
 
-fn assert_windows(found: &[[f64; 4]], expected: &[usize]) {
+/// Finds the faces of [`row_of_flush_windows`] with `missing` sides and checks that the window faces are those of
+/// the windows `expected`, within 2 cm.
+fn assert_windows_found(missing: &[[usize; 2]], expected: &[usize]) {
+    let (mut vertices, mut edges, viewpoint) = row_of_flush_windows(missing);
+    let first = vertices.len();
+    let faces = find(&mut vertices, &mut edges, &ModelParams::default(), &viewpoint.into());
+    let found = openings(&vertices, &faces, first);
     assert_eq!(found.len(), expected.len(), "{found:?}");
     for (f, &k) in found.iter().zip(expected) {
         let truth = [1.0 + 3.0 * k as f64, 2.2 + 3.0 * k as f64, 1.0, 2.5];
@@ -72,33 +78,21 @@ fn assert_windows(found: &[[f64; 4]], expected: &[usize]) {
 
 #[test]
 fn nearly_flush_windows_on_a_brick_wall_are_found_and_the_piers_between_them_are_not() {
-    let (mut vertices, mut edges, viewpoint) = row_of_flush_windows(&[]);
-    let first = vertices.len();
-    let faces = find(&mut vertices, &mut edges, &ModelParams::default(), &viewpoint.into());
-    assert_windows(&openings(&vertices, &faces, first), &[0, 1, 2, 3]);
+    assert_windows_found(&[], &[0, 1, 2, 3]);
 }
 
 #[test]
 fn a_flush_window_whose_foot_is_hidden_ends_where_both_its_sides_end() {
-    let (mut vertices, mut edges, viewpoint) = row_of_flush_windows(&[[1, 2]]);
-    let first = vertices.len();
-    let faces = find(&mut vertices, &mut edges, &ModelParams::default(), &viewpoint.into());
-    assert_windows(&openings(&vertices, &faces, first), &[0, 1, 2, 3]);
+    assert_windows_found(&[[1, 2]], &[0, 1, 2, 3]);
 }
 
 #[test]
 fn a_window_missing_a_side_is_predicted_by_its_row_and_the_bays_spacing_and_one_missing_two_is_not() {
     // Window 2 lacks its left side: no rectangle of its own, but its row and the bays' spacing place it, and three
     // of its sides are seen.
-    let (mut vertices, mut edges, viewpoint) = row_of_flush_windows(&[[2, 0]]);
-    let first = vertices.len();
-    let faces = find(&mut vertices, &mut edges, &ModelParams::default(), &viewpoint.into());
-    assert_windows(&openings(&vertices, &faces, first), &[0, 1, 2, 3]);
+    assert_windows_found(&[[2, 0]], &[0, 1, 2, 3]);
     // Lacking its top too, too little of it is seen.
-    let (mut vertices, mut edges, viewpoint) = row_of_flush_windows(&[[2, 0], [2, 3]]);
-    let first = vertices.len();
-    let faces = find(&mut vertices, &mut edges, &ModelParams::default(), &viewpoint.into());
-    assert_windows(&openings(&vertices, &faces, first), &[0, 1, 3]);
+    assert_windows_found(&[[2, 0], [2, 3]], &[0, 1, 3]);
 }
 
 #[test]
