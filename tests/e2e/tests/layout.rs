@@ -167,8 +167,12 @@ fn top_module(src: &Path, file: &Path) -> Option<String> {
     (!matches!(first.as_str(), "lib" | "main" | "bin")).then_some(first)
 }
 
-/// The source without `#[cfg(test)]` modules (tests may use anything) and without comments.
+/// The source without `#[cfg(test)]` modules (tests may use anything) and without comments; nothing of a file
+/// that is a test module itself (`#![cfg(test)]`).
 fn production_code(text: &str) -> String {
+    if text.contains("#![cfg(test)]") {
+        return String::new();
+    }
     let text = match text.find("#[cfg(test)]") {
         Some(i) => &text[..i],
         None => text,

@@ -1,5 +1,6 @@
 //! Nearly flush openings (rule two on the wall's own edges) and the openings their rows and columns predict (rule
 //! three), on a brick wall whose courses stop at the openings.
+#![cfg(test)]
 use super::tests::{edge, vertex};
 use super::*;
 use crate::faces::find;
