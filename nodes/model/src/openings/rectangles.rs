@@ -11,8 +11,8 @@ use super::*;
 /// wall); one inside another already taken (the panes of a frame) is left out. Each with its depth and a σ.
 ///
 /// A nearly flush opening (its frame within [`RECESS_M`]'s lower bound of the wall) shows all four sides on the
-/// wall: there the rectangle of the wall's own edges is the opening where no course of the wall runs across it
-/// ([`WallView::crossed`]).
+/// wall: there the rectangle of the wall's own edges is the opening where the courses of the wall do not run through
+/// it ([`WallView::courses_within`]).
 pub(super) fn from_rectangles(view: &WallView, centres: &[Vec3]) -> Vec<(Rect, f64, Option<Vec3>)> {
     let on_wall = |s: &Side| s.depth < RECESS_M.0;
     let mut standing: Vec<&Side> = view.standing.iter().chain(&view.standing_on_wall).collect();
@@ -66,11 +66,12 @@ pub(super) fn from_rectangles(view: &WallView, centres: &[Vec3]) -> Vec<(Rect, f
                 let (a, b) = (pick(l), pick(r));
                 (flush && (a - b).abs() <= FLUSH_END_REACH_M).then_some(((a + b) / 2.0, true))
             };
-            let side = |top: bool| end(top).map(|s| (s.at, on_wall(s))).or_else(|| jambs_end(top));
-            let (Some((z1, top_on_wall)), Some((z0, bottom_on_wall))) = (side(true), side(false)) else {
+            let (top, foot) = (end(true), end(false));
+            let side = |found: Option<&&Side>, top: bool| found.map(|s| (s.at, on_wall(s))).or_else(|| jambs_end(top));
+            let (Some((z1, top_on_wall)), Some((z0, bottom_on_wall))) = (side(top, true), side(foot, false)) else {
                 continue;
             };
-            if (end(true).is_none() && end(false).is_none())
+            if (top.is_none() && foot.is_none())
                 || (top_on_wall && bottom_on_wall && !flush)
                 || !(MIN_OPENING_M..=MAX_OPENING_M).contains(&(z1 - z0))
                 || l.cover(z0, z1) < MIN_STANDING_COVER

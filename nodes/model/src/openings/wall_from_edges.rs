@@ -25,7 +25,7 @@ pub(super) fn wall_from_edges(vertices: &[Vertex], edges: &[Edge], viewpoint: &V
     let along = plan_direction(&segments)?;
     let normal = Vec3::z().cross(&along);
     let cos5 = 5f64.to_radians().cos();
-    // Depth bin → (length, across extent, height extent, standing length, lying length).
+    // Depth bin → [length, across from, across to, height from, height to, standing length, lying length].
     let mut bins: BTreeMap<i64, [f64; 7]> = BTreeMap::new();
     for (p, q) in &segments {
         let d = q - p;
