@@ -97,6 +97,8 @@ pub struct Results {
     pub model_openings: Option<Vec<model::ModelOpening>>,
     /// Edges of `model.obj` completed behind an occluder (not scored: the truth holds the edges seen in images).
     pub model_hidden_edges: Option<usize>,
+    /// Lines of `model.obj` set aside as lying inside a surface (vertex pairs into the model's vertices).
+    pub model_surface_lines: Option<Vec<[usize; 2]>>,
 }
 
 /// The window and door faces (groups `Window` and `Door`) of an OBJ model.
@@ -134,6 +136,7 @@ impl Results {
             lines3d: optional(dir.join("lines3d.csv"), read_lines3d)?,
             model_openings: obj.as_ref().map(openings_of_obj),
             model_hidden_edges: obj.as_ref().map(|o| o.hidden_edges.len()),
+            model_surface_lines: obj.as_ref().map(|o| o.surface_lines.clone()),
             model: obj.map(|o| (o.vertices, o.edges)),
             model_fitted: optional(dir.join("model_fitted.obj"), lineflow_formats::read_obj_wireframe)?,
         })
@@ -150,6 +153,8 @@ pub struct Evaluation {
     pub openings: Option<model::OpeningReport>,
     /// Edges of the model completed behind an occluder, left out of the scores.
     pub hidden_edges: Option<usize>,
+    /// The model's lines inside a surface, set aside from its edges.
+    pub surface_lines: Option<model::SurfaceLinesReport>,
 }
 
 /// Evaluates whatever `results` holds.
@@ -174,5 +179,10 @@ pub fn evaluate(truth: &Truth, results: &Results) -> Evaluation {
             .as_ref()
             .map(|o| model::evaluate_openings(&truth.scene.building.openings, o, truth.gsd_m())),
         hidden_edges: results.model_hidden_edges,
+        surface_lines: results
+            .model
+            .as_ref()
+            .zip(results.model_surface_lines.as_ref())
+            .map(|((v, _), lines)| model::evaluate_surface_lines(&truth.lines, v, lines, truth.gsd_m())),
     }
 }

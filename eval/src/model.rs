@@ -84,12 +84,7 @@ pub fn evaluate(truth: &[Line3Row], vertices: &[Vec3], edges: &[[usize; 2]], gsd
             sq += d * d;
         }
     }
-    let close = |p: &Vec3, q: &Vec3| (p - q).norm() <= tol;
-    let edge_matches = |m: &[usize; 2], t: &[usize; 2]| {
-        let (a, b) = (&vertices[m[0]], &vertices[m[1]]);
-        let (p, q) = (&tv[t[0]], &tv[t[1]]);
-        (close(a, p) && close(b, q)) || (close(a, q) && close(b, p))
-    };
+    let edge_matches = edge_matcher(&tv, vertices, tol);
     let right = edges.iter().filter(|m| te.iter().any(|t| edge_matches(m, t))).count();
     let found = te.iter().filter(|t| edges.iter().any(|m| edge_matches(m, t))).count();
     let share = |n: usize, d: usize| if d == 0 { 0.0 } else { n as f64 / d as f64 };
@@ -105,6 +100,35 @@ pub fn evaluate(truth: &[Line3Row], vertices: &[Vec3], edges: &[[usize; 2]], gsd
         edge_recall: share(found, te.len()),
         vertex_reach_m: reach,
         edge_tolerance_m: tol,
+    }
+}
+
+/// Whether a model edge (vertex pair into `vertices`) is a true edge (vertex pair into `tv`): both ends within
+/// `tol` of its two ends.
+fn edge_matcher<'a>(tv: &'a [Vec3], vertices: &'a [Vec3], tol: f64) -> impl Fn(&[usize; 2], &[usize; 2]) -> bool + 'a {
+    move |m, t| {
+        let close = |p: &Vec3, q: &Vec3| (p - q).norm() <= tol;
+        let (a, b) = (&vertices[m[0]], &vertices[m[1]]);
+        let (p, q) = (&tv[t[0]], &tv[t[1]]);
+        (close(a, p) && close(b, q)) || (close(a, q) && close(b, p))
+    }
+}
+
+/// The lines a model set aside as lying inside a surface (`surface_lines` of `model.obj`): how many, and how many
+/// of them are true edges after all (the class's mistakes), by the edge rule of [`evaluate`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct SurfaceLinesReport {
+    pub lines: usize,
+    pub true_edges: usize,
+}
+
+/// Scores the surface lines `lines` (vertex pairs into `vertices`) against the true segments.
+pub fn evaluate_surface_lines(truth: &[Line3Row], vertices: &[Vec3], lines: &[[usize; 2]], gsd_m: f64) -> SurfaceLinesReport {
+    let (tv, te) = true_wireframe(truth);
+    let edge_matches = edge_matcher(&tv, vertices, 3.0 * gsd_m);
+    SurfaceLinesReport {
+        lines: lines.len(),
+        true_edges: lines.iter().filter(|m| te.iter().any(|t| edge_matches(m, t))).count(),
     }
 }
 

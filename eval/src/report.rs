@@ -248,6 +248,13 @@ fn model_section(md: &mut String, eval: &Evaluation) {
             "{n} edges of the CSR model were completed behind an occluder (`docs/model.md`); they are not scored, as the truth holds the edges seen in two images.\n"
         );
     }
+    if let Some(s) = eval.surface_lines.filter(|s| s.lines > 0) {
+        let _ = writeln!(
+            md,
+            "{} lines lying inside a wall's surface (mortar, tile and panel joints) were set aside from the model's edges (`surface_lines`, `docs/model.md`); {} of them are true edges after all.\n",
+            s.lines, s.true_edges
+        );
+    }
     if let Some(o) = &eval.openings {
         let _ = writeln!(
             md,

@@ -84,6 +84,7 @@ pub fn summary(eval: &Evaluation) -> Value {
         "model_fitted": eval.model_fitted.as_ref().map(model),
         "openings": openings,
         "hidden_edges": eval.hidden_edges,
+        "surface_lines": eval.surface_lines.map(|s| json!({"lines": s.lines, "true_edges": s.true_edges})),
     })
 }
 

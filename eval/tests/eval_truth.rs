@@ -53,6 +53,7 @@ fn the_truth_scores_perfectly_and_known_shifts_score_as_expected() {
             model: Some(lineflow_eval::model::true_wireframe(&lines)),
             model_fitted: Some(lineflow_eval::model::true_wireframe(&lines)),
             model_hidden_edges: None,
+            model_surface_lines: None,
             model_openings: Some(
                 truth
                     .scene

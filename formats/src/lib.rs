@@ -348,6 +348,9 @@ pub struct ObjModel {
     pub edges: Vec<[usize; 2]>,
     /// The edges of group `completed_edges`: not observed, completed behind an occluder (`docs/model.md`).
     pub hidden_edges: Vec<[usize; 2]>,
+    /// The lines of group `surface_lines`: observed lines inside a wall's surface (mortar, tile and panel joints),
+    /// no edges of the model.
+    pub surface_lines: Vec<[usize; 2]>,
     /// (group, vertex indices of the face's ring).
     pub faces: Vec<(String, Vec<usize>)>,
 }
@@ -386,10 +389,10 @@ pub fn read_obj(path: &Path) -> Result<ObjModel, FormatError> {
             }
             Some("l") => {
                 let idx = indices(words, obj.vertices.len())?;
-                let list = if group == "completed_edges" {
-                    &mut obj.hidden_edges
-                } else {
-                    &mut obj.edges
+                let list = match group.as_str() {
+                    "completed_edges" => &mut obj.hidden_edges,
+                    "surface_lines" => &mut obj.surface_lines,
+                    _ => &mut obj.edges,
                 };
                 list.extend(idx.windows(2).map(|w| [w[0], w[1]]));
             }
@@ -407,7 +410,8 @@ pub fn read_obj(path: &Path) -> Result<ObjModel, FormatError> {
     Ok(obj)
 }
 
-/// The wire-frame of an OBJ file: its vertices and the edges of its `l` elements but the hidden ones
+/// The wire-frame of an OBJ file: its vertices and the edges of its `l` elements but the hidden ones and the surface
+/// lines
 /// ([`read_obj`]).
 pub fn read_obj_wireframe(path: &Path) -> Result<(Vec<Vec3>, Vec<[usize; 2]>), FormatError> {
     read_obj(path).map(|o| (o.vertices, o.edges))

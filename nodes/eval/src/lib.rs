@@ -91,6 +91,8 @@ impl Collector {
             checkpoints,
             model_openings: self.model.as_ref().zip(self.faces.as_ref()).map(|((v, _), f)| openings(v, f)),
             model_hidden_edges: self.model.as_ref().map(|_| self.model_hidden),
+            // The live wire-frame carries the model's edges only; the surface lines are in model.obj.
+            model_surface_lines: None,
             model: self.model,
             model_fitted: self.fitted,
         }

@@ -17,7 +17,8 @@ fn write(path: &Path, text: &str) -> Result<()> {
 }
 
 /// Wavefront OBJ: `v` per vertex (metres, object coordinates), `f` per face outer ring grouped by kind (OBJ has no
-/// holes: openings are their own faces), `l` per edge (group `edges`, and `completed_edges` for the occluded ones).
+/// holes: openings are their own faces), `l` per edge (group `edges`, `completed_edges` for the occluded ones, and
+/// `surface_lines` for the lines inside a wall's surface, which are no edges of the model).
 pub fn obj_text(model: &Model) -> String {
     let mut s = String::new();
     let _ = writeln!(
@@ -50,6 +51,12 @@ pub fn obj_text(model: &Model) -> String {
         for e in group_edges {
             let _ = writeln!(s, "l {} {}", e.a + 1, e.b + 1);
         }
+    }
+    if !model.surface_lines.is_empty() {
+        let _ = writeln!(s, "g surface_lines");
+    }
+    for [a, b] in &model.surface_lines {
+        let _ = writeln!(s, "l {} {}", a + 1, b + 1);
     }
     s
 }

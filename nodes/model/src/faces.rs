@@ -7,6 +7,7 @@ use lineflow_photogrammetry::{point_in_polygon, signed_area, Vec3};
 
 use crate::disjoint::Disjoint;
 use crate::surface::{plane_basis, smaller_side, Face, Plane, SurfaceKind};
+use crate::surface_lines::WallSurface;
 use crate::{Cameras, Edge, ModelParams, Vertex};
 
 /// The faces of a wire-frame. The `cameras`' mean centre decides which side is outside; without cameras the
@@ -15,9 +16,19 @@ use crate::{Cameras, Edge, ModelParams, Vertex};
 /// Openings inferred from what is seen through them ([`crate::openings`]) add their corners to `vertices` and
 /// their outlines, as completed edges, to `edges`.
 pub fn find(vertices: &mut Vec<Vertex>, edges: &mut Vec<Edge>, params: &ModelParams, cameras: &Cameras) -> Vec<Face> {
+    find_with_walls(vertices, edges, params, cameras).0
+}
+
+/// [`find`], and the walls the openings were looked for on.
+pub(crate) fn find_with_walls(
+    vertices: &mut Vec<Vertex>,
+    edges: &mut Vec<Edge>,
+    params: &ModelParams,
+    cameras: &Cameras,
+) -> (Vec<Face>, Vec<WallSurface>) {
     let viewpoint = cameras.mean();
     if vertices.is_empty() {
-        return Vec::new();
+        return (Vec::new(), Vec::new());
     }
     let tol = plane_tolerance(vertices, params);
     let merged = merge_close(vertices, edges, tol);
@@ -64,13 +75,15 @@ pub fn find(vertices: &mut Vec<Vertex>, edges: &mut Vec<Edge>, params: &ModelPar
             });
         }
     }
+    let mut walls = Vec::new();
     if viewpoint.is_some() {
         recessed_openings(vertices, &incident, edges, &mut faces);
-        let inferred = crate::openings::infer(vertices, edges_out, &planes, &plane_edges, &faces, tol, params, cameras);
+        let inferred;
+        (inferred, walls) = crate::openings::infer(vertices, edges_out, &planes, &plane_edges, &faces, tol, params, cameras);
         crate::openings::add(inferred, vertices, edges_out, &mut faces);
     }
     nest_openings(vertices, &mut faces, params);
-    faces
+    (faces, walls)
 }
 
 /// The edges with every vertex replaced by the first of the vertices within twice the plane tolerance `tol` of it

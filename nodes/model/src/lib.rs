@@ -30,6 +30,7 @@ pub mod refine;
 pub mod regular;
 pub mod stage;
 mod surface;
+mod surface_lines;
 
 use lineflow_photogrammetry::{Camera, Vec3};
 use serde::Deserialize;
@@ -148,6 +149,17 @@ pub struct ModelParams {
     /// wall (mortar courses), which are no edges of the building; on plaster most are true edges whose neighbours
     /// were not found. Measured both ways in docs/model.md ("Loose lines"); on by default.
     pub loose_lines: bool,
+    /// Keep the lines lying inside a wall's surface (mortar, tile and panel joints) out of the model's edges, as
+    /// `surface_lines` ([`surface_lines`]).
+    pub surface_lines: bool,
+    /// How far off a wall's surface a surface line's ends may lie, metres.
+    pub surface_band_m: f64,
+    /// How far inside the wall's extent a surface line's ends lie at least, metres (the wall's outline stays).
+    pub surface_margin_m: f64,
+    /// A surface line lies in a field of its kind (courses, rows of tiles): this many parallel surface lines…
+    pub surface_neighbours: usize,
+    /// …within this distance across, metres.
+    pub surface_reach_m: f64,
 }
 
 impl Default for ModelParams {
@@ -177,6 +189,11 @@ impl Default for ModelParams {
             align_k: 2.0,
             align_min_lines: 3,
             loose_lines: true,
+            surface_lines: true,
+            surface_band_m: 0.03,
+            surface_margin_m: 0.1,
+            surface_neighbours: 4,
+            surface_reach_m: 0.3,
         }
     }
 }
@@ -253,6 +270,8 @@ impl lineflow_runtime::StageParams for ModelParams {
             ("refine_image_sigma_px", self.refine_image_sigma_px),
             ("regular_k", self.regular_k),
             ("align_k", self.align_k),
+            ("surface_band_m", self.surface_band_m),
+            ("surface_reach_m", self.surface_reach_m),
         ] {
             positive(name, v)?;
         }
@@ -265,12 +284,16 @@ impl lineflow_runtime::StageParams for ModelParams {
             ("occlusion_reach_m", self.occlusion_reach_m),
             ("occlusion_min_depth_m", self.occlusion_min_depth_m),
             ("min_length_m", self.min_length_m),
+            ("surface_margin_m", self.surface_margin_m),
         ] {
             non_negative(name, v)?;
         }
         Ok(())
     }
 }
+
+/// The farthest Shape may move a corner from its junctions' mean, metres.
+const MAX_CORNER_MOVE_M: f64 = 1.0;
 
 /// A vertex of the wire-frame.
 #[derive(Debug, Clone, PartialEq)]
@@ -306,6 +329,8 @@ pub struct Diagnostics {
     pub objects: usize,
     /// Objects whose adjustment failed (initial corners kept).
     pub objects_unadjusted: usize,
+    /// Corners an adjustment took implausibly far (their junctions' mean kept).
+    pub corners_unadjusted: usize,
     /// Median σ̂0 over the objects with redundancy.
     pub median_sigma0: Option<f64>,
     /// Edges measured again in the images by Refine (each a second observation in its object's adjustment).
@@ -323,6 +348,9 @@ pub struct Diagnostics {
 pub struct Model {
     pub vertices: Vec<Vertex>,
     pub edges: Vec<Edge>,
+    /// Lines lying inside a wall's surface (mortar, tile and panel joints): observed, but no edges of the building
+    /// ([`surface_lines`]); vertex pairs.
+    pub surface_lines: Vec<[usize; 2]>,
     pub faces: Vec<Face>,
     /// The objects Construct grouped the lines into, each as its corners (indices into `vertices`).
     pub objects: Vec<Vec<usize>>,
@@ -362,14 +390,16 @@ impl Model {
     pub fn summary(&self) -> String {
         let d = &self.diagnostics;
         format!(
-            "{} of {} lines used ({} loose lines left out), {} objects ({} left unadjusted), {} vertices, {} edges, {} faces ({} walls, {} window/door, {} roof), ends resolved by stage 1/2/3: {}/{}/{}, free {}, median sigma0 {}, {} edges refined by image lines, {} occluded boundaries completed, {} objects inside another in plan, lines turned plumb/level/level on a plan direction/sloped on one: {}/{}/{}/{} ({} plan directions), line coordinates aligned along/across the wall/in height: {}/{}/{} ({}/{}/{} shared values)",
+            "{} of {} lines used ({} loose lines left out), {} objects ({} left unadjusted, {} corners kept where their lines met), {} vertices, {} edges ({} lines inside a wall's surface set aside), {} faces ({} walls, {} window/door, {} roof), ends resolved by stage 1/2/3: {}/{}/{}, free {}, median sigma0 {}, {} edges refined by image lines, {} occluded boundaries completed, {} objects inside another in plan, lines turned plumb/level/level on a plan direction/sloped on one: {}/{}/{}/{} ({} plan directions), line coordinates aligned along/across the wall/in height: {}/{}/{} ({}/{}/{} shared values)",
             d.lines_used,
             d.lines_in,
             d.loose_dropped,
             d.objects,
             d.objects_unadjusted,
+            d.corners_unadjusted,
             self.vertices.len(),
             self.edges.len(),
+            self.surface_lines.len(),
             self.faces.len(),
             self.count(&[SurfaceKind::Wall]),
             self.count(&[SurfaceKind::Window, SurfaceKind::Door]),
@@ -541,6 +571,13 @@ pub fn build_with_images(lines: &[ModelLine], params: &ModelParams, cameras: &Ca
             }
         }
         for (ci, &c) in object_corners.iter().enumerate() {
+            // A corner the adjustment takes farther than a metre from where its lines met is ill-posed (nearly
+            // parallel lines: one went hundreds of kilometres on a held-out building): it keeps its junctions'
+            // mean. Moves of 10 to 50 cm are real (junctions of lines at small angles) and help the openings.
+            if (r.corners[ci] - start[ci]).norm() > MAX_CORNER_MOVE_M {
+                diagnostics.corners_unadjusted += 1;
+                continue;
+            }
             corner_point[c] = r.corners[ci];
             corner_sigma[c] = Some(r.sigmas[ci]);
         }
@@ -614,7 +651,7 @@ pub fn build_with_images(lines: &[ModelLine], params: &ModelParams, cameras: &Ca
     }
     let inside = inside::objects_inside(&object_edges);
     diagnostics.chains_completed = occlusion::complete(&mut vertices, &mut edges, params, cameras.mean());
-    let mut faces = faces::find(&mut vertices, &mut edges, params, cameras);
+    let (mut faces, walls) = faces::find_with_walls(&mut vertices, &mut edges, params, cameras);
     if !params.loose_lines {
         let mut loose = vec![false; lines.len()];
         for (l, corners_on) in on_line.iter().enumerate() {
@@ -625,9 +662,27 @@ pub fn build_with_images(lines: &[ModelLine], params: &ModelParams, cameras: &Ca
             loose.get(line).copied().unwrap_or(false)
         });
     }
+    let surface_lines = if params.surface_lines {
+        let mut azimuths = [None; 4];
+        for (slot, &a) in azimuths.iter_mut().zip(&plan_azimuths) {
+            *slot = Some(a);
+        }
+        let rule = surface_lines::SurfaceRule {
+            band_m: params.surface_band_m,
+            margin_m: params.surface_margin_m,
+            neighbours: params.surface_neighbours,
+            reach_m: params.surface_reach_m,
+            plan_azimuths: azimuths,
+            angle_rad: params.plane_angle_deg.to_radians(),
+        };
+        surface_lines::separate(&vertices, &mut edges, &mut faces, &walls, &rule)
+    } else {
+        Vec::new()
+    };
     Model {
         vertices,
         edges,
+        surface_lines,
         faces,
         objects: corners_of,
         inside,

@@ -18,6 +18,7 @@ use lineflow_photogrammetry::Vec3;
 use lineflow_photogrammetry::{point_in_polygon, signed_area};
 
 use crate::surface::{plane_basis, smaller_side, Face, Plane, SurfaceKind};
+use crate::surface_lines::WallSurface;
 use crate::{Cameras, Edge, ModelParams, Vertex};
 
 /// How far behind its wall a recessed face may lie to make an opening in it, metres: from a glazing bar's 4 cm (a
@@ -103,9 +104,9 @@ pub(crate) fn infer(
     tol: f64,
     params: &ModelParams,
     cameras: &Cameras,
-) -> Vec<Inferred> {
+) -> (Vec<Inferred>, Vec<WallSurface>) {
     let Some(viewpoint) = cameras.mean() else {
-        return Vec::new();
+        return (Vec::new(), Vec::new());
     };
     let centres = cameras.centres();
     let cos_par = params.plane_angle_deg.to_radians().cos();
@@ -174,7 +175,15 @@ pub(crate) fn infer(
             out.push(Inferred::New(corners, wall.out));
         }
     }
-    out
+    let surfaces = walls
+        .iter()
+        .map(|v| WallSurface {
+            point: v.wall.plane.normal * v.wall.plane.offset,
+            out: v.wall.out,
+            across: v.wall.across,
+        })
+        .collect();
+    (out, surfaces)
 }
 
 /// Adds the inferred openings to the model: marked faces become windows, new ones get their corners, their
@@ -233,7 +242,7 @@ fn walls(
         .filter(|&k| {
             let (p, n) = (&planes[k], plane_edges[k].len());
             n >= MIN_WALL_EDGES
-                && p.normal.z.abs() < 0.2
+                && p.normal.z.abs() < (1.0 - cos_par * cos_par).sqrt()
                 // Of two hypotheses that converged on one plane (as many edges), the first stands for both.
                 && (0..planes.len()).all(|j| {
                     j == k || !parallel_near(p, &planes[j]) || plane_edges[j].len() < n || (plane_edges[j].len() == n && j > k)

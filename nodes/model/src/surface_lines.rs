@@ -1,0 +1,312 @@
+//! Lines lying inside a wall's surface: mortar, tile and panel joints, painted lines. The line stages rightly
+//! report them (they are lines of the images and lie on the building), but they are no edges of the building
+//! model, and on a brick façade they outnumber its edges ten to one. The model keeps them aside, in
+//! [`crate::Model::surface_lines`].
+//!
+//! A line is taken for one when both its ends lie in a wall's surface (within `surface_band_m` of the wall the
+//! openings are found on), well inside the wall's extent (more than `surface_margin_m` from where its edges end:
+//! the wall's outline stays), on no face but the wall's own (a window's or a roof's outline stays), and neither of
+//! its ends is a corner with an edge that leaves the surface (an opening's outline meets its reveals there, a
+//! cornice's foot its returns; a mortar course meets nothing that leaves the wall).
+use lineflow_photogrammetry::Vec3;
+
+use crate::surface::{Face, SurfaceKind};
+use crate::{Edge, Vertex};
+
+/// A wall as the surface lines are measured against it.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct WallSurface {
+    /// A point of the wall's surface.
+    pub(crate) point: Vec3,
+    /// Outward unit normal.
+    pub(crate) out: Vec3,
+    /// Horizontal unit vector in the wall.
+    pub(crate) across: Vec3,
+}
+
+impl WallSurface {
+    fn depth(&self, p: &Vec3) -> f64 {
+        (self.point - p).dot(&self.out)
+    }
+}
+
+/// The settings of the separation.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct SurfaceRule {
+    pub(crate) band_m: f64,
+    pub(crate) margin_m: f64,
+    /// A field: this many parallel candidates…
+    pub(crate) neighbours: usize,
+    /// …within this distance across, metres.
+    pub(crate) reach_m: f64,
+    /// The building's plan directions (azimuths modulo 90°, radians): only walls along one of them are surfaces.
+    pub(crate) plan_azimuths: [Option<f64>; 4],
+    /// How far a wall may be off plumb and off a plan direction, radians.
+    pub(crate) angle_rad: f64,
+}
+
+impl SurfaceRule {
+    /// A plumb wall along one of the building's plan directions; the plane hypotheses of the faces include
+    /// planes a few degrees off through a wall's texture, which would take every line for a surface line.
+    fn is_surface(&self, wall: &WallSurface) -> bool {
+        let quarter = std::f64::consts::FRAC_PI_2;
+        let azimuth = wall.across.y.atan2(wall.across.x).rem_euclid(quarter);
+        let off = |a: f64| {
+            let d = (azimuth - a).rem_euclid(quarter);
+            d.min(quarter - d)
+        };
+        wall.out.z.abs() < self.angle_rad.sin() && self.plan_azimuths.iter().flatten().any(|&a| off(a) < self.angle_rad)
+    }
+}
+
+/// Takes the surface lines out of `edges` (completed edges are never surface lines) and returns them as vertex
+/// pairs; the wall faces traced from them alone (a brick's outline between its joints) go too. Each vertex belongs
+/// to the first wall (of `walls`, most edges first) whose surface it lies in.
+pub(crate) fn separate(
+    vertices: &[Vertex],
+    edges: &mut Vec<Edge>,
+    faces: &mut Vec<Face>,
+    walls: &[WallSurface],
+    rule: &SurfaceRule,
+) -> Vec<[usize; 2]> {
+    let n = vertices.len();
+    // Corners of a face that is no wall (a window, a door, a roof): what meets there is structure.
+    let mut on_other_face = vec![false; n];
+    for f in faces.iter().filter(|f| f.kind != SurfaceKind::Wall) {
+        for &v in f.ring.iter().chain(f.holes.iter().flatten()) {
+            on_other_face[v] = true;
+        }
+    }
+    let walls: Vec<&WallSurface> = walls.iter().filter(|w| rule.is_surface(w)).collect();
+    let mut wall_of: Vec<Option<usize>> = vec![None; n];
+    for (k, wall) in walls.iter().enumerate() {
+        for (v, vertex) in vertices.iter().enumerate() {
+            if wall_of[v].is_none() && wall.depth(&vertex.point).abs() <= rule.band_m {
+                wall_of[v] = Some(k);
+            }
+        }
+    }
+    let mut inside = vec![false; n];
+    for (k, wall) in walls.iter().enumerate() {
+        let own = |v: usize| wall_of[v] == Some(k);
+        let Some([u0, u1, z0, z1]) = extent(vertices, edges, wall, own) else {
+            continue;
+        };
+        let m = rule.margin_m;
+        for v in (0..n).filter(|&v| own(v)) {
+            let (u, z) = (vertices[v].point.dot(&wall.across), vertices[v].point.z);
+            inside[v] = u > u0 + m && u < u1 - m && z > z0 + m && z < z1 - m;
+        }
+    }
+    // An edge with one end in a wall's surface and the other well off it (a reveal, a sill's side, a return)
+    // anchors that end.
+    let mut anchored = vec![false; n];
+    for e in edges.iter() {
+        for (here, there) in [(e.a, e.b), (e.b, e.a)] {
+            if let Some(k) = wall_of[here] {
+                anchored[here] |= walls[k].depth(&vertices[there].point).abs() > 2.0 * rule.band_m;
+            }
+        }
+    }
+    let free = |v: usize| inside[v] && !anchored[v] && !on_other_face[v];
+    let openings = opening_boxes(vertices, faces, &walls, rule.band_m);
+    let in_opening = |e: &Edge| {
+        let m = (vertices[e.a].point + vertices[e.b].point) / 2.0;
+        openings.iter().any(|&(w, [u0, u1, z0, z1])| {
+            let u = m.dot(&walls[w].across);
+            walls[w].depth(&m).abs() < RECESS_REACH_M && u >= u0 && u <= u1 && m.z >= z0 && m.z <= z1
+        })
+    };
+    let candidate = |e: &Edge| !e.completed && free(e.a) && free(e.b) && wall_of[e.a] == wall_of[e.b] && !in_opening(e);
+    let candidates: Vec<usize> = (0..edges.len()).filter(|&k| candidate(&edges[k])).collect();
+    let in_field = in_a_field(vertices, edges, &candidates, &walls, &wall_of, rule);
+    let mut is_surface = vec![false; edges.len()];
+    for (&k, &f) in candidates.iter().zip(&in_field) {
+        is_surface[k] = f;
+    }
+    let surface_lines: Vec<[usize; 2]> = (0..edges.len())
+        .filter(|&k| is_surface[k])
+        .map(|k| [edges[k].a, edges[k].b])
+        .collect();
+    let mut k = 0;
+    edges.retain(|_| {
+        k += 1;
+        !is_surface[k - 1]
+    });
+    faces.retain(|f| f.kind != SurfaceKind::Wall || !f.holes.is_empty() || !f.ring.iter().all(|&v| free(v)));
+    surface_lines
+}
+
+/// How far behind or before a wall an opening's frames and panes may lie, metres.
+const RECESS_REACH_M: f64 = 0.5;
+
+/// The window and door faces as boxes `[u0, u1, z0, z1]` in their wall's coordinates, grown by `grow`: a line
+/// along an opening's outline or inside it (its frame, its panes) is no course of the wall.
+fn opening_boxes(vertices: &[Vertex], faces: &[Face], walls: &[&WallSurface], grow: f64) -> Vec<(usize, [f64; 4])> {
+    let parallel = |f: &Face, w: &WallSurface| f.normal.dot(&w.out).abs() > 0.99;
+    faces
+        .iter()
+        .filter(|f| matches!(f.kind, SurfaceKind::Window | SurfaceKind::Door))
+        .filter_map(|f| {
+            let w = (0..walls.len())
+                .find(|&w| parallel(f, walls[w]) && f.ring.iter().all(|&v| walls[w].depth(&vertices[v].point).abs() < RECESS_REACH_M))?;
+            let mut b = [f64::INFINITY, f64::NEG_INFINITY, f64::INFINITY, f64::NEG_INFINITY];
+            for &v in &f.ring {
+                let (u, z) = (vertices[v].point.dot(&walls[w].across), vertices[v].point.z);
+                b = [b[0].min(u - grow), b[1].max(u + grow), b[2].min(z - grow), b[3].max(z + grow)];
+            }
+            Some((w, b))
+        })
+        .collect()
+}
+
+/// Whether each candidate lies in a field of its kind: at least `neighbours` other candidates of its wall parallel
+/// to it, overlapping it and within `reach_m` across. Courses of brick and rows of tiles are such fields; the
+/// outline of an opening on a plain wall is not.
+fn in_a_field(
+    vertices: &[Vertex],
+    edges: &[Edge],
+    candidates: &[usize],
+    walls: &[&WallSurface],
+    wall_of: &[Option<usize>],
+    rule: &SurfaceRule,
+) -> Vec<bool> {
+    // (wall, upright, offset across, from, to) in the wall's coordinates.
+    let spans: Vec<Option<(usize, bool, f64, f64, f64)>> = candidates
+        .iter()
+        .map(|&k| {
+            let e = &edges[k];
+            let w = wall_of[e.a]?;
+            let (p, q) = (vertices[e.a].point, vertices[e.b].point);
+            let uv = |x: &Vec3| (x.dot(&walls[w].across), x.z);
+            let ((pu, pz), (qu, qz)) = (uv(&p), uv(&q));
+            let (du, dz) = ((qu - pu).abs(), (qz - pz).abs());
+            let upright = dz > du;
+            // Only lines within a few degrees of level or plumb form courses.
+            let slant = if upright { du / dz.max(1e-9) } else { dz / du.max(1e-9) };
+            (slant < 0.1).then(|| {
+                if upright {
+                    (w, true, (pu + qu) / 2.0, pz.min(qz), pz.max(qz))
+                } else {
+                    (w, false, (pz + qz) / 2.0, pu.min(qu), pu.max(qu))
+                }
+            })
+        })
+        .collect();
+    let mut order: Vec<usize> = (0..spans.len()).filter(|&i| spans[i].is_some()).collect();
+    let key = |i: usize| spans[i].map(|s| (s.0, s.1, s.2)).unwrap_or((0, false, 0.0));
+    order.sort_by(|&a, &b| {
+        let (ka, kb) = (key(a), key(b));
+        ka.0.cmp(&kb.0).then(ka.1.cmp(&kb.1)).then(ka.2.total_cmp(&kb.2))
+    });
+    let mut out = vec![false; candidates.len()];
+    for (pos, &i) in order.iter().enumerate() {
+        let Some((w, up, c, a, b)) = spans[i] else { continue };
+        let mut count = 0;
+        let near = |j: &usize| match spans[*j] {
+            Some((w2, up2, c2, a2, b2)) => w2 == w && up2 == up && (c2 - c).abs() <= rule.reach_m && a2.max(a) < b2.min(b),
+            None => false,
+        };
+        for j in order[pos + 1..]
+            .iter()
+            .take_while(|j| spans[**j].is_some_and(|s| s.0 == w && s.1 == up && s.2 - c <= rule.reach_m))
+        {
+            count += near(j) as usize;
+        }
+        for j in order[..pos]
+            .iter()
+            .rev()
+            .take_while(|j| spans[**j].is_some_and(|s| s.0 == w && s.1 == up && c - s.2 <= rule.reach_m))
+        {
+            count += near(j) as usize;
+        }
+        out[i] = count >= rule.neighbours;
+    }
+    out
+}
+
+/// The wall's extent `[u0, u1, z0, z1]` (along it and up): the bounds of the edges lying in its surface.
+fn extent(vertices: &[Vertex], edges: &[Edge], wall: &WallSurface, own: impl Fn(usize) -> bool) -> Option<[f64; 4]> {
+    let mut b = [f64::INFINITY, f64::NEG_INFINITY, f64::INFINITY, f64::NEG_INFINITY];
+    for e in edges.iter().filter(|e| own(e.a) && own(e.b)) {
+        for p in [vertices[e.a].point, vertices[e.b].point] {
+            let (u, z) = (p.dot(&wall.across), p.z);
+            b = [b[0].min(u), b[1].max(u), b[2].min(z), b[3].max(z)];
+        }
+    }
+    (b[0] < b[1] && b[2] < b[3]).then_some(b)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn vertex(x: f64, y: f64, z: f64) -> Vertex {
+        Vertex {
+            point: Vec3::new(x, y, z),
+            sigma: None,
+        }
+    }
+
+    fn edge(a: usize, b: usize) -> Edge {
+        Edge {
+            a,
+            b,
+            line: 0,
+            completed: false,
+        }
+    }
+
+    /// A wall y = 0 (cameras at y < 0) 10 m wide and 6 m high: six brick courses 7.5 cm apart from z = 2, a
+    /// window's head at z = 3 with a reveal going back from each end, a lone level line at z = 4.5 (an opening's
+    /// outline on a plain wall, its reveals not seen), and the wall's outline.
+    #[test]
+    fn courses_go_aside_the_outline_a_head_with_its_reveals_and_a_lone_line_stay() {
+        let mut vertices = vec![
+            vertex(0.0, 0.0, 0.0),
+            vertex(10.0, 0.0, 0.0),
+            vertex(10.0, 0.0, 6.0),
+            vertex(0.0, 0.0, 6.0),
+        ];
+        let mut edges = vec![edge(0, 1), edge(1, 2), edge(2, 3), edge(3, 0)];
+        let mut add = |vertices: &mut Vec<Vertex>, a: Vertex, b: Vertex| {
+            vertices.extend([a, b]);
+            edges.push(edge(vertices.len() - 2, vertices.len() - 1));
+        };
+        for k in 0..6 {
+            let z = 2.0 + 0.075 * k as f64;
+            add(&mut vertices, vertex(1.0, 0.004 * (k % 2) as f64, z), vertex(9.0, -0.004, z));
+        }
+        add(&mut vertices, vertex(4.0, 0.0, 3.0), vertex(5.5, 0.0, 3.0));
+        let head = vertices.len() - 2;
+        add(&mut vertices, vertex(4.0, 0.0, 3.0), vertex(4.0, 0.2, 3.0));
+        add(&mut vertices, vertex(5.5, 0.0, 3.0), vertex(5.5, 0.2, 3.0));
+        add(&mut vertices, vertex(2.0, 0.01, 4.5), vertex(3.2, 0.01, 4.5));
+        // The reveals start at the head's corners.
+        let n = edges.len();
+        edges[n - 3].a = head;
+        edges[n - 2].a = head + 1;
+        let mut faces = Vec::new();
+        let wall = WallSurface {
+            point: Vec3::zeros(),
+            out: -Vec3::y(),
+            across: Vec3::x(),
+        };
+        let rule = SurfaceRule {
+            band_m: 0.03,
+            margin_m: 0.1,
+            neighbours: 4,
+            reach_m: 0.3,
+            plan_azimuths: [Some(0.0), None, None, None],
+            angle_rad: 2f64.to_radians(),
+        };
+        let aside = separate(&vertices, &mut edges, &mut faces, &[wall], &rule);
+        let courses: Vec<[usize; 2]> = (0..6).map(|k| [4 + 2 * k, 5 + 2 * k]).collect();
+        assert_eq!(aside, courses);
+        assert_eq!(
+            edges.len(),
+            8,
+            "the outline, the head, its reveals and the lone line stay: {edges:?}"
+        );
+    }
+}
