@@ -2,7 +2,7 @@
 use lineflow_photogrammetry::Vec3;
 
 /// A segment in object space (metres) or in the image plane (z = 0, corrected pixels).
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Seg {
     pub a: Vec3,
     pub b: Vec3,

@@ -6,6 +6,8 @@
 //! lie within 3 GSD of the two ends of one true edge; edge precision is the share of model edges that are right,
 //! edge recall the share of true edges some model edge matches.
 use lineflow_formats::Line3Row;
+
+use crate::geometry::Seg;
 use lineflow_photogrammetry::Vec3;
 
 /// The model metrics.
@@ -24,6 +26,12 @@ pub struct ModelReport {
     /// Reach for vertex matching and tolerance for edge ends, metres.
     pub vertex_reach_m: f64,
     pub edge_tolerance_m: f64,
+    /// The model's edges and the true ones as segments, for the report's views.
+    pub edge_segments: Vec<Seg>,
+    pub true_segments: Vec<Seg>,
+    /// Per model edge: the mean distance of its ends from those of the true edge it matches, metres; NaN where it
+    /// matches none.
+    pub edge_error_m: Vec<f64>,
 }
 
 /// The true wire-frame: vertices and edges from the true segments.
@@ -85,8 +93,20 @@ pub fn evaluate(truth: &[Line3Row], vertices: &[Vec3], edges: &[[usize; 2]], gsd
         }
     }
     let edge_matches = edge_matcher(&tv, vertices, tol);
-    let right = edges.iter().filter(|m| te.iter().any(|t| edge_matches(m, t))).count();
+    let match_of: Vec<Option<&[usize; 2]>> = edges.iter().map(|m| te.iter().find(|t| edge_matches(m, t))).collect();
+    let right = match_of.iter().filter(|t| t.is_some()).count();
     let found = te.iter().filter(|t| edges.iter().any(|m| edge_matches(m, t))).count();
+    let edge_error_m = edges
+        .iter()
+        .zip(&match_of)
+        .map(|(m, t)| {
+            t.map_or(f64::NAN, |t| {
+                let (a, b) = (vertices[m[0]], vertices[m[1]]);
+                let (p, q) = (tv[t[0]], tv[t[1]]);
+                ((a - p).norm() + (b - q).norm()).min((a - q).norm() + (b - p).norm()) / 2.0
+            })
+        })
+        .collect();
     let share = |n: usize, d: usize| if d == 0 { 0.0 } else { n as f64 / d as f64 };
     ModelReport {
         gsd_m,
@@ -100,6 +120,9 @@ pub fn evaluate(truth: &[Line3Row], vertices: &[Vec3], edges: &[[usize; 2]], gsd
         edge_recall: share(found, te.len()),
         vertex_reach_m: reach,
         edge_tolerance_m: tol,
+        edge_segments: edges.iter().map(|m| Seg::new(vertices[m[0]], vertices[m[1]])).collect(),
+        true_segments: te.iter().map(|t| Seg::new(tv[t[0]], tv[t[1]])).collect(),
+        edge_error_m,
     }
 }
 

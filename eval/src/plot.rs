@@ -97,3 +97,22 @@ pub fn view(truth: &[Seg], est: &[Seg], error: &[f64], max_error: f64, axes: (us
     }
     save(&img, path)
 }
+
+/// Polylines (pixel coordinates, `(col, row)`) over a photograph dimmed to half its contrast, each coloured by
+/// `error / max_error` (magenta: unmatched), two pixels wide.
+pub fn over_image(mut img: RgbImage, polylines: &[(Vec<(f64, f64)>, f64)], max_error: f64, path: &Path) -> Result<()> {
+    for p in img.pixels_mut() {
+        for c in p.0.iter_mut() {
+            *c = 64 + *c / 2;
+        }
+    }
+    for (points, e) in polylines {
+        let c = if e.is_finite() { ramp(e / max_error) } else { UNMATCHED };
+        for w in points.windows(2) {
+            for d in [(0.0, 0.0), (1.0, 0.0), (0.0, 1.0)] {
+                line(&mut img, (w[0].0 + d.0, w[0].1 + d.1), (w[1].0 + d.0, w[1].1 + d.1), c);
+            }
+        }
+    }
+    save(&img, path)
+}

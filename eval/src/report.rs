@@ -46,7 +46,7 @@ pub fn write(truth: &Truth, results: &Path, eval: &Evaluation, out: &Path) -> Re
     orientation_section(&mut md, eval);
     lines2d_section(&mut md, eval);
     lines3d_section(&mut md, eval, out)?;
-    model_section(&mut md, eval);
+    model_section(&mut md, truth, eval, out)?;
     let metrics = out.join("metrics.json");
     let json = serde_json::to_string_pretty(&crate::summary::summary(eval))?;
     std::fs::write(&metrics, json + "\n").with_context(|| format!("cannot write {}", metrics.display()))?;
@@ -208,7 +208,7 @@ fn lines3d_section(md: &mut String, eval: &Evaluation, out: &Path) -> Result<()>
 }
 
 /// The models' vertices and edges, hidden edges and openings.
-fn model_section(md: &mut String, eval: &Evaluation) {
+fn model_section(md: &mut String, truth: &Truth, eval: &Evaluation, out: &Path) -> Result<()> {
     let _ = writeln!(md, "## Model\n");
     let models = [
         ("CSR (`model.obj`)", &eval.model),
@@ -267,4 +267,65 @@ fn model_section(md: &mut String, eval: &Evaluation) {
             o.model_openings
         );
     }
+    if let Some(m) = &eval.model {
+        let max_error = m.edge_tolerance_m;
+        plot::view(
+            &m.true_segments,
+            &m.edge_segments,
+            &m.edge_error_m,
+            max_error,
+            (0, 2),
+            &out.join("model_front.png"),
+        )?;
+        plot::view(
+            &m.true_segments,
+            &m.edge_segments,
+            &m.edge_error_m,
+            max_error,
+            (0, 1),
+            &out.join("model_top.png"),
+        )?;
+        let _ = writeln!(
+            md,
+            "The CSR model's edges in a front view (X right, Z up) and a top view (X right, Y up): true edges grey, model edges that match one coloured by the mean distance of their ends from green (0) to red ({} mm), magenta where they match none.\n\n![model front](model_front.png)\n\n![model top](model_top.png)\n",
+            mm(max_error)
+        );
+        if let Some(frame) = model_over_image(truth, m, &out.join("model_image.png"))? {
+            let _ = writeln!(
+                md,
+                "The same edges over {} (the true pose), coloured alike:\n\n![model over an image](model_image.png)\n",
+                truth.scene.image_name(frame)
+            );
+        }
+    }
+    Ok(())
+}
+
+/// Draws the model's edges over the middle image of the scene, projected with its true pose; returns the frame, or
+/// `None` when the scene has no images.
+fn model_over_image(truth: &Truth, m: &crate::model::ModelReport, path: &Path) -> Result<Option<usize>> {
+    let poses = truth.scene.poses();
+    if poses.is_empty() {
+        return Ok(None);
+    }
+    let frame = poses.len() / 2;
+    let camera = truth.scene.camera();
+    let Some(img) = image::RgbImage::from_raw(camera.width, camera.height, truth.scene.render(frame)) else {
+        return Ok(None);
+    };
+    // Sampled along the edge so that a straight edge bends with the lens's distortion as in the photograph.
+    let pieces: Vec<(Vec<(f64, f64)>, f64)> = m
+        .edge_segments
+        .iter()
+        .zip(&m.edge_error_m)
+        .map(|(s, &e)| {
+            let points = (0..=16)
+                .filter_map(|k| poses[frame].project(camera, &(s.a + (s.b - s.a) * (k as f64 / 16.0))))
+                .map(|p| (p[0], p[1]))
+                .collect();
+            (points, e)
+        })
+        .collect();
+    plot::over_image(img, &pieces, m.edge_tolerance_m, path)?;
+    Ok(Some(frame))
 }

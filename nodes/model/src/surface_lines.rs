@@ -160,6 +160,45 @@ fn opening_boxes(vertices: &[Vertex], faces: &[Face], walls: &[&WallSurface], gr
         .collect()
 }
 
+/// A level or plumb line in its wall's coordinates: its position across its direction and its extent along it.
+#[derive(Debug, Clone, Copy)]
+struct Span {
+    wall: usize,
+    upright: bool,
+    across: f64,
+    from: f64,
+    to: f64,
+}
+
+impl Span {
+    /// The span of an edge within a few degrees of level or plumb; slanted ones form no courses.
+    fn of(p: &Vec3, q: &Vec3, wall: usize, surface: &WallSurface) -> Option<Span> {
+        let ((pu, pz), (qu, qz)) = ((p.dot(&surface.across), p.z), (q.dot(&surface.across), q.z));
+        let upright = (qz - pz).abs() > (qu - pu).abs();
+        let (across, a, b) = if upright {
+            ((pu + qu) / 2.0, pz, qz)
+        } else {
+            ((pz + qz) / 2.0, pu, qu)
+        };
+        let slant = if upright {
+            (qu - pu).abs() / (qz - pz).abs()
+        } else {
+            (qz - pz).abs() / (qu - pu).abs().max(1e-9)
+        };
+        (slant < 0.1).then_some(Span {
+            wall,
+            upright,
+            across,
+            from: a.min(b),
+            to: a.max(b),
+        })
+    }
+
+    fn kind(&self) -> (usize, bool) {
+        (self.wall, self.upright)
+    }
+}
+
 /// Whether each candidate lies in a field of its kind: at least `neighbours` other candidates of its wall parallel
 /// to it, overlapping it and within `reach_m` across. Courses of brick and rows of tiles are such fields; the
 /// outline of an opening on a plain wall is not.
@@ -171,56 +210,24 @@ fn in_a_field(
     wall_of: &[Option<usize>],
     rule: &SurfaceRule,
 ) -> Vec<bool> {
-    // (wall, upright, offset across, from, to) in the wall's coordinates.
-    let spans: Vec<Option<(usize, bool, f64, f64, f64)>> = candidates
+    let mut spans: Vec<(Span, usize)> = candidates
         .iter()
-        .map(|&k| {
+        .enumerate()
+        .filter_map(|(i, &k)| {
             let e = &edges[k];
             let w = wall_of[e.a]?;
-            let (p, q) = (vertices[e.a].point, vertices[e.b].point);
-            let uv = |x: &Vec3| (x.dot(&walls[w].across), x.z);
-            let ((pu, pz), (qu, qz)) = (uv(&p), uv(&q));
-            let (du, dz) = ((qu - pu).abs(), (qz - pz).abs());
-            let upright = dz > du;
-            // Only lines within a few degrees of level or plumb form courses.
-            let slant = if upright { du / dz.max(1e-9) } else { dz / du.max(1e-9) };
-            (slant < 0.1).then(|| {
-                if upright {
-                    (w, true, (pu + qu) / 2.0, pz.min(qz), pz.max(qz))
-                } else {
-                    (w, false, (pz + qz) / 2.0, pu.min(qu), pu.max(qu))
-                }
-            })
+            Span::of(&vertices[e.a].point, &vertices[e.b].point, w, walls[w]).map(|s| (s, i))
         })
         .collect();
-    let mut order: Vec<usize> = (0..spans.len()).filter(|&i| spans[i].is_some()).collect();
-    let key = |i: usize| spans[i].map(|s| (s.0, s.1, s.2)).unwrap_or((0, false, 0.0));
-    order.sort_by(|&a, &b| {
-        let (ka, kb) = (key(a), key(b));
-        ka.0.cmp(&kb.0).then(ka.1.cmp(&kb.1)).then(ka.2.total_cmp(&kb.2))
-    });
+    spans.sort_by(|(a, _), (b, _)| a.kind().cmp(&b.kind()).then(a.across.total_cmp(&b.across)));
     let mut out = vec![false; candidates.len()];
-    for (pos, &i) in order.iter().enumerate() {
-        let Some((w, up, c, a, b)) = spans[i] else { continue };
-        let mut count = 0;
-        let near = |j: &usize| match spans[*j] {
-            Some((w2, up2, c2, a2, b2)) => w2 == w && up2 == up && (c2 - c).abs() <= rule.reach_m && a2.max(a) < b2.min(b),
-            None => false,
-        };
-        for j in order[pos + 1..]
-            .iter()
-            .take_while(|j| spans[**j].is_some_and(|s| s.0 == w && s.1 == up && s.2 - c <= rule.reach_m))
-        {
-            count += near(j) as usize;
-        }
-        for j in order[..pos]
-            .iter()
-            .rev()
-            .take_while(|j| spans[**j].is_some_and(|s| s.0 == w && s.1 == up && c - s.2 <= rule.reach_m))
-        {
-            count += near(j) as usize;
-        }
-        out[i] = count >= rule.neighbours;
+    for (pos, (s, i)) in spans.iter().enumerate() {
+        // Sorted by kind, then across: the neighbours within reach are a run on either side.
+        let close = |(t, _): &&(Span, usize)| t.kind() == s.kind() && (t.across - s.across).abs() <= rule.reach_m;
+        let overlapping = |(t, _): &&(Span, usize)| t.from.max(s.from) < t.to.min(s.to);
+        let after = spans[pos + 1..].iter().take_while(close).filter(overlapping).count();
+        let before = spans[..pos].iter().rev().take_while(close).filter(overlapping).count();
+        out[*i] = after + before >= rule.neighbours;
     }
     out
 }
