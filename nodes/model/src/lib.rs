@@ -160,6 +160,19 @@ pub struct ModelParams {
     pub surface_neighbours: usize,
     /// …within this distance across, metres.
     pub surface_reach_m: f64,
+    /// How far behind its wall a recessed face or the sides of an opening may lie to make an opening, metres: less
+    /// than `recess_min_m` is on the wall (a nearly flush frame, or a pane inside its frame)…
+    pub recess_min_m: f64,
+    /// …and at most this.
+    pub recess_max_m: f64,
+    /// The narrowest and lowest opening inferred, metres (also the shortest bay of a façade's grid of openings)…
+    pub opening_min_m: f64,
+    /// …and the widest and highest.
+    pub opening_max_m: f64,
+    /// A frame's outer edges lie at least this far outside its glazing, metres…
+    pub frame_min_m: f64,
+    /// …and at most this.
+    pub frame_max_m: f64,
 }
 
 impl Default for ModelParams {
@@ -194,6 +207,12 @@ impl Default for ModelParams {
             surface_margin_m: 0.1,
             surface_neighbours: 4,
             surface_reach_m: 0.3,
+            recess_min_m: 0.06,
+            recess_max_m: 0.5,
+            opening_min_m: 0.8,
+            opening_max_m: 4.0,
+            frame_min_m: 0.02,
+            frame_max_m: 0.15,
         }
     }
 }
@@ -207,6 +226,15 @@ impl ModelParams {
             min_image_line_px: self.refine_min_image_line_px,
             min_plane_angle_deg: self.refine_min_plane_angle_deg,
             ..refine::RefineParams::default()
+        }
+    }
+
+    /// The sizes the opening rules assume.
+    pub(crate) fn opening_sizes(&self) -> openings::OpeningSizes {
+        openings::OpeningSizes {
+            recess_m: (self.recess_min_m, self.recess_max_m),
+            opening_m: (self.opening_min_m, self.opening_max_m),
+            frame_m: (self.frame_min_m, self.frame_max_m),
         }
     }
 
@@ -272,6 +300,9 @@ impl lineflow_runtime::StageParams for ModelParams {
             ("align_k", self.align_k),
             ("surface_band_m", self.surface_band_m),
             ("surface_reach_m", self.surface_reach_m),
+            ("recess_min_m", self.recess_min_m),
+            ("opening_min_m", self.opening_min_m),
+            ("frame_max_m", self.frame_max_m),
         ] {
             positive(name, v)?;
         }
@@ -285,8 +316,16 @@ impl lineflow_runtime::StageParams for ModelParams {
             ("occlusion_min_depth_m", self.occlusion_min_depth_m),
             ("min_length_m", self.min_length_m),
             ("surface_margin_m", self.surface_margin_m),
+            ("frame_min_m", self.frame_min_m),
         ] {
             non_negative(name, v)?;
+        }
+        for (name, lo, hi) in [
+            ("recess_max_m", self.recess_min_m, self.recess_max_m),
+            ("opening_max_m", self.opening_min_m, self.opening_max_m),
+            ("frame_max_m", self.frame_min_m, self.frame_max_m),
+        ] {
+            lineflow_runtime::params::check(hi > lo, name, "more than its minimum", hi)?;
         }
         Ok(())
     }

@@ -98,10 +98,10 @@ fn a_window_missing_a_side_is_predicted_by_its_row_and_the_bays_spacing_and_one_
 
 #[test]
 fn the_period_of_bays_is_found_from_the_centres_found_and_none_without_two() {
-    let p = grid::period(&[5.03, 11.0, 17.04, 27.03]).expect("a period");
+    let p = grid::period(&[5.03, 11.0, 17.04, 27.03], 0.8).expect("a period");
     assert!((p - 2.0).abs() < 0.01, "{p}");
-    assert_eq!(grid::period(&[5.0]), None);
-    assert_eq!(grid::period(&[]), None);
+    assert_eq!(grid::period(&[5.0], 0.8), None);
+    assert_eq!(grid::period(&[], 0.8), None);
     // Gaps of 2.0 and 3.45 m share no period of at least the smallest opening.
-    assert_eq!(grid::period(&[0.0, 2.0, 5.45]), None);
+    assert_eq!(grid::period(&[0.0, 2.0, 5.45], 0.8), None);
 }

@@ -15,6 +15,7 @@ pub(super) fn from_grid(view: &WallView, taken: &[[f64; 4]]) -> Vec<Rect> {
     let columns = repeated(
         ranges(taken.iter().map(|b| [b[0], b[1]])).into_iter().map(|(r, _)| r).collect(),
         across,
+        view.sizes.opening_m.0,
     );
     // A storey is known from two of its openings; one alone may be anything at the height of nothing else (a
     // balcony's rail, the panes above a door), so its cells need all four sides seen.
@@ -69,13 +70,13 @@ fn span(values: impl Iterator<Item = f64>) -> [f64; 2] {
 }
 
 /// `ranges` and the ones their spacing predicts within `within`: where the gaps between consecutive ranges are all
-/// whole multiples (within [`GRID_TOLERANCE_M`]) of one period of at least [`MIN_OPENING_M`] (bays of windows, a
+/// whole multiples (within [`GRID_TOLERANCE_M`]) of one period of at least `min_period` (bays of windows, a
 /// storey's height), the ranges the missing multiples stand for, at the ranges' mean size. As found where the gaps
 /// share no period.
-fn repeated(ranges: Vec<[f64; 2]>, [lo, hi]: [f64; 2]) -> Vec<[f64; 2]> {
+fn repeated(ranges: Vec<[f64; 2]>, [lo, hi]: [f64; 2], min_period: f64) -> Vec<[f64; 2]> {
     // Centres, not starts: a range found on the glazing and one on the opening's edge share their centre.
     let centres: Vec<f64> = ranges.iter().map(|r| (r[0] + r[1]) / 2.0).collect();
-    let Some(period) = period(&centres) else {
+    let Some(period) = period(&centres, min_period) else {
         return ranges;
     };
     let half = ranges.iter().map(|r| r[1] - r[0]).sum::<f64>() / ranges.len() as f64 / 2.0;
@@ -91,27 +92,24 @@ fn repeated(ranges: Vec<[f64; 2]>, [lo, hi]: [f64; 2]) -> Vec<[f64; 2]> {
     out
 }
 
-/// The period of the sorted `starts` (centres): the longest p of at least [`MIN_OPENING_M`] that every gap between
+/// The period of the sorted `starts` (centres): the longest p of at least `min_period` that every gap between
 /// neighbours is a whole multiple of (within [`GRID_TOLERANCE_M`]), from the shortest gap divided by 1 to 6
 /// and refined by least squares over all the gaps. None for fewer than two starts.
-pub(super) fn period(starts: &[f64]) -> Option<f64> {
+pub(super) fn period(starts: &[f64], min_period: f64) -> Option<f64> {
     if starts.len() < 2 {
         return None;
     }
     let gaps: Vec<f64> = starts.windows(2).map(|w| w[1] - w[0]).collect();
     let shortest = gaps.iter().copied().fold(f64::INFINITY, f64::min);
-    (1..=6)
-        .map(|k| shortest / k as f64)
-        .take_while(|&p| p >= MIN_OPENING_M)
-        .find_map(|p| {
-            let multiples: Vec<f64> = gaps.iter().map(|g| (g / p).round()).collect();
-            let refined = gaps.iter().zip(&multiples).map(|(g, n)| g * n).sum::<f64>() / multiples.iter().map(|n| n * n).sum::<f64>();
-            let fits = gaps
-                .iter()
-                .zip(&multiples)
-                .all(|(g, n)| (g - n * refined).abs() <= GRID_TOLERANCE_M);
-            fits.then_some(refined)
-        })
+    (1..=6).map(|k| shortest / k as f64).take_while(|&p| p >= min_period).find_map(|p| {
+        let multiples: Vec<f64> = gaps.iter().map(|g| (g / p).round()).collect();
+        let refined = gaps.iter().zip(&multiples).map(|(g, n)| g * n).sum::<f64>() / multiples.iter().map(|n| n * n).sum::<f64>();
+        let fits = gaps
+            .iter()
+            .zip(&multiples)
+            .all(|(g, n)| (g - n * refined).abs() <= GRID_TOLERANCE_M);
+        fits.then_some(refined)
+    })
 }
 
 /// How many sides of the rectangle `[x0, x1, z0, z1]` edges on the wall or behind it run along: within

@@ -21,17 +21,20 @@ use crate::surface::{plane_basis, smaller_side, Face, Plane, SurfaceKind};
 use crate::surface_lines::WallSurface;
 use crate::{Cameras, Edge, ModelParams, Vertex};
 
-/// How far behind its wall a recessed face may lie to make an opening in it, metres: from a glazing bar's 4 cm (a
-/// pane inside its frame, not an opening in the wall) up to half a metre.
-const RECESS_M: (f64, f64) = (0.06, 0.5);
-/// The smallest opening inferred from what is behind it, metres: smaller, the panes of a frame would pass for
-/// openings wherever the frame itself was not found.
-const MIN_OPENING_M: f64 = 0.8;
-/// The largest, metres.
-const MAX_OPENING_M: f64 = 4.0;
-/// A frame's outer edges lie this far outside its glazing, metres…
-const FRAME_M: (f64, f64) = (0.02, 0.15);
-/// …and run along at least this share of the glazing's height.
+/// The sizes the opening rules assume, metres (the model's parameters `recess_*_m`, `opening_*_m`, `frame_*_m`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct OpeningSizes {
+    /// How far behind its wall a recessed face may lie to make an opening in it (less, it is a pane inside its
+    /// frame, and a frame that close is on the wall: a nearly flush opening).
+    pub(crate) recess_m: (f64, f64),
+    /// The width and height of an opening (smaller, the panes of a frame would pass for openings wherever the
+    /// frame itself was not found).
+    pub(crate) opening_m: (f64, f64),
+    /// How far a frame's outer edges lie outside its glazing.
+    pub(crate) frame_m: (f64, f64),
+}
+
+/// A frame's outer edges run along at least this share of the glazing's height.
 const MIN_OUTER_COVER: f64 = 0.8;
 /// How far the foot and top of a nearly flush opening may lie from where its standing sides end, metres: no frame
 /// behind the wall tells them.
@@ -112,9 +115,10 @@ pub(crate) fn infer(
     let cos_par = params.plane_angle_deg.to_radians().cos();
     let ring = |r: &[usize]| r.iter().map(|&k| vertices[k].point).collect::<Vec<_>>();
     let outlines: Vec<Outline> = faces.iter().map(|f| Outline::of(&ring(&f.ring), f.normal)).collect();
-    let walls = walls(vertices, edges, planes, plane_edges, cos_par, &viewpoint);
+    let sizes = params.opening_sizes();
+    let walls = walls(vertices, edges, planes, plane_edges, cos_par, &viewpoint, sizes);
     // Recessed faces first, then rectangles; each only where no opening is on the wall there yet.
-    let mut proposals = from_recesses(vertices, faces, &outlines, &walls, cos_par, centres);
+    let mut proposals = from_recesses(vertices, faces, &outlines, &walls, cos_par, centres, sizes);
     for (k, w) in walls.iter().enumerate() {
         proposals.extend(from_rectangles(w, centres).into_iter().map(|(rect, depth, sigma)| Proposal {
             wall: k,
@@ -134,8 +138,9 @@ pub(crate) fn infer(
         let wall = &walls[p.wall].wall;
         let [x0, x1, z0, z1] = p.rect.bounds;
         let centre = wall.point((x0 + x1) / 2.0, (z0 + z1) / 2.0, &viewpoint);
-        let on_wall_here =
-            |o: &Outline| o.normal.dot(&wall.out).abs() > cos_par && wall.depth(&o.centroid).abs() < RECESS_M.0 && o.contains(&centre);
+        let on_wall_here = |o: &Outline| {
+            o.normal.dot(&wall.out).abs() > cos_par && wall.depth(&o.centroid).abs() < sizes.recess_m.0 && o.contains(&centre)
+        };
         if found.iter().any(on_wall_here) {
             continue;
         }
@@ -165,7 +170,7 @@ pub(crate) fn infer(
     // The rows and columns of what was found on each wall predict what was missed.
     for view in &walls {
         let wall = &view.wall;
-        let on_this_wall = |o: &&Outline| o.normal.dot(&wall.out).abs() > cos_par && wall.depth(&o.centroid).abs() < RECESS_M.0;
+        let on_this_wall = |o: &&Outline| o.normal.dot(&wall.out).abs() > cos_par && wall.depth(&o.centroid).abs() < sizes.recess_m.0;
         let taken: Vec<[f64; 4]> = found.iter().filter(on_this_wall).map(|o| o.bounds_in(wall)).collect();
         for rect in from_grid(view, &taken) {
             let [x0, x1, z0, z1] = rect.bounds;
@@ -214,7 +219,7 @@ pub(crate) fn add(inferred: Vec<Inferred>, vertices: &mut Vec<Vertex>, edges: &m
 }
 
 /// The walls, most edges first: vertical planes whose edges (at least [`MIN_WALL_EDGES`]) spread
-/// [`MIN_WALL_SPAN_M`] across and up and outnumber those of every parallel plane within [`RECESS_M`] of them (a row
+/// [`MIN_WALL_SPAN_M`] across and up and outnumber those of every parallel plane within the deepest recess of them (a row
 /// of sill fronts, the reveals of a column of windows or a frame's own plane are no wall), each with the observed
 /// edges behind it gathered into sides. Where no face makes a wall, the edges alone may ([`wall_from_edges`]).
 fn walls(
@@ -224,6 +229,7 @@ fn walls(
     plane_edges: &[Vec<&Edge>],
     cos_par: f64,
     viewpoint: &Vec3,
+    sizes: OpeningSizes,
 ) -> Vec<WallView> {
     let spread = |p: &Plane, on: &[&Edge]| {
         let across = Vec3::z().cross(&p.normal).try_normalize(1e-9).unwrap_or(Vec3::x());
@@ -236,7 +242,7 @@ fn walls(
     };
     let parallel_near = |a: &Plane, b: &Plane| {
         let along = a.normal.dot(&b.normal);
-        along.abs() > cos_par && (a.offset - b.offset * along.signum()).abs() <= RECESS_M.1
+        along.abs() > cos_par && (a.offset - b.offset * along.signum()).abs() <= sizes.recess_m.1
     };
     let mut chosen: Vec<(usize, usize)> = (0..planes.len())
         .filter(|&k| {
@@ -262,17 +268,18 @@ fn walls(
     chosen
         .into_iter()
         .filter_map(|plane| {
-            let wall = Wall::facing(plane, viewpoint)?.settled(vertices, edges, RECESS_M.0);
+            let wall = Wall::facing(plane, viewpoint)?.settled(vertices, edges, sizes.recess_m.0);
             // Up to where a recess starts, so that a nearly flush frame (3 to 6 cm back) is on the wall, not lost
             // between the two.
-            let on_wall = (-DEPTH_TOLERANCE_M, RECESS_M.0);
+            let on_wall = (-DEPTH_TOLERANCE_M, sizes.recess_m.0);
             Some(WallView {
                 lying_pieces_on_wall: pieces(&wall, vertices, edges, false, on_wall),
-                standing: sides(&wall, vertices, edges, true, RECESS_M),
-                lying: sides(&wall, vertices, edges, false, RECESS_M),
+                standing: sides(&wall, vertices, edges, true, sizes.recess_m),
+                lying: sides(&wall, vertices, edges, false, sizes.recess_m),
                 standing_on_wall: sides(&wall, vertices, edges, true, on_wall),
                 lying_on_wall: sides(&wall, vertices, edges, false, on_wall),
                 wall,
+                sizes,
             })
         })
         .collect()

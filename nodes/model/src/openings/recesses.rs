@@ -1,8 +1,8 @@
 //! Rule one: a closed recessed face makes the opening in the wall in front of it.
 use super::*;
 
-/// A vertical wall-kind face at least [`MIN_OPENING_M`] across, nearly a rectangle, parallel to a wall and
-/// [`RECESS_M`] behind it, is what one sees through an opening: its bounding rectangle, widened to the frame
+/// A vertical wall-kind face at least the smallest opening across, nearly a rectangle, parallel to a wall and
+/// a recess behind it ([`OpeningSizes`]), is what one sees through an opening: its bounding rectangle, widened to the frame
 /// ([`widened_to_frame`]). Largest first, so that a frame comes before its panes.
 pub(super) fn from_recesses(
     vertices: &[Vertex],
@@ -11,6 +11,7 @@ pub(super) fn from_recesses(
     walls: &[WallView],
     cos_par: f64,
     centres: &[Vec3],
+    sizes: OpeningSizes,
 ) -> Vec<Proposal> {
     let mut order: Vec<usize> = (0..faces.len()).collect();
     order.sort_by(|&a, &b| outlines[b].area.total_cmp(&outlines[a].area).then(a.cmp(&b)));
@@ -18,13 +19,13 @@ pub(super) fn from_recesses(
         .into_iter()
         .filter(|&i| {
             let f = &faces[i];
-            f.kind == SurfaceKind::Wall && f.normal.z.abs() < 0.2 && smaller_side(vertices, &f.ring, f.normal) >= MIN_OPENING_M
+            f.kind == SurfaceKind::Wall && f.normal.z.abs() < 0.2 && smaller_side(vertices, &f.ring, f.normal) >= sizes.opening_m.0
         })
         .filter_map(|i| {
             let (f, c) = (&faces[i], outlines[i].centroid);
             let k = walls
                 .iter()
-                .position(|w| w.wall.out.dot(&f.normal) > cos_par && (RECESS_M.0..=RECESS_M.1).contains(&w.wall.depth(&c)))?;
+                .position(|w| w.wall.out.dot(&f.normal) > cos_par && (sizes.recess_m.0..=sizes.recess_m.1).contains(&w.wall.depth(&c)))?;
             let wall = &walls[k].wall;
             let (xs, zs): (Vec<f64>, Vec<f64>) = f
                 .ring

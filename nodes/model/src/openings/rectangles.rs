@@ -2,7 +2,7 @@
 //! around it, where no recessed face closed.
 use super::*;
 
-/// Rectangles of the edges behind a wall: two standing sides [`MIN_OPENING_M`] to [`MAX_OPENING_M`] apart and two
+/// Rectangles of the edges behind a wall: two standing sides an opening's width apart ([`OpeningSizes`]) and two
 /// lying ones at their ends, at one depth, covered by their edges over [`MIN_STANDING_COVER`] and
 /// [`MIN_LYING_COVER`] of their length. Where the frame's edge on one side is hidden (beyond a strip's end the
 /// reveal hides the side away from the cameras, and a sill the foot of an opening above them), the opening's own
@@ -10,11 +10,12 @@ use super::*;
 /// courses on the wall alone would make openings anywhere. Largest first (of one size, those with fewer sides on the
 /// wall); one inside another already taken (the panes of a frame) is left out. Each with its depth and a σ.
 ///
-/// A nearly flush opening (its frame within [`RECESS_M`]'s lower bound of the wall) shows all four sides on the
+/// A nearly flush opening (its frame closer to the wall than the smallest recess, [`OpeningSizes`]) shows all four sides on the
 /// wall: there the rectangle of the wall's own edges is the opening where the courses of the wall do not run through
 /// it ([`WallView::courses_within`]).
 pub(super) fn from_rectangles(view: &WallView, centres: &[Vec3]) -> Vec<(Rect, f64, Option<Vec3>)> {
-    let on_wall = |s: &Side| s.depth < RECESS_M.0;
+    let on_wall = |s: &Side| s.depth < view.sizes.recess_m.0;
+    let size_ok = |d: f64| (view.sizes.opening_m.0..=view.sizes.opening_m.1).contains(&d);
     let mut standing: Vec<&Side> = view.standing.iter().chain(&view.standing_on_wall).collect();
     standing.sort_by(|a, b| a.at.total_cmp(&b.at).then(a.depth.total_cmp(&b.depth)));
     let lying: Vec<&Side> = view.lying.iter().chain(&view.lying_on_wall).collect();
@@ -30,7 +31,7 @@ pub(super) fn from_rectangles(view: &WallView, centres: &[Vec3]) -> Vec<(Rect, f
                 _ => continue,
             };
             let flush = on_wall(l) && on_wall(r);
-            if !(MIN_OPENING_M..=MAX_OPENING_M).contains(&width) {
+            if !size_ok(width) {
                 continue;
             }
             // A lying side behind the wall ends where the standing sides behind it end (a hidden foot is seen
@@ -73,7 +74,7 @@ pub(super) fn from_rectangles(view: &WallView, centres: &[Vec3]) -> Vec<(Rect, f
             };
             if (top.is_none() && foot.is_none())
                 || (top_on_wall && bottom_on_wall && !flush)
-                || !(MIN_OPENING_M..=MAX_OPENING_M).contains(&(z1 - z0))
+                || !size_ok(z1 - z0)
                 || l.cover(z0, z1) < MIN_STANDING_COVER
                 || r.cover(z0, z1) < MIN_STANDING_COVER
                 || (flush && !(ends_within(l, z0, z1) && ends_within(r, z0, z1)))
@@ -128,15 +129,15 @@ pub(super) enum FrameSide {
 }
 
 /// What the side of a rectangle at `at` is, looking `outward` (±1 along the wall) for the frame's outer edge and
-/// inward for its glazing: standing edges within [`FRAME_M`] of it, at its depth, along [`MIN_OUTER_COVER`] of the
+/// inward for its glazing: standing edges within `frame_m` ([`OpeningSizes`]) of it, at its depth, along [`MIN_OUTER_COVER`] of the
 /// rectangle's height `[z0, z1]`, the nearest first.
-pub(super) fn frame_side(at: f64, outward: f64, depth: f64, [z0, z1]: [f64; 2], standing: &[Side]) -> FrameSide {
+pub(super) fn frame_side(at: f64, outward: f64, depth: f64, [z0, z1]: [f64; 2], standing: &[Side], frame_m: (f64, f64)) -> FrameSide {
     let nearest = |direction: f64| {
         standing
             .iter()
             .filter(|s| (s.depth - depth).abs() <= DEPTH_TOLERANCE_M && s.cover(z0, z1) >= MIN_OUTER_COVER)
             .map(|s| (s, (s.at - at) * direction))
-            .filter(|(_, d)| (FRAME_M.0..=FRAME_M.1).contains(d))
+            .filter(|(_, d)| (frame_m.0..=frame_m.1).contains(d))
             .min_by(|a, b| a.1.total_cmp(&b.1))
     };
     if let Some((s, width)) = nearest(outward) {
@@ -168,7 +169,7 @@ pub(super) fn widened_to_frame(rect: Rect, depth: f64, view: &WallView, centres:
         if rect.on_wall[k] {
             OnWall
         } else {
-            frame_side(at, outward, depth, [z0, z1], &view.standing)
+            frame_side(at, outward, depth, [z0, z1], &view.standing, view.sizes.frame_m)
         }
     };
     let (left, right) = (side(0, x0, -1.0), side(1, x1, 1.0));
@@ -207,7 +208,7 @@ pub(super) fn widened_to_frame(rect: Rect, depth: f64, view: &WallView, centres:
         if on_wall[k] {
             return at;
         }
-        if let Glazing { outer, .. } = frame_side(at, outward, depth, [l, r], &view.lying) {
+        if let Glazing { outer, .. } = frame_side(at, outward, depth, [l, r], &view.lying, view.sizes.frame_m) {
             return outer;
         }
         let wall_edge = frame_width.filter(|_| hidden[k]).and_then(|w| {

@@ -69,6 +69,7 @@ pub(super) struct WallView {
     /// The lying edges on the wall one by one: courses of brick or tiles run across the wall and stop at its
     /// openings ([`WallView::courses_within`]).
     pub(super) lying_pieces_on_wall: Vec<Piece>,
+    pub(super) sizes: OpeningSizes,
 }
 
 impl WallView {
