@@ -594,7 +594,15 @@ pub(super) mod tests {
         };
         let in_wall: Vec<&Edge> = edges.iter().filter(|e| e.a < FRAME).collect();
         let cos_par = ModelParams::default().plane_angle_deg.to_radians().cos();
-        let found = walls(&vertices, &edges, &[wall, wall], &[in_wall.clone(), in_wall], cos_par, &viewpoint);
+        let found = walls(
+            &vertices,
+            &edges,
+            &[wall, wall],
+            &[in_wall.clone(), in_wall],
+            cos_par,
+            &viewpoint,
+            ModelParams::default().opening_sizes(),
+        );
         assert_eq!(found.len(), 1);
     }
 
