@@ -52,6 +52,9 @@ pub fn complete(vertices: &mut Vec<Vertex>, edges: &mut Vec<Edge>, params: &Mode
     let incident = incident_edges(vertices.len(), &graph);
     let planes = plane_hypotheses(vertices, &graph, &incident, params, tol);
     let mut closed = 0;
+    // The structures change only where a completion joins two; recomputed then, not for every plane.
+    let mut component = components(vertices.len(), &graph);
+    let mut changed = false;
     for plane in planes {
         let Some(up) = projection_direction(&plane, vertices, viewpoint) else {
             continue;
@@ -66,9 +69,10 @@ pub fn complete(vertices: &mut Vec<Vertex>, edges: &mut Vec<Edge>, params: &Mode
         if chains.is_empty() {
             continue;
         }
-        // Per plane: completions of earlier planes joined structures.
-        let component = components(vertices.len(), &graph);
-        let occluders = Occluders::of(vertices, &graph, &component, &view);
+        // Only a chain of a building's scale looks for occluders: found once per plane, when one needs them.
+        let mut occluders: Option<Occluders> = None;
+        // The wire-frame as it was when the plane's turn came (a chord completed meanwhile is no occluder).
+        let (n_vertices, n_graph) = (vertices.len(), graph.len());
         for chain in chains {
             let own = component[chain.ends[0].0];
             // The seed's case needs a face of a building's scale: a façade's relief (reveals, frames, sills) is
@@ -76,7 +80,11 @@ pub fn complete(vertices: &mut Vec<Vertex>, edges: &mut Vec<Edge>, params: &Mode
             let building = chain.extent >= 2.0 * view.min_depth && faces_the_viewpoint(vertices, &chain, &view, viewpoint);
             let reach = params.occlusion_reach_m;
             let seed_path = building
-                .then(|| hidden_path(vertices, &graph, &occluders, own, &view, &chain, reach))
+                .then(|| {
+                    let occluders =
+                        occluders.get_or_insert_with(|| Occluders::of(&vertices[..n_vertices], &graph[..n_graph], &component, &view));
+                    hidden_path(vertices, &graph, occluders, own, &view, &chain, reach)
+                })
                 .flatten();
             let path = seed_path.or_else(|| {
                 let [(a, _), (b, _)] = chain.ends;
@@ -88,7 +96,14 @@ pub fn complete(vertices: &mut Vec<Vertex>, edges: &mut Vec<Edge>, params: &Mode
                 add_path(vertices, edges, &chain, &path, tol);
                 graph.extend_from_slice(&edges[before..]);
                 closed += 1;
+                // Later chains of this plane kept the structures as they were before any completion of it, as
+                // they always have; later planes see the joined ones.
+                changed = true;
             }
+        }
+        if changed {
+            component = components(vertices.len(), &graph);
+            changed = false;
         }
     }
     closed
@@ -165,19 +180,18 @@ impl Occluders {
     /// ground.
     fn of(vertices: &[Vertex], edges: &[Edge], component: &[usize], view: &PlaneView) -> Occluders {
         let wall = view.up.z.abs() < 0.5;
-        let mut standing = std::collections::BTreeSet::new();
+        // Components are named by their smallest vertex, so a flag per vertex index marks them.
+        let mut standing = vec![false; vertices.len()];
         if wall {
-            standing.extend(
-                (0..vertices.len())
-                    .filter(|&v| view.height(&vertices[v].point).abs() < 0.5 * view.min_depth)
-                    .map(|v| component[v]),
-            );
+            for v in (0..vertices.len()).filter(|&v| view.height(&vertices[v].point).abs() < 0.5 * view.min_depth) {
+                standing[component[v]] = true;
+            }
         }
         let edges = (0..edges.len())
             .filter(|&k| !edges[k].completed)
             .filter(|&k| view.in_front(&vertices[edges[k].a].point) && view.in_front(&vertices[edges[k].b].point))
             .map(|k| (k, component[edges[k].a]))
-            .filter(|(_, c)| !wall || standing.contains(c))
+            .filter(|&(_, c)| !wall || standing[c])
             .collect();
         Occluders { edges }
     }
