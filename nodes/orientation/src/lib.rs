@@ -749,6 +749,19 @@ impl Block {
         self.georeferenced = true;
     }
 
+    /// The ground sample distance at the check points: at the median distance from the oriented frames' centres to
+    /// the surveyed check points, metres.
+    pub fn check_point_gsd_m(&self) -> Option<f64> {
+        let mut d: Vec<f64> = self
+            .surveyed
+            .values()
+            .filter(|s| !s.control)
+            .flat_map(|s| self.poses.values().map(move |p| (s.xyz - p.center).norm()))
+            .collect();
+        d.sort_by(f64::total_cmp);
+        d.get(d.len() / 2).map(|&m| self.camera().gsd_m(m))
+    }
+
     /// Check points intersected from the oriented frames: (id, estimated − surveyed).
     pub fn check_points(&self) -> Vec<(String, Vec3)> {
         self.targets
