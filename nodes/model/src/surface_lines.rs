@@ -5,9 +5,11 @@
 //!
 //! A line is taken for one when both its ends lie in a wall's surface (within `surface_band_m` of the wall the
 //! openings are found on), well inside the wall's extent (more than `surface_margin_m` from where its edges end:
-//! the wall's outline stays), on no face but the wall's own (a window's or a roof's outline stays), and neither of
+//! the wall's outline stays), on no face but the wall's own (a window's or a roof's outline stays), neither of
 //! its ends is a corner with an edge that leaves the surface (an opening's outline meets its reveals there, a
-//! cornice's foot its returns; a mortar course meets nothing that leaves the wall).
+//! cornice's foot its returns; a mortar course meets nothing that leaves the wall), its middle lies in no window
+//! or door (their frames and panes stay), and it lies in a field of parallel lines like it (courses, rows of
+//! tiles; the outline of an opening on a plain wall, its reveals unseen, is alone). Measured in docs/model.md.
 use lineflow_photogrammetry::Vec3;
 
 use crate::surface::{Face, SurfaceKind};
@@ -33,7 +35,9 @@ impl WallSurface {
 /// The settings of the separation.
 #[derive(Debug, Clone, Copy)]
 pub(crate) struct SurfaceRule {
+    /// How far off a wall's surface a line's ends may lie, metres.
     pub(crate) band_m: f64,
+    /// How far inside the wall's extent they lie at least, metres.
     pub(crate) margin_m: f64,
     /// A field: this many parallel candidates…
     pub(crate) neighbours: usize,
