@@ -452,15 +452,17 @@ mod tests {
     use super::*;
 
     #[test]
-    fn an_obj_model_keeps_its_face_groups_and_its_hidden_edges_apart() {
+    fn an_obj_model_keeps_its_face_groups_its_hidden_edges_and_its_surface_lines_apart() {
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("model.obj");
-        let text = "v 0 0 0\nv 1 0 0\nv 1 0 1\nv 0 0 1\ng Window\nf 1 2 3 4\ng edges\nl 1 2 3\ng completed_edges\nl 4 1\n";
+        let text =
+            "v 0 0 0\nv 1 0 0\nv 1 0 1\nv 0 0 1\ng Window\nf 1 2 3 4\ng edges\nl 1 2 3\ng completed_edges\nl 4 1\ng surface_lines\nl 1 3\n";
         std::fs::write(&path, text).unwrap();
         let obj = read_obj(&path).unwrap();
         assert_eq!(obj.faces, vec![("Window".to_string(), vec![0, 1, 2, 3])]);
         assert_eq!(obj.edges, vec![[0, 1], [1, 2]]);
         assert_eq!(obj.hidden_edges, vec![[3, 0]]);
+        assert_eq!(obj.surface_lines, vec![[0, 2]]);
         assert_eq!(read_obj_wireframe(&path).unwrap().1, obj.edges);
         std::fs::write(&path, "v 0 0 0\nv 1 0 0\nf 1 2\n").unwrap();
         let e = read_obj(&path).unwrap_err().to_string();
