@@ -6,8 +6,8 @@ use std::collections::BTreeMap;
 use lineflow_photogrammetry::{point_in_polygon, signed_area, Vec3};
 
 use crate::disjoint::Disjoint;
+use crate::openings::Wall;
 use crate::surface::{plane_basis, smaller_side, Face, Plane, SurfaceKind};
-use crate::surface_lines::WallSurface;
 use crate::{Cameras, Edge, ModelParams, Vertex};
 
 /// The faces of a wire-frame. The `cameras`' mean centre decides which side is outside; without cameras the
@@ -25,7 +25,7 @@ pub(crate) fn find_with_walls(
     edges: &mut Vec<Edge>,
     params: &ModelParams,
     cameras: &Cameras,
-) -> (Vec<Face>, Vec<WallSurface>) {
+) -> (Vec<Face>, Vec<Wall>) {
     let viewpoint = cameras.mean();
     if vertices.is_empty() {
         return (Vec::new(), Vec::new());

@@ -702,16 +702,12 @@ pub fn build_with_images(lines: &[ModelLine], params: &ModelParams, cameras: &Ca
         });
     }
     let surface_lines = if params.surface_lines {
-        let mut azimuths = [None; 4];
-        for (slot, &a) in azimuths.iter_mut().zip(&plan_azimuths) {
-            *slot = Some(a);
-        }
         let rule = surface_lines::SurfaceRule {
             band_m: params.surface_band_m,
             margin_m: params.surface_margin_m,
             neighbours: params.surface_neighbours,
             reach_m: params.surface_reach_m,
-            plan_azimuths: azimuths,
+            plan_azimuths: plan_azimuths.clone(),
             angle_rad: params.plane_angle_deg.to_radians(),
         };
         surface_lines::separate(&vertices, &mut edges, &mut faces, &walls, &rule)
@@ -864,6 +860,21 @@ mod tests {
         // from the file alike.
         for rms in [None, Some(0.0), Some(1e-15), Some(f64::NAN)] {
             assert_eq!(p.line_sigma(rms, Some(12)), p.sigma_m, "{rms:?}");
+        }
+    }
+
+    #[test]
+    fn an_opening_size_range_must_be_a_range() {
+        let set = |items: &[&str]| ModelParams::with_overrides(&items.iter().map(|s| s.to_string()).collect::<Vec<_>>());
+        let p = set(&["opening_min_m = 0.5", "opening_max_m = 2.0"]).expect("a range");
+        assert_eq!(p.opening_sizes().opening_m, (0.5, 2.0));
+        for (lo, hi, name) in [
+            ("opening_min_m = 2.0", "opening_max_m = 1.0", "opening_max_m"),
+            ("recess_min_m = 0.2", "recess_max_m = 0.2", "recess_max_m"),
+            ("frame_min_m = 0.1", "frame_max_m = 0.05", "frame_max_m"),
+        ] {
+            let e = set(&[lo, hi]).expect_err("an empty range").to_string();
+            assert!(e.contains(name), "{e}");
         }
     }
 

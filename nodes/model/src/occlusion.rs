@@ -54,7 +54,6 @@ pub fn complete(vertices: &mut Vec<Vertex>, edges: &mut Vec<Edge>, params: &Mode
     let mut closed = 0;
     // The structures change only where a completion joins two; recomputed then, not for every plane.
     let mut component = components(vertices.len(), &graph);
-    let mut changed = false;
     for plane in planes {
         let Some(up) = projection_direction(&plane, vertices, viewpoint) else {
             continue;
@@ -72,7 +71,7 @@ pub fn complete(vertices: &mut Vec<Vertex>, edges: &mut Vec<Edge>, params: &Mode
         // Only a chain of a building's scale looks for occluders: found once per plane, when one needs them.
         let mut occluders: Option<Occluders> = None;
         // The wire-frame as it was when the plane's turn came (a chord completed meanwhile is no occluder).
-        let (n_vertices, n_graph) = (vertices.len(), graph.len());
+        let (n_vertices, n_graph, closed_before) = (vertices.len(), graph.len(), closed);
         for chain in chains {
             let own = component[chain.ends[0].0];
             // The seed's case needs a face of a building's scale: a façade's relief (reveals, frames, sills) is
@@ -96,14 +95,12 @@ pub fn complete(vertices: &mut Vec<Vertex>, edges: &mut Vec<Edge>, params: &Mode
                 add_path(vertices, edges, &chain, &path, tol);
                 graph.extend_from_slice(&edges[before..]);
                 closed += 1;
-                // Later chains of this plane kept the structures as they were before any completion of it, as
-                // they always have; later planes see the joined ones.
-                changed = true;
             }
         }
-        if changed {
+        // Later chains of a plane keep the structures as they were before any completion of it, as they always
+        // have; later planes see the joined ones.
+        if closed > closed_before {
             component = components(vertices.len(), &graph);
-            changed = false;
         }
     }
     closed

@@ -70,7 +70,7 @@ fn gate(line: &ModelLine, axes: &[usize], p: &RegularParams) -> f64 {
 }
 
 /// Plan azimuth modulo 90°, radians in [0, π/2).
-fn azimuth_mod_quarter(d: &Vec3) -> f64 {
+pub(crate) fn azimuth_mod_quarter(d: &Vec3) -> f64 {
     d.y.atan2(d.x).rem_euclid(std::f64::consts::FRAC_PI_2)
 }
 
@@ -120,7 +120,7 @@ fn plan_directions(levels: &[(f64, f64, f64)], p: &RegularParams) -> Vec<f64> {
 }
 
 /// An azimuth difference folded into (−45°, 45°].
-fn signed_quarter(d: f64) -> f64 {
+pub(crate) fn signed_quarter(d: f64) -> f64 {
     let q = std::f64::consts::FRAC_PI_2;
     let r = d.rem_euclid(q);
     if r > q / 2.0 {

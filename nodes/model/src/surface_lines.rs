@@ -12,28 +12,13 @@
 //! tiles; the outline of an opening on a plain wall, its reveals unseen, is alone). Measured in docs/model.md.
 use lineflow_photogrammetry::Vec3;
 
+use crate::openings::{Outline, Wall};
+use crate::regular::{azimuth_mod_quarter, signed_quarter};
 use crate::surface::{Face, SurfaceKind};
 use crate::{Edge, Vertex};
 
-/// A wall as the surface lines are measured against it.
-#[derive(Debug, Clone, Copy)]
-pub(crate) struct WallSurface {
-    /// A point of the wall's surface.
-    pub(crate) point: Vec3,
-    /// Outward unit normal.
-    pub(crate) out: Vec3,
-    /// Horizontal unit vector in the wall.
-    pub(crate) across: Vec3,
-}
-
-impl WallSurface {
-    fn depth(&self, p: &Vec3) -> f64 {
-        (self.point - p).dot(&self.out)
-    }
-}
-
 /// The settings of the separation.
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone)]
 pub(crate) struct SurfaceRule {
     /// How far off a wall's surface a line's ends may lie, metres.
     pub(crate) band_m: f64,
@@ -44,7 +29,7 @@ pub(crate) struct SurfaceRule {
     /// …within this distance across, metres.
     pub(crate) reach_m: f64,
     /// The building's plan directions (azimuths modulo 90°, radians): only walls along one of them are surfaces.
-    pub(crate) plan_azimuths: [Option<f64>; 4],
+    pub(crate) plan_azimuths: Vec<f64>,
     /// How far a wall may be off plumb and off a plan direction, radians.
     pub(crate) angle_rad: f64,
 }
@@ -52,14 +37,13 @@ pub(crate) struct SurfaceRule {
 impl SurfaceRule {
     /// A plumb wall along one of the building's plan directions; the plane hypotheses of the faces include
     /// planes a few degrees off through a wall's texture, which would take every line for a surface line.
-    fn is_surface(&self, wall: &WallSurface) -> bool {
-        let quarter = std::f64::consts::FRAC_PI_2;
-        let azimuth = wall.across.y.atan2(wall.across.x).rem_euclid(quarter);
-        let off = |a: f64| {
-            let d = (azimuth - a).rem_euclid(quarter);
-            d.min(quarter - d)
-        };
-        wall.out.z.abs() < self.angle_rad.sin() && self.plan_azimuths.iter().flatten().any(|&a| off(a) < self.angle_rad)
+    fn is_surface(&self, wall: &Wall) -> bool {
+        let azimuth = azimuth_mod_quarter(&wall.across);
+        wall.out.z.abs() < self.angle_rad.sin()
+            && self
+                .plan_azimuths
+                .iter()
+                .any(|&a| signed_quarter(azimuth - a).abs() < self.angle_rad)
     }
 }
 
@@ -70,7 +54,7 @@ pub(crate) fn separate(
     vertices: &[Vertex],
     edges: &mut Vec<Edge>,
     faces: &mut Vec<Face>,
-    walls: &[WallSurface],
+    walls: &[Wall],
     rule: &SurfaceRule,
 ) -> Vec<[usize; 2]> {
     let n = vertices.len();
@@ -81,7 +65,7 @@ pub(crate) fn separate(
             on_other_face[v] = true;
         }
     }
-    let walls: Vec<&WallSurface> = walls.iter().filter(|w| rule.is_surface(w)).collect();
+    let walls: Vec<&Wall> = walls.iter().filter(|w| rule.is_surface(w)).collect();
     let mut wall_of: Vec<Option<usize>> = vec![None; n];
     for (k, wall) in walls.iter().enumerate() {
         for (v, vertex) in vertices.iter().enumerate() {
@@ -146,20 +130,17 @@ const RECESS_REACH_M: f64 = 0.5;
 
 /// The window and door faces as boxes `[u0, u1, z0, z1]` in their wall's coordinates, grown by `grow`: a line
 /// along an opening's outline or inside it (its frame, its panes) is no course of the wall.
-fn opening_boxes(vertices: &[Vertex], faces: &[Face], walls: &[&WallSurface], grow: f64) -> Vec<(usize, [f64; 4])> {
-    let parallel = |f: &Face, w: &WallSurface| f.normal.dot(&w.out).abs() > 0.99;
+fn opening_boxes(vertices: &[Vertex], faces: &[Face], walls: &[&Wall], grow: f64) -> Vec<(usize, [f64; 4])> {
+    let parallel = |f: &Face, w: &Wall| f.normal.dot(&w.out).abs() > 0.99;
     faces
         .iter()
         .filter(|f| matches!(f.kind, SurfaceKind::Window | SurfaceKind::Door))
         .filter_map(|f| {
             let w = (0..walls.len())
                 .find(|&w| parallel(f, walls[w]) && f.ring.iter().all(|&v| walls[w].depth(&vertices[v].point).abs() < RECESS_REACH_M))?;
-            let mut b = [f64::INFINITY, f64::NEG_INFINITY, f64::INFINITY, f64::NEG_INFINITY];
-            for &v in &f.ring {
-                let (u, z) = (vertices[v].point.dot(&walls[w].across), vertices[v].point.z);
-                b = [b[0].min(u - grow), b[1].max(u + grow), b[2].min(z - grow), b[3].max(z + grow)];
-            }
-            Some((w, b))
+            let ring: Vec<Vec3> = f.ring.iter().map(|&v| vertices[v].point).collect();
+            let [u0, u1, z0, z1] = Outline::of(&ring, f.normal).bounds_in(walls[w]);
+            Some((w, [u0 - grow, u1 + grow, z0 - grow, z1 + grow]))
         })
         .collect()
 }
@@ -176,7 +157,7 @@ struct Span {
 
 impl Span {
     /// The span of an edge within a few degrees of level or plumb; slanted ones form no courses.
-    fn of(p: &Vec3, q: &Vec3, wall: usize, surface: &WallSurface) -> Option<Span> {
+    fn of(p: &Vec3, q: &Vec3, wall: usize, surface: &Wall) -> Option<Span> {
         let ((pu, pz), (qu, qz)) = ((p.dot(&surface.across), p.z), (q.dot(&surface.across), q.z));
         let upright = (qz - pz).abs() > (qu - pu).abs();
         let (across, a, b) = if upright {
@@ -210,7 +191,7 @@ fn in_a_field(
     vertices: &[Vertex],
     edges: &[Edge],
     candidates: &[usize],
-    walls: &[&WallSurface],
+    walls: &[&Wall],
     wall_of: &[Option<usize>],
     rule: &SurfaceRule,
 ) -> Vec<bool> {
@@ -237,7 +218,7 @@ fn in_a_field(
 }
 
 /// The wall's extent `[u0, u1, z0, z1]` (along it and up): the bounds of the edges lying in its surface.
-fn extent(vertices: &[Vertex], edges: &[Edge], wall: &WallSurface, own: impl Fn(usize) -> bool) -> Option<[f64; 4]> {
+fn extent(vertices: &[Vertex], edges: &[Edge], wall: &Wall, own: impl Fn(usize) -> bool) -> Option<[f64; 4]> {
     let mut b = [f64::INFINITY, f64::NEG_INFINITY, f64::INFINITY, f64::NEG_INFINITY];
     for e in edges.iter().filter(|e| own(e.a) && own(e.b)) {
         for p in [vertices[e.a].point, vertices[e.b].point] {
@@ -298,17 +279,17 @@ mod tests {
         edges[n - 3].a = head;
         edges[n - 2].a = head + 1;
         let mut faces = Vec::new();
-        let wall = WallSurface {
-            point: Vec3::zeros(),
-            out: -Vec3::y(),
-            across: Vec3::x(),
+        let plane = crate::surface::Plane {
+            normal: Vec3::y(),
+            offset: 0.0,
         };
+        let wall = Wall::facing(plane, &Vec3::new(5.0, -20.0, 3.0)).expect("the cameras are in front");
         let rule = SurfaceRule {
             band_m: 0.03,
             margin_m: 0.1,
             neighbours: 4,
             reach_m: 0.3,
-            plan_azimuths: [Some(0.0), None, None, None],
+            plan_azimuths: vec![0.0],
             angle_rad: 2f64.to_radians(),
         };
         let aside = separate(&vertices, &mut edges, &mut faces, &[wall], &rule);

@@ -18,7 +18,6 @@ use lineflow_photogrammetry::Vec3;
 use lineflow_photogrammetry::{point_in_polygon, signed_area};
 
 use crate::surface::{plane_basis, smaller_side, Face, Plane, SurfaceKind};
-use crate::surface_lines::WallSurface;
 use crate::{Cameras, Edge, ModelParams, Vertex};
 
 /// The sizes the opening rules assume, metres (the model's parameters `recess_*_m`, `opening_*_m`, `frame_*_m`).
@@ -77,6 +76,7 @@ mod recesses;
 mod rectangles;
 mod sides;
 mod wall;
+pub(crate) use wall::{Outline, Wall};
 mod wall_from_edges;
 
 use grid::*;
@@ -107,7 +107,7 @@ pub(crate) fn infer(
     tol: f64,
     params: &ModelParams,
     cameras: &Cameras,
-) -> (Vec<Inferred>, Vec<WallSurface>) {
+) -> (Vec<Inferred>, Vec<Wall>) {
     let Some(viewpoint) = cameras.mean() else {
         return (Vec::new(), Vec::new());
     };
@@ -180,15 +180,7 @@ pub(crate) fn infer(
             out.push(Inferred::New(corners, wall.out));
         }
     }
-    let surfaces = walls
-        .iter()
-        .map(|v| WallSurface {
-            point: v.wall.plane.normal * v.wall.plane.offset,
-            out: v.wall.out,
-            across: v.wall.across,
-        })
-        .collect();
-    (out, surfaces)
+    (out, walls.iter().map(|v| v.wall).collect())
 }
 
 /// Adds the inferred openings to the model: marked faces become windows, new ones get their corners, their

@@ -3,17 +3,18 @@
 use super::*;
 
 /// A wall plane with coordinates along it (`x`), up (`z`) and behind it (`depth`, along −`out`).
-pub(super) struct Wall {
-    pub(super) plane: Plane,
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Wall {
+    pub(crate) plane: Plane,
     /// Outward unit normal (towards the cameras).
-    pub(super) out: Vec3,
+    pub(crate) out: Vec3,
     /// Horizontal unit vector in the wall.
-    pub(super) across: Vec3,
+    pub(crate) across: Vec3,
 }
 
 impl Wall {
     /// The plane as a wall seen from `viewpoint`; none when the viewpoint lies in it.
-    pub(super) fn facing(plane: Plane, viewpoint: &Vec3) -> Option<Wall> {
+    pub(crate) fn facing(plane: Plane, viewpoint: &Vec3) -> Option<Wall> {
         let side = plane.normal.dot(viewpoint) - plane.offset;
         if side.abs() < 1e-9 {
             return None;
@@ -46,7 +47,7 @@ impl Wall {
     }
 
     /// How far behind the wall `p` lies (negative in front).
-    pub(super) fn depth(&self, p: &Vec3) -> f64 {
+    pub(crate) fn depth(&self, p: &Vec3) -> f64 {
         (self.plane.offset - self.plane.normal.dot(p)) / self.plane.normal.dot(&self.out)
     }
 
@@ -90,7 +91,7 @@ impl WallView {
 
 /// A ring flattened in its plane, for containment tests.
 #[derive(Clone)]
-pub(super) struct Outline {
+pub(crate) struct Outline {
     pub(super) points: Vec<Vec3>,
     pub(super) normal: Vec3,
     pub(super) centroid: Vec3,
@@ -100,7 +101,7 @@ pub(super) struct Outline {
 }
 
 impl Outline {
-    pub(super) fn of(points: &[Vec3], normal: Vec3) -> Outline {
+    pub(crate) fn of(points: &[Vec3], normal: Vec3) -> Outline {
         let basis = plane_basis(normal);
         let polygon: Vec<[f64; 2]> = points.iter().map(|p| [p.dot(&basis.0), p.dot(&basis.1)]).collect();
         Outline {
@@ -114,7 +115,7 @@ impl Outline {
     }
 
     /// The ring's bounds `[x0, x1, z0, z1]` in `wall`'s coordinates.
-    pub(super) fn bounds_in(&self, wall: &Wall) -> [f64; 4] {
+    pub(crate) fn bounds_in(&self, wall: &Wall) -> [f64; 4] {
         let xs: Vec<f64> = self.points.iter().map(|p| p.dot(&wall.across)).collect();
         let zs: Vec<f64> = self.points.iter().map(|p| p.z).collect();
         [min(&xs), max(&xs), min(&zs), max(&zs)]
