@@ -34,6 +34,9 @@ pub struct ModelReport {
     pub edge_error_m: Vec<f64>,
 }
 
+/// A model edge's ends lie within this many GSD of a true edge's ends to match it.
+const EDGE_TOLERANCE_GSD: f64 = 3.0;
+
 /// The true wire-frame: vertices and edges from the true segments.
 pub fn true_wireframe(lines: &[Line3Row]) -> (Vec<Vec3>, Vec<[usize; 2]>) {
     let merge = 1e-3;
@@ -82,7 +85,7 @@ fn nearest(points: &[Vec3], p: &Vec3) -> Option<(usize, f64)> {
 pub fn evaluate(truth: &[Line3Row], vertices: &[Vec3], edges: &[[usize; 2]], gsd_m: f64) -> ModelReport {
     let (tv, te) = true_wireframe(truth);
     let reach = 5.0 * gsd_m;
-    let tol = 3.0 * gsd_m;
+    let tol = EDGE_TOLERANCE_GSD * gsd_m;
     let mut sq = 0.0;
     let mut matched = 0;
     for (k, v) in vertices.iter().enumerate() {
@@ -93,20 +96,24 @@ pub fn evaluate(truth: &[Line3Row], vertices: &[Vec3], edges: &[[usize; 2]], gsd
         }
     }
     let edge_matches = edge_matcher(&tv, vertices, tol);
-    let match_of: Vec<Option<&[usize; 2]>> = edges.iter().map(|m| te.iter().find(|t| edge_matches(m, t))).collect();
-    let right = match_of.iter().filter(|t| t.is_some()).count();
-    let found = te.iter().filter(|t| edges.iter().any(|m| edge_matches(m, t))).count();
-    let edge_error_m = edges
+    // The error of an edge against the true edge it matches best (a short reveal can match a neighbour too).
+    let end_error = |m: &[usize; 2], t: &[usize; 2]| {
+        let (a, b) = (vertices[m[0]], vertices[m[1]]);
+        let (p, q) = (tv[t[0]], tv[t[1]]);
+        ((a - p).norm() + (b - q).norm()).min((a - q).norm() + (b - p).norm()) / 2.0
+    };
+    let edge_error_m: Vec<f64> = edges
         .iter()
-        .zip(&match_of)
-        .map(|(m, t)| {
-            t.map_or(f64::NAN, |t| {
-                let (a, b) = (vertices[m[0]], vertices[m[1]]);
-                let (p, q) = (tv[t[0]], tv[t[1]]);
-                ((a - p).norm() + (b - q).norm()).min((a - q).norm() + (b - p).norm()) / 2.0
-            })
+        .map(|m| {
+            te.iter()
+                .filter(|t| edge_matches(m, t))
+                .map(|t| end_error(m, t))
+                .min_by(f64::total_cmp)
+                .unwrap_or(f64::NAN)
         })
         .collect();
+    let right = edge_error_m.iter().filter(|e| !e.is_nan()).count();
+    let found = te.iter().filter(|t| edges.iter().any(|m| edge_matches(m, t))).count();
     let share = |n: usize, d: usize| if d == 0 { 0.0 } else { n as f64 / d as f64 };
     ModelReport {
         gsd_m,
@@ -148,7 +155,7 @@ pub struct SurfaceLinesReport {
 /// Scores the surface lines `lines` (vertex pairs into `vertices`) against the true segments.
 pub fn evaluate_surface_lines(truth: &[Line3Row], vertices: &[Vec3], lines: &[[usize; 2]], gsd_m: f64) -> SurfaceLinesReport {
     let (tv, te) = true_wireframe(truth);
-    let edge_matches = edge_matcher(&tv, vertices, 3.0 * gsd_m);
+    let edge_matches = edge_matcher(&tv, vertices, EDGE_TOLERANCE_GSD * gsd_m);
     SurfaceLinesReport {
         lines: lines.len(),
         true_edges: lines.iter().filter(|m| te.iter().any(|t| edge_matches(m, t))).count(),

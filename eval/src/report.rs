@@ -269,22 +269,16 @@ fn model_section(md: &mut String, truth: &Truth, eval: &Evaluation, out: &Path) 
     }
     if let Some(m) = &eval.model {
         let max_error = m.edge_tolerance_m;
-        plot::view(
-            &m.true_segments,
-            &m.edge_segments,
-            &m.edge_error_m,
-            max_error,
-            (0, 2),
-            &out.join("model_front.png"),
-        )?;
-        plot::view(
-            &m.true_segments,
-            &m.edge_segments,
-            &m.edge_error_m,
-            max_error,
-            (0, 1),
-            &out.join("model_top.png"),
-        )?;
+        for (axes, file) in [((0, 2), "model_front.png"), ((0, 1), "model_top.png")] {
+            plot::view(
+                &m.true_segments,
+                &m.edge_segments,
+                &m.edge_error_m,
+                max_error,
+                axes,
+                &out.join(file),
+            )?;
+        }
         let _ = writeln!(
             md,
             "The CSR model's edges in a front view (X right, Z up) and a top view (X right, Y up): true edges grey, model edges that match one coloured by the mean distance of their ends from green (0) to red ({} mm), magenta where they match none.\n\n![model front](model_front.png)\n\n![model top](model_top.png)\n",

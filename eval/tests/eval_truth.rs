@@ -72,6 +72,26 @@ fn the_truth_scores_perfectly_and_known_shifts_score_as_expected() {
         assert_eq!((m.edge_precision, m.edge_recall, m.vertex_rmse_m), (1.0, 1.0, 0.0), "{m:?}");
         assert_eq!(m.matched_vertices, m.true_vertices);
     }
+    // Every edge of the true model matches with no error; the report draws it.
+    let m = perfect.model.as_ref().unwrap();
+    assert!(
+        m.edge_error_m.iter().all(|e| *e < 1e-12),
+        "{:?}",
+        m.edge_error_m.iter().find(|e| !(**e < 1e-12))
+    );
+    let report_dir = dir.path().join("eval");
+    lineflow_eval::report::write(&truth, dir.path(), &perfect, &report_dir).unwrap();
+    for f in ["model_front.png", "model_top.png", "model_image.png"] {
+        assert!(report_dir.join(f).is_file(), "no {f}");
+    }
+    // Surface lines: true edges set aside count as the class's mistakes; lines a metre off do not.
+    let (v, e) = lineflow_eval::model::true_wireframe(&lines);
+    let wrong = lineflow_eval::model::evaluate_surface_lines(&lines, &v, &e[..5], truth.gsd_m());
+    assert_eq!((wrong.lines, wrong.true_edges), (5, 5));
+    let off: Vec<Vec3> = v.iter().map(|p| p + Vec3::new(0.0, 1.0, 0.0)).collect();
+    let right = lineflow_eval::model::evaluate_surface_lines(&lines, &off, &e[..5], truth.gsd_m());
+    assert_eq!((right.lines, right.true_edges), (5, 0));
+
     let openings = perfect.openings.as_ref().unwrap();
     assert!(openings.true_openings > 0 && truth.scene.building.openings.iter().any(|o| o.door));
     assert_eq!(
