@@ -76,7 +76,7 @@ pub fn bench_linemap(
     let start = std::time::Instant::now();
     let (lines, stats) = map_lines_with_stats(&camera, &views, &guide, &params);
     let seconds = start.elapsed().as_secs_f64();
-    let rows: Vec<Line3Row> = line_messages(&lines).iter().map(Line3Row::from).collect();
+    let rows: Vec<Line3Row> = line_messages(&lines, &params).iter().map(Line3Row::from).collect();
     lineflow_formats::write_lines3d(&run.join("lines3d_linemap.csv"), &rows)?;
     println!(
         "linemap on {} ({} views, {} segments, {} poses), {:.2} s:\n",

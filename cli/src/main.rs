@@ -283,6 +283,19 @@ enum Cmd {
         #[arg(long = "set", value_name = "PARAM=VALUE")]
         set: Vec<String>,
     },
+    /// Class each line of a lines3d.csv as structure or texture, as the line stages do (the `class` column;
+    /// docs/lines3d.md).
+    Classify {
+        /// 3-D lines (lines3d.csv).
+        lines: PathBuf,
+        /// Where to write them with their class (a lines3d.csv).
+        #[arg(long)]
+        out: PathBuf,
+        /// Override a setting of the classing: PARAM=VALUE (neighbours, reach_m, band_m, corner_m, parallel_deg).
+        /// Repeatable.
+        #[arg(long = "set", value_name = "PARAM=VALUE")]
+        set: Vec<String>,
+    },
     /// Reproduce a seed document's experiment (seed001: collinearity vs essential-matrix orientation of a
     /// simulated stereo pair, Monte Carlo; seed004: model-image fitting of box buildings in synthetic aerial
     /// photos); prints Markdown tables.
@@ -391,6 +404,7 @@ fn main() -> ExitCode {
             noise_dn: noise,
         }),
         Cmd::Eval { results, gt, out, json } => eval(&results, &gt, out, json),
+        Cmd::Classify { lines, out, set } => model_cmd::classify(&lines, &out, &set),
         Cmd::Model {
             lines,
             poses,

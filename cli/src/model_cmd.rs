@@ -73,3 +73,25 @@ pub fn model(lines: &Path, poses: Option<&Path>, refine: Option<RefineInputs>, o
     }
     Ok(ExitCode::SUCCESS)
 }
+
+/// `lineflow classify LINES3D --out FILE [--set PARAM=VALUE]...`: the lines with their `class` column as the line
+/// stages write it (docs/lines3d.md, "Structure and texture"), for lines of an older run or of another tool.
+pub fn classify(lines: &Path, out: &Path, set: &[String]) -> Result<ExitCode> {
+    let rule: lineflow_linegeom::ClassRule = lineflow_runtime::launch::params_from_overrides(set)?;
+    rule.validate()
+        .map_err(|e| anyhow::anyhow!("{} must be {}, got {}", e.name, e.requirement, e.value))?;
+    let mut rows = read_lines3d(lines)?;
+    let segments: Vec<[lineflow_photogrammetry::Vec3; 2]> = rows.iter().map(|r| [r.start, r.end]).collect();
+    for (r, class) in rows.iter_mut().zip(lineflow_linegeom::classify(&segments, &rule)) {
+        r.class = class;
+    }
+    lineflow_formats::write_lines3d(out, &rows)?;
+    let texture = rows.iter().filter(|r| r.class == lineflow_formats::LineClass::Texture).count();
+    println!(
+        "{} lines: {} structure, {texture} texture -> {}",
+        rows.len(),
+        rows.len() - texture,
+        out.display()
+    );
+    Ok(ExitCode::SUCCESS)
+}

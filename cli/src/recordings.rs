@@ -247,11 +247,7 @@ pub fn export(path: &Path, topic: &str, out: &Path) -> Result<ExitCode> {
                 .iter()
                 .map(|l| Line3Row {
                     id: l.id.to_string(),
-                    start: l.start_m.into(),
-                    end: l.end_m.into(),
-                    n_points: Some(l.n_points),
-                    n_images: Some(l.n_images),
-                    rms_m: Some(l.rms_m),
+                    ..Line3Row::from(l)
                 })
                 .collect();
             lineflow_formats::write_lines3d_results(out, &rows)?;

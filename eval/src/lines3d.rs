@@ -1,7 +1,8 @@
 //! 3-D lines: the thesis's tables (endpoint perpendicular distances and angles to the matched reference edge),
 //! the success rate, and LIMAP-style precision and recall at several tolerances, against the true edges and
-//! against the true surfaces, for all, horizontal and vertical edges.
-use lineflow_formats::Line3Row;
+//! against the true surfaces, for all, horizontal, vertical and depth edges, and for the lines of each class the
+//! line stage gave them (structure, texture).
+use lineflow_formats::{Line3Row, LineClass};
 use lineflow_photogrammetry::{Pose, Vec3};
 use rayon::prelude::*;
 
@@ -28,6 +29,15 @@ pub struct AtTolerance {
     pub length_recall: f64,
     /// Share of estimated length within τ of a true surface.
     pub surface_precision: f64,
+}
+
+/// Which estimates and true edges one row of the scores is about.
+#[derive(Debug, Clone, Copy)]
+enum Subset {
+    /// Estimates and true edges of one direction on their wall (all with `None`).
+    Edges(Option<Class>),
+    /// The estimates the line stage classed so, against every true edge.
+    Lines(LineClass),
 }
 
 /// Scores of one class of edges.
@@ -166,81 +176,102 @@ pub fn evaluate(truth: &Truth, rows: &[Line3Row]) -> Lines3dReport {
         .collect();
     let est_class: Vec<Class> = est.iter().map(|s| class_on_walls(s, &walls)).collect();
     let gt_class: Vec<Class> = gt.iter().map(|s| class_on_walls(s, &walls)).collect();
-    let classes = [
-        ("all", None),
-        ("horizontal", Some(Class::Horizontal)),
-        ("vertical", Some(Class::Vertical)),
-        ("depth", Some(Class::Depth)),
-    ]
-    .iter()
-    .map(|&(name, class)| {
-        let ei: Vec<usize> = (0..est.len()).filter(|&i| class.is_none_or(|c| est_class[i] == c)).collect();
-        let gi: Vec<usize> = (0..gt.len()).filter(|&i| class.is_none_or(|c| gt_class[i] == c)).collect();
-        // A depth edge is 0.1-0.5 m long and ends on the lines around its opening: every estimate counts as covering
-        // it at its ends. Its recall counts depth estimates only (horizontal and vertical keep their definition
-        // against all estimates, for comparison with earlier figures).
-        let depth_samples: Option<Vec<Vec<(f64, f64)>>> = (class == Some(Class::Depth)).then(|| {
-            let depth_est: Vec<Seg> = ei.iter().map(|&i| est[i]).collect();
-            let grid = segment_grid(&depth_est, reach, region);
-            let mut samples = vec![Vec::new(); gt.len()];
-            for &i in &gi {
-                samples[i] = gt[i]
-                    .samples(SAMPLES)
-                    .map(|(p, w)| (nearest(&p, &grid, |k| depth_est[k].distance(&p)), w))
-                    .collect();
-            }
-            samples
-        });
-        let at = taus
-            .iter()
-            .map(|(label, tau)| {
-                let share = |num: f64, den: f64| if den > 0.0 { num / den } else { f64::NAN };
-                let seg_ok = ei
-                    .iter()
-                    .filter(|&&i| est_samples[i].iter().map(|s| s.0).sum::<f64>() / SAMPLES as f64 <= *tau)
-                    .count();
-                let (mut within, mut on_surface, mut total) = (0.0, 0.0, 0.0);
-                for &i in &ei {
-                    for &(d, ds, w) in &est_samples[i] {
-                        total += w;
-                        within += if d <= *tau { w } else { 0.0 };
-                        on_surface += if ds <= *tau { w } else { 0.0 };
-                    }
-                }
-                let (mut covered, mut gt_total) = (0.0, 0.0);
+    // Edge classes score the estimates and true edges of one direction; the line stage's classes (when the lines
+    // carry them) score the lines of one class against every true edge, recall and success by those lines alone.
+    let line_class: Vec<LineClass> = rows.iter().map(|r| r.class).collect();
+    let classed = line_class.iter().any(|&c| c != LineClass::Unknown);
+    let mut subsets: Vec<(&'static str, Subset)> = vec![
+        ("all", Subset::Edges(None)),
+        ("horizontal", Subset::Edges(Some(Class::Horizontal))),
+        ("vertical", Subset::Edges(Some(Class::Vertical))),
+        ("depth", Subset::Edges(Some(Class::Depth))),
+    ];
+    if classed {
+        subsets.push(("structure lines", Subset::Lines(LineClass::Structure)));
+        subsets.push(("texture lines", Subset::Lines(LineClass::Texture)));
+    }
+    let classes = subsets
+        .iter()
+        .map(|&(name, subset)| {
+            let (ei, gi): (Vec<usize>, Vec<usize>) = match subset {
+                Subset::Edges(class) => (
+                    (0..est.len()).filter(|&i| class.is_none_or(|c| est_class[i] == c)).collect(),
+                    (0..gt.len()).filter(|&i| class.is_none_or(|c| gt_class[i] == c)).collect(),
+                ),
+                Subset::Lines(c) => ((0..est.len()).filter(|&i| line_class[i] == c).collect(), (0..gt.len()).collect()),
+            };
+            // A depth edge is 0.1-0.5 m long and ends on the lines around its opening: every estimate counts as covering
+            // it at its ends. Its recall counts depth estimates only (horizontal and vertical keep their definition
+            // against all estimates, for comparison with earlier figures).
+            let own = matches!(subset, Subset::Edges(Some(Class::Depth)) | Subset::Lines(_));
+            let own_est: Vec<Seg> = if own { ei.iter().map(|&i| est[i]).collect() } else { Vec::new() };
+            let own_grid = own.then(|| segment_grid(&own_est, reach, region));
+            let depth_samples: Option<Vec<Vec<(f64, f64)>>> = own_grid.as_ref().map(|grid| {
+                let mut samples = vec![Vec::new(); gt.len()];
                 for &i in &gi {
-                    let samples = depth_samples.as_ref().map_or(&gt_samples[i], |d| &d[i]);
-                    for &(d, w) in samples {
-                        gt_total += w;
-                        covered += if d <= *tau { w } else { 0.0 };
+                    samples[i] = gt[i]
+                        .samples(SAMPLES)
+                        .map(|(p, w)| (nearest(&p, grid, |k| own_est[k].distance(&p)), w))
+                        .collect();
+                }
+                samples
+            });
+            let at = taus
+                .iter()
+                .map(|(label, tau)| {
+                    let share = |num: f64, den: f64| if den > 0.0 { num / den } else { f64::NAN };
+                    let seg_ok = ei
+                        .iter()
+                        .filter(|&&i| est_samples[i].iter().map(|s| s.0).sum::<f64>() / SAMPLES as f64 <= *tau)
+                        .count();
+                    let (mut within, mut on_surface, mut total) = (0.0, 0.0, 0.0);
+                    for &i in &ei {
+                        for &(d, ds, w) in &est_samples[i] {
+                            total += w;
+                            within += if d <= *tau { w } else { 0.0 };
+                            on_surface += if ds <= *tau { w } else { 0.0 };
+                        }
                     }
-                }
-                AtTolerance {
-                    label: label.clone(),
-                    tau_m: *tau,
-                    segment_precision: share(seg_ok as f64, ei.len() as f64),
-                    length_precision: share(within, total),
-                    length_recall: share(covered, gt_total),
-                    surface_precision: share(on_surface, total),
-                }
-            })
-            .collect();
-        let long: Vec<usize> = gi.iter().copied().filter(|&i| gt[i].length() >= 0.5).collect();
-        let found: Vec<bool> = long.iter().map(|&i| recovered(&gt[i], &est, &est_grid, reach, gsd)).collect();
-        let share = |n: usize, of: usize| if of == 0 { f64::NAN } else { n as f64 / of as f64 };
-        let n_resolvable = long.iter().filter(|&&i| resolved[i]).count();
-        let found_resolvable = long.iter().zip(&found).filter(|(&i, &f)| f && resolved[i]).count();
-        ClassScores {
-            class: name,
-            n_true: gi.len(),
-            n_estimated: ei.len(),
-            success_rate: share(found.iter().filter(|&&f| f).count(), long.len()),
-            n_resolvable,
-            success_resolvable: share(found_resolvable, n_resolvable),
-            at,
-        }
-    })
-    .collect();
+                    let (mut covered, mut gt_total) = (0.0, 0.0);
+                    for &i in &gi {
+                        let samples = depth_samples.as_ref().map_or(&gt_samples[i], |d| &d[i]);
+                        for &(d, w) in samples {
+                            gt_total += w;
+                            covered += if d <= *tau { w } else { 0.0 };
+                        }
+                    }
+                    AtTolerance {
+                        label: label.clone(),
+                        tau_m: *tau,
+                        segment_precision: share(seg_ok as f64, ei.len() as f64),
+                        length_precision: share(within, total),
+                        length_recall: share(covered, gt_total),
+                        surface_precision: share(on_surface, total),
+                    }
+                })
+                .collect();
+            let long: Vec<usize> = gi.iter().copied().filter(|&i| gt[i].length() >= 0.5).collect();
+            let found: Vec<bool> = long
+                .iter()
+                .map(|&i| match (&own_grid, subset) {
+                    (Some(grid), Subset::Lines(_)) => recovered(&gt[i], &own_est, grid, reach, gsd),
+                    _ => recovered(&gt[i], &est, &est_grid, reach, gsd),
+                })
+                .collect();
+            let share = |n: usize, of: usize| if of == 0 { f64::NAN } else { n as f64 / of as f64 };
+            let n_resolvable = long.iter().filter(|&&i| resolved[i]).count();
+            let found_resolvable = long.iter().zip(&found).filter(|(&i, &f)| f && resolved[i]).count();
+            ClassScores {
+                class: name,
+                n_true: gi.len(),
+                n_estimated: ei.len(),
+                success_rate: share(found.iter().filter(|&&f| f).count(), long.len()),
+                n_resolvable,
+                success_resolvable: share(found_resolvable, n_resolvable),
+                at,
+            }
+        })
+        .collect();
 
     Lines3dReport {
         gsd_m: gsd,

@@ -270,6 +270,7 @@ mod tests {
             n_points: None,
             n_images: None,
             rms_m: None,
+            class: lineflow_formats::LineClass::Unknown,
         }
     }
 

@@ -161,8 +161,12 @@ fn lines3d_section(md: &mut String, eval: &Evaluation, out: &Path) -> Result<()>
             for c in &l.classes {
                 let _ = writeln!(
                     md,
-                    "### {} edges ({} true, {} estimated); success rate {}\n\nOver the {} edges of at least 0.5 m that at least {} images show {} px or more from every parallel true edge beside them: {}.\n\n| τ | P_τ (segments) | precision (length) | recall (length) | precision vs surfaces |\n|---|---|---|---|---|",
-                    c.class,
+                    "### {} ({} true, {} estimated); success rate {}\n\nOver the {} edges of at least 0.5 m that at least {} images show {} px or more from every parallel true edge beside them: {}.\n\n| τ | P_τ (segments) | precision (length) | recall (length) | precision vs surfaces |\n|---|---|---|---|---|",
+                    if c.class.ends_with("lines") {
+                        c.class.to_string()
+                    } else {
+                        format!("{} edges", c.class)
+                    },
                     c.n_true,
                     c.n_estimated,
                     pct(c.success_rate),

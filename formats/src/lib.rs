@@ -9,6 +9,7 @@ pub mod project;
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
+pub use lineflow_messages::LineClass;
 use lineflow_photogrammetry::{opk_from_rotation, rotation_from_opk, Pose, Vec3};
 
 /// A result file that cannot be read or written; the message names the file and line.
@@ -51,6 +52,9 @@ pub const POSES_HEADER: [&str; 13] = [
 pub const CHECKPOINTS_HEADER: [&str; 4] = ["id", "dX", "dY", "dZ"];
 /// Header of `lines2d.csv`.
 pub const LINES2D_HEADER: [&str; 7] = ["image", "id", "col1", "row1", "col2", "row2", "n_pixels"];
+/// The optional column of `lines3d.csv` after [`LINES3D_HEADER`]: `structure`, `texture` or empty.
+pub const LINES3D_CLASS: &str = "class";
+
 /// Header of `lines3d.csv`.
 pub const LINES3D_HEADER: [&str; 10] = ["id", "X1", "Y1", "Z1", "X2", "Y2", "Z2", "n_points", "n_images", "rms_m"];
 
@@ -106,6 +110,8 @@ pub struct Line3Row {
     pub n_images: Option<u32>,
     /// RMS of the points about the line, metres, if known.
     pub rms_m: Option<f64>,
+    /// Structure or texture, where the line stage classed it (the optional `class` column).
+    pub class: LineClass,
 }
 
 impl From<&lineflow_messages::Line3> for Line3Row {
@@ -118,6 +124,7 @@ impl From<&lineflow_messages::Line3> for Line3Row {
             n_points: Some(l.n_points),
             n_images: Some(l.n_images),
             rms_m: Some(l.rms_m),
+            class: LineClass::from_code(l.class),
         }
     }
 }
@@ -145,7 +152,16 @@ fn write_rows(path: &Path, header: &[&str], rows: impl Iterator<Item = Vec<Strin
 }
 
 /// Rows of a CSV file whose header starts with `header`, as string records with their line numbers.
-fn read_rows(path: &Path, header: &[&str]) -> Result<Vec<(u64, csv::StringRecord)>, FormatError> {
+/// A CSV file's data rows with their line numbers.
+type Rows = Vec<(u64, csv::StringRecord)>;
+
+fn read_rows(path: &Path, header: &[&str]) -> Result<Rows, FormatError> {
+    Ok(read_rows_and_header(path, header)?.1)
+}
+
+/// The rows of a CSV file whose header starts with `header`, and the whole header (for the optional columns that
+/// may follow).
+fn read_rows_and_header(path: &Path, header: &[&str]) -> Result<(Vec<String>, Rows), FormatError> {
     let mut reader = csv::ReaderBuilder::new()
         .flexible(false)
         .trim(csv::Trim::All)
@@ -166,7 +182,7 @@ fn read_rows(path: &Path, header: &[&str]) -> Result<Vec<(u64, csv::StringRecord
         let line = record.position().map_or(0, |p| p.line());
         rows.push((line, record));
     }
-    Ok(rows)
+    Ok((names.iter().map(|n| n.to_string()).collect(), rows))
 }
 
 fn field<T: std::str::FromStr>(path: &Path, line: u64, rec: &csv::StringRecord, i: usize, name: &str) -> Result<T, FormatError> {
@@ -309,11 +325,12 @@ pub fn read_lines2d(path: &Path) -> Result<Vec<Line2Row>, FormatError> {
 pub fn write_lines3d(path: &Path, rows: &[Line3Row]) -> Result<(), FormatError> {
     write_rows(
         path,
-        &LINES3D_HEADER,
+        &[&LINES3D_HEADER[..], &[LINES3D_CLASS]].concat(),
         rows.iter().map(|r| {
             let mut v = vec![r.id.clone()];
             v.extend(r.start.iter().chain(r.end.iter()).map(|c| format!("{c:.6}")));
             v.extend([opt(r.n_points), opt(r.n_images), opt(r.rms_m.map(|m| format!("{m:.6}")))]);
+            v.push(r.class.name().to_string());
             v
         }),
     )
@@ -322,10 +339,21 @@ pub fn write_lines3d(path: &Path, rows: &[Line3Row]) -> Result<(), FormatError> 
 /// Reads `lines3d.csv`.
 pub fn read_lines3d(path: &Path) -> Result<Vec<Line3Row>, FormatError> {
     let h = &LINES3D_HEADER;
-    read_rows(path, h)?
-        .into_iter()
+    let (names, rows) = read_rows_and_header(path, h)?;
+    let class_column = names.iter().position(|n| n == LINES3D_CLASS);
+    rows.into_iter()
         .map(|(line, rec)| {
             let f = |i: usize| field::<f64>(path, line, &rec, i, h[i]);
+            let class = match class_column.and_then(|i| rec.get(i)) {
+                None => LineClass::Unknown,
+                Some(word) => LineClass::from_name(word).ok_or_else(|| {
+                    err(
+                        path,
+                        line,
+                        format!("column '{LINES3D_CLASS}': '{word}' is no class (structure, texture or empty)"),
+                    )
+                })?,
+            };
             Ok(Line3Row {
                 id: rec[0].to_string(),
                 start: Vec3::new(f(1)?, f(2)?, f(3)?),
@@ -333,6 +361,7 @@ pub fn read_lines3d(path: &Path) -> Result<Vec<Line3Row>, FormatError> {
                 n_points: optional(path, line, &rec, 7, h[7])?,
                 n_images: optional(path, line, &rec, 8, h[8])?,
                 rms_m: optional(path, line, &rec, 9, h[9])?,
+                class,
             })
         })
         .collect()
@@ -513,5 +542,43 @@ mod tests {
         assert!(e.contains(":2:") && e.contains("Z2"), "{e}");
         std::fs::write(&path, "id,X,Y\n").unwrap();
         assert!(read_lines3d(&path).unwrap_err().to_string().contains("header must start"));
+        std::fs::write(
+            &path,
+            "id,X1,Y1,Z1,X2,Y2,Z2,n_points,n_images,rms_m,class\nL1,0,0,0,1,1,1,,,,edge\n",
+        )
+        .unwrap();
+        let e = read_lines3d(&path).unwrap_err().to_string();
+        assert!(e.contains(":2:") && e.contains("'edge' is no class"), "{e}");
+    }
+
+    #[test]
+    fn the_class_column_round_trips_and_files_without_it_read_unclassed() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("lines3d.csv");
+        let row = |id: &str, class| Line3Row {
+            id: id.into(),
+            start: Vec3::new(0.0, 0.0, 0.0),
+            end: Vec3::new(1.0, 0.0, 0.0),
+            n_points: Some(12),
+            n_images: Some(3),
+            rms_m: Some(0.004),
+            class,
+        };
+        let rows = vec![
+            row("L1", LineClass::Structure),
+            row("L2", LineClass::Texture),
+            row("L3", LineClass::Unknown),
+        ];
+        write_lines3d(&path, &rows).unwrap();
+        let text = std::fs::read_to_string(&path).unwrap();
+        assert!(text.starts_with("id,X1,Y1,Z1,X2,Y2,Z2,n_points,n_images,rms_m,class\n"), "{text}");
+        assert!(
+            text.contains(",structure\n") && text.contains(",texture\n") && text.ends_with(",\n"),
+            "{text}"
+        );
+        assert_eq!(read_lines3d(&path).unwrap(), rows);
+        // A file of another tool, without the column (and with one of its own after the ten named).
+        std::fs::write(&path, "id,X1,Y1,Z1,X2,Y2,Z2,n_points,n_images,rms_m,score\nA,0,0,0,1,0,0,,,,0.9\n").unwrap();
+        assert_eq!(read_lines3d(&path).unwrap()[0].class, LineClass::Unknown);
     }
 }

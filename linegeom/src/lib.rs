@@ -1,13 +1,15 @@
 //! Geometry of 2-D line segments in oriented images, shared by the stages that turn them into 3-D lines: each
 //! image's segments indexed in ideal photo coordinates ([`segments`]) and the estimate of a 3-D line from the
 //! interpretation planes of every image's segment of it ([`multiview`]), and the 2-D line segments are measured
-//! against ([`line2`]).
+//! against ([`line2`]), and whether a 3-D line is an edge of the building or lies inside a surface ([`class`]).
 #![warn(missing_docs)]
 
+pub mod class;
 pub mod line2;
 pub mod multiview;
 pub mod segments;
 
+pub use class::{classify, classify_elements, ClassRule, RuleError};
 pub use line2::Line2;
 pub use multiview::{refine_line, refine_line_along, MultiviewLine, MultiviewParams};
 pub use segments::{FrameSegments, SlaveSegments};

@@ -26,7 +26,7 @@ pub use camera::CameraModelHeader;
 pub use control::{ControlPoint, ControlPointsHeader, Observation, ObservationsHeader, SiteHeader, Wall};
 pub use features::{Keypoint, KeypointsHeader, TiePoint, TiePointsHeader};
 pub use image::{Encoding, ImageHeader};
-pub use lines::{EdgeMapHeader, EdgePixel, Line3, Lines2DHeader, Lines3DHeader, Point3, PointGroup, Points3DHeader, Segment2};
+pub use lines::{EdgeMapHeader, EdgePixel, Line3, LineClass, Lines2DHeader, Lines3DHeader, Point3, PointGroup, Points3DHeader, Segment2};
 pub use model::{FaceVertex, ModelFacesHeader, WireEdge, WireframeHeader};
 pub use poses::{Pose, PosesHeader};
 pub use registry::{kinds, Message, MessageKind};

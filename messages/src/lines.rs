@@ -169,7 +169,7 @@ pub struct Lines3DHeader {
 /// A 3-D segment (`lines3d.csv`).
 #[derive(Debug, Default, Clone, Copy, PartialEq, ZeroCopySend)]
 #[repr(C)]
-#[type_name("lineflow/Line3/v1")]
+#[type_name("lineflow/Line3/v2")]
 pub struct Line3 {
     /// Line id.
     pub id: u64,
@@ -183,4 +183,61 @@ pub struct Line3 {
     pub n_images: u32,
     /// RMS distance of the inliers from the line, metres.
     pub rms_m: f64,
+    /// What the line is, a [`LineClass`] as its number: 0 not classed, 1 structure, 2 texture.
+    pub class: u32,
+    /// Padding, zero.
+    pub reserved: u32,
+}
+
+/// What a 3-D line is on the building. Structure: an edge where surfaces meet or the depth steps (an opening's
+/// outline, a reveal, a frame, a sill, a cornice, a corner, a roof edge), what a model is made of. Texture: a line
+/// lying inside a surface (mortar, tile and panel joints, painted lines), real, but no edge of the model.
+#[derive(Debug, Default, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum LineClass {
+    /// Not classed (a stage that does not class its lines, or a file without the column).
+    #[default]
+    Unknown,
+    /// An edge of the building.
+    Structure,
+    /// A line inside a surface.
+    Texture,
+}
+
+impl LineClass {
+    /// The number a `Line3` carries.
+    pub fn code(self) -> u32 {
+        match self {
+            LineClass::Unknown => 0,
+            LineClass::Structure => 1,
+            LineClass::Texture => 2,
+        }
+    }
+
+    /// The class of a `Line3`'s number; numbers this version does not know read as `Unknown`.
+    pub fn from_code(code: u32) -> Self {
+        match code {
+            1 => LineClass::Structure,
+            2 => LineClass::Texture,
+            _ => LineClass::Unknown,
+        }
+    }
+
+    /// The word `lines3d.csv` writes: `structure`, `texture`, or empty.
+    pub fn name(self) -> &'static str {
+        match self {
+            LineClass::Unknown => "",
+            LineClass::Structure => "structure",
+            LineClass::Texture => "texture",
+        }
+    }
+
+    /// The class a word of `lines3d.csv` names, `None` for a word that is no class.
+    pub fn from_name(name: &str) -> Option<Self> {
+        match name {
+            "" => Some(LineClass::Unknown),
+            "structure" => Some(LineClass::Structure),
+            "texture" => Some(LineClass::Texture),
+            _ => None,
+        }
+    }
 }

@@ -238,6 +238,7 @@ static POINT3: Layout = layout!(Point3, "Point3" { xyz: Array(F64, 3), sncc: S(F
 static LINES3D: Layout = layout!(Lines3DHeader, "Lines3D" { stamp: Struct(&STAMP) });
 static LINE3: Layout = layout!(Line3, "Line3" {
     id: S(U64), start_m: Array(F64, 3), end_m: Array(F64, 3), n_points: S(U32), n_images: S(U32), rms_m: S(F64),
+    class: S(U32), reserved: S(U32),
 });
 static WIREFRAME: Layout = layout!(WireframeHeader, "Wireframe" { stamp: Struct(&STAMP), n_vertices: S(U32), n_edges: S(U32) });
 /// A model vertex, `[f64; 3]` in metres.

@@ -50,6 +50,7 @@ pub fn truth_lines(syn: &Synthetic) -> Vec<Line3Row> {
             n_points: None,
             n_images: None,
             rms_m: None,
+            class: lineflow_formats::LineClass::Structure,
         })
         .collect()
 }

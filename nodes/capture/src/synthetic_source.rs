@@ -147,6 +147,8 @@ impl SyntheticSource {
                 n_points: 0,
                 n_images: e.frames.len() as u32,
                 rms_m: 0.0,
+                class: lineflow_messages::LineClass::Structure.code(),
+                reserved: 0,
             })
             .collect()
     }

@@ -5,7 +5,7 @@
 pub mod fit;
 pub mod merge;
 
-use lineflow_linegeom::{refine_line, MultiviewLine, MultiviewParams, SlaveSegments};
+use lineflow_linegeom::{refine_line, ClassRule, MultiviewLine, MultiviewParams, SlaveSegments};
 use lineflow_photogrammetry::Vec3;
 use serde::Deserialize;
 
@@ -38,6 +38,11 @@ pub struct FitParams {
     pub multiview_max_distance_px: f64,
     /// Images a line needs to be re-estimated.
     pub multiview_min_views: usize,
+    /// Class each line as structure or texture ([`lineflow_linegeom::class`]; the `class` column of
+    /// `lines3d.csv`); off, every line is left unclassed.
+    pub classify: bool,
+    /// The classing's settings.
+    pub class: ClassRule,
 }
 
 impl Default for FitParams {
@@ -54,6 +59,8 @@ impl Default for FitParams {
             multiview: true,
             multiview_max_distance_px: 2.5,
             multiview_min_views: 3,
+            classify: true,
+            class: ClassRule::default(),
         }
     }
 }
@@ -81,7 +88,10 @@ impl lineflow_runtime::StageParams for FitParams {
         positive("multiview_max_distance_px", self.multiview_max_distance_px)?;
         at_least("multiview_min_views", self.multiview_min_views, 2)?;
         at_least("min_points", self.min_points, 2)?;
-        at_least("iterations", self.iterations, 1)
+        at_least("iterations", self.iterations, 1)?;
+        self.class
+            .validate()
+            .map_err(|e| lineflow_runtime::ParamError::new(e.name, e.requirement, e.value))
     }
 }
 

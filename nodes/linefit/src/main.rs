@@ -9,17 +9,18 @@ use std::collections::BTreeMap;
 use anyhow::Result;
 use lineflow_formats::{write_lines3d_results, Line3Row};
 use lineflow_linefit::{fit_group, merge, refine_multiview, FitParams, Fragment, Merged, Method, MULTIVIEW_MIN_SEGMENT_PX};
-use lineflow_linegeom::{FrameSegments, SlaveSegments};
-use lineflow_messages::{kinds, parts, Line3, Lines3DHeader, Point3, PointGroup, Segment2, Stamp, StampFlags};
+use lineflow_linegeom::{classify_elements, FrameSegments, SlaveSegments};
+use lineflow_messages::{kinds, parts, Line3, LineClass, Lines3DHeader, Point3, PointGroup, Segment2, Stamp, StampFlags};
 use lineflow_photogrammetry::{Camera, Pose, Vec3};
-use lineflow_runtime::{Flow, NodeContext, Output};
+use lineflow_runtime::{Flow, NodeContext};
 
 fn main() -> std::process::ExitCode {
     lineflow_runtime::run_stage("linefit", "tls", &[("tls", run_tls), ("thesis", run_thesis)])
 }
 
-fn elements(lines: &[Merged]) -> Vec<Line3> {
-    lines
+/// The message elements of the merged lines, classed when `params.classify`.
+fn elements(lines: &[Merged], params: &FitParams) -> Vec<Line3> {
+    let mut out: Vec<Line3> = lines
         .iter()
         .enumerate()
         .map(|(k, l)| Line3 {
@@ -29,12 +30,13 @@ fn elements(lines: &[Merged]) -> Vec<Line3> {
             n_points: l.n_points,
             n_images: l.n_images,
             rms_m: l.rms_m,
+            ..Line3::default()
         })
-        .collect()
-}
-
-fn publish(output: &Output<kinds::Lines3D>, stamp: Stamp, lines: &[Merged]) -> Result<()> {
-    output.publish(Lines3DHeader { stamp }, &elements(lines))
+        .collect();
+    if params.classify {
+        classify_elements(&mut out, &params.class);
+    }
+    out
 }
 
 fn run_tls(ctx: NodeContext) -> Result<()> {
@@ -110,7 +112,7 @@ fn run(ctx: NodeContext, method: Method) -> Result<()> {
             let all: Vec<Fragment> = fragments.values().flatten().cloned().collect();
             merged = merge(&all, &params.rule());
             for stamp in lineflow_runtime::frames_to_publish(&received, &mut published) {
-                publish(&output, stamp, &merged)?;
+                output.publish(Lines3DHeader { stamp }, &elements(&merged, &params))?;
             }
             last = newest;
         }
@@ -149,13 +151,15 @@ fn run(ctx: NodeContext, method: Method) -> Result<()> {
     // A revision above the last one, or subscribers would take the final set for a duplicate of it.
     last.flags |= StampFlags::FINAL;
     last.revision += 1;
-    publish(&output, last, &merged)?;
+    let lines = elements(&merged, &params);
+    output.publish(Lines3DHeader { stamp: last }, &lines)?;
     output.end_of_stream()?;
-    let rows: Vec<Line3Row> = elements(&merged).iter().map(Line3Row::from).collect();
+    let rows: Vec<Line3Row> = lines.iter().map(Line3Row::from).collect();
     let csv = write_lines3d_results(&ctx.out_dir(), &rows)?;
     let n_fragments: usize = fragments.values().map(Vec::len).sum();
+    let texture = lines.iter().filter(|l| LineClass::from_code(l.class) == LineClass::Texture).count();
     tracing::info!(
-        "{} 3-D lines from {n_fragments} fragments of {} masters -> {}",
+        "{} 3-D lines ({texture} classed texture) from {n_fragments} fragments of {} masters -> {}",
         rows.len(),
         fragments.len(),
         csv.display()

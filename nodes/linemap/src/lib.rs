@@ -122,6 +122,11 @@ pub struct MapParams {
     pub corner_k: f64,
     /// How far a level line's end may lie from the vertical it meets, pixels of the nearest image.
     pub corner_reach_px: f64,
+    /// Class each line as structure or texture ([`lineflow_linegeom::class`]; the `class` column of
+    /// `lines3d.csv`); off, every line is left unclassed.
+    pub classify: bool,
+    /// The classing's settings.
+    pub class: lineflow_linegeom::ClassRule,
 }
 
 impl Default for MapParams {
@@ -162,6 +167,8 @@ impl Default for MapParams {
             min_surface_lines: 10,
             corner_k: 0.0,
             corner_reach_px: 4.0,
+            classify: true,
+            class: lineflow_linegeom::ClassRule::default(),
         }
     }
 }
@@ -239,6 +246,7 @@ impl lineflow_runtime::StageParams for MapParams {
         at_least("min_surface_lines", self.min_surface_lines, 1)?;
         non_negative("corner_k", self.corner_k)?;
         positive("corner_reach_px", self.corner_reach_px)?;
-        check(self.remap_growth >= 1.0, "remap_growth", "at least 1", self.remap_growth)
+        check(self.remap_growth >= 1.0, "remap_growth", "at least 1", self.remap_growth)?;
+        self.class.validate().map_err(|e| ParamError::new(e.name, e.requirement, e.value))
     }
 }

@@ -15,8 +15,8 @@ fn main() -> std::process::ExitCode {
     lineflow_runtime::run_stage("linemap", "tracks", &[("tracks", run)])
 }
 
-fn publish(output: &Output<kinds::Lines3D>, stamp: Stamp, lines: &[MappedLine]) -> Result<()> {
-    output.publish(Lines3DHeader { stamp }, &line_messages(lines))
+fn publish(output: &Output<kinds::Lines3D>, stamp: Stamp, lines: &[MappedLine], params: &MapParams) -> Result<()> {
+    output.publish(Lines3DHeader { stamp }, &line_messages(lines, params))
 }
 
 /// The stage's inputs.
@@ -129,7 +129,7 @@ fn run(ctx: NodeContext) -> Result<()> {
     };
     let output = ctx.output::<kinds::Lines3D>("lines3d")?;
     ctx.connect()?;
-    let mut stage = MapStage::new(params);
+    let mut stage = MapStage::new(params.clone());
     if ports.images.is_some() {
         stage.wait_for_photos();
     } else {
@@ -148,7 +148,7 @@ fn run(ctx: NodeContext) -> Result<()> {
         }
         // Every frame gets a set once it is in, so downstream sees no frame missing.
         for stamp in waiting.drain(..) {
-            publish(&output, stamp, stage.lines())?;
+            publish(&output, stamp, stage.lines(), &params)?;
             if stamp.frame >= last.frame {
                 last = stamp;
             }
@@ -173,9 +173,9 @@ fn run(ctx: NodeContext) -> Result<()> {
     // A revision above the last one, or subscribers would take the final set for a duplicate of it.
     last.flags |= StampFlags::FINAL;
     last.revision += 1;
-    publish(&output, last, &lines)?;
+    publish(&output, last, &lines, &params)?;
     output.end_of_stream()?;
-    let rows: Vec<Line3Row> = line_messages(&lines).iter().map(Line3Row::from).collect();
+    let rows: Vec<Line3Row> = line_messages(&lines, &params).iter().map(Line3Row::from).collect();
     let csv = write_lines3d_results(&ctx.out_dir(), &rows)?;
     tracing::info!("{} 3-D lines -> {}", rows.len(), csv.display());
     ctx.finish();

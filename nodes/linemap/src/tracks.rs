@@ -19,9 +19,9 @@ use crate::surfaces;
 use crate::views::{parameter_on_line, partners, View};
 use crate::MapParams;
 
-/// The lines as message elements, numbered from 1.
-pub fn line_messages(lines: &[MappedLine]) -> Vec<lineflow_messages::Line3> {
-    lines
+/// The lines as message elements, numbered from 1, classed when `p.classify`.
+pub fn line_messages(lines: &[MappedLine], p: &MapParams) -> Vec<lineflow_messages::Line3> {
+    let mut out: Vec<lineflow_messages::Line3> = lines
         .iter()
         .enumerate()
         .map(|(k, l)| lineflow_messages::Line3 {
@@ -31,8 +31,13 @@ pub fn line_messages(lines: &[MappedLine]) -> Vec<lineflow_messages::Line3> {
             n_points: l.n_segments,
             n_images: l.n_images,
             rms_m: l.rms_m,
+            ..Default::default()
         })
-        .collect()
+        .collect();
+    if p.classify {
+        lineflow_linegeom::classify_elements(&mut out, &p.class);
+    }
+    out
 }
 
 /// A source segment's best hypothesis and its support.

@@ -32,6 +32,8 @@ pub mod stage;
 mod surface;
 mod surface_lines;
 
+use lineflow_formats::LineClass;
+use lineflow_linegeom::ClassRule;
 use lineflow_photogrammetry::{Camera, Vec3};
 use serde::Deserialize;
 
@@ -54,6 +56,9 @@ pub struct ModelLine {
     /// Standard deviation of its endpoints along it, metres, where known (lines whose endpoints carry the
     /// isotropic `sigma_m`); a fitted line's σ says how well its position is known, not where it ends.
     pub sigma_end_m: Option<f64>,
+    /// Classed texture by the line stage (a line inside a surface): it takes part in the model like every line
+    /// (the openings' rules read the courses), and is set aside with the surface lines at the end.
+    pub texture: bool,
 }
 
 impl ModelLine {
@@ -65,6 +70,7 @@ impl ModelLine {
             sigma_axes_m: None,
             regular: regular::Regularity::Free,
             sigma_end_m: None,
+            texture: false,
         }
     }
     /// The standard deviation of each endpoint coordinate along object axis `axis`, metres.
@@ -88,6 +94,20 @@ impl ModelLine {
     pub fn midpoint(&self) -> Vec3 {
         (self.start + self.end) * 0.5
     }
+}
+
+/// What the model does with the lines the line stage classed texture (lines inside a surface: mortar, tile and
+/// panel joints). Measured in docs/model.md ("Texture lines").
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum TextureLines {
+    /// Left out before the model is built: no junctions, faces or openings from them.
+    Drop,
+    /// Built into the model like every line (the openings' rules read the courses between windows), then set
+    /// aside with the surface lines unless a corner of a window, door or roof face or inside an opening.
+    Aside,
+    /// Treated as every other line (and lines that come unclassed are not classed).
+    Keep,
 }
 
 /// Parameters of the model stage (launch-file `params` of node `model`).
@@ -160,6 +180,11 @@ pub struct ModelParams {
     pub surface_neighbours: usize,
     /// …within this distance across, metres.
     pub surface_reach_m: f64,
+    /// What becomes of the lines the line stage classed texture ([`TextureLines`]); lines that come unclassed are
+    /// classed here with `class` unless this is `keep`.
+    pub texture_lines: TextureLines,
+    /// The classing of unclassed lines ([`lineflow_linegeom::class`]).
+    pub class: ClassRule,
     /// How far behind its wall a recessed face or the sides of an opening may lie to make an opening, metres: less
     /// than `recess_min_m` is on the wall (a nearly flush frame, or a pane inside its frame)…
     pub recess_min_m: f64,
@@ -207,6 +232,8 @@ impl Default for ModelParams {
             surface_margin_m: 0.1,
             surface_neighbours: 4,
             surface_reach_m: 0.3,
+            texture_lines: TextureLines::Drop,
+            class: ClassRule::default(),
             recess_min_m: 0.06,
             recess_max_m: 0.5,
             opening_min_m: 0.8,
@@ -327,7 +354,9 @@ impl lineflow_runtime::StageParams for ModelParams {
         ] {
             lineflow_runtime::params::check(hi > lo, name, "more than its minimum", hi)?;
         }
-        Ok(())
+        self.class
+            .validate()
+            .map_err(|e| lineflow_runtime::ParamError::new(e.name, e.requirement, e.value))
     }
 }
 
@@ -361,6 +390,8 @@ pub struct Diagnostics {
     pub lines_used: usize,
     /// Loose lines left out of the model.
     pub loose_dropped: usize,
+    /// Lines the line stage (or the model, for unclassed lines) classed texture.
+    pub texture_lines: usize,
     pub junction_candidates: usize,
     pub junctions_accepted: usize,
     /// Line ends resolved by stage 1, 2 and 3, and left free.
@@ -429,9 +460,10 @@ impl Model {
     pub fn summary(&self) -> String {
         let d = &self.diagnostics;
         format!(
-            "{} of {} lines used ({} loose lines left out), {} objects ({} left unadjusted, {} corners kept where their lines met), {} vertices, {} edges ({} lines inside a wall's surface set aside), {} faces ({} walls, {} window/door, {} roof), ends resolved by stage 1/2/3: {}/{}/{}, free {}, median sigma0 {}, {} edges refined by image lines, {} occluded boundaries completed, {} objects inside another in plan, lines turned plumb/level/level on a plan direction/sloped on one: {}/{}/{}/{} ({} plan directions), line coordinates aligned along/across the wall/in height: {}/{}/{} ({}/{}/{} shared values)",
+            "{} of {} lines used ({} classed texture, {} loose lines left out), {} objects ({} left unadjusted, {} corners kept where their lines met), {} vertices, {} edges ({} lines inside a wall's surface set aside), {} faces ({} walls, {} window/door, {} roof), ends resolved by stage 1/2/3: {}/{}/{}, free {}, median sigma0 {}, {} edges refined by image lines, {} occluded boundaries completed, {} objects inside another in plan, lines turned plumb/level/level on a plan direction/sloped on one: {}/{}/{}/{} ({} plan directions), line coordinates aligned along/across the wall/in height: {}/{}/{} ({}/{}/{} shared values)",
             d.lines_used,
             d.lines_in,
+            d.texture_lines,
             d.loose_dropped,
             d.objects,
             d.objects_unadjusted,
@@ -512,9 +544,12 @@ pub struct Images<'a> {
 /// [`build`] with Refine when `images` are given: every adjusted edge is measured again in the images' 2-D lines
 /// and its corners adjusted from both observations.
 pub fn build_with_images(lines: &[ModelLine], params: &ModelParams, cameras: &Cameras, images: Option<&Images>) -> Model {
+    let drop_texture = params.texture_lines == TextureLines::Drop;
     let kept: Vec<usize> = (0..lines.len())
         .filter(|&k| {
-            lines[k].length() >= params.min_length_m.max(1e-6) && lines[k].start.iter().chain(lines[k].end.iter()).all(|v| v.is_finite())
+            lines[k].length() >= params.min_length_m.max(1e-6)
+                && lines[k].start.iter().chain(lines[k].end.iter()).all(|v| v.is_finite())
+                && !(drop_texture && lines[k].texture)
         })
         .collect();
     let mut used_lines: Vec<ModelLine> = kept.iter().map(|&k| lines[k].clone()).collect();
@@ -534,6 +569,7 @@ pub fn build_with_images(lines: &[ModelLine], params: &ModelParams, cameras: &Ca
 
     let mut diagnostics = Diagnostics {
         lines_in: lines.len(),
+        texture_lines: lines.iter().filter(|l| l.texture).count(),
         junction_candidates: candidates.len(),
         junctions_accepted: accepted.junctions.len(),
         regularised,
@@ -710,7 +746,11 @@ pub fn build_with_images(lines: &[ModelLine], params: &ModelParams, cameras: &Ca
             plan_azimuths: plan_azimuths.clone(),
             angle_rad: params.plane_angle_deg.to_radians(),
         };
-        surface_lines::separate(&vertices, &mut edges, &mut faces, &walls, &rule)
+        let texture: Vec<bool> = lines
+            .iter()
+            .map(|l| params.texture_lines == TextureLines::Aside && l.texture)
+            .collect();
+        surface_lines::separate(&vertices, &mut edges, &mut faces, &walls, &texture, &rule)
     } else {
         Vec::new()
     };
@@ -835,12 +875,22 @@ fn refine_object(
 }
 
 /// The model's lines from `lines3d.csv` rows (or `Lines3D` elements through their rows), each with the endpoint
-/// σ its statistics give.
+/// σ its statistics give and its class; when no row is classed (another tool's lines, an older run) and
+/// `texture_lines` is not `keep`, they are classed here with `class`.
 pub fn lines_from_rows(rows: &[lineflow_formats::Line3Row], params: &ModelParams) -> Vec<ModelLine> {
+    let unclassed = rows.iter().all(|r| r.class == LineClass::Unknown);
+    let classes: Vec<LineClass> = if unclassed && params.texture_lines != TextureLines::Keep {
+        let segments: Vec<[Vec3; 2]> = rows.iter().map(|r| [r.start, r.end]).collect();
+        lineflow_linegeom::classify(&segments, &params.class)
+    } else {
+        rows.iter().map(|r| r.class).collect()
+    };
     rows.iter()
-        .map(|r| ModelLine {
+        .zip(classes)
+        .map(|(r, class)| ModelLine {
             // Without statistics the endpoints themselves carry `sigma_m`, along the line too.
             sigma_end_m: params.fitted_sigma(r.rms_m, r.n_points).is_none().then_some(params.sigma_m),
+            texture: class == LineClass::Texture,
             ..ModelLine::new(r.start, r.end, params.line_sigma(r.rms_m, r.n_points))
         })
         .collect()

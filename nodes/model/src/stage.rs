@@ -204,6 +204,7 @@ mod tests {
                 n_points: 40,
                 n_images: 3,
                 rms_m: 0.01,
+                ..Line3::default()
             })
             .collect()
     }

@@ -49,12 +49,16 @@ impl SurfaceRule {
 
 /// Takes the surface lines out of `edges` (completed edges are never surface lines) and returns them as vertex
 /// pairs; the wall faces traced from them alone (a brick's outline between its joints) go too. Each vertex belongs
-/// to the first wall (of `walls`, most edges first) whose surface it lies in.
+/// to the first wall (of `walls`, most edges first) whose surface it lies in. An edge of an input line the line
+/// stage classed texture (`texture[edge.line]`) goes too unless it is a corner of a window, door or roof face or
+/// lies in an opening: it need not lie in the wall's surface (on short baselines a course's depth is off by
+/// centimetres to decimetres).
 pub(crate) fn separate(
     vertices: &[Vertex],
     edges: &mut Vec<Edge>,
     faces: &mut Vec<Face>,
     walls: &[Wall],
+    texture: &[bool],
     rule: &SurfaceRule,
 ) -> Vec<[usize; 2]> {
     let n = vertices.len();
@@ -108,9 +112,12 @@ pub(crate) fn separate(
     let candidate = |e: &Edge| !e.completed && free(e.a) && free(e.b) && wall_of[e.a] == wall_of[e.b] && !in_opening(e);
     let candidates: Vec<usize> = (0..edges.len()).filter(|&k| candidate(&edges[k])).collect();
     let in_field = in_a_field(vertices, edges, &candidates, &walls, &wall_of, rule);
-    let mut is_surface = vec![false; edges.len()];
+    let classed = |e: &Edge| {
+        texture.get(e.line).copied().unwrap_or(false) && !e.completed && !on_other_face[e.a] && !on_other_face[e.b] && !in_opening(e)
+    };
+    let mut is_surface: Vec<bool> = edges.iter().map(classed).collect();
     for (&k, &f) in candidates.iter().zip(&in_field) {
-        is_surface[k] = f;
+        is_surface[k] |= f;
     }
     let surface_lines: Vec<[usize; 2]> = (0..edges.len())
         .filter(|&k| is_surface[k])
@@ -292,7 +299,7 @@ mod tests {
             plan_azimuths: vec![0.0],
             angle_rad: 2f64.to_radians(),
         };
-        let aside = separate(&vertices, &mut edges, &mut faces, &[wall], &rule);
+        let aside = separate(&vertices, &mut edges, &mut faces, &[wall], &[], &rule);
         let courses: Vec<[usize; 2]> = (0..6).map(|k| [4 + 2 * k, 5 + 2 * k]).collect();
         assert_eq!(aside, courses);
         assert_eq!(

@@ -1,0 +1,373 @@
+//! Structure or texture: which 3-D lines are edges of the building and which lie inside a surface.
+//!
+//! A brick, tiled or panelled wall gives the line stages ten lines of its joints for every edge of the building,
+//! and all of them are real lines of the images. What sets a joint apart is its company: it lies in a field of
+//! parallel lines like it, spread in one surface on both sides of it (the courses above and below), and it meets no
+//! line across it at a corner. An edge of the building has one side that is no such field (a window head has the
+//! wall's courses above it and the opening below; an eaves line the wall below and the roof above, not in the
+//! wall's surface), or it turns a corner with another edge (an opening's outline, a reveal, a frame).
+//!
+//! Measured on the tuning buildings at scale 0.3 (docs/lines3d.md, "Structure and texture"): 56–66 % of the lines
+//! of brick façades are classed texture, of which 0.1–0.3 % match a true edge; plaster façades have none.
+use std::collections::HashMap;
+
+use lineflow_messages::LineClass;
+use lineflow_photogrammetry::Vec3;
+
+/// The settings of the classing: the `class` parameter of the line stages, a table
+/// (`class = { neighbours = 6, reach_m = 0.3 }`; what it leaves out keeps its default).
+#[derive(Debug, Clone, PartialEq, serde::Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ClassRule {
+    /// A field: at least this many parallel lines around a line, half of them on each side of it.
+    pub neighbours: usize,
+    /// How far across the line (in the field's surface) its neighbours lie at most, metres.
+    pub reach_m: f64,
+    /// How far out of the field's surface they lie at most, metres: a window's frame 15 cm behind the courses
+    /// above its head is no part of their field.
+    pub band_m: f64,
+    /// An end within this distance of an end of a line across it (more than 60° apart) is a corner, metres.
+    pub corner_m: f64,
+    /// Lines within this angle are parallel, degrees.
+    pub parallel_deg: f64,
+}
+
+impl Default for ClassRule {
+    fn default() -> Self {
+        ClassRule {
+            neighbours: 6,
+            reach_m: 0.3,
+            band_m: 0.1,
+            corner_m: 0.15,
+            parallel_deg: 8.0,
+        }
+    }
+}
+
+/// A setting of a [`ClassRule`] out of its range: its name (as in the launch file), what it must be, and the
+/// value given.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RuleError {
+    /// The setting, `class.NAME`.
+    pub name: String,
+    /// What it must be.
+    pub requirement: &'static str,
+    /// What was given.
+    pub value: String,
+}
+
+impl ClassRule {
+    /// `Ok` for a rule whose numbers make sense, else the first setting that does not.
+    pub fn validate(&self) -> Result<(), RuleError> {
+        let bad = |name: &str, requirement: &'static str, value: String| {
+            Err(RuleError {
+                name: format!("class.{name}"),
+                requirement,
+                value,
+            })
+        };
+        for (name, v) in [("reach_m", self.reach_m), ("band_m", self.band_m), ("corner_m", self.corner_m)] {
+            if !(v.is_finite() && v > 0.0) {
+                return bad(name, "> 0", v.to_string());
+            }
+        }
+        if !(self.parallel_deg > 0.0 && self.parallel_deg < 45.0) {
+            return bad("parallel_deg", "in (0, 45)", self.parallel_deg.to_string());
+        }
+        if self.neighbours < 2 {
+            return bad("neighbours", ">= 2", self.neighbours.to_string());
+        }
+        Ok(())
+    }
+}
+
+/// Two lines closer than this across are one edge seen twice, not two lines of a field, metres.
+const SAME_LINE_M: f64 = 0.01;
+
+/// Lines more than 60° apart meet at a corner.
+const CORNER_COS: f64 = 0.5;
+
+/// The class of each segment `[start, end]` (object coordinates, metres). Independent of the order of the lines.
+pub fn classify(lines: &[[Vec3; 2]], rule: &ClassRule) -> Vec<LineClass> {
+    let grid = Grid::of(lines, rule.reach_m.max(rule.corner_m));
+    let mut seen = vec![usize::MAX; lines.len()];
+    let mut near = Vec::new();
+    (0..lines.len())
+        .map(|k| {
+            let Some(u) = direction(&lines[k]) else {
+                return LineClass::Structure;
+            };
+            near.clear();
+            grid.near(&lines[k], k, &mut seen, &mut near);
+            let texture = in_a_field(lines, k, &u, &near, rule) && !turns_a_corner(lines, k, &u, &near, rule);
+            if texture {
+                LineClass::Texture
+            } else {
+                LineClass::Structure
+            }
+        })
+        .collect()
+}
+
+/// Classes a stage's `Line3` elements in place.
+pub fn classify_elements(lines: &mut [lineflow_messages::Line3], rule: &ClassRule) {
+    let segments: Vec<[Vec3; 2]> = lines.iter().map(|l| [Vec3::from(l.start_m), Vec3::from(l.end_m)]).collect();
+    for (l, c) in lines.iter_mut().zip(classify(&segments, rule)) {
+        l.class = c.code();
+    }
+}
+
+fn direction(l: &[Vec3; 2]) -> Option<Vec3> {
+    let d = l[1] - l[0];
+    let n = d.norm();
+    (n > 1e-9).then(|| d / n)
+}
+
+/// Whether line `k` lies in a field: its parallel neighbours that overlap it along its length lie in one surface
+/// through it (the principal direction of their offsets across it), within `reach_m` on both sides and `band_m`
+/// out of that surface, at least half of `neighbours` on each side.
+fn in_a_field(lines: &[[Vec3; 2]], k: usize, u: &Vec3, near: &[usize], rule: &ClassRule) -> bool {
+    let [a, b] = lines[k];
+    let length = (b - a).norm();
+    let cos = rule.parallel_deg.to_radians().cos();
+    let (e1, e2) = across_basis(u);
+    let reach = rule.reach_m.hypot(rule.band_m);
+    let offsets: Vec<[f64; 2]> = near
+        .iter()
+        .filter_map(|&j| {
+            let [p, q] = lines[j];
+            let v = direction(&lines[j])?;
+            let (tp, tq) = ((p - a).dot(u), (q - a).dot(u));
+            let overlaps = tp.min(tq).max(0.0) < tp.max(tq).min(length);
+            let w = (p + q) / 2.0 - a;
+            let off = [w.dot(&e1), w.dot(&e2)];
+            let dist = off[0].hypot(off[1]);
+            (v.dot(u).abs() >= cos && overlaps && dist <= reach && dist > SAME_LINE_M).then_some(off)
+        })
+        .collect();
+    let half = rule.neighbours.div_ceil(2);
+    if offsets.len() < 2 * half {
+        return false;
+    }
+    // The field's surface: the principal axis of the offsets' second moments (about the line itself).
+    let (sxx, sxy, syy) = offsets.iter().fold((0.0, 0.0, 0.0), |(xx, xy, yy), o| {
+        (xx + o[0] * o[0], xy + o[0] * o[1], yy + o[1] * o[1])
+    });
+    let angle = 0.5 * (2.0 * sxy).atan2(sxx - syy);
+    let (along, out) = ([angle.cos(), angle.sin()], [-angle.sin(), angle.cos()]);
+    let (mut one_side, mut other_side) = (0, 0);
+    for o in &offsets {
+        let (x, y) = (o[0] * along[0] + o[1] * along[1], o[0] * out[0] + o[1] * out[1]);
+        if y.abs() <= rule.band_m && x.abs() <= rule.reach_m && x.abs() > SAME_LINE_M {
+            if x > 0.0 {
+                one_side += 1;
+            } else {
+                other_side += 1;
+            }
+        }
+    }
+    one_side.min(other_side) >= half
+}
+
+/// Two unit vectors completing `u` to an orthonormal frame.
+fn across_basis(u: &Vec3) -> (Vec3, Vec3) {
+    let helper = if u.z.abs() < 0.9 { Vec3::z() } else { Vec3::x() };
+    let e1 = u.cross(&helper).normalize();
+    (e1, u.cross(&e1))
+}
+
+/// Whether an end of line `k` is a corner: an end of a line across it lies within `corner_m`.
+fn turns_a_corner(lines: &[[Vec3; 2]], k: usize, u: &Vec3, near: &[usize], rule: &ClassRule) -> bool {
+    near.iter().any(|&j| {
+        direction(&lines[j]).is_some_and(|v| v.dot(u).abs() < CORNER_COS)
+            && lines[k].iter().any(|e| lines[j].iter().any(|f| (e - f).norm() <= rule.corner_m))
+    })
+}
+
+/// The lines by the cells (of `cell` metres) they pass through, so that each line's neighbours are found among
+/// the lines of the cells around its own.
+struct Grid {
+    cell: f64,
+    cells: HashMap<[i64; 3], Vec<usize>>,
+}
+
+impl Grid {
+    fn of(lines: &[[Vec3; 2]], cell: f64) -> Grid {
+        let mut grid = Grid {
+            cell,
+            cells: HashMap::new(),
+        };
+        for (k, l) in lines.iter().enumerate() {
+            let mut keys = grid.keys(l);
+            keys.sort_unstable();
+            keys.dedup();
+            for key in keys {
+                grid.cells.entry(key).or_default().push(k);
+            }
+        }
+        grid
+    }
+
+    /// The cells a segment passes through, sampled every half cell.
+    fn keys(&self, l: &[Vec3; 2]) -> Vec<[i64; 3]> {
+        let steps = ((l[1] - l[0]).norm() / (self.cell / 2.0)).ceil().clamp(1.0, 1e5) as usize;
+        (0..=steps)
+            .map(|s| {
+                let p = l[0] + (l[1] - l[0]) * (s as f64 / steps as f64);
+                [p.x, p.y, p.z].map(|c| (c / self.cell).floor() as i64)
+            })
+            .collect()
+    }
+
+    /// The other lines in the cells around those of line `k`, once each, into `out` (`seen` marks them by `k`).
+    fn near(&self, l: &[Vec3; 2], k: usize, seen: &mut [usize], out: &mut Vec<usize>) {
+        seen[k] = k;
+        for key in self.keys(l) {
+            for dx in -1..=1 {
+                for dy in -1..=1 {
+                    for dz in -1..=1 {
+                        let Some(members) = self.cells.get(&[key[0] + dx, key[1] + dy, key[2] + dz]) else {
+                            continue;
+                        };
+                        for &j in members {
+                            if seen[j] != k {
+                                seen[j] = k;
+                                out.push(j);
+                            }
+                        }
+                    }
+                }
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn level(x0: f64, x1: f64, y: f64, z: f64) -> [Vec3; 2] {
+        [Vec3::new(x0, y, z), Vec3::new(x1, y, z)]
+    }
+
+    fn plumb(x: f64, y: f64, z0: f64, z1: f64) -> [Vec3; 2] {
+        [Vec3::new(x, y, z0), Vec3::new(x, y, z1)]
+    }
+
+    /// Brick courses every 7.5 cm from z = 0 to 3 m on a wall at y = 0, x from 0 to 10 m.
+    fn courses() -> Vec<[Vec3; 2]> {
+        (0..=40).map(|i| level(0.0, 10.0, 0.0, 0.075 * i as f64)).collect()
+    }
+
+    #[test]
+    fn courses_inside_a_wall_are_texture_and_the_outermost_are_not() {
+        let lines = courses();
+        let class = classify(&lines, &ClassRule::default());
+        // Three courses on each side are needed: the three at the top and the bottom have fewer on one side.
+        for (i, c) in class.iter().enumerate() {
+            let want = if (3..=37).contains(&i) {
+                LineClass::Texture
+            } else {
+                LineClass::Structure
+            };
+            assert_eq!(*c, want, "course {i}");
+        }
+    }
+
+    #[test]
+    fn a_window_outline_in_a_brick_wall_is_structure() {
+        // Courses cut by a window from x = 4 to 5.4 m, z = 0.9 to 2.4 m; the window's outline and its reveals.
+        let mut lines: Vec<[Vec3; 2]> = Vec::new();
+        for i in 0..=40 {
+            let z = 0.075 * i as f64;
+            if (0.9..=2.4).contains(&z) {
+                lines.push(level(0.0, 4.0, 0.0, z));
+                lines.push(level(5.4, 10.0, 0.0, z));
+            } else {
+                lines.push(level(0.0, 10.0, 0.0, z));
+            }
+        }
+        let outline = lines.len();
+        lines.extend([
+            level(4.0, 5.4, 0.0, 0.9),
+            level(4.0, 5.4, 0.0, 2.4),
+            plumb(4.0, 0.0, 0.9, 2.4),
+            plumb(5.4, 0.0, 0.9, 2.4),
+        ]);
+        let reveals = lines.len();
+        for [x, z] in [[4.0, 0.9], [5.4, 0.9], [4.0, 2.4], [5.4, 2.4]] {
+            lines.push([Vec3::new(x, 0.0, z), Vec3::new(x, 0.2, z)]);
+        }
+        let class = classify(&lines, &ClassRule::default());
+        for (k, c) in class.iter().enumerate().skip(outline) {
+            assert_eq!(*c, LineClass::Structure, "line {k} of the window (reveals from {reveals})");
+        }
+        // The courses well away from the window stay texture.
+        assert_eq!(class[5], LineClass::Texture);
+    }
+
+    #[test]
+    fn lines_behind_or_before_the_courses_are_not_their_field() {
+        // A frame's three parallel edges 15 cm behind a course wall: the course beside them still has its field,
+        // the frame's middle edge has neighbours on both sides but only three, and none in the courses' surface.
+        let mut lines = courses();
+        let frame = lines.len();
+        lines.extend([level(2.0, 3.0, 0.15, 1.45), level(2.0, 3.0, 0.15, 1.5), level(2.0, 3.0, 0.15, 1.55)]);
+        let class = classify(&lines, &ClassRule::default());
+        assert_eq!(class[frame + 1], LineClass::Structure);
+        assert_eq!(class[20], LineClass::Texture);
+    }
+
+    #[test]
+    fn a_field_in_any_plane_counts_and_the_order_of_the_lines_does_not_matter() {
+        // A roof's tile rows on a 35° slope, along a façade 30° off the axes, 4,000 m from the origin.
+        let (c, s) = (30f64.to_radians().cos(), 30f64.to_radians().sin());
+        let along = Vec3::new(c, s, 0.0);
+        let up_slope = Vec3::new(-s, c, 0.0) * 35f64.to_radians().cos() + Vec3::z() * 35f64.to_radians().sin();
+        let origin = Vec3::new(4000.0, -2500.0, 12.0);
+        let rows: Vec<[Vec3; 2]> = (0..20)
+            .map(|i| {
+                let p = origin + up_slope * (0.08 * i as f64);
+                [p, p + along * 6.0]
+            })
+            .collect();
+        let class = classify(&rows, &ClassRule::default());
+        assert_eq!(class[10], LineClass::Texture);
+        assert_eq!(class[0], LineClass::Structure);
+        let mut reversed = rows.clone();
+        reversed.reverse();
+        let mut back = classify(&reversed, &ClassRule::default());
+        back.reverse();
+        assert_eq!(back, class);
+    }
+
+    #[test]
+    fn a_course_that_ends_at_a_corner_is_structure_and_one_that_runs_past_a_line_is_not() {
+        let mut lines = courses();
+        // A plumb line whose end meets the 20th course's end: a corner. One crossing the 10th in its middle: no
+        // corner (a course runs past a pilaster's edge).
+        lines.push(plumb(10.0, 0.0, 1.5, 3.5));
+        lines.push(plumb(5.0, 0.0, 0.5, 1.0));
+        let class = classify(&lines, &ClassRule::default());
+        assert_eq!(class[20], LineClass::Structure);
+        assert_eq!(class[10], LineClass::Texture);
+    }
+
+    #[test]
+    fn degenerate_lines_and_bad_rules_are_handled() {
+        let lines = vec![[Vec3::zeros(), Vec3::zeros()]];
+        assert_eq!(classify(&lines, &ClassRule::default()), vec![LineClass::Structure]);
+        assert!(classify(&[], &ClassRule::default()).is_empty());
+        let bad = ClassRule {
+            reach_m: f64::NAN,
+            ..ClassRule::default()
+        };
+        assert_eq!(bad.validate().unwrap_err().name, "class.reach_m");
+        let bad = ClassRule {
+            neighbours: 1,
+            ..ClassRule::default()
+        };
+        assert!(bad.validate().is_err());
+        assert!(ClassRule::default().validate().is_ok());
+    }
+}
