@@ -7,7 +7,7 @@
 //! `foxglove.SceneUpdate` entities (JSON) in the object frame `world`.
 use lineflow_messages::schema::{decode_view, read_elements, read_pod, Decoded};
 use lineflow_messages::{
-    parts, Encoding, ImageHeader, Keypoint, KeypointsHeader, Line3, Lines2DHeader, MessageKind, Pose, Segment2, Stamp, WireEdge,
+    parts, Encoding, ImageHeader, Keypoint, KeypointsHeader, Line3, LineClass, Lines2DHeader, MessageKind, Pose, Segment2, Stamp, WireEdge,
     WireframeHeader,
 };
 use serde_json::{json, Value};
@@ -314,16 +314,41 @@ fn scene_poses(stamp: &Stamp, poses: &[Pose]) -> Vec<u8> {
     serde_json::to_vec(&json!({ "deletions": [], "entities": entities })).unwrap_or_default()
 }
 
+/// The 3-D lines as one entity per class, so that a viewer can show or hide each: structure amber, texture (lines
+/// inside a surface) thin and grey, unclassed lines amber as before the classes.
 fn scene_lines(stamp: &Stamp, lines: &[Line3]) -> Vec<u8> {
-    let pts = lines.iter().flat_map(|l| [point(l.start_m), point(l.end_m)]).collect();
-    let e = entity(
-        stamp,
-        format!("lines3d/{}", stamp.frame),
-        pts,
-        json!({ "r": 1.0, "g": 0.8, "b": 0.0, "a": 1.0 }),
-        2.0,
-    );
-    serde_json::to_vec(&json!({ "deletions": [], "entities": [e] })).unwrap_or_default()
+    let styles = [
+        (
+            LineClass::Structure,
+            "lines3d/structure",
+            json!({ "r": 1.0, "g": 0.8, "b": 0.0, "a": 1.0 }),
+            2.0,
+        ),
+        (
+            LineClass::Texture,
+            "lines3d/texture",
+            json!({ "r": 0.6, "g": 0.6, "b": 0.6, "a": 0.5 }),
+            1.0,
+        ),
+        (
+            LineClass::Unknown,
+            "lines3d",
+            json!({ "r": 1.0, "g": 0.8, "b": 0.0, "a": 1.0 }),
+            2.0,
+        ),
+    ];
+    let entities: Vec<Value> = styles
+        .into_iter()
+        .filter_map(|(class, name, color, thickness)| {
+            let pts: Vec<Value> = lines
+                .iter()
+                .filter(|l| LineClass::from_code(l.class) == class)
+                .flat_map(|l| [point(l.start_m), point(l.end_m)])
+                .collect();
+            (!pts.is_empty()).then(|| entity(stamp, format!("{name}/{}", stamp.frame), pts, color, thickness))
+        })
+        .collect();
+    serde_json::to_vec(&json!({ "deletions": [], "entities": entities })).unwrap_or_default()
 }
 
 #[cfg(test)]
@@ -349,6 +374,34 @@ mod tests {
         // ... width 2, height 1, "mono8", step 2, then 2 bytes: means of the 2x2 boxes.
         assert_eq!(&p[p.len() - 2..], &[3, 25]);
         assert_eq!(r.scale, 0.5);
+    }
+
+    #[test]
+    fn the_3d_lines_become_one_scene_entity_per_class() {
+        let line = |x: f64, class: LineClass| Line3 {
+            start_m: [x, 0.0, 0.0],
+            end_m: [x, 0.0, 1.0],
+            class: class.code(),
+            ..Default::default()
+        };
+        let stamp = Stamp {
+            frame: 4,
+            ..Default::default()
+        };
+        let lines = [
+            line(0.0, LineClass::Structure),
+            line(1.0, LineClass::Texture),
+            line(2.0, LineClass::Texture),
+        ];
+        let v: Value = serde_json::from_slice(&scene_lines(&stamp, &lines)).unwrap();
+        let entities = v["entities"].as_array().unwrap();
+        let ids: Vec<&str> = entities.iter().map(|e| e["id"].as_str().unwrap()).collect();
+        assert_eq!(ids, ["lines3d/structure/4", "lines3d/texture/4"]);
+        let points = |k: usize| entities[k]["lines"][0]["points"].as_array().unwrap().len();
+        assert_eq!((points(0), points(1)), (2, 4));
+        // Lines of a stage that does not class them keep the entity of before.
+        let v: Value = serde_json::from_slice(&scene_lines(&stamp, &[line(0.0, LineClass::Unknown)])).unwrap();
+        assert_eq!(v["entities"][0]["id"], "lines3d/4");
     }
 
     #[test]
