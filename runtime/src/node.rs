@@ -68,6 +68,8 @@ pub struct NodeContext {
     reporter: Rc<Reporter>,
     ready: Option<iceoryx2::port::notifier::Notifier<ipc::Service>>,
     start: Option<Listener>,
+    /// The process that started this node (the supervisor), as it was at the start.
+    supervisor: u32,
 }
 
 impl NodeContext {
@@ -104,6 +106,7 @@ impl NodeContext {
                 reporter: Rc::new(Reporter::new(0, None, false)),
                 ready: None,
                 start: None,
+                supervisor: std::os::unix::process::parent_id(),
             });
         }
         let env = RunEnv::from_env()?;
@@ -141,6 +144,7 @@ impl NodeContext {
             reporter,
             ready: Some(ready),
             start,
+            supervisor: std::os::unix::process::parent_id(),
         })
     }
 
@@ -339,9 +343,21 @@ impl NodeContext {
         Ok(())
     }
 
-    /// Whether SIGINT or SIGTERM arrived; sources check it between frames.
+    /// Whether SIGINT or SIGTERM arrived or the supervisor is gone; sources check it between frames.
     pub fn should_stop(&self) -> bool {
-        self.node.as_ref().is_some_and(|n| n.wait(Duration::ZERO).is_err())
+        self.supervisor_gone() || self.node.as_ref().is_some_and(|n| n.wait(Duration::ZERO).is_err())
+    }
+
+    /// Whether the supervisor that started this node has died (SIGKILL, a crash, a closed terminal): the node was
+    /// handed to another parent. Nothing would ever stop the node then, and nobody reads its results; it ends as
+    /// on SIGTERM, writing what it has (the recorder closes its file).
+    pub fn supervisor_gone(&self) -> bool {
+        let gone = self.env.is_some() && std::os::unix::process::parent_id() != self.supervisor;
+        if gone {
+            static SAID: std::sync::Once = std::sync::Once::new();
+            SAID.call_once(|| tracing::error!("the supervisor (pid {}) is gone: stopping as on SIGTERM", self.supervisor));
+        }
+        gone
     }
 
     /// Blocks until input arrives and calls `on_wake`, until it returns [`Flow::Stop`] or a signal arrives. Never
@@ -372,8 +388,13 @@ impl NodeContext {
             .attach_interval(RUN_TICK)
             .map_err(|e| anyhow::anyhow!("cannot attach interval: {e:?}"))?;
         let mut result = Ok(Flow::Continue);
+        let mut orphaned = false;
         let outcome = waitset
             .wait_and_process(|_id| {
+                if self.supervisor_gone() {
+                    orphaned = true;
+                    return CallbackProgression::Stop;
+                }
                 for l in &listeners {
                     let _ = l.try_wait(|_| {});
                 }
@@ -391,6 +412,7 @@ impl NodeContext {
             .map_err(|e| anyhow::anyhow!("WaitSet failed: {e:?}"))?;
         result?;
         Ok(match outcome {
+            _ if orphaned => RunEnd::Interrupted,
             iceoryx2::waitset::WaitSetRunResult::Interrupt | iceoryx2::waitset::WaitSetRunResult::TerminationRequest => RunEnd::Interrupted,
             _ => RunEnd::Finished,
         })

@@ -1026,6 +1026,64 @@ to = []
     assert!(String::from_utf8_lossy(&bad.stderr).contains("available: surf, orb"));
 }
 
+/// A process has ended: gone from /proc, or a zombie waiting for whoever adopted it.
+fn ended(pid: u32) -> bool {
+    std::fs::read_to_string(format!("/proc/{pid}/stat"))
+        .map(|stat| stat.rfind(')').is_some_and(|b| stat[b + 2..].starts_with('Z')))
+        .unwrap_or(true)
+}
+
+#[test]
+fn nodes_whose_supervisor_is_killed_stop_within_seconds_and_the_recording_stays_readable() {
+    let sb = Sandbox::new();
+    let folder = sb.project(3, 16, 16);
+    // A watching capture keeps the run alive until it is stopped.
+    let graph = sb.graph("g.toml", &direct_graph(&folder, ", watch = true, idle_timeout_s = 120.0", ""));
+    let out = sb.path().join("out");
+    let mut child = sb
+        .lineflow(&["run", graph.to_str().unwrap(), "--out", out.to_str().unwrap()])
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    let start = Instant::now();
+    let nodes = loop {
+        let up = ["lineflow-stats", "lineflow-captur", "lineflow-record"]
+            .iter()
+            .all(|n| !children_of(child.id(), n).is_empty());
+        if up {
+            // Past the `--describe` runs, connected, and the three frames through.
+            std::thread::sleep(Duration::from_millis(1500));
+            break children_of(child.id(), "lineflow");
+        }
+        assert!(start.elapsed() < Duration::from_secs(60), "the run never got going");
+        std::thread::sleep(Duration::from_millis(50));
+    };
+    // Only the supervisor dies (a closed terminal, an out-of-memory kill): its nodes are left without anyone to
+    // stop them.
+    // SAFETY: signalling a process this test started.
+    unsafe { libc::kill(child.id() as i32, libc::SIGKILL) };
+    let _ = child.wait();
+    let killed = Instant::now();
+    while !nodes.iter().all(|&pid| ended(pid)) {
+        assert!(
+            killed.elapsed() < Duration::from_secs(15),
+            "nodes still running 15 s after their supervisor was killed: {:?}",
+            nodes.iter().filter(|&&pid| !ended(pid)).collect::<Vec<_>>()
+        );
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    // The recorder closed its file as on SIGTERM: every frame is in it, and the independent reader agrees.
+    let info = sb.run(&["info", out.join("recording.mcap").to_str().unwrap()]);
+    let text = String::from_utf8_lossy(&info.stdout);
+    assert!(info.status.success(), "{text}{}", String::from_utf8_lossy(&info.stderr));
+    let images = text
+        .lines()
+        .find(|l| l.starts_with("images "))
+        .unwrap_or_else(|| panic!("no images topic:\n{text}"));
+    assert_eq!(images.split_whitespace().nth(1), Some("3"), "{text}");
+    let _ = sb.run(&["doctor", "--fix"]);
+}
+
 #[test]
 fn doctor_finds_what_a_killed_run_left_and_fix_removes_it() {
     let sb = Sandbox::new();
