@@ -266,6 +266,7 @@ def main():
             status.flags |= NODE_FINISHED
         status_pub.send_copy(status)
 
+    supervisor = os.getppid()
     seq = 0
     last = Stamp()
 
@@ -317,6 +318,10 @@ def main():
         result = waitset.wait_and_process()
         listener.try_wait()
         if result in (iox2.WaitSetRunResult.Interrupt, iox2.WaitSetRunResult.TerminationRequest):
+            break
+        if os.getppid() != supervisor:
+            # The supervisor is gone (docs/nodes.md, node contract 7): nobody would ever stop this node.
+            sys.stderr.write(f"[{me}] error: the supervisor (pid {supervisor}) is gone: stopping\n")
             break
     eos = EdgeMapHeader()
     eos.stamp = Stamp(frame=last.frame + 1, capture_time_ns=last.capture_time_ns, flags=END_OF_STREAM)
