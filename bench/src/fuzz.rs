@@ -273,8 +273,8 @@ pub fn targets() -> Result<Vec<Target>> {
             name: "lines3d.csv",
             file: "lines3d.csv",
             seed: text(
-                "id,X1,Y1,Z1,X2,Y2,Z2,n_points,n_images,rms_m\nL1,-0.19,-0.25,7.47,30.19,-0.25,7.47,24,18,0.0004\n\
-                 G1,0.53,0.0,0.60,1.46,0.0,0.60,,,\n",
+                "id,X1,Y1,Z1,X2,Y2,Z2,n_points,n_images,rms_m,class\nL1,-0.19,-0.25,7.47,30.19,-0.25,7.47,24,18,0.0004,structure\n\
+                 L2,0.1,0.0,1.2,4.0,0.0,1.2,12,9,0.002,texture\nG1,0.53,0.0,0.60,1.46,0.0,0.60,,,,\n",
             ),
             parse: |p| {
                 let _ = f::read_lines3d(p);
