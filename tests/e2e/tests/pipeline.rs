@@ -1026,6 +1026,20 @@ to = []
     assert!(String::from_utf8_lossy(&bad.stderr).contains("available: surf, orb"));
 }
 
+/// `lineflow run` started on a project of `frames` small images with a watching capture, which keeps the run alive
+/// until it is stopped or killed; its output folder.
+fn start_watching_run(sb: &Sandbox, frames: usize) -> (std::process::Child, PathBuf) {
+    let folder = sb.project(frames, 16, 16);
+    let graph = sb.graph("g.toml", &direct_graph(&folder, ", watch = true, idle_timeout_s = 120.0", ""));
+    let out = sb.path().join("out");
+    let child = sb
+        .lineflow(&["run", graph.to_str().unwrap(), "--out", out.to_str().unwrap()])
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    (child, out)
+}
+
 /// A process has ended: gone from /proc, or a zombie waiting for whoever adopted it.
 fn ended(pid: u32) -> bool {
     std::fs::read_to_string(format!("/proc/{pid}/stat"))
@@ -1036,15 +1050,7 @@ fn ended(pid: u32) -> bool {
 #[test]
 fn nodes_whose_supervisor_is_killed_stop_within_seconds_and_the_recording_stays_readable() {
     let sb = Sandbox::new();
-    let folder = sb.project(3, 16, 16);
-    // A watching capture keeps the run alive until it is stopped.
-    let graph = sb.graph("g.toml", &direct_graph(&folder, ", watch = true, idle_timeout_s = 120.0", ""));
-    let out = sb.path().join("out");
-    let mut child = sb
-        .lineflow(&["run", graph.to_str().unwrap(), "--out", out.to_str().unwrap()])
-        .stderr(Stdio::null())
-        .spawn()
-        .unwrap();
+    let (mut child, out) = start_watching_run(&sb, 3);
     let start = Instant::now();
     let nodes = loop {
         let up = ["lineflow-stats", "lineflow-captur", "lineflow-record"]
@@ -1087,15 +1093,7 @@ fn nodes_whose_supervisor_is_killed_stop_within_seconds_and_the_recording_stays_
 #[test]
 fn doctor_finds_what_a_killed_run_left_and_fix_removes_it() {
     let sb = Sandbox::new();
-    let folder = sb.project(2, 16, 16);
-    // A watching capture keeps the run alive until it is killed.
-    let graph = sb.graph("g.toml", &direct_graph(&folder, ", watch = true, idle_timeout_s = 60.0", ""));
-    let out = sb.path().join("out");
-    let mut child = sb
-        .lineflow(&["run", graph.to_str().unwrap(), "--out", out.to_str().unwrap()])
-        .stderr(Stdio::null())
-        .spawn()
-        .unwrap();
+    let (mut child, _out) = start_watching_run(&sb, 2);
     let runs = sb.path().join("state/runs");
     let start = Instant::now();
     let id = loop {
