@@ -283,16 +283,14 @@ enum Cmd {
         #[arg(long = "set", value_name = "PARAM=VALUE")]
         set: Vec<String>,
     },
-    /// Class each line of a lines3d.csv as structure or texture, as the line stages do (the `class` column;
-    /// docs/lines3d.md).
+    /// Class each line of a lines3d.csv as structure or texture, as the line stages do (docs/lines3d.md).
     Classify {
         /// 3-D lines (lines3d.csv).
         lines: PathBuf,
         /// Where to write them with their class (a lines3d.csv).
         #[arg(long)]
         out: PathBuf,
-        /// Override a setting of the classing: PARAM=VALUE (neighbours, reach_m, band_m, corner_m, parallel_deg).
-        /// Repeatable.
+        /// A setting of the classing: PARAM=VALUE (neighbours, reach_m, band_m, corner_m, parallel_deg).
         #[arg(long = "set", value_name = "PARAM=VALUE")]
         set: Vec<String>,
     },

@@ -81,12 +81,8 @@ pub fn classify(lines: &Path, out: &Path, set: &[String]) -> Result<ExitCode> {
     rule.validate()
         .map_err(|e| anyhow::anyhow!("{} must be {}, got {}", e.name, e.requirement, e.value))?;
     let mut rows = read_lines3d(lines)?;
-    let segments: Vec<[lineflow_photogrammetry::Vec3; 2]> = rows.iter().map(|r| [r.start, r.end]).collect();
-    for (r, class) in rows.iter_mut().zip(lineflow_linegeom::classify(&segments, &rule)) {
-        r.class = class;
-    }
+    let texture = lineflow_model::classify_rows(&mut rows, &rule);
     lineflow_formats::write_lines3d(out, &rows)?;
-    let texture = rows.iter().filter(|r| r.class == lineflow_formats::LineClass::Texture).count();
     println!(
         "{} lines: {} structure, {texture} texture -> {}",
         rows.len(),

@@ -182,7 +182,7 @@ mod tests {
         assert_eq!(size_of::<EdgePixel>(), 12);
         assert_eq!(size_of::<Segment2>(), 48);
         assert_eq!(size_of::<Point3>(), 32);
-        assert_eq!(size_of::<Line3>(), 8 + 48 + 8 + 8);
+        assert_eq!(size_of::<Line3>(), 8 + 48 + 8 + 8 + 8);
         assert_eq!(size_of::<WireEdge>(), 20);
     }
 

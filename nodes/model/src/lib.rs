@@ -874,6 +874,15 @@ fn refine_object(
     out
 }
 
+/// Classes `rows` with `rule` (`lineflow classify`); returns how many are texture.
+pub fn classify_rows(rows: &mut [lineflow_formats::Line3Row], rule: &ClassRule) -> usize {
+    let segments: Vec<[Vec3; 2]> = rows.iter().map(|r| [r.start, r.end]).collect();
+    for (r, class) in rows.iter_mut().zip(lineflow_linegeom::classify(&segments, rule)) {
+        r.class = class;
+    }
+    rows.iter().filter(|r| r.class == LineClass::Texture).count()
+}
+
 /// The model's lines from `lines3d.csv` rows (or `Lines3D` elements through their rows), each with the endpoint
 /// σ its statistics give and its class; when no row is classed (another tool's lines, an older run) and
 /// `texture_lines` is not `keep`, they are classed here with `class`.
