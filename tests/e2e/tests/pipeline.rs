@@ -408,7 +408,7 @@ fn the_demo_graph_runs_the_synthetic_camera_and_gives_the_same_bytes_twice() {
     for detector in ["sobel", "log"] {
         let out = sb.path().join(detector);
         let r = run_with(&format!("edges.impl={detector}"), &out);
-        assert!(r.status.success(), "{detector} run failed");
+        assert!(r.status.success(), "{detector} run failed:\n{}", String::from_utf8_lossy(&r.stderr));
         let edges = std::fs::read_to_string(out.join("edges.csv")).unwrap();
         assert!(edges.lines().skip(1).all(|l| l.split(',').nth(1) == Some(detector)), "{edges}");
         assert!(!outputs[0].1.starts_with(&edges));
