@@ -111,8 +111,10 @@ fn run(ctx: NodeContext, method: Method) -> Result<()> {
         if let Some(&newest) = received.last() {
             let all: Vec<Fragment> = fragments.values().flatten().cloned().collect();
             merged = merge(&all, &params.rule());
+            // Classed once per set: the frames of one wake share it.
+            let lines = elements(&merged, &params);
             for stamp in lineflow_runtime::frames_to_publish(&received, &mut published) {
-                output.publish(Lines3DHeader { stamp }, &elements(&merged, &params))?;
+                output.publish(Lines3DHeader { stamp }, &lines)?;
             }
             last = newest;
         }

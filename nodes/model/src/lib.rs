@@ -876,11 +876,17 @@ fn refine_object(
 
 /// Classes `rows` with `rule` (`lineflow classify`); returns how many are texture.
 pub fn classify_rows(rows: &mut [lineflow_formats::Line3Row], rule: &ClassRule) -> usize {
-    let segments: Vec<[Vec3; 2]> = rows.iter().map(|r| [r.start, r.end]).collect();
-    for (r, class) in rows.iter_mut().zip(lineflow_linegeom::classify(&segments, rule)) {
+    let classes = classes_of(rows, rule);
+    for (r, class) in rows.iter_mut().zip(classes) {
         r.class = class;
     }
     rows.iter().filter(|r| r.class == LineClass::Texture).count()
+}
+
+/// The class of each row by `rule`, whatever class it carries.
+fn classes_of(rows: &[lineflow_formats::Line3Row], rule: &ClassRule) -> Vec<LineClass> {
+    let segments: Vec<[Vec3; 2]> = rows.iter().map(|r| [r.start, r.end]).collect();
+    lineflow_linegeom::classify(&segments, rule)
 }
 
 /// The model's lines from `lines3d.csv` rows (or `Lines3D` elements through their rows), each with the endpoint
@@ -889,8 +895,7 @@ pub fn classify_rows(rows: &mut [lineflow_formats::Line3Row], rule: &ClassRule) 
 pub fn lines_from_rows(rows: &[lineflow_formats::Line3Row], params: &ModelParams) -> Vec<ModelLine> {
     let unclassed = rows.iter().all(|r| r.class == LineClass::Unknown);
     let classes: Vec<LineClass> = if unclassed && params.texture_lines != TextureLines::Keep {
-        let segments: Vec<[Vec3; 2]> = rows.iter().map(|r| [r.start, r.end]).collect();
-        lineflow_linegeom::classify(&segments, &params.class)
+        classes_of(rows, &params.class)
     } else {
         rows.iter().map(|r| r.class).collect()
     };
