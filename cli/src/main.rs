@@ -290,7 +290,13 @@ enum Cmd {
         /// Where to write them with their class (a lines3d.csv).
         #[arg(long)]
         out: PathBuf,
-        /// A setting of the classing: PARAM=VALUE (neighbours, reach_m, band_m, corner_m, parallel_deg).
+        /// The images' poses (poses.csv): with --camera, a line shown by few of the images seeing it is texture.
+        #[arg(long, requires = "camera")]
+        poses: Option<PathBuf>,
+        /// The camera (camera.toml) of those images.
+        #[arg(long, requires = "poses")]
+        camera: Option<PathBuf>,
+        /// A setting of the classing: PARAM=VALUE (neighbours, reach_m, band_m, corner_m, parallel_deg, min_support).
         #[arg(long = "set", value_name = "PARAM=VALUE")]
         set: Vec<String>,
     },
@@ -402,7 +408,13 @@ fn main() -> ExitCode {
             noise_dn: noise,
         }),
         Cmd::Eval { results, gt, out, json } => eval(&results, &gt, out, json),
-        Cmd::Classify { lines, out, set } => model_cmd::classify(&lines, &out, &set),
+        Cmd::Classify {
+            lines,
+            out,
+            poses,
+            camera,
+            set,
+        } => model_cmd::classify(&lines, &out, poses.zip(camera), &set),
         Cmd::Model {
             lines,
             poses,
@@ -485,12 +497,8 @@ fn man_pages(out: &std::path::Path) -> anyhow::Result<ExitCode> {
     clap_mangen::generate_to(Cli::command(), out).with_context(|| format!("cannot write the man pages into {}", out.display()))?;
     let pages = std::fs::read_dir(out)?
         .flatten()
-        .filter(|e| e.path().extension().is_some_and(|x| x == "1"))
-        .count();
-    eprintln!(
-        "{pages} man pages in {} (read one with `man -l {}/lineflow.1`)",
-        out.display(),
-        out.display()
-    );
+        .filter(|e| e.path().extension().is_some_and(|x| x == "1"));
+    let dir = out.display();
+    eprintln!("{} man pages in {dir} (read one with `man -l {dir}/lineflow.1`)", pages.count());
     Ok(ExitCode::SUCCESS)
 }

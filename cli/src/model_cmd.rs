@@ -74,20 +74,10 @@ pub fn model(lines: &Path, poses: Option<&Path>, refine: Option<RefineInputs>, o
     Ok(ExitCode::SUCCESS)
 }
 
-/// `lineflow classify LINES3D --out FILE [--set PARAM=VALUE]...`: the lines with their `class` column as the line
-/// stages write it (docs/lines3d.md, "Structure and texture"), for lines of an older run or of another tool.
-pub fn classify(lines: &Path, out: &Path, set: &[String]) -> Result<ExitCode> {
-    let rule: lineflow_linegeom::ClassRule = lineflow_runtime::launch::params_from_overrides(set)?;
-    rule.validate()
-        .map_err(|e| anyhow::anyhow!("{} must be {}, got {}", e.name, e.requirement, e.value))?;
-    let mut rows = read_lines3d(lines)?;
-    let texture = lineflow_model::classify_rows(&mut rows, &rule);
-    lineflow_formats::write_lines3d(out, &rows)?;
-    println!(
-        "{} lines: {} structure, {texture} texture -> {}",
-        rows.len(),
-        rows.len() - texture,
-        out.display()
-    );
+/// `lineflow classify LINES3D --out FILE [--poses POSES --camera CAMERA] [--set PARAM=VALUE]...`: the lines with
+/// their `class` column as the line stages write it (docs/lines3d.md, "Structure and texture").
+pub fn classify(lines: &Path, out: &Path, cameras: Option<(PathBuf, PathBuf)>, set: &[String]) -> Result<ExitCode> {
+    let (n, texture) = lineflow_model::classify_file(lines, out, cameras, set)?;
+    println!("{n} lines: {} structure, {texture} texture -> {}", n - texture, out.display());
     Ok(ExitCode::SUCCESS)
 }

@@ -7,12 +7,18 @@
 //! wall's courses above it and the opening below; an eaves line the wall below and the roof above, not in the
 //! wall's surface), or it turns a corner with another edge (an opening's outline, a reveal, a frame).
 //!
+//! A joint also shows less steadily: its contrast is weak and it looks like its neighbours, so the 2-D segments
+//! of most images that see it miss it or break it, and where the line stages matched it one course off, no other
+//! image agrees with its wrong depth. An edge of the building shows in nearly every image that sees it. With the
+//! cameras at hand ([`Sight`]), a line that fewer than `min_support` of the images seeing it show is texture too,
+//! unless it turns a corner with a line that passes.
+//!
 //! Measured at scale 0.3 (docs/lines3d.md, "Structure and texture"): 48–65 % of the lines of brick façades are
-//! classed texture, of which 0.1–0.5 % are true edges; plaster façades have next to none.
+//! classed texture by their field, of which 0.1–0.5 % are true edges; plaster façades have next to none.
 use std::collections::HashMap;
 
 use lineflow_messages::LineClass;
-use lineflow_photogrammetry::Vec3;
+use lineflow_photogrammetry::{Camera, Pose, Vec3};
 
 /// The settings of the classing: the `class` parameter of the line stages, a table
 /// (`class = { neighbours = 6, reach_m = 0.3 }`; what it leaves out keeps its default).
@@ -30,6 +36,10 @@ pub struct ClassRule {
     pub corner_m: f64,
     /// Lines within this angle are parallel, degrees.
     pub parallel_deg: f64,
+    /// With the cameras known: the smallest share of the images that see a line (both ends in the frame) which
+    /// must show it (`n_images`) for it to be structure, unless it turns a corner with a line that passes;
+    /// 0 turns the test off.
+    pub min_support: f64,
 }
 
 impl Default for ClassRule {
@@ -40,6 +50,7 @@ impl Default for ClassRule {
             band_m: 0.1,
             corner_m: 0.15,
             parallel_deg: 8.0,
+            min_support: 0.67,
         }
     }
 }
@@ -74,6 +85,9 @@ impl ClassRule {
         if !(self.parallel_deg > 0.0 && self.parallel_deg < 45.0) {
             return bad("parallel_deg", "in (0, 45)", self.parallel_deg.to_string());
         }
+        if !(0.0..=1.0).contains(&self.min_support) {
+            return bad("min_support", "in [0, 1]", self.min_support.to_string());
+        }
         if self.neighbours < 2 {
             return bad("neighbours", ">= 2", self.neighbours.to_string());
         }
@@ -87,7 +101,25 @@ const SAME_LINE_M: f64 = 0.01;
 /// Lines more than 60° apart meet at a corner.
 const CORNER_COS: f64 = 0.5;
 
-/// The class of each segment `[start, end]` (object coordinates, metres). Independent of the order of the lines.
+/// The cameras of a set of lines: each line's support is measured against the images whose frame holds it.
+#[derive(Debug, Clone, Copy)]
+pub struct Sight<'a> {
+    /// The camera of every image.
+    pub camera: &'a Camera,
+    /// The images' poses.
+    pub poses: &'a [Pose],
+}
+
+impl Sight<'_> {
+    /// How many of the images see the segment: both ends in front of the camera and inside the frame.
+    pub fn images_seeing(&self, line: &[Vec3; 2]) -> u32 {
+        let inside = |pose: &Pose, p: &Vec3| pose.project(self.camera, p).is_some_and(|px| self.camera.contains(px, 0.0));
+        self.poses.iter().filter(|pose| line.iter().all(|p| inside(pose, p))).count() as u32
+    }
+}
+
+/// The class of each segment `[start, end]` (object coordinates, metres) by its neighbours alone. Independent of
+/// the order of the lines.
 pub fn classify(lines: &[[Vec3; 2]], rule: &ClassRule) -> Vec<LineClass> {
     let grid = Grid::of(lines, rule.reach_m.max(rule.corner_m));
     let mut seen = vec![usize::MAX; lines.len()];
@@ -109,10 +141,40 @@ pub fn classify(lines: &[[Vec3; 2]], rule: &ClassRule) -> Vec<LineClass> {
         .collect()
 }
 
-/// Classes a stage's `Line3` elements in place.
-pub fn classify_elements(lines: &mut [lineflow_messages::Line3], rule: &ClassRule) {
+/// The class of each segment by its neighbours and, with `sight`, by its support: `shown[k]` images show line
+/// `k` (its `n_images`); a structure line shown by fewer than `min_support` of the images that see it becomes
+/// texture, unless an end of it lies within `corner_m` of an end of a line across it that keeps its class.
+pub fn classify_supported(lines: &[[Vec3; 2]], shown: &[u32], sight: Option<Sight>, rule: &ClassRule) -> Vec<LineClass> {
+    let mut class = classify(lines, rule);
+    let Some(sight) = sight.filter(|_| rule.min_support > 0.0) else {
+        return class;
+    };
+    let weak: Vec<bool> = lines
+        .iter()
+        .zip(&class)
+        .zip(shown)
+        .map(|((l, c), &n)| *c == LineClass::Structure && (n as f64) < rule.min_support * sight.images_seeing(l) as f64)
+        .collect();
+    let grid = Grid::of(lines, rule.corner_m);
+    let mut seen = vec![usize::MAX; lines.len()];
+    let mut near = Vec::new();
+    for k in (0..lines.len()).filter(|&k| weak[k]) {
+        let Some(u) = direction(&lines[k]) else { continue };
+        near.clear();
+        grid.near(&lines[k], k, &mut seen, &mut near);
+        near.retain(|&j| class[j] == LineClass::Structure && !weak[j]);
+        if !turns_a_corner(lines, k, &u, &near, rule) {
+            class[k] = LineClass::Texture;
+        }
+    }
+    class
+}
+
+/// Classes a stage's `Line3` elements in place, by their support too when `sight` is given.
+pub fn classify_elements(lines: &mut [lineflow_messages::Line3], rule: &ClassRule, sight: Option<Sight>) {
     let segments: Vec<[Vec3; 2]> = lines.iter().map(|l| [Vec3::from(l.start_m), Vec3::from(l.end_m)]).collect();
-    for (l, c) in lines.iter_mut().zip(classify(&segments, rule)) {
+    let shown: Vec<u32> = lines.iter().map(|l| l.n_images).collect();
+    for (l, c) in lines.iter_mut().zip(classify_supported(&segments, &shown, sight, rule)) {
         l.class = c.code();
     }
 }
@@ -353,6 +415,66 @@ mod tests {
         assert_eq!(class[10], LineClass::Texture);
     }
 
+    /// Nine cameras 20 m in front of the wall y = 0, one every metre along it, looking at it.
+    fn strip() -> (Camera, Vec<Pose>) {
+        let poses = (0..9)
+            .map(|k| Pose {
+                center: Vec3::new(1.0 + k as f64, -20.0, 1.5),
+                rotation: lineflow_photogrammetry::rotation_from_opk(std::f64::consts::FRAC_PI_2, 0.0, 0.0),
+            })
+            .collect();
+        (Camera::pinhole(4000, 3000, 0.005, 20.0), poses)
+    }
+
+    #[test]
+    fn lines_few_of_the_images_seeing_them_show_are_texture_unless_they_turn_a_corner_with_one_that_passes() {
+        let (camera, poses) = strip();
+        let sight = Sight {
+            camera: &camera,
+            poses: &poses,
+        };
+        // Two courses alone (no field around them), a window head and its jamb meeting at a corner, and a short
+        // piece of a sill meeting the jamb's other end.
+        let lines = vec![
+            level(1.0, 3.0, 0.0, 0.3),
+            level(6.0, 8.0, 0.0, 0.375),
+            level(4.0, 5.4, 0.0, 2.4),
+            plumb(5.4, 0.0, 0.9, 2.4),
+            level(5.0, 5.4, 0.0, 0.9),
+        ];
+        assert!(lines.iter().all(|l| sight.images_seeing(l) == 9));
+        let shown = [2, 9, 9, 8, 3];
+        let by_field = classify(&lines, &ClassRule::default());
+        assert!(by_field.iter().all(|c| *c == LineClass::Structure));
+        let class = classify_supported(&lines, &shown, Some(sight), &ClassRule::default());
+        use LineClass::{Structure, Texture};
+        assert_eq!(class, vec![Texture, Structure, Structure, Structure, Structure]);
+        // The sill piece owes its class to the jamb: a weak jamb keeps its own by the head, but lends none.
+        let class = classify_supported(&lines, &[2, 9, 9, 3, 3], Some(sight), &ClassRule::default());
+        assert_eq!(class, vec![Texture, Structure, Structure, Structure, Texture]);
+        // Off: no cameras, or no share asked for.
+        assert_eq!(classify_supported(&lines, &shown, None, &ClassRule::default()), by_field);
+        let off = ClassRule {
+            min_support: 0.0,
+            ..ClassRule::default()
+        };
+        assert_eq!(classify_supported(&lines, &shown, Some(sight), &off), by_field);
+    }
+
+    #[test]
+    fn a_line_no_image_sees_is_never_weak() {
+        let (camera, poses) = strip();
+        let sight = Sight {
+            camera: &camera,
+            poses: &poses,
+        };
+        // 40 m up the wall, out of every frame; and behind the cameras.
+        let lines = vec![level(1.0, 3.0, 0.0, 40.0), level(1.0, 3.0, -30.0, 1.0)];
+        assert!(lines.iter().all(|l| sight.images_seeing(l) == 0));
+        let class = classify_supported(&lines, &[0, 0], Some(sight), &ClassRule::default());
+        assert!(class.iter().all(|c| *c == LineClass::Structure));
+    }
+
     #[test]
     fn degenerate_lines_and_bad_rules_are_handled() {
         let lines = vec![[Vec3::zeros(), Vec3::zeros()]];
@@ -368,6 +490,11 @@ mod tests {
             ..ClassRule::default()
         };
         assert!(bad.validate().is_err());
+        let bad = ClassRule {
+            min_support: 1.5,
+            ..ClassRule::default()
+        };
+        assert_eq!(bad.validate().unwrap_err().name, "class.min_support");
         assert!(ClassRule::default().validate().is_ok());
     }
 }

@@ -9,7 +9,7 @@ pub mod line2;
 pub mod multiview;
 pub mod segments;
 
-pub use class::{classify, classify_elements, ClassRule, RuleError};
+pub use class::{classify, classify_elements, classify_supported, ClassRule, RuleError, Sight};
 pub use line2::Line2;
 pub use multiview::{refine_line, refine_line_along, MultiviewLine, MultiviewParams};
 pub use segments::{FrameSegments, SlaveSegments};

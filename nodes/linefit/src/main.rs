@@ -9,7 +9,7 @@ use std::collections::BTreeMap;
 use anyhow::Result;
 use lineflow_formats::{write_lines3d_results, Line3Row};
 use lineflow_linefit::{fit_group, merge, refine_multiview, FitParams, Fragment, Merged, Method, MULTIVIEW_MIN_SEGMENT_PX};
-use lineflow_linegeom::{classify_elements, FrameSegments, SlaveSegments};
+use lineflow_linegeom::{classify_elements, FrameSegments, Sight, SlaveSegments};
 use lineflow_messages::{kinds, parts, Line3, LineClass, Lines3DHeader, Point3, PointGroup, Segment2, Stamp, StampFlags};
 use lineflow_photogrammetry::{Camera, Pose, Vec3};
 use lineflow_runtime::{Flow, NodeContext};
@@ -18,8 +18,9 @@ fn main() -> std::process::ExitCode {
     lineflow_runtime::run_stage("linefit", "tls", &[("tls", run_tls), ("thesis", run_thesis)])
 }
 
-/// The message elements of the merged lines, classed when `params.classify`.
-fn elements(lines: &[Merged], params: &FitParams) -> Vec<Line3> {
+/// The message elements of the merged lines, classed when `params.classify` (by their support too once the
+/// camera and poses are in).
+fn elements(lines: &[Merged], params: &FitParams, camera: Option<&Camera>, poses: &BTreeMap<u64, Pose>) -> Vec<Line3> {
     let mut out: Vec<Line3> = lines
         .iter()
         .enumerate()
@@ -34,7 +35,9 @@ fn elements(lines: &[Merged], params: &FitParams) -> Vec<Line3> {
         })
         .collect();
     if params.classify {
-        classify_elements(&mut out, &params.class);
+        let poses: Vec<Pose> = poses.values().copied().collect();
+        let sight = camera.map(|camera| Sight { camera, poses: &poses });
+        classify_elements(&mut out, &params.class, sight);
     }
     out
 }
@@ -112,7 +115,7 @@ fn run(ctx: NodeContext, method: Method) -> Result<()> {
             let all: Vec<Fragment> = fragments.values().flatten().cloned().collect();
             merged = merge(&all, &params.rule());
             // Classed once per set: the frames of one wake share it.
-            let lines = elements(&merged, &params);
+            let lines = elements(&merged, &params, camera.as_ref(), &poses);
             for stamp in lineflow_runtime::frames_to_publish(&received, &mut published) {
                 output.publish(Lines3DHeader { stamp }, &lines)?;
             }
@@ -153,7 +156,7 @@ fn run(ctx: NodeContext, method: Method) -> Result<()> {
     // A revision above the last one, or subscribers would take the final set for a duplicate of it.
     last.flags |= StampFlags::FINAL;
     last.revision += 1;
-    let lines = elements(&merged, &params);
+    let lines = elements(&merged, &params, camera.as_ref(), &poses);
     output.publish(Lines3DHeader { stamp: last }, &lines)?;
     output.end_of_stream()?;
     let rows: Vec<Line3Row> = lines.iter().map(Line3Row::from).collect();

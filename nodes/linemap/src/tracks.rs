@@ -35,7 +35,7 @@ pub fn line_messages(lines: &[MappedLine], p: &MapParams) -> Vec<lineflow_messag
         })
         .collect();
     if p.classify {
-        lineflow_linegeom::classify_elements(&mut out, &p.class);
+        lineflow_linegeom::classify_elements(&mut out, &p.class, None);
     }
     out
 }

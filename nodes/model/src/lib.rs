@@ -874,19 +874,44 @@ fn refine_object(
     out
 }
 
-/// Classes `rows` with `rule` (`lineflow classify`); returns how many are texture.
-pub fn classify_rows(rows: &mut [lineflow_formats::Line3Row], rule: &ClassRule) -> usize {
-    let classes = classes_of(rows, rule);
+/// `lineflow classify`: the lines of `lines` (a lines3d.csv) classed with `rule`, by their support too when
+/// `cameras` gives a poses.csv and a camera.toml, written to `out`; `set` holds the rule's settings
+/// (`PARAM=VALUE`). Returns how many lines and how many texture.
+pub fn classify_file(
+    lines: &std::path::Path,
+    out: &std::path::Path,
+    cameras: Option<(std::path::PathBuf, std::path::PathBuf)>,
+    set: &[String],
+) -> anyhow::Result<(usize, usize)> {
+    let rule: ClassRule = lineflow_runtime::launch::params_from_overrides(set)?;
+    rule.validate()
+        .map_err(|e| anyhow::anyhow!("{} must be {}, got {}", e.name, e.requirement, e.value))?;
+    let mut rows = lineflow_formats::read_lines3d(lines)?;
+    let (poses, camera) = match cameras {
+        Some((poses, camera)) => (
+            lineflow_formats::read_poses(&poses)?,
+            Some(lineflow_formats::project::read_camera(&camera)?.camera()),
+        ),
+        None => (Vec::new(), None),
+    };
+    let poses: Vec<lineflow_photogrammetry::Pose> = poses.iter().map(|p| p.pose).collect();
+    let sight = camera.as_ref().map(|camera| lineflow_linegeom::Sight { camera, poses: &poses });
+    let texture = classify_rows(&mut rows, &rule, sight);
+    lineflow_formats::write_lines3d(out, &rows)?;
+    Ok((rows.len(), texture))
+}
+
+/// Classes `rows` with `rule` (`lineflow classify`), by their support too when `sight` gives the cameras;
+/// returns how many are texture.
+pub fn classify_rows(rows: &mut [lineflow_formats::Line3Row], rule: &ClassRule, sight: Option<lineflow_linegeom::Sight>) -> usize {
+    let segments: Vec<[Vec3; 2]> = rows.iter().map(|r| [r.start, r.end]).collect();
+    // A row without `n_images` (another tool's file) cannot be weighed: never weak.
+    let shown: Vec<u32> = rows.iter().map(|r| r.n_images.unwrap_or(u32::MAX)).collect();
+    let classes = lineflow_linegeom::classify_supported(&segments, &shown, sight, rule);
     for (r, class) in rows.iter_mut().zip(classes) {
         r.class = class;
     }
     rows.iter().filter(|r| r.class == LineClass::Texture).count()
-}
-
-/// The class of each row by `rule`, whatever class it carries.
-fn classes_of(rows: &[lineflow_formats::Line3Row], rule: &ClassRule) -> Vec<LineClass> {
-    let segments: Vec<[Vec3; 2]> = rows.iter().map(|r| [r.start, r.end]).collect();
-    lineflow_linegeom::classify(&segments, rule)
 }
 
 /// The model's lines from `lines3d.csv` rows (or `Lines3D` elements through their rows), each with the endpoint
@@ -895,7 +920,9 @@ fn classes_of(rows: &[lineflow_formats::Line3Row], rule: &ClassRule) -> Vec<Line
 pub fn lines_from_rows(rows: &[lineflow_formats::Line3Row], params: &ModelParams) -> Vec<ModelLine> {
     let unclassed = rows.iter().all(|r| r.class == LineClass::Unknown);
     let classes: Vec<LineClass> = if unclassed && params.texture_lines != TextureLines::Keep {
-        classes_of(rows, &params.class)
+        // No cameras here: by the lines' neighbours alone.
+        let segments: Vec<[Vec3; 2]> = rows.iter().map(|r| [r.start, r.end]).collect();
+        lineflow_linegeom::classify(&segments, &params.class)
     } else {
         rows.iter().map(|r| r.class).collect()
     };
