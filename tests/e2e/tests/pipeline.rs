@@ -491,6 +491,62 @@ fn a_synth_folder_loads_through_the_folder_capture_and_evaluates() {
     assert!(report.contains("## 3-D lines") && report.contains("lines3d_front.png"));
     assert!(results.join("eval/lines3d_front.png").is_file());
 
+    // Classing: the true edges as if each were shown by one image only. With the cameras, every edge that more
+    // than one image sees is then weak, and with no strong line to turn a corner with, texture.
+    let truth = std::fs::read_to_string(scene.join("gt/lines3d.csv")).unwrap();
+    let weak: Vec<String> = truth
+        .lines()
+        .enumerate()
+        .map(|(k, l)| {
+            let mut cols: Vec<&str> = l.split(',').collect();
+            if k > 0 {
+                cols[8] = "1";
+            }
+            cols.join(",")
+        })
+        .collect();
+    let weak_csv = results.join("weak.csv");
+    std::fs::write(&weak_csv, weak.join("\n") + "\n").unwrap();
+    let texture_count = |extra: &[&str]| -> usize {
+        let out = results.join("classed.csv");
+        let mut args = vec!["classify", weak_csv.to_str().unwrap(), "--out", out.to_str().unwrap()];
+        args.extend_from_slice(extra);
+        let r = sb.run(&args);
+        let stdout = String::from_utf8_lossy(&r.stdout).to_string();
+        assert!(r.status.success(), "{stdout}{}", String::from_utf8_lossy(&r.stderr));
+        figure_after(&stdout, "structure, ", "") as usize
+    };
+    let (poses, camera) = (scene.join("gt/poses.csv"), scene.join("camera.toml"));
+    let by_field = texture_count(&[]);
+    let by_support = texture_count(&["--poses", poses.to_str().unwrap(), "--camera", camera.to_str().unwrap()]);
+    let n = truth.lines().count() - 1;
+    assert!(
+        by_field < n / 10 && by_support > n / 2,
+        "{by_field} and {by_support} texture of {n}"
+    );
+    let x = results.join("x.csv");
+    let r = sb.run(&[
+        "classify",
+        weak_csv.to_str().unwrap(),
+        "--out",
+        x.to_str().unwrap(),
+        "--poses",
+        poses.to_str().unwrap(),
+    ]);
+    assert!(!r.status.success() && String::from_utf8_lossy(&r.stderr).contains("--camera"));
+    let missing = scene.join("no-camera.toml");
+    let r = sb.run(&[
+        "classify",
+        weak_csv.to_str().unwrap(),
+        "--out",
+        x.to_str().unwrap(),
+        "--poses",
+        poses.to_str().unwrap(),
+        "--camera",
+        missing.to_str().unwrap(),
+    ]);
+    assert!(!r.status.success() && String::from_utf8_lossy(&r.stderr).contains("no-camera.toml"));
+
     // Nothing to evaluate against: one clear line.
     let r = sb.run(&["eval", results.to_str().unwrap(), "--gt", results.to_str().unwrap()]);
     assert!(!r.status.success());
