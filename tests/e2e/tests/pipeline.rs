@@ -525,27 +525,19 @@ fn a_synth_folder_loads_through_the_folder_capture_and_evaluates() {
         "{by_field} and {by_support} texture of {n}"
     );
     let x = results.join("x.csv");
-    let r = sb.run(&[
-        "classify",
-        weak_csv.to_str().unwrap(),
-        "--out",
-        x.to_str().unwrap(),
-        "--poses",
-        poses.to_str().unwrap(),
-    ]);
-    assert!(!r.status.success() && String::from_utf8_lossy(&r.stderr).contains("--camera"));
+    let refused = |extra: &[&str], named: &str| {
+        let mut args = vec!["classify", weak_csv.to_str().unwrap(), "--out", x.to_str().unwrap(), "--poses"];
+        args.push(poses.to_str().unwrap());
+        args.extend_from_slice(extra);
+        let r = sb.run(&args);
+        assert!(
+            !r.status.success() && String::from_utf8_lossy(&r.stderr).contains(named),
+            "{extra:?}"
+        );
+    };
+    refused(&[], "--camera");
     let missing = scene.join("no-camera.toml");
-    let r = sb.run(&[
-        "classify",
-        weak_csv.to_str().unwrap(),
-        "--out",
-        x.to_str().unwrap(),
-        "--poses",
-        poses.to_str().unwrap(),
-        "--camera",
-        missing.to_str().unwrap(),
-    ]);
-    assert!(!r.status.success() && String::from_utf8_lossy(&r.stderr).contains("no-camera.toml"));
+    refused(&["--camera", missing.to_str().unwrap()], "no-camera.toml");
 
     // Nothing to evaluate against: one clear line.
     let r = sb.run(&["eval", results.to_str().unwrap(), "--gt", results.to_str().unwrap()]);
