@@ -726,7 +726,14 @@ pub fn build_with_images(lines: &[ModelLine], params: &ModelParams, cameras: &Ca
     }
     let inside = inside::objects_inside(&object_edges);
     diagnostics.chains_completed = occlusion::complete(&mut vertices, &mut edges, params, cameras.mean());
-    let (mut faces, walls) = faces::find_with_walls(&mut vertices, &mut edges, params, cameras);
+    // The texture lines left out still show where the walls' surfaces are (a brick wall whose openings' outlines
+    // are few would lose to the frames' plane behind it).
+    let surface: Vec<[Vec3; 2]> = lines
+        .iter()
+        .filter(|l| drop_texture && l.texture)
+        .map(|l| [l.start, l.end])
+        .collect();
+    let (mut faces, walls) = faces::find_with_walls(&mut vertices, &mut edges, params, cameras, &surface);
     if !params.loose_lines {
         let mut loose = vec![false; lines.len()];
         for (l, corners_on) in on_line.iter().enumerate() {

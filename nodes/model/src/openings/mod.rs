@@ -107,6 +107,7 @@ pub(crate) fn infer(
     tol: f64,
     params: &ModelParams,
     cameras: &Cameras,
+    surface: &[[Vec3; 2]],
 ) -> (Vec<Inferred>, Vec<Wall>) {
     let Some(viewpoint) = cameras.mean() else {
         return (Vec::new(), Vec::new());
@@ -116,7 +117,7 @@ pub(crate) fn infer(
     let ring = |r: &[usize]| r.iter().map(|&k| vertices[k].point).collect::<Vec<_>>();
     let outlines: Vec<Outline> = faces.iter().map(|f| Outline::of(&ring(&f.ring), f.normal)).collect();
     let sizes = params.opening_sizes();
-    let walls = walls(vertices, edges, planes, plane_edges, cos_par, &viewpoint, sizes);
+    let walls = walls(vertices, edges, planes, plane_edges, surface, cos_par, &viewpoint, sizes);
     // Recessed faces first, then rectangles; each only where no opening is on the wall there yet.
     let mut proposals = from_recesses(vertices, faces, &outlines, &walls, cos_par, centres, sizes);
     for (k, w) in walls.iter().enumerate() {
@@ -213,12 +214,15 @@ pub(crate) fn add(inferred: Vec<Inferred>, vertices: &mut Vec<Vertex>, edges: &m
 /// The walls, most edges first: vertical planes whose edges (at least [`MIN_WALL_EDGES`]) spread
 /// [`MIN_WALL_SPAN_M`] across and up and outnumber those of every parallel plane within the deepest recess of them (a row
 /// of sill fronts, the reveals of a column of windows or a frame's own plane are no wall), each with the observed
-/// edges behind it gathered into sides. Where no face makes a wall, the edges alone may ([`wall_from_edges`]).
+/// edges behind it gathered into sides. Where no face makes a wall, the edges alone may, with the `surface` lines
+/// ([`wall_from_edges`]).
+#[allow(clippy::too_many_arguments)]
 fn walls(
     vertices: &[Vertex],
     edges: &[Edge],
     planes: &[Plane],
     plane_edges: &[Vec<&Edge>],
+    surface: &[[Vec3; 2]],
     cos_par: f64,
     viewpoint: &Vec3,
     sizes: OpeningSizes,
@@ -253,7 +257,7 @@ fn walls(
     let mut chosen: Vec<Plane> = chosen.into_iter().map(|(_, k)| planes[k]).collect();
     // The faces' planes count closed faces, and deep frames close more of them than the wall in front: the wall of
     // the edges comes first, in place of the planes within a recess of it.
-    if let Some(wall) = wall_from_edges(vertices, edges, viewpoint) {
+    if let Some(wall) = wall_from_edges(vertices, edges, surface, viewpoint) {
         chosen.retain(|p| !parallel_near(p, &wall));
         chosen.insert(0, wall);
     }
@@ -591,6 +595,7 @@ pub(super) mod tests {
             &edges,
             &[wall, wall],
             &[in_wall.clone(), in_wall],
+            &[],
             cos_par,
             &viewpoint,
             ModelParams::default().opening_sizes(),
