@@ -1,15 +1,18 @@
 //! Geometry of 2-D line segments in oriented images, shared by the stages that turn them into 3-D lines: each
 //! image's segments indexed in ideal photo coordinates ([`segments`]) and the estimate of a 3-D line from the
 //! interpretation planes of every image's segment of it ([`multiview`]), and the 2-D line segments are measured
-//! against ([`line2`]), and whether a 3-D line is an edge of the building or lies inside a surface ([`class`]).
+//! against ([`line2`]), whether a 3-D line is an edge of the building or lies inside a surface ([`class`]), and
+//! the plumb and level directions lines nearly following them are turned onto ([`plumb_level`]).
 #![warn(missing_docs)]
 
 pub mod class;
 pub mod line2;
 pub mod multiview;
+pub mod plumb_level;
 pub mod segments;
 
 pub use class::{classify, classify_elements, classify_supported, ClassRule, RuleError, Sight};
 pub use line2::Line2;
 pub use multiview::{refine_line, refine_line_along, MultiviewLine, MultiviewParams};
+pub use plumb_level::{plan_azimuth, snap_plumb_and_level};
 pub use segments::{FrameSegments, SlaveSegments};

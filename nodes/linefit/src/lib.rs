@@ -38,6 +38,9 @@ pub struct FitParams {
     pub multiview_max_distance_px: f64,
     /// Images a line needs to be re-estimated.
     pub multiview_min_views: usize,
+    /// Lines within this angle of plumb, or of level along the façade's plan direction or square to it, are turned
+    /// onto it about their midpoint, degrees ([`lineflow_linegeom::plumb_level`]); 0 turns none.
+    pub snap_deg: f64,
     /// Class each line as structure or texture ([`lineflow_linegeom::class`]; the `class` column of
     /// `lines3d.csv`); off, every line is left unclassed.
     pub classify: bool,
@@ -59,6 +62,7 @@ impl Default for FitParams {
             multiview: true,
             multiview_max_distance_px: 2.5,
             multiview_min_views: 3,
+            snap_deg: 8.0,
             classify: true,
             class: ClassRule::default(),
         }
@@ -85,6 +89,7 @@ impl lineflow_runtime::StageParams for FitParams {
         non_negative("min_length_m", self.min_length_m)?;
         in_closed("min_inlier_share", self.min_inlier_share, 0.0, 1.0)?;
         in_half_open("merge_angle_deg", self.merge_angle_deg, 0.0, 90.0)?;
+        in_half_open("snap_deg", self.snap_deg, 0.0, 45.0)?;
         positive("multiview_max_distance_px", self.multiview_max_distance_px)?;
         at_least("multiview_min_views", self.multiview_min_views, 2)?;
         at_least("min_points", self.min_points, 2)?;
@@ -128,6 +133,18 @@ pub fn refine_multiview(
         }
     }
     (moved, (sum_sq / moved.max(1) as f64).sqrt())
+}
+
+/// Turns the lines nearly plumb or level onto those directions ([`lineflow_linegeom::snap_plumb_and_level`]) with
+/// `p.snap_deg`; returns how many turned.
+pub fn snap(lines: &mut [Merged], p: &FitParams) -> usize {
+    let mut ends: Vec<[Vec3; 2]> = lines.iter().map(|l| [l.start, l.end]).collect();
+    let turned = lineflow_linegeom::snap_plumb_and_level(&mut ends, p.snap_deg);
+    for (l, [a, b]) in lines.iter_mut().zip(ends) {
+        l.start = a;
+        l.end = b;
+    }
+    turned
 }
 
 /// The fragment of one point group, when its fit passes the support tests.

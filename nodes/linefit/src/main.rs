@@ -8,7 +8,7 @@ use std::collections::BTreeMap;
 
 use anyhow::Result;
 use lineflow_formats::{write_lines3d_results, Line3Row};
-use lineflow_linefit::{fit_group, merge, refine_multiview, FitParams, Fragment, Merged, Method, MULTIVIEW_MIN_SEGMENT_PX};
+use lineflow_linefit::{fit_group, merge, refine_multiview, snap, FitParams, Fragment, Merged, Method, MULTIVIEW_MIN_SEGMENT_PX};
 use lineflow_linegeom::{classify_elements, FrameSegments, Sight, SlaveSegments};
 use lineflow_messages::{kinds, parts, Line3, LineClass, Lines3DHeader, Point3, PointGroup, Segment2, Stamp, StampFlags};
 use lineflow_photogrammetry::{Camera, Pose, Vec3};
@@ -114,6 +114,7 @@ fn run(ctx: NodeContext, method: Method) -> Result<()> {
         if let Some(&newest) = received.last() {
             let all: Vec<Fragment> = fragments.values().flatten().cloned().collect();
             merged = merge(&all, &params.rule());
+            snap(&mut merged, &params);
             // Classed once per set: the frames of one wake share it.
             let lines = elements(&merged, &params, camera.as_ref(), &poses);
             for stamp in lineflow_runtime::frames_to_publish(&received, &mut published) {
@@ -143,6 +144,7 @@ fn run(ctx: NodeContext, method: Method) -> Result<()> {
                 .map(|(pose, segments)| SlaveSegments { pose: *pose, segments })
                 .collect();
             let (moved, rms_px) = refine_multiview(cam, &mut merged, &views, &params);
+            snap(&mut merged, &params);
             tracing::info!(
                 "{moved} of {} lines re-estimated from the 2-D segments of {} images (residual RMS {rms_px:.2} px) in {:.2} s",
                 merged.len(),
