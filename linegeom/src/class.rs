@@ -121,10 +121,15 @@ impl Sight<'_> {
 /// The class of each segment `[start, end]` (object coordinates, metres) by its neighbours alone. Independent of
 /// the order of the lines.
 pub fn classify(lines: &[[Vec3; 2]], rule: &ClassRule) -> Vec<LineClass> {
+    by_field(lines, rule).0
+}
+
+/// [`classify`], and the grid of the lines it searched (cells of `reach_m` or `corner_m`, whichever is larger).
+fn by_field(lines: &[[Vec3; 2]], rule: &ClassRule) -> (Vec<LineClass>, Grid) {
     let grid = Grid::of(lines, rule.reach_m.max(rule.corner_m));
     let mut seen = vec![usize::MAX; lines.len()];
     let mut near = Vec::new();
-    (0..lines.len())
+    let class = (0..lines.len())
         .map(|k| {
             let Some(u) = direction(&lines[k]) else {
                 return LineClass::Structure;
@@ -138,14 +143,15 @@ pub fn classify(lines: &[[Vec3; 2]], rule: &ClassRule) -> Vec<LineClass> {
                 LineClass::Structure
             }
         })
-        .collect()
+        .collect();
+    (class, grid)
 }
 
 /// The class of each segment by its neighbours and, with `sight`, by its support: `shown[k]` images show line
 /// `k` (its `n_images`); a structure line shown by fewer than `min_support` of the images that see it becomes
 /// texture, unless an end of it lies within `corner_m` of an end of a line across it that keeps its class.
 pub fn classify_supported(lines: &[[Vec3; 2]], shown: &[u32], sight: Option<Sight>, rule: &ClassRule) -> Vec<LineClass> {
-    let mut class = classify(lines, rule);
+    let (mut class, grid) = by_field(lines, rule);
     let Some(sight) = sight.filter(|_| rule.min_support > 0.0) else {
         return class;
     };
@@ -155,7 +161,7 @@ pub fn classify_supported(lines: &[[Vec3; 2]], shown: &[u32], sight: Option<Sigh
         .zip(shown)
         .map(|((l, c), &n)| *c == LineClass::Structure && (n as f64) < rule.min_support * sight.images_seeing(l) as f64)
         .collect();
-    let grid = Grid::of(lines, rule.corner_m);
+    // The field's grid serves: its cells are at least `corner_m`.
     let mut seen = vec![usize::MAX; lines.len()];
     let mut near = Vec::new();
     for k in (0..lines.len()).filter(|&k| weak[k]) {
@@ -416,23 +422,37 @@ mod tests {
     }
 
     /// Nine cameras 20 m in front of the wall y = 0, one every metre along it, looking at it.
-    fn strip() -> (Camera, Vec<Pose>) {
-        let poses = (0..9)
-            .map(|k| Pose {
-                center: Vec3::new(1.0 + k as f64, -20.0, 1.5),
-                rotation: lineflow_photogrammetry::rotation_from_opk(std::f64::consts::FRAC_PI_2, 0.0, 0.0),
-            })
-            .collect();
-        (Camera::pinhole(4000, 3000, 0.005, 20.0), poses)
+    struct Strip {
+        camera: Camera,
+        poses: Vec<Pose>,
+    }
+
+    impl Strip {
+        fn new() -> Strip {
+            let poses = (0..9)
+                .map(|k| Pose {
+                    center: Vec3::new(1.0 + k as f64, -20.0, 1.5),
+                    rotation: lineflow_photogrammetry::rotation_from_opk(std::f64::consts::FRAC_PI_2, 0.0, 0.0),
+                })
+                .collect();
+            Strip {
+                camera: Camera::pinhole(4000, 3000, 0.005, 20.0),
+                poses,
+            }
+        }
+
+        fn sight(&self) -> Sight<'_> {
+            Sight {
+                camera: &self.camera,
+                poses: &self.poses,
+            }
+        }
     }
 
     #[test]
     fn lines_few_of_the_images_seeing_them_show_are_texture_unless_they_turn_a_corner_with_one_that_passes() {
-        let (camera, poses) = strip();
-        let sight = Sight {
-            camera: &camera,
-            poses: &poses,
-        };
+        let strip = Strip::new();
+        let sight = strip.sight();
         // Two courses alone (no field around them), a window head and its jamb meeting at a corner, and a short
         // piece of a sill meeting the jamb's other end.
         let lines = vec![
@@ -463,11 +483,8 @@ mod tests {
 
     #[test]
     fn a_line_no_image_sees_is_never_weak() {
-        let (camera, poses) = strip();
-        let sight = Sight {
-            camera: &camera,
-            poses: &poses,
-        };
+        let strip = Strip::new();
+        let sight = strip.sight();
         // 40 m up the wall, out of every frame; and behind the cameras.
         let lines = vec![level(1.0, 3.0, 0.0, 40.0), level(1.0, 3.0, -30.0, 1.0)];
         assert!(lines.iter().all(|l| sight.images_seeing(l) == 0));

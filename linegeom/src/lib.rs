@@ -14,5 +14,5 @@ pub mod segments;
 pub use class::{classify, classify_elements, classify_supported, ClassRule, RuleError, Sight};
 pub use line2::Line2;
 pub use multiview::{refine_line, refine_line_along, MultiviewLine, MultiviewParams};
-pub use plumb_level::{plan_azimuth, snap_plumb_and_level};
+pub use plumb_level::{azimuth_mod_quarter, plan_azimuth, signed_quarter, snap_plumb_and_level};
 pub use segments::{FrameSegments, SlaveSegments};

@@ -19,7 +19,7 @@ pub fn plan_azimuth(lines: &[[Vec3; 2]], max_deg: f64) -> Option<f64> {
         .filter_map(|[a, b]| {
             let d = b - a;
             let (h, len) = (d.x.hypot(d.y), d.norm());
-            (len > 1e-9 && d.z.abs().atan2(h) < max_deg.to_radians()).then(|| (d.y.atan2(d.x).rem_euclid(quarter), len))
+            (len > 1e-9 && d.z.abs().atan2(h) < max_deg.to_radians()).then(|| (azimuth_mod_quarter(&d), len))
         })
         .collect();
     let mut bins = [0.0f64; 90];
@@ -33,7 +33,7 @@ pub fn plan_azimuth(lines: &[[Vec3; 2]], max_deg: f64) -> Option<f64> {
     // The mean of the azimuths within 1.5° of the bin's centre, taken as offsets from it (the bins wrap at 90°).
     let centre = (best as f64 + 0.5).to_radians();
     let (sum, total) = level.iter().fold((0.0, 0.0), |(s, t), &(az, len)| {
-        let off = turn_to(az, centre);
+        let off = signed_quarter(az - centre);
         if off.abs() <= 1.5f64.to_radians() {
             (s + off * len, t + len)
         } else {
@@ -43,10 +43,20 @@ pub fn plan_azimuth(lines: &[[Vec3; 2]], max_deg: f64) -> Option<f64> {
     Some((centre + sum / total).rem_euclid(quarter))
 }
 
-/// The signed angle from `to` to `azimuth`, modulo 90°, in [-45°, 45°).
-fn turn_to(azimuth: f64, to: f64) -> f64 {
-    let quarter = std::f64::consts::FRAC_PI_2;
-    (azimuth - to + quarter / 2.0).rem_euclid(quarter) - quarter / 2.0
+/// Plan azimuth of a direction modulo 90°, radians in [0, π/2).
+pub fn azimuth_mod_quarter(d: &Vec3) -> f64 {
+    d.y.atan2(d.x).rem_euclid(std::f64::consts::FRAC_PI_2)
+}
+
+/// An azimuth difference folded into (−45°, 45°], radians.
+pub fn signed_quarter(d: f64) -> f64 {
+    let q = std::f64::consts::FRAC_PI_2;
+    let r = d.rem_euclid(q);
+    if r > q / 2.0 {
+        r - q
+    } else {
+        r
+    }
 }
 
 /// Turns each line within `max_deg` of plumb, or of level along the plan direction ([`plan_azimuth`]) or square
@@ -71,7 +81,7 @@ pub fn snap_plumb_and_level(lines: &mut [[Vec3; 2]], max_deg: f64) -> usize {
         } else if slope < limit {
             plan.and_then(|plan| {
                 let azimuth = d.y.atan2(d.x);
-                let off = turn_to(azimuth, plan);
+                let off = signed_quarter(azimuth - plan);
                 (off.abs() < limit).then(|| Vec3::new((azimuth - off).cos(), (azimuth - off).sin(), 0.0))
             })
         } else {
@@ -131,7 +141,7 @@ mod tests {
         // Level lines at 89.6° and 0.2°: one direction, 0.3° on average (modulo 90°).
         let at = |deg: f64| [Vec3::zeros(), Vec3::new(deg.to_radians().cos(), deg.to_radians().sin(), 0.0)];
         let az = plan_azimuth(&[at(89.6), at(0.2), at(0.2), at(90.2)], 8.0).expect("a direction");
-        let off = turn_to(az, 0.0).to_degrees();
+        let off = signed_quarter(az).to_degrees();
         assert!((off - 0.05).abs() < 0.01, "{off}");
         assert!(plan_azimuth(&[[Vec3::zeros(), Vec3::z()]], 8.0).is_none());
     }

@@ -911,7 +911,7 @@ pub fn classify_file(
 /// Classes `rows` with `rule` (`lineflow classify`), by their support too when `sight` gives the cameras;
 /// returns how many are texture.
 pub fn classify_rows(rows: &mut [lineflow_formats::Line3Row], rule: &ClassRule, sight: Option<lineflow_linegeom::Sight>) -> usize {
-    let segments: Vec<[Vec3; 2]> = rows.iter().map(|r| [r.start, r.end]).collect();
+    let segments = segments_of(rows);
     // A row without `n_images` (another tool's file) cannot be weighed: never weak.
     let shown: Vec<u32> = rows.iter().map(|r| r.n_images.unwrap_or(u32::MAX)).collect();
     let classes = lineflow_linegeom::classify_supported(&segments, &shown, sight, rule);
@@ -921,6 +921,11 @@ pub fn classify_rows(rows: &mut [lineflow_formats::Line3Row], rule: &ClassRule, 
     rows.iter().filter(|r| r.class == LineClass::Texture).count()
 }
 
+/// The rows' segments, for the classing.
+fn segments_of(rows: &[lineflow_formats::Line3Row]) -> Vec<[Vec3; 2]> {
+    rows.iter().map(|r| [r.start, r.end]).collect()
+}
+
 /// The model's lines from `lines3d.csv` rows (or `Lines3D` elements through their rows), each with the endpoint
 /// σ its statistics give and its class; when no row is classed (another tool's lines, an older run) and
 /// `texture_lines` is not `keep`, they are classed here with `class`.
@@ -928,8 +933,7 @@ pub fn lines_from_rows(rows: &[lineflow_formats::Line3Row], params: &ModelParams
     let unclassed = rows.iter().all(|r| r.class == LineClass::Unknown);
     let classes: Vec<LineClass> = if unclassed && params.texture_lines != TextureLines::Keep {
         // No cameras here: by the lines' neighbours alone.
-        let segments: Vec<[Vec3; 2]> = rows.iter().map(|r| [r.start, r.end]).collect();
-        lineflow_linegeom::classify(&segments, &params.class)
+        lineflow_linegeom::classify(&segments_of(rows), &params.class)
     } else {
         rows.iter().map(|r| r.class).collect()
     };

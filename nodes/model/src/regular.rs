@@ -6,6 +6,7 @@
 //! tilt goes: a corner between a plumb and a level line is then known to σ/√2 along both, where two free lines
 //! give σ. The dominant plan directions come from the level lines themselves (modes of their azimuth modulo
 //! 90°), so a site frame need not be aligned with the building.
+use lineflow_linegeom::{azimuth_mod_quarter, signed_quarter};
 use lineflow_photogrammetry::Vec3;
 
 use crate::ModelLine;
@@ -69,11 +70,6 @@ fn gate(line: &ModelLine, axes: &[usize], p: &RegularParams) -> f64 {
     (p.k * direction_sigma(line, axes)).min(p.max_deg.to_radians())
 }
 
-/// Plan azimuth modulo 90°, radians in [0, π/2).
-pub(crate) fn azimuth_mod_quarter(d: &Vec3) -> f64 {
-    d.y.atan2(d.x).rem_euclid(std::f64::consts::FRAC_PI_2)
-}
-
 /// The smallest angle between two azimuths modulo 90°, radians.
 fn quarter_gap(a: f64, b: f64) -> f64 {
     signed_quarter(a - b).abs()
@@ -117,17 +113,6 @@ fn plan_directions(levels: &[(f64, f64, f64)], p: &RegularParams) -> Vec<f64> {
         left.retain(|l| quarter_gap(l.0, best) >= l.2);
     }
     modes
-}
-
-/// An azimuth difference folded into (−45°, 45°].
-pub(crate) fn signed_quarter(d: f64) -> f64 {
-    let q = std::f64::consts::FRAC_PI_2;
-    let r = d.rem_euclid(q);
-    if r > q / 2.0 {
-        r - q
-    } else {
-        r
-    }
 }
 
 /// The line turned onto direction `dir` about its midpoint.

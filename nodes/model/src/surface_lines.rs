@@ -13,9 +13,9 @@
 use lineflow_photogrammetry::Vec3;
 
 use crate::openings::{Outline, Wall};
-use crate::regular::{azimuth_mod_quarter, signed_quarter};
 use crate::surface::{Face, SurfaceKind};
 use crate::{Edge, Vertex};
+use lineflow_linegeom::{azimuth_mod_quarter, signed_quarter};
 
 /// The settings of the separation.
 #[derive(Debug, Clone)]

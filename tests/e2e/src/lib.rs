@@ -54,6 +54,10 @@ impl Sandbox {
             .stdin(Stdio::null());
         c
     }
+    /// `lineflow run GRAPH --out OUT`, to be spawned (a run watched, stopped or killed while it goes).
+    pub fn run_command(&self, graph: &Path, out: &Path) -> Command {
+        self.lineflow(&["run", graph.to_str().unwrap(), "--out", out.to_str().unwrap()])
+    }
     /// Runs `lineflow ARGS` to the end, echoing its stderr.
     pub fn run(&self, args: &[&str]) -> Output {
         let out = self.lineflow(args).output().unwrap();

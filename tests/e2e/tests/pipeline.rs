@@ -202,11 +202,7 @@ fn kill_gray_mid_run(sb: &Sandbox, history: usize) -> (Output, PathBuf) {
     let folder = sb.project(40, 48, 32);
     let graph = sb.graph("g.toml", &chain_graph(&folder, 20, history));
     let out = sb.path().join("out");
-    let child = sb
-        .lineflow(&["run", graph.to_str().unwrap(), "--out", out.to_str().unwrap()])
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
+    let child = sb.run_command(&graph, &out).stderr(Stdio::piped()).spawn().unwrap();
     let start = Instant::now();
     while children_of(child.id(), "lineflow-conver").is_empty() {
         assert!(start.elapsed() < Duration::from_secs(20), "gray never started");
@@ -327,10 +323,7 @@ fn watch_mode_reads_a_jpeg_written_in_chunks_once_and_complete() {
         &direct_graph(&folder, ", watch = true, idle_timeout_s = 20, settle_ms = 200", ""),
     );
     let out = sb.path().join("out");
-    let child = sb
-        .lineflow(&["run", graph.to_str().unwrap(), "--out", out.to_str().unwrap()])
-        .spawn()
-        .unwrap();
+    let child = sb.run_command(&graph, &out).spawn().unwrap();
     let img = image::RgbImage::from_fn(64, 48, |x, y| image::Rgb([x as u8 * 3, y as u8 * 5, 77]));
     let mut jpeg = Vec::new();
     image::codecs::jpeg::JpegEncoder::new_with_quality(&mut jpeg, 90)
@@ -776,7 +769,7 @@ fn an_input_whose_publisher_leaves_without_end_of_stream_is_ended_and_the_run_fi
     // The log goes to a file: a pipe nobody reads while we wait could fill up and stall the run.
     let log = sb.path().join("run.log");
     let mut child = sb
-        .lineflow(&["run", graph.to_str().unwrap(), "--out", out.to_str().unwrap()])
+        .run_command(&graph, &out)
         .stderr(std::fs::File::create(&log).unwrap())
         .spawn()
         .unwrap();
@@ -1080,11 +1073,7 @@ fn start_watching_run(sb: &Sandbox, frames: usize) -> (std::process::Child, Path
     let folder = sb.project(frames, 16, 16);
     let graph = sb.graph("g.toml", &direct_graph(&folder, ", watch = true, idle_timeout_s = 120.0", ""));
     let out = sb.path().join("out");
-    let child = sb
-        .lineflow(&["run", graph.to_str().unwrap(), "--out", out.to_str().unwrap()])
-        .stderr(Stdio::null())
-        .spawn()
-        .unwrap();
+    let child = sb.run_command(&graph, &out).stderr(Stdio::null()).spawn().unwrap();
     (child, out)
 }
 
