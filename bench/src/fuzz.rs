@@ -313,7 +313,12 @@ pub fn targets() -> Result<Vec<Target>> {
             seed: recording_seed()?,
             parse: |p| {
                 let Ok(rec) = lineflow_recordings::Recording::open(p) else { return };
-                let _ = lineflow_recordings::tools::summarize(&rec);
+                for reading in [
+                    lineflow_recordings::tools::Reading::Index,
+                    lineflow_recordings::tools::Reading::Messages,
+                ] {
+                    let _ = lineflow_recordings::tools::summarize(&rec, reading);
+                }
                 let _ = rec.for_each_message(|m| {
                     if let Some(kind) = m.kind {
                         let _ = lineflow_messages::schema::decode(kind, &m.data);

@@ -10,6 +10,7 @@ mod linematch;
 mod lines2d;
 pub mod model;
 mod modelfit;
+pub mod reader;
 mod record;
 mod render;
 pub mod seed001;
@@ -252,6 +253,19 @@ pub enum BenchCmd {
         #[arg(long, default_value_t = 1280)]
         preview_max_px: u32,
     },
+    /// Recordings larger than memory: `info`, `info --verify` and `export` of one topic as child processes, their
+    /// wall time and peak RSS, against a plain read of the file.
+    Reader {
+        /// Size of the recording written for the test, GB.
+        #[arg(long, default_value_t = 10.0)]
+        gb: f64,
+        /// Where to write it (a temporary folder, removed after, by default).
+        #[arg(long)]
+        dir: Option<std::path::PathBuf>,
+        /// One JSON object instead of the table.
+        #[arg(long)]
+        json: bool,
+    },
     /// (internal) the subscribing side of the iceoryx2 benchmark.
     #[command(hide = true)]
     IoxSub {
@@ -354,5 +368,6 @@ pub fn bench(cmd: BenchCmd) -> Result<ExitCode> {
             height,
             preview_max_px,
         } => record::bench_record(frames, width, height, preview_max_px),
+        BenchCmd::Reader { gb, dir, json } => reader::bench_reader(gb, dir, json),
     }
 }

@@ -21,7 +21,7 @@ use lineflow_synthetic::rng::Rng;
 const TARGET_MBPS: f64 = 500.0;
 
 /// A camera-like frame: a smooth pattern plus per-pixel noise, so that compression cannot cheat.
-fn frame(width: u32, height: u32, seed: u64) -> Vec<u8> {
+pub(crate) fn frame(width: u32, height: u32, seed: u64) -> Vec<u8> {
     let mut rng = Rng::new(seed, 0);
     let mut out = Vec::with_capacity(width as usize * height as usize * 3);
     for y in 0..height {
@@ -36,6 +36,29 @@ fn frame(width: u32, height: u32, seed: u64) -> Vec<u8> {
         }
     }
     out
+}
+
+/// The CDR of frame `k` of a 30 Hz stream, `pixels` with one byte changed so that frames differ; returns its
+/// capture time.
+pub(crate) fn frame_cdr(k: usize, width: u32, height: u32, pixels: &[u8], cdr: &mut Vec<u8>) -> u64 {
+    let stamp = Stamp {
+        frame: k as u64,
+        capture_time_ns: 1_600_000_000_000_000_000 + k as u64 * 33_333_333,
+        ..Default::default()
+    };
+    let h = ImageHeader {
+        stamp,
+        width,
+        height,
+        step: width * 3,
+        encoding: Encoding::Rgb8 as u32,
+        ..Default::default()
+    };
+    let mut px = pixels.to_vec();
+    let at = k % px.len();
+    px[at] ^= 0x55;
+    encode(MessageKind::Image, bytes_of(&h), &px, cdr);
+    stamp.capture_time_ns
 }
 
 fn disk_mbps(dir: &Path, frame: &[u8], frames: usize) -> Result<f64> {
@@ -70,25 +93,8 @@ pub fn bench_record(frames: usize, width: u32, height: u32, preview_max_px: u32)
     w.add_topic("images", MessageKind::Image)?;
     let mut cdr = Vec::new();
     for k in 0..frames {
-        let stamp = Stamp {
-            frame: k as u64,
-            capture_time_ns: 1_600_000_000_000_000_000 + k as u64 * 33_333_333,
-            ..Default::default()
-        };
-        let h = ImageHeader {
-            stamp,
-            width,
-            height,
-            step: width * 3,
-            encoding: Encoding::Rgb8 as u32,
-            ..Default::default()
-        };
-        // Frames differ by their noise; one pattern keeps generation cheap.
-        let mut px = pixels.clone();
-        let at = k % px.len();
-        px[at] ^= 0x55;
-        encode(MessageKind::Image, bytes_of(&h), &px, &mut cdr);
-        w.write("images", k as u64, stamp.capture_time_ns, &cdr)?;
+        let capture_time_ns = frame_cdr(k, width, height, &pixels, &mut cdr);
+        w.write("images", k as u64, capture_time_ns, &cdr)?;
     }
     w.finish()?;
 

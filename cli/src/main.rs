@@ -169,6 +169,10 @@ enum Cmd {
         /// Print one JSON object instead of the table.
         #[arg(long)]
         json: bool,
+        /// Read every message and check every chunk's checksum (by default a finished file's summary is trusted,
+        /// which takes milliseconds on a file of any size).
+        #[arg(long)]
+        verify: bool,
     },
     /// Compare two recordings topic by topic, message by message; exit status 1 when they differ.
     Diff {
@@ -380,7 +384,7 @@ fn main() -> ExitCode {
             topics: &topics,
             verbosity: verbosity.into(),
         }),
-        Cmd::Info { recording, json } => recordings::info(&recording, json),
+        Cmd::Info { recording, json, verify } => recordings::info(&recording, json, verify),
         Cmd::Diff { a, b } => recordings::diff(&a, &b),
         Cmd::Export { recording, topic, out } => recordings::export(&recording, &topic, &out),
         Cmd::Recover { recording, out } => recordings::recover(&recording, &out),
@@ -442,6 +446,7 @@ fn main() -> ExitCode {
         },
         Cmd::Bench { what } => lineflow_bench::bench(what),
     };
+    lineflow_bench::reader::report_peak_rss();
     match result {
         Ok(code) => code,
         Err(e) => {

@@ -8,7 +8,7 @@ use lineflow_formats::{Line2Row, Line3Row, PoseRow};
 use lineflow_messages::schema::{decode, decode_view, read_elements, read_pod, Decoded};
 use lineflow_messages::{parts, EdgeMapHeader, Encoding, ImageHeader, Line3, Lines2DHeader, MessageKind, Pose, Segment2};
 use lineflow_recordings::replay::{playback_graph, recorded_programs, rerun_graph, Pace};
-use lineflow_recordings::{tools, Recording};
+use lineflow_recordings::{tools, tools::Reading, Recording};
 use lineflow_runtime::launch::Resolver;
 use lineflow_runtime::run::Verbosity;
 
@@ -104,18 +104,14 @@ fn confirm_programs(rec: &Recording, programs: &[(String, String)]) -> Result<()
 }
 
 /// `lineflow info`.
-pub fn info(path: &Path, json: bool) -> Result<ExitCode> {
+pub fn info(path: &Path, json: bool, verify: bool) -> Result<ExitCode> {
     let rec = Recording::open(path)?;
-    if json {
-        println!("{}", serde_json::to_string(&tools::summarize(&rec))?);
-    } else {
-        print!("{}", tools::info(&rec));
+    let summary = tools::summarize(&rec, if verify { Reading::Messages } else { Reading::Index });
+    match json {
+        true => println!("{}", serde_json::to_string(&summary)?),
+        false => print!("{}", tools::info(&summary)),
     }
-    Ok(if rec.damage.is_some() {
-        ExitCode::from(2)
-    } else {
-        ExitCode::SUCCESS
-    })
+    Ok(ExitCode::from(if summary.damaged { 2 } else { 0 }))
 }
 
 /// `lineflow diff`: exit status 0 when equal, 1 when they differ.

@@ -9,19 +9,21 @@
 //! [`META_END`] (completeness and every node's counters) at the end.
 #![warn(missing_docs)]
 pub mod fields;
+mod reader;
 pub mod replay;
 pub mod tools;
 pub mod views;
 pub mod writer;
 
 use std::collections::BTreeMap;
+use std::io::{Read, Seek, SeekFrom};
 use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context, Result};
 use lineflow_messages::schema::{self, MessageSchema};
 use lineflow_messages::MessageKind;
 
-pub use writer::{Compression, McapWriter};
+pub use writer::{Compression, McapWriter, TopicTotals};
 
 /// Metadata record written at the start: `version`, `run_id`, `graph_name`, `launch_path`, `launch_text`,
 /// `graph_json`, and `node.<name>` = the node's stage, implementation and command.
@@ -29,6 +31,9 @@ pub const META_RUN: &str = "lineflow.run";
 /// Metadata record written when the recorder finishes: `complete`, `reason`, `topic.<topic>.messages`,
 /// `topic.<topic>.ended`, `node.<name>.{in,out,drops,missed}`.
 pub const META_END: &str = "lineflow.end";
+/// Metadata record written by [`McapWriter::finish`]: `topic.<topic>.{messages,bytes,largest,first_log,last_log}`
+/// ([`TopicTotals`]), so that a finished file's totals need no pass over its messages.
+pub const META_TOPICS: &str = "lineflow.topics";
 /// Channel metadata key marking a viewer channel.
 pub const VIEW_KEY: &str = "lineflow.view";
 /// The MCAP profile of lineflow recordings.
@@ -75,11 +80,13 @@ pub struct ChannelInfo {
 /// Per topic: schema (name, encoding, text), message encoding, viewer channel.
 pub type RawChannels = std::collections::HashMap<String, ((String, String, Vec<u8>), String, bool)>;
 
-/// An opened recording: its bytes, parsed metadata and, for a finished file, the summary.
+/// An opened recording: its parsed metadata and, for a finished file, the summary. The messages stay in the file
+/// and are streamed when asked for, so a recording of any size opens in bounded memory.
 pub struct Recording {
     /// The file.
     pub path: PathBuf,
-    bytes: Vec<u8>,
+    /// Its size in bytes when opened.
+    pub size_bytes: u64,
     /// The summary section; `None` when the recorder did not finish (killed, disk full) or it is corrupt.
     pub summary: Option<mcap::Summary>,
     /// Why the summary is missing.
@@ -89,23 +96,34 @@ pub struct Recording {
 }
 
 impl Recording {
-    /// Opens a recording.
+    /// Opens a recording, reading its start, its footer and summary and its metadata records.
     ///
     /// # Errors
     /// When the file cannot be read or is not an MCAP file. A file without summary (not finished) opens; its
     /// `summary` is `None` and reading its messages stops at the first incomplete record.
     pub fn open(path: &Path) -> Result<Self> {
-        let bytes = std::fs::read(path).with_context(|| format!("{}: cannot read", path.display()))?;
-        if bytes.len() < MAGIC.len() || &bytes[..MAGIC.len()] != MAGIC {
+        let cannot_read = || format!("{}: cannot read", path.display());
+        let mut file = std::fs::File::open(path).with_context(cannot_read)?;
+        let size_bytes = file.metadata().with_context(cannot_read)?.len();
+        let mut head = Vec::with_capacity(MAGIC.len());
+        (&mut file)
+            .take(MAGIC.len() as u64)
+            .read_to_end(&mut head)
+            .with_context(cannot_read)?;
+        if head != MAGIC {
             bail!(
                 "{}: not an MCAP file (starts with {:02x?} instead of the MCAP magic)",
                 path.display(),
-                &bytes[..bytes.len().min(8)]
+                &head
             );
         }
-        let finished = bytes.len() >= 2 * MAGIC.len() && &bytes[bytes.len() - MAGIC.len()..] == MAGIC;
+        let mut tail = [0u8; MAGIC.len()];
+        let finished = size_bytes >= 2 * MAGIC.len() as u64
+            && file.seek(SeekFrom::End(-(MAGIC.len() as i64))).is_ok()
+            && file.read_exact(&mut tail).is_ok()
+            && tail == MAGIC;
         let (summary, damage) = if finished {
-            match std::panic::catch_unwind(|| mcap::Summary::read(&bytes)) {
+            match std::panic::catch_unwind(|| reader::summary(path, size_bytes)) {
                 Ok(Ok(s)) => (s, None),
                 Ok(Err(e)) => (None, Some(format!("the summary section is corrupt ({e})"))),
                 Err(_) => (None, Some("the summary section is corrupt".to_owned())),
@@ -116,15 +134,21 @@ impl Recording {
                 Some("the file ends without summary and footer: the recorder did not finish".to_owned()),
             )
         };
-        let mut rec = Self {
+        // Metadata records sit outside chunks: the summary indexes them; without it a scan over the chunks finds
+        // them in unfinished files too.
+        let metadata = match &summary {
+            Some(s) if !s.metadata_indexes.is_empty() => {
+                reader::indexed_metadata(path, s).with_context(|| format!("{}: cannot read its metadata", path.display()))?
+            }
+            _ => reader::scanned_metadata(path),
+        };
+        Ok(Self {
             path: path.to_owned(),
-            bytes,
+            size_bytes,
             summary,
             damage,
-            metadata: BTreeMap::new(),
-        };
-        rec.metadata = rec.read_metadata();
-        Ok(rec)
+            metadata,
+        })
     }
 
     /// Whether the file ends properly (summary and footer written).
@@ -145,30 +169,12 @@ impl Recording {
         self.metadata.get(META_RUN).and_then(|m| m.get(key)).map(String::as_str)
     }
 
-    fn read_metadata(&self) -> BTreeMap<String, BTreeMap<String, String>> {
-        let mut out = BTreeMap::new();
-        // Metadata records sit outside chunks; a linear scan finds them in finished and unfinished files alike.
-        let Ok(reader) = record_stream(&self.bytes) else {
-            return out;
-        };
-        for record in reader {
-            match record {
-                Ok(mcap::records::Record::Metadata(m)) => {
-                    out.insert(m.name, m.metadata);
-                }
-                Ok(_) => {}
-                Err(_) => break,
-            }
-        }
-        out
-    }
-
-    /// Calls `f` with every message in file order.
+    /// Calls `f` with every message in file order, streamed from the file.
     ///
     /// # Errors
     /// The first error of `f`, or of the file (truncated or corrupt), naming the byte offset region.
     pub fn for_each_message(&self, mut f: impl FnMut(RecordedMessage) -> Result<()>) -> Result<()> {
-        let stream = message_stream(&self.bytes).with_context(|| format!("{}: cannot read messages", self.path.display()))?;
+        let stream = reader::messages(&self.path).with_context(|| format!("{}: cannot read messages", self.path.display()))?;
         for (count, m) in stream.enumerate() {
             let m = match m {
                 Ok(m) => m,
@@ -195,11 +201,29 @@ impl Recording {
         Ok(())
     }
 
+    /// Each topic's totals from the [`META_TOPICS`] record of a finished file, without reading a message; `None`
+    /// for an unfinished file or one of another writer.
+    pub fn topic_totals(&self) -> Option<BTreeMap<String, TopicTotals>> {
+        self.summary.as_ref()?;
+        TopicTotals::from_metadata(self.metadata.get(META_TOPICS)?)
+    }
+
+    /// Each topic's totals by reading every message (checking every chunk), with the read's error if it ended
+    /// early: the totals then hold what came before.
+    pub fn scan_totals(&self) -> (BTreeMap<String, TopicTotals>, Result<()>) {
+        let mut totals: BTreeMap<String, TopicTotals> = BTreeMap::new();
+        let read = self.for_each_message(|m| {
+            totals.entry(m.topic).or_default().add(m.log_time, m.data.len() as u64);
+            Ok(())
+        });
+        (totals, read)
+    }
+
     /// Each topic's schema (name, encoding, text), message encoding and whether it is a viewer channel, as
     /// written, for copying channels into another file.
     pub fn raw_channels(&self) -> RawChannels {
         let mut out = RawChannels::new();
-        let mut add = |c: &mcap::Channel<'_>| {
+        self.each_channel(|c| {
             out.entry(c.topic.clone()).or_insert_with(|| {
                 let schema = c
                     .schema
@@ -212,74 +236,25 @@ impl Recording {
                     c.metadata.get(VIEW_KEY).is_some_and(|v| v == "true"),
                 )
             });
-        };
-        if let Some(s) = &self.summary {
-            s.channels.values().for_each(|c| add(c));
-        } else if let Ok(stream) = message_stream(&self.bytes) {
-            stream.map_while(Result::ok).for_each(|m| add(&m.channel));
-        }
+        });
         out
     }
 
     /// The channels, from the summary or (for an unfinished file) from the records that were written.
     pub fn channels(&self) -> Vec<ChannelInfo> {
         let mut by_id: BTreeMap<u16, ChannelInfo> = BTreeMap::new();
-        if let Some(s) = &self.summary {
-            for (id, c) in &s.channels {
-                by_id.insert(*id, channel_info(c));
-            }
-        } else if let Ok(stream) = message_stream(&self.bytes) {
-            for m in stream.map_while(Result::ok) {
-                by_id.entry(m.channel.id).or_insert_with(|| channel_info(&m.channel));
-            }
-        }
+        self.each_channel(|c| {
+            by_id.entry(c.id).or_insert_with(|| channel_info(c));
+        });
         by_id.into_values().collect()
     }
-}
 
-// Lenient about a missing end (unfinished files), strict about chunk checksums (corrupt files).
-fn message_stream(bytes: &[u8]) -> mcap::McapResult<Guarded<mcap::MessageStream<'_>>> {
-    mcap::MessageStream::new_with_options(bytes, mcap::read::Options::IgnoreEndMagic | mcap::read::Options::ValidateChunkCrcs)
-        .map(|r| Guarded(Some(r)))
-}
-fn record_stream(bytes: &[u8]) -> mcap::McapResult<Guarded<mcap::read::LinearReader<'_>>> {
-    mcap::read::LinearReader::new_with_options(bytes, mcap::read::Options::IgnoreEndMagic.into()).map(|r| Guarded(Some(r)))
-}
-
-/// Why a record could not be read.
-#[derive(Debug)]
-enum ReadError {
-    /// The mcap crate's own verdict.
-    Mcap(mcap::McapError),
-    /// The mcap crate panicked: 0.26 subtracts a record's length from what is left of its chunk unchecked, so a
-    /// damaged length panics in a build with overflow checks (found by `lineflow bench fuzz`).
-    Panicked,
-}
-
-impl std::fmt::Display for ReadError {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        match self {
-            ReadError::Mcap(e) => e.fmt(f),
-            ReadError::Panicked => f.write_str("a damaged record stopped the MCAP reader"),
-        }
-    }
-}
-
-/// An iterator of the mcap crate whose panic on damaged input becomes its last item, an error: a reader that
-/// panicked is in no state to be asked again.
-struct Guarded<I>(Option<I>);
-
-impl<T, I: Iterator<Item = mcap::McapResult<T>>> Iterator for Guarded<I> {
-    type Item = Result<T, ReadError>;
-
-    fn next(&mut self) -> Option<Self::Item> {
-        let inner = self.0.as_mut()?;
-        match std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| inner.next())) {
-            Ok(item) => item.map(|r| r.map_err(ReadError::Mcap)),
-            Err(_) => {
-                self.0 = None;
-                Some(Err(ReadError::Panicked))
-            }
+    // The summary's channels; an unfinished file's are found by streaming its messages.
+    fn each_channel(&self, mut f: impl FnMut(&mcap::Channel<'_>)) {
+        if let Some(s) = &self.summary {
+            s.channels.values().for_each(|c| f(c));
+        } else if let Ok(stream) = reader::messages(&self.path) {
+            stream.map_while(Result::ok).for_each(|m| f(&m.channel));
         }
     }
 }

@@ -29,17 +29,19 @@ fn recorded_topics(rec: &Recording) -> Result<BTreeMap<String, (MessageKind, u64
             topics.insert(c.topic, (kind, 0u64));
         }
     }
-    let read = rec.for_each_message(|m| {
-        if let Some(t) = topics.get_mut(&m.topic) {
-            t.1 = t.1.max(m.data.len() as u64);
-        }
-        Ok(())
-    });
+    // A finished file's totals record says how large each topic's messages are; otherwise read them.
+    let (largest, read) = match rec.topic_totals() {
+        Some(totals) => (totals, Ok(())),
+        None => rec.scan_totals(),
+    };
     if let Err(e) = read {
         if rec.is_finished() {
             return Err(e);
         }
         tracing::warn!("{e:#}");
+    }
+    for (topic, t) in &mut topics {
+        t.1 = largest.get(topic).map_or(0, |l| l.largest);
     }
     Ok(topics)
 }

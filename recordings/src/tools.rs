@@ -9,16 +9,6 @@ use lineflow_messages::MessageKind;
 
 use super::{McapWriter, Recording, META_END, META_RUN, VIEW_KEY};
 
-#[derive(Default)]
-struct TopicStats {
-    schema: String,
-    encoding: String,
-    messages: u64,
-    bytes: u64,
-    first: u64,
-    last: u64,
-}
-
 /// What `lineflow info` says of a recording (and `--json` prints).
 #[derive(Debug, Clone, serde::Serialize)]
 pub struct Summary {
@@ -36,6 +26,10 @@ pub struct Summary {
     pub complete: bool,
     /// Its state in words (complete, incomplete and why, damaged up to where).
     pub status: String,
+    /// Whether every message was read and every chunk's checksum checked (else the summary was trusted).
+    pub chunks_verified: bool,
+    /// Whether the file is unfinished or a read failed (`info` exits with status 2).
+    pub damaged: bool,
     /// Each topic, by name.
     pub topics: Vec<TopicSummary>,
     /// Messages each node dropped, where any did.
@@ -72,27 +66,35 @@ pub struct TopicSummary {
     pub encoding: String,
 }
 
+/// How much of a recording [`summarize`] reads.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Reading {
+    /// A finished file's summary and totals record only (milliseconds on a file of any size); an unfinished file,
+    /// or one of another writer, is read through.
+    Index,
+    /// Every message, checking every chunk's checksum.
+    Messages,
+}
+
 /// Topics, message counts, rates, duration, schemas and completeness of a recording.
-pub fn summarize(rec: &Recording) -> Summary {
-    let mut stats: BTreeMap<String, TopicStats> = BTreeMap::new();
+pub fn summarize(rec: &Recording, reading: Reading) -> Summary {
+    let indexed = match reading {
+        Reading::Index => rec.topic_totals(),
+        Reading::Messages => None,
+    };
+    let verified = indexed.is_none();
+    let (totals, read) = match indexed {
+        Some(totals) => (totals, Ok(())),
+        None => rec.scan_totals(),
+    };
+    let mut schemas: BTreeMap<String, (String, String)> = BTreeMap::new();
     for c in rec.channels() {
-        let s = stats.entry(c.topic.clone()).or_default();
-        s.schema = c.schema;
-        s.encoding = c.encoding;
+        schemas.entry(c.topic).or_insert((c.schema, c.encoding));
     }
-    let (mut t0, mut t1) = (u64::MAX, 0u64);
-    let read = rec.for_each_message(|m| {
-        let s = stats.entry(m.topic.clone()).or_default();
-        if s.messages == 0 {
-            s.first = m.log_time;
-        }
-        s.messages += 1;
-        s.bytes += m.data.len() as u64;
-        s.last = m.log_time;
-        t0 = t0.min(m.log_time);
-        t1 = t1.max(m.log_time);
-        Ok(())
-    });
+    let (t0, t1) = totals
+        .values()
+        .filter(|t| t.messages > 0)
+        .fold((u64::MAX, 0), |(a, b), t| (a.min(t.first_log), b.max(t.last_log)));
     let meta = |k: &str| rec.run_meta(k).unwrap_or("?").to_owned();
     let run = rec.run_meta("graph_name").map(|graph| RunSummary {
         id: meta("run_id"),
@@ -101,20 +103,21 @@ pub fn summarize(rec: &Recording) -> Summary {
         version: meta("version"),
     });
     let read_error = read.as_ref().err().map(|e| format!("{e:#}"));
-    let topics: Vec<TopicSummary> = stats
-        .into_iter()
-        .map(|(topic, s)| {
-            let span = (s.last.saturating_sub(s.first)) as f64 * 1e-9;
-            TopicSummary {
-                topic,
-                messages: s.messages,
-                bytes: s.bytes,
-                rate_hz: (s.messages > 1 && span > 0.0).then(|| (s.messages - 1) as f64 / span),
-                schema: s.schema,
-                encoding: s.encoding,
-            }
-        })
-        .collect();
+    let mut topics: BTreeMap<String, TopicSummary> = BTreeMap::new();
+    for (topic, (schema, encoding)) in schemas {
+        let t = totals.get(&topic).copied().unwrap_or_default();
+        let span = t.last_log.saturating_sub(t.first_log) as f64 * 1e-9;
+        let summary = TopicSummary {
+            topic: topic.clone(),
+            messages: t.messages,
+            bytes: t.bytes,
+            rate_hz: (t.messages > 1 && span > 0.0).then(|| (t.messages - 1) as f64 / span),
+            schema,
+            encoding,
+        };
+        topics.insert(topic, summary);
+    }
+    let topics: Vec<TopicSummary> = topics.into_values().collect();
     let drops = rec
         .metadata
         .get(META_END)
@@ -128,20 +131,21 @@ pub fn summarize(rec: &Recording) -> Summary {
         .unwrap_or_default();
     Summary {
         file: rec.path.display().to_string(),
-        size_bytes: std::fs::metadata(&rec.path).map(|m| m.len()).unwrap_or(0),
+        size_bytes: rec.size_bytes,
         run,
         duration_s: if t1 > t0 { (t1 - t0) as f64 * 1e-9 } else { 0.0 },
         messages: topics.iter().map(|t| t.messages).sum(),
         complete: rec.damage.is_none() && read.is_ok() && rec.is_complete(),
         status: completeness(rec, read_error),
+        chunks_verified: verified,
+        damaged: rec.damage.is_some() || read.is_err(),
         topics,
         drops,
     }
 }
 
 /// A human-readable summary: topics, message counts, rates, duration, schemas, completeness.
-pub fn info(rec: &Recording) -> String {
-    let s = summarize(rec);
+pub fn info(s: &Summary) -> String {
     let mut out = String::new();
     let _ = writeln!(out, "file:      {} ({:.1} MB)", s.file, s.size_bytes as f64 / 1e6);
     if let Some(r) = &s.run {
@@ -153,6 +157,12 @@ pub fn info(rec: &Recording) -> String {
     }
     let _ = writeln!(out, "duration:  {:.3} s, {} messages", s.duration_s, s.messages);
     let _ = writeln!(out, "status:    {}", s.status);
+    if !s.chunks_verified {
+        let _ = writeln!(
+            out,
+            "chunks:    not read (totals from the summary); `--verify` reads and checks every one"
+        );
+    }
     let _ = writeln!(out, "\n{:<28} {:>8} {:>10} {:>9}  schema", "topic", "messages", "MB", "rate Hz");
     for t in &s.topics {
         let rate = t.rate_hz.map(|r| format!("{r:.2}")).unwrap_or_else(|| "-".into());

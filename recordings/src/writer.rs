@@ -40,6 +40,79 @@ impl std::str::FromStr for Compression {
 struct Channel {
     id: u16,
     next_sequence: u32,
+    totals: TopicTotals,
+}
+
+/// What a file holds of one topic, written as the [`META_TOPICS`](super::META_TOPICS) record when the file is
+/// finished, so that `info` and `replay` need not read every message of a large file.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct TopicTotals {
+    /// Messages.
+    pub messages: u64,
+    /// Their bytes.
+    pub bytes: u64,
+    /// The largest message, bytes.
+    pub largest: u64,
+    /// `log_time` of the first and the last message.
+    pub first_log: u64,
+    /// See `first_log`.
+    pub last_log: u64,
+}
+
+impl TopicTotals {
+    /// Counts a message.
+    pub fn add(&mut self, log_time: u64, bytes: u64) {
+        if self.messages == 0 {
+            self.first_log = log_time;
+        }
+        self.messages += 1;
+        self.bytes += bytes;
+        self.largest = self.largest.max(bytes);
+        self.last_log = log_time;
+    }
+
+    const FIELDS: [&'static str; 5] = ["messages", "bytes", "largest", "first_log", "last_log"];
+
+    fn values(&self) -> [u64; 5] {
+        [self.messages, self.bytes, self.largest, self.first_log, self.last_log]
+    }
+
+    /// The record's fields of every topic.
+    pub fn to_metadata<'a>(topics: impl IntoIterator<Item = (&'a str, &'a TopicTotals)>) -> BTreeMap<String, String> {
+        let mut out = BTreeMap::new();
+        for (topic, t) in topics {
+            for (field, value) in Self::FIELDS.iter().zip(t.values()) {
+                out.insert(format!("topic.{topic}.{field}"), value.to_string());
+            }
+        }
+        out
+    }
+
+    /// The totals of every topic in a record written by [`Self::to_metadata`]; `None` when a field is missing or
+    /// not a number (a record of another writer).
+    pub fn from_metadata(map: &BTreeMap<String, String>) -> Option<BTreeMap<String, TopicTotals>> {
+        let mut out: BTreeMap<String, [Option<u64>; 5]> = BTreeMap::new();
+        for (key, value) in map {
+            let (topic, field) = key.strip_prefix("topic.")?.rsplit_once('.')?;
+            let i = Self::FIELDS.iter().position(|f| *f == field)?;
+            out.entry(topic.to_owned()).or_default()[i] = Some(value.parse().ok()?);
+        }
+        out.into_iter()
+            .map(|(topic, v)| {
+                let [messages, bytes, largest, first_log, last_log] = v;
+                Some((
+                    topic,
+                    TopicTotals {
+                        messages: messages?,
+                        bytes: bytes?,
+                        largest: largest?,
+                        first_log: first_log?,
+                        last_log: last_log?,
+                    },
+                ))
+            })
+            .collect()
+    }
 }
 
 /// An MCAP file being written.
@@ -148,7 +221,14 @@ impl McapWriter {
             .inner
             .add_channel(sid, topic, encoding, &metadata)
             .with_context(|| format!("{}: cannot write channel {topic}", self.path.display()))?;
-        self.channels.insert(topic.to_owned(), Channel { id, next_sequence: 0 });
+        self.channels.insert(
+            topic.to_owned(),
+            Channel {
+                id,
+                next_sequence: 0,
+                totals: TopicTotals::default(),
+            },
+        );
         Ok(())
     }
 
@@ -172,6 +252,7 @@ impl McapWriter {
             publish_time,
         };
         c.next_sequence = c.next_sequence.wrapping_add(1);
+        c.totals.add(log_time, data.len() as u64);
         self.inner
             .write_to_known_channel(&header, data)
             .with_context(|| format!("{}: cannot write a message on '{topic}'", self.path.display()))?;
@@ -193,12 +274,14 @@ impl McapWriter {
             .with_context(|| format!("{}: cannot write metadata {name}", self.path.display()))
     }
 
-    /// Writes the summary and footer and syncs the file to disk.
+    /// Writes the [`META_TOPICS`](super::META_TOPICS) record, the summary and footer, and syncs the file to disk.
     ///
     /// # Errors
     /// On a write failure (the file then ends without summary; `lineflow recover` rebuilds it).
     pub fn finish(mut self) -> Result<()> {
         let path = self.path.clone();
+        let totals = TopicTotals::to_metadata(self.channels.iter().map(|(t, c)| (t.as_str(), &c.totals)));
+        self.metadata(super::META_TOPICS, totals)?;
         self.inner
             .finish()
             .with_context(|| format!("{}: cannot finish the recording", path.display()))?;

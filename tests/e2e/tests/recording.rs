@@ -272,6 +272,16 @@ fn foreign_truncated_and_unwritable_recordings_get_clear_errors() {
     let r = sb.run(&["diff", rec.to_str().unwrap(), cut.to_str().unwrap()]);
     assert_eq!(r.status.code(), Some(1));
     assert!(String::from_utf8_lossy(&r.stderr).contains("the recording was not finished"));
+    // `info` trusts a finished file's summary; `--verify` reads every chunk and finds a flipped byte in one.
+    let mut flipped = bytes.clone();
+    flipped[bytes.len() / 2] ^= 0x5a;
+    let bad = sb.path().join("flipped.mcap");
+    std::fs::write(&bad, &flipped).unwrap();
+    let r = sb.run(&["info", bad.to_str().unwrap()]);
+    assert!(r.status.success() && stdout(&r).contains("chunks:    not read"), "{}", stdout(&r));
+    let r = sb.run(&["info", bad.to_str().unwrap(), "--verify"]);
+    assert_eq!(r.status.code(), Some(2), "{}", stdout(&r));
+    assert!(stdout(&r).contains("CORRUPT"), "{}", stdout(&r));
     let r = sb.run(&["export", rec.to_str().unwrap(), "--topic", "nope", "--out", "x"]);
     assert!(String::from_utf8_lossy(&r.stderr).contains("no topic 'nope' (topics: "));
     // A disk that is full from the start (the recording's name linked to /dev/full): the run stops before any
@@ -302,6 +312,29 @@ fn foreign_truncated_and_unwritable_recordings_get_clear_errors() {
         assert!(!r.status.success() && err.contains("a file name without a folder"), "{err}");
     }
     assert!(!sb.path().join("outside.mcap").exists());
+}
+
+#[test]
+fn recordings_larger_than_the_reader_holds_are_read_in_bounded_memory() {
+    // The benchmark's own measurement at a size a test can afford: 17 frames of 12 MP (620 MB). Reading the whole
+    // file into memory, as the reader once did, would peak above the file's size.
+    let sb = Sandbox::new();
+    let r = sb.run(&["bench", "reader", "--gb", "0.6", "--json", "--dir", sb.path().to_str().unwrap()]);
+    let out = stdout(&r);
+    let v: serde_json::Value = serde_json::from_str(out.trim()).unwrap_or_else(|e| panic!("{e}: {out}"));
+    let file_mb = v["file_mb"].as_f64().unwrap();
+    assert!(file_mb > 600.0, "{v}");
+    assert_eq!(v["exported_files"], v["frames"], "one PNG per thumbnail: {v}");
+    for case in v["cases"].as_array().unwrap() {
+        let peak = case["peak_rss_mb"].as_f64().unwrap();
+        assert!(case["success"].as_bool().unwrap(), "{case}");
+        // The largest message is a 37 MB frame: a streaming reader holds it about twice, never the file.
+        assert!(peak > 1.0 && peak < file_mb / 4.0, "{case}");
+    }
+    assert!(
+        v["cases"][0]["peak_rss_mb"].as_f64().unwrap() < 40.0,
+        "`info` reads only the summary: {v}"
+    );
 }
 
 #[test]

@@ -1,0 +1,129 @@
+//! Reading a recording from its file without holding it in memory: the summary by seeking to the footer, metadata
+//! records by their index, messages streamed a chunk at a time. Memory follows the largest chunk (4 MB as the
+//! recorder writes them) or record, never the file.
+use std::collections::BTreeMap;
+use std::fs::File;
+use std::io::{BufReader, Read, Seek, SeekFrom};
+use std::path::Path;
+
+use anyhow::{Context, Result};
+use mcap::sans_io::{LinearReadEvent, LinearReader, LinearReaderOptions, SummaryReadEvent, SummaryReader, SummaryReaderOptions};
+
+/// Read buffer of the message stream: large enough for sequential throughput, small beside a chunk.
+const READ_BUFFER: usize = 1 << 20;
+
+/// The summary section of a finished file.
+pub(crate) fn summary(path: &Path, file_len: u64) -> mcap::McapResult<Option<mcap::Summary>> {
+    let mut file = File::open(path)?;
+    let mut reader = SummaryReader::new_with_options(SummaryReaderOptions::default().with_file_size(file_len));
+    while let Some(event) = reader.next_event() {
+        match event? {
+            SummaryReadEvent::ReadRequest(n) => {
+                let read = file.read(reader.insert(n))?;
+                reader.notify_read(read);
+            }
+            SummaryReadEvent::SeekRequest(to) => {
+                let pos = file.seek(to)?;
+                reader.notify_seeked(pos);
+            }
+        }
+    }
+    Ok(reader.finish())
+}
+
+/// The metadata records the summary indexes.
+pub(crate) fn indexed_metadata(path: &Path, summary: &mcap::Summary) -> Result<BTreeMap<String, BTreeMap<String, String>>> {
+    let mut file = File::open(path)?;
+    let mut out = BTreeMap::new();
+    for index in &summary.metadata_indexes {
+        let len = usize::try_from(index.length).context("a metadata record longer than memory")?;
+        let mut record = vec![0u8; len];
+        file.seek(SeekFrom::Start(index.offset))?;
+        file.read_exact(&mut record)
+            .with_context(|| format!("metadata '{}' lies beyond the end of the file", index.name))?;
+        let m = match mcap::read::LinearReader::sans_magic(&record).next() {
+            Some(Ok(mcap::records::Record::Metadata(m))) => m,
+            _ => anyhow::bail!("the index of metadata '{}' points at another record", index.name),
+        };
+        out.insert(m.name, m.metadata);
+    }
+    Ok(out)
+}
+
+/// Every metadata record, by a linear scan that skips over the chunks without decompressing them (an unfinished
+/// file has no index). Stops quietly at the first damaged record: what came before it is what the file holds.
+pub(crate) fn scanned_metadata(path: &Path) -> BTreeMap<String, BTreeMap<String, String>> {
+    let mut out = BTreeMap::new();
+    let Ok(file) = File::open(path) else {
+        return out;
+    };
+    let mut source = BufReader::with_capacity(READ_BUFFER, file);
+    let options = LinearReaderOptions::default().with_skip_end_magic(true).with_emit_chunks(true);
+    let mut reader = LinearReader::new_with_options(options);
+    let scan = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+        while let Some(Ok(event)) = reader.next_event() {
+            match event {
+                LinearReadEvent::ReadRequest(n) => match source.read(reader.insert(n)) {
+                    Ok(read) => reader.notify_read(read),
+                    Err(_) => return,
+                },
+                LinearReadEvent::Record { data, opcode } => {
+                    if let Ok(mcap::records::Record::Metadata(m)) = mcap::parse_record(opcode, data) {
+                        out.insert(m.name, m.metadata);
+                    }
+                }
+            }
+        }
+    }));
+    // A panic inside the mcap crate is a damaged record, as an error would be; what was read stays.
+    let _ = scan;
+    out
+}
+
+/// Messages in file order, read a buffer at a time. Lenient about a missing end (unfinished files), strict about
+/// chunk checksums (corrupt files).
+pub(crate) fn messages(path: &Path) -> std::io::Result<Guarded<mcap::io::MessageReader<BufReader<File>>>> {
+    let file = BufReader::with_capacity(READ_BUFFER, File::open(path)?);
+    let options = LinearReaderOptions::default()
+        .with_skip_end_magic(true)
+        .with_validate_chunk_crcs(true);
+    Ok(Guarded(Some(mcap::io::MessageReader::new_with_options(file, options))))
+}
+
+/// Why a record could not be read.
+#[derive(Debug)]
+pub(crate) enum ReadError {
+    /// The mcap crate's own verdict.
+    Mcap(mcap::McapError),
+    /// The mcap crate panicked: 0.26 subtracts a record's length from what is left of its chunk unchecked, so a
+    /// damaged length panics in a build with overflow checks (found by `lineflow bench fuzz`).
+    Panicked,
+}
+
+impl std::fmt::Display for ReadError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            ReadError::Mcap(e) => e.fmt(f),
+            ReadError::Panicked => f.write_str("a damaged record stopped the MCAP reader"),
+        }
+    }
+}
+
+/// An iterator of the mcap crate whose panic on damaged input becomes its last item, an error: a reader that
+/// panicked is in no state to be asked again.
+pub(crate) struct Guarded<I>(Option<I>);
+
+impl<T, I: Iterator<Item = mcap::McapResult<T>>> Iterator for Guarded<I> {
+    type Item = Result<T, ReadError>;
+
+    fn next(&mut self) -> Option<Self::Item> {
+        let inner = self.0.as_mut()?;
+        match std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| inner.next())) {
+            Ok(item) => item.map(|r| r.map_err(ReadError::Mcap)),
+            Err(_) => {
+                self.0 = None;
+                Some(Err(ReadError::Panicked))
+            }
+        }
+    }
+}
