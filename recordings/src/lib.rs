@@ -8,7 +8,9 @@
 //! replayed into a graph. Metadata records: [`META_RUN`] (versions, the launch file, the resolved graph) at the start,
 //! [`META_END`] (completeness and every node's counters) at the end.
 #![warn(missing_docs)]
+pub mod export;
 pub mod fields;
+pub mod image_codec;
 mod reader;
 pub mod replay;
 pub mod tools;
@@ -56,8 +58,36 @@ pub struct RecordedMessage {
     pub log_time: u64,
     /// Capture time of the message (its stamp), ns.
     pub publish_time: u64,
-    /// Encoded message (CDR for lineflow channels).
+    /// Encoded message (CDR for lineflow channels), as stored: see [`Self::restore`].
     pub data: Vec<u8>,
+    /// An image stored compressed ([`image_codec`]); `kind` is `Image`.
+    pub compressed: bool,
+}
+
+impl RecordedMessage {
+    /// Restores a compressed image in place, so that `data` holds the `Image` message as the graph carried it;
+    /// other messages are left as they are.
+    ///
+    /// # Errors
+    /// When the compressed image is damaged.
+    pub fn restore(&mut self, scratch: &mut lineflow_messages::schema::Decoded) -> Result<()> {
+        if self.compressed {
+            let mut out = Vec::new();
+            image_codec::restore(&self.data, scratch, &mut out)
+                .with_context(|| format!("topic '{}' message {}", self.topic, self.sequence))?;
+            self.data = out;
+            self.compressed = false;
+        }
+        Ok(())
+    }
+
+    /// The message's size as the graph carries it (a compressed image's restored size).
+    pub fn carried_len(&self) -> u64 {
+        match self.compressed {
+            true => image_codec::restored_len(&self.data).unwrap_or(self.data.len() as u64),
+            false => self.data.len() as u64,
+        }
+    }
 }
 
 /// A channel of a recording.
@@ -75,10 +105,12 @@ pub struct ChannelInfo {
     pub kind: Option<MessageKind>,
     /// Viewer channel.
     pub view: bool,
+    /// Images stored compressed: the format (`png`, `jpeg`).
+    pub image_format: Option<String>,
 }
 
-/// Per topic: schema (name, encoding, text), message encoding, viewer channel.
-pub type RawChannels = std::collections::HashMap<String, ((String, String, Vec<u8>), String, bool)>;
+/// Per topic: schema (name, encoding, text), message encoding, channel metadata.
+pub type RawChannels = std::collections::HashMap<String, ((String, String, Vec<u8>), String, BTreeMap<String, String>)>;
 
 /// An opened recording: its parsed metadata and, for a finished file, the summary. The messages stay in the file
 /// and are streamed when asked for, so a recording of any size opens in bounded memory.
@@ -174,21 +206,30 @@ impl Recording {
     /// # Errors
     /// The first error of `f`, or of the file (truncated or corrupt), naming the byte offset region.
     pub fn for_each_message(&self, mut f: impl FnMut(RecordedMessage) -> Result<()>) -> Result<()> {
+        for m in self.messages()? {
+            f(m?)?;
+        }
+        Ok(())
+    }
+
+    /// Every message in file order, streamed from the file; after an error (a truncated or corrupt file) the
+    /// iterator ends.
+    ///
+    /// # Errors
+    /// When the file cannot be opened.
+    pub fn messages(&self) -> Result<impl Iterator<Item = Result<RecordedMessage>> + '_> {
         let stream = reader::messages(&self.path).with_context(|| format!("{}: cannot read messages", self.path.display()))?;
-        for (count, m) in stream.enumerate() {
-            let m = match m {
-                Ok(m) => m,
-                Err(e) => {
-                    let hint = if self.is_finished() {
-                        "the file is corrupt"
-                    } else {
-                        "the recording was not finished; everything before this point is readable"
-                    };
-                    bail!("{}: after {count} messages: {e} ({hint})", self.path.display());
-                }
-            };
+        Ok(stream.enumerate().map(|(count, m)| {
+            let m = m.map_err(|e| {
+                let hint = if self.is_finished() {
+                    "the file is corrupt"
+                } else {
+                    "the recording was not finished; everything before this point is readable"
+                };
+                anyhow::anyhow!("{}: after {count} messages: {e} ({hint})", self.path.display())
+            })?;
             let info = channel_info(&m.channel);
-            f(RecordedMessage {
+            Ok(RecordedMessage {
                 topic: m.channel.topic.clone(),
                 kind: info.kind,
                 view: info.view,
@@ -196,9 +237,9 @@ impl Recording {
                 log_time: m.log_time,
                 publish_time: m.publish_time,
                 data: m.data.into_owned(),
-            })?;
-        }
-        Ok(())
+                compressed: info.image_format.is_some(),
+            })
+        }))
     }
 
     /// Each topic's totals from the [`META_TOPICS`] record of a finished file, without reading a message; `None`
@@ -213,14 +254,15 @@ impl Recording {
     pub fn scan_totals(&self) -> (BTreeMap<String, TopicTotals>, Result<()>) {
         let mut totals: BTreeMap<String, TopicTotals> = BTreeMap::new();
         let read = self.for_each_message(|m| {
-            totals.entry(m.topic).or_default().add(m.log_time, m.data.len() as u64);
+            let carried = m.carried_len();
+            totals.entry(m.topic).or_default().add(m.log_time, m.data.len() as u64, carried);
             Ok(())
         });
         (totals, read)
     }
 
-    /// Each topic's schema (name, encoding, text), message encoding and whether it is a viewer channel, as
-    /// written, for copying channels into another file.
+    /// Each topic's schema (name, encoding, text), message encoding and channel metadata, as written, for copying
+    /// channels into another file.
     pub fn raw_channels(&self) -> RawChannels {
         let mut out = RawChannels::new();
         self.each_channel(|c| {
@@ -230,11 +272,7 @@ impl Recording {
                     .as_ref()
                     .map(|s| (s.name.clone(), s.encoding.clone(), s.data.to_vec()))
                     .unwrap_or_default();
-                (
-                    schema,
-                    c.message_encoding.clone(),
-                    c.metadata.get(VIEW_KEY).is_some_and(|v| v == "true"),
-                )
+                (schema, c.message_encoding.clone(), c.metadata.clone())
             });
         });
         out
@@ -262,12 +300,16 @@ impl Recording {
 fn channel_info(c: &mcap::Channel<'_>) -> ChannelInfo {
     let (schema, schema_encoding) = c.schema.as_ref().map(|s| (s.name.clone(), s.encoding.clone())).unwrap_or_default();
     let view = c.metadata.get(VIEW_KEY).is_some_and(|v| v == "true");
-    let kind = if view {
-        None
+    let lineflow = schema_encoding == schema::SCHEMA_ENCODING && c.message_encoding == schema::MESSAGE_ENCODING && !view;
+    let image_format = c
+        .metadata
+        .get(image_codec::IMAGE_FORMAT_KEY)
+        .filter(|_| lineflow && schema == image_codec::COMPRESSED_IMAGE)
+        .cloned();
+    let kind = if image_format.is_some() {
+        Some(MessageKind::Image)
     } else {
-        MessageSchema::by_name(&schema)
-            .filter(|_| schema_encoding == schema::SCHEMA_ENCODING && c.message_encoding == schema::MESSAGE_ENCODING)
-            .map(|s| s.kind)
+        MessageSchema::by_name(&schema).filter(|_| lineflow).map(|s| s.kind)
     };
     ChannelInfo {
         topic: c.topic.clone(),
@@ -276,6 +318,7 @@ fn channel_info(c: &mcap::Channel<'_>) -> ChannelInfo {
         encoding: c.message_encoding.clone(),
         kind,
         view,
+        image_format,
     }
 }
 

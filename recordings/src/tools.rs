@@ -7,7 +7,7 @@ use anyhow::Result;
 use lineflow_messages::schema::{self, decode, FieldType, Layout, Payload};
 use lineflow_messages::MessageKind;
 
-use super::{McapWriter, Recording, META_END, META_RUN, VIEW_KEY};
+use super::{McapWriter, Recording, META_END, META_RUN};
 
 /// What `lineflow info` says of a recording (and `--json` prints).
 #[derive(Debug, Clone, serde::Serialize)]
@@ -223,26 +223,17 @@ pub struct DiffReport {
 /// # Errors
 /// When a file cannot be read to its end.
 pub fn diff(a: &Recording, b: &Recording) -> Result<DiffReport> {
-    type Messages = BTreeMap<String, (Option<MessageKind>, Vec<Vec<u8>>)>;
-    let by_topic = |r: &Recording| -> Result<Messages> {
-        let mut m = Messages::new();
-        r.for_each_message(|msg| {
-            if !msg.view {
-                let e = m.entry(msg.topic.clone()).or_insert((msg.kind, Vec::new()));
-                e.1.push(msg.data);
-            }
-            Ok(())
-        })?;
-        Ok(m)
-    };
-    let (ma, mb) = (by_topic(a)?, by_topic(b)?);
+    // One pass over each file fingerprints every topic; only a topic whose fingerprints differ is read again, from
+    // both files in step, to name its first difference. Memory stays that of a message or two on any file size.
+    let (fa, fb) = (fingerprints(a)?, fingerprints(b)?);
     let mut report = DiffReport::default();
-    let topics: std::collections::BTreeSet<&String> = ma.keys().chain(mb.keys()).collect();
+    let topics: std::collections::BTreeSet<&String> = fa.keys().chain(fb.keys()).collect();
     for topic in topics {
-        let diff = match (ma.get(topic), mb.get(topic)) {
+        let diff = match (fa.get(topic), fb.get(topic)) {
             (Some(_), None) => Some(format!("only in {}", a.path.display())),
             (None, Some(_)) => Some(format!("only in {}", b.path.display())),
-            (Some((kind, xa)), Some((_, xb))) => first_difference(*kind, xa, xb),
+            (Some(x), Some(y)) if x == y => None,
+            (Some(x), Some(_)) => Some(first_difference(x.kind, topic_messages(a, topic)?, topic_messages(b, topic)?)?),
             (None, None) => None,
         };
         match diff {
@@ -256,20 +247,84 @@ pub fn diff(a: &Recording, b: &Recording) -> Result<DiffReport> {
     Ok(report)
 }
 
-fn first_difference(kind: Option<MessageKind>, a: &[Vec<u8>], b: &[Vec<u8>]) -> Option<String> {
-    for (i, (x, y)) in a.iter().zip(b).enumerate() {
-        if x != y {
-            let detail = kind
-                .and_then(|k| field_difference(k, x, y))
-                .unwrap_or_else(|| "bytes differ".into());
-            let frame = kind
-                .and_then(|k| decode(k, x).ok())
-                .map(|d| format!(" (frame {})", d.stamp().frame))
-                .unwrap_or_default();
-            return Some(format!("message {i}{frame}: {detail}"));
+/// A topic's messages in a digest: their count and two independent 64-bit hashes of their bytes in order.
+#[derive(Debug, PartialEq, Eq)]
+struct Fingerprint {
+    kind: Option<MessageKind>,
+    messages: u64,
+    hashes: [u64; 2],
+}
+
+fn fingerprints(r: &Recording) -> Result<BTreeMap<String, Fingerprint>> {
+    use std::hash::{Hash, Hasher};
+    let mut out: BTreeMap<String, (Fingerprint, [std::hash::DefaultHasher; 2])> = BTreeMap::new();
+    let mut scratch = schema::Decoded::default();
+    for msg in r.messages()? {
+        let mut msg = msg?;
+        if msg.view {
+            continue;
+        }
+        // A compressed image is compared as the image it restores: a PNG recording equals its raw run.
+        msg.restore(&mut scratch)?;
+        let (f, hashers) = out.entry(msg.topic.clone()).or_insert_with(|| {
+            let fingerprint = Fingerprint {
+                kind: msg.kind,
+                messages: 0,
+                hashes: [0; 2],
+            };
+            let mut second = std::hash::DefaultHasher::new();
+            0x5eed_u64.hash(&mut second);
+            (fingerprint, [std::hash::DefaultHasher::new(), second])
+        });
+        f.messages += 1;
+        for h in hashers.iter_mut() {
+            msg.data.hash(h);
         }
     }
-    (a.len() != b.len()).then(|| format!("{} messages vs {}", a.len(), b.len()))
+    Ok(out
+        .into_iter()
+        .map(|(topic, (mut f, hashers))| {
+            f.hashes = [hashers[0].finish(), hashers[1].finish()];
+            (topic, f)
+        })
+        .collect())
+}
+
+/// One topic's messages (restored), streamed.
+fn topic_messages<'r>(r: &'r Recording, topic: &'r str) -> Result<impl Iterator<Item = Result<Vec<u8>>> + 'r> {
+    let mut scratch = schema::Decoded::default();
+    Ok(r.messages()?.filter_map(move |m| match m {
+        Ok(m) if m.topic != topic || m.view => None,
+        Ok(mut m) => Some(m.restore(&mut scratch).map(|()| m.data)),
+        Err(e) => Some(Err(e)),
+    }))
+}
+
+fn first_difference(
+    kind: Option<MessageKind>,
+    mut a: impl Iterator<Item = Result<Vec<u8>>>,
+    mut b: impl Iterator<Item = Result<Vec<u8>>>,
+) -> Result<String> {
+    let mut i = 0usize;
+    loop {
+        match (a.next().transpose()?, b.next().transpose()?) {
+            (Some(x), Some(y)) if x != y => {
+                let detail = kind
+                    .and_then(|k| field_difference(k, &x, &y))
+                    .unwrap_or_else(|| "bytes differ".into());
+                let frame = kind
+                    .and_then(|k| decode(k, &x).ok())
+                    .map(|d| format!(" (frame {})", d.stamp().frame))
+                    .unwrap_or_default();
+                return Ok(format!("message {i}{frame}: {detail}"));
+            }
+            (Some(_), Some(_)) => i += 1,
+            (Some(_), None) => return Ok(format!("{} messages vs {i}", i + 1 + a.count())),
+            (None, Some(_)) => return Ok(format!("{i} messages vs {}", i + 1 + b.count())),
+            // Equal messages under different fingerprints: only a hash collision would get here.
+            (None, None) => return Ok("fingerprints differ, messages equal".into()),
+        }
+    }
 }
 
 /// Names the first field that differs between two encodings of the same kind.
@@ -350,15 +405,10 @@ pub fn recover(rec: &Recording, out: &Path) -> Result<Recovered> {
     let mut messages = 0u64;
     let result = rec.for_each_message(|m| {
         if !w.has_channel(&m.topic) {
-            let Some((schema, encoding, view)) = schemas.get(&m.topic) else {
+            let Some((schema, encoding, meta)) = schemas.get(&m.topic) else {
                 return Ok(());
             };
-            let meta = if *view {
-                BTreeMap::from([(VIEW_KEY.to_owned(), "true".to_owned())])
-            } else {
-                BTreeMap::new()
-            };
-            w.add_raw_channel(&m.topic, (&schema.0, &schema.1, &schema.2), encoding, meta)?;
+            w.add_raw_channel(&m.topic, (&schema.0, &schema.1, &schema.2), encoding, meta.clone())?;
         }
         w.write(&m.topic, m.log_time, m.publish_time, &m.data)?;
         messages += 1;

@@ -35,6 +35,20 @@ pub const RAW_IMAGE: ViewSchema = ViewSchema {
     message_encoding: "cdr",
 };
 
+/// `foxglove_msgs/msg/CompressedImage`: the previews of a recording whose images are compressed
+/// (`[record] images`), as JPEG, so that previews stay small beside the images.
+pub const COMPRESSED_PREVIEW: ViewSchema = ViewSchema {
+    name: "foxglove_msgs/msg/CompressedImage",
+    schema_encoding: "ros2msg",
+    data: "builtin_interfaces/Time timestamp\nstring frame_id\nuint8[] data\nstring format\n\
+           ================================================================================\n\
+           MSG: builtin_interfaces/Time\nint32 sec\nuint32 nanosec\n",
+    message_encoding: "cdr",
+};
+
+/// JPEG quality of the compressed previews: viewing only.
+const PREVIEW_JPEG_QUALITY: u8 = 80;
+
 /// `foxglove.ImageAnnotations` (JSON).
 pub const IMAGE_ANNOTATIONS: ViewSchema = ViewSchema {
     name: "foxglove.ImageAnnotations",
@@ -68,6 +82,8 @@ pub struct ViewRenderer {
     pub preview_max_px: u32,
     /// Preview pixels per image pixel of the latest image.
     scale: f64,
+    /// Previews as JPEG `CompressedImage` instead of `RawImage`.
+    compressed_previews: bool,
     /// Decoding buffers reused from message to message.
     scratch: Decoded,
 }
@@ -78,8 +94,15 @@ impl ViewRenderer {
         Self {
             preview_max_px,
             scale: 1.0,
+            compressed_previews: false,
             scratch: Decoded::default(),
         }
+    }
+
+    /// Previews as JPEG `foxglove_msgs/msg/CompressedImage` (for a recording whose images are compressed).
+    pub fn with_compressed_previews(mut self, on: bool) -> Self {
+        self.compressed_previews = on;
+        self
     }
 
     /// The viewer channels this renderer fills for a topic of `kind` (channel suffix, schema): the recorder adds
@@ -89,6 +112,10 @@ impl ViewRenderer {
             .iter()
             .copied()
             .filter(move |(suffix, _)| self.preview_max_px > 0 || *suffix != "preview")
+            .map(move |(suffix, schema)| match (suffix, self.compressed_previews) {
+                ("preview", true) => (suffix, &COMPRESSED_PREVIEW),
+                _ => (suffix, schema),
+            })
     }
 
     /// The viewer messages of one recorded message: `(channel suffix, bytes)`.
@@ -107,7 +134,9 @@ impl ViewRenderer {
                 let h: ImageHeader = read_pod(header);
                 let factor = h.width.max(h.height).div_ceil(self.preview_max_px).max(1);
                 self.scale = 1.0 / factor as f64;
-                preview(&h, payload, factor).map(|p| vec![("preview", p)]).unwrap_or_default()
+                preview(&h, payload, factor, self.compressed_previews)
+                    .map(|p| vec![("preview", p)])
+                    .unwrap_or_default()
             }
             MessageKind::Lines2D => {
                 let h: Lines2DHeader = read_pod(header);
@@ -168,8 +197,9 @@ fn time(ns: u64) -> Value {
     json!({ "sec": ns / 1_000_000_000, "nsec": ns % 1_000_000_000 })
 }
 
-/// A box-filtered preview of a mono8 or rgb8 image, CDR-encoded as `foxglove_msgs/msg/RawImage`.
-fn preview(h: &ImageHeader, pixels: &[u8], factor: u32) -> Option<Vec<u8>> {
+/// A box-filtered preview of a mono8 or rgb8 image, CDR-encoded as `foxglove_msgs/msg/RawImage`, or as a JPEG
+/// `foxglove_msgs/msg/CompressedImage` when `jpeg`.
+fn preview(h: &ImageHeader, pixels: &[u8], factor: u32, jpeg: bool) -> Option<Vec<u8>> {
     let enc = h.encoding()?;
     let channels = match enc {
         Encoding::Mono8 => 1,
@@ -208,6 +238,26 @@ fn preview(h: &ImageHeader, pixels: &[u8], factor: u32) -> Option<Vec<u8>> {
     cdr.u32((ns / 1_000_000_000) as u32);
     cdr.u32((ns % 1_000_000_000) as u32);
     cdr.string("camera");
+    if jpeg {
+        let color = if channels == 1 {
+            image::ExtendedColorType::L8
+        } else {
+            image::ExtendedColorType::Rgb8
+        };
+        let mut file = Vec::new();
+        image::ImageEncoder::write_image(
+            image::codecs::jpeg::JpegEncoder::new_with_quality(&mut file, PREVIEW_JPEG_QUALITY),
+            &out,
+            w as u32,
+            ht as u32,
+            color,
+        )
+        .ok()?;
+        cdr.u32(file.len() as u32);
+        cdr.0.extend_from_slice(&file);
+        cdr.string("jpeg");
+        return Some(cdr.0);
+    }
     cdr.u32(w as u32);
     cdr.u32(ht as u32);
     cdr.string(enc.name());

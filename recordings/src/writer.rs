@@ -41,6 +41,8 @@ struct Channel {
     id: u16,
     next_sequence: u32,
     totals: TopicTotals,
+    /// Holds compressed images ([`image_codec`](super::image_codec)).
+    compressed: bool,
 }
 
 /// What a file holds of one topic, written as the [`META_TOPICS`](super::META_TOPICS) record when the file is
@@ -51,7 +53,7 @@ pub struct TopicTotals {
     pub messages: u64,
     /// Their bytes.
     pub bytes: u64,
-    /// The largest message, bytes.
+    /// The largest message as a graph carries it (a compressed image restored), bytes.
     pub largest: u64,
     /// `log_time` of the first and the last message.
     pub first_log: u64,
@@ -61,13 +63,13 @@ pub struct TopicTotals {
 
 impl TopicTotals {
     /// Counts a message.
-    pub fn add(&mut self, log_time: u64, bytes: u64) {
+    pub fn add(&mut self, log_time: u64, bytes: u64, carried: u64) {
         if self.messages == 0 {
             self.first_log = log_time;
         }
         self.messages += 1;
         self.bytes += bytes;
-        self.largest = self.largest.max(bytes);
+        self.largest = self.largest.max(carried);
         self.last_log = log_time;
     }
 
@@ -184,6 +186,21 @@ impl McapWriter {
         self.add_channel(topic, sid, schema::MESSAGE_ENCODING, BTreeMap::new())
     }
 
+    /// Adds the channel of an image topic recorded compressed ([`image_codec`](super::image_codec)); `raw` adds
+    /// the plain topic.
+    ///
+    /// # Errors
+    /// On a write failure.
+    pub fn add_image_topic(&mut self, topic: &str, format: super::image_codec::ImageFormat) -> Result<()> {
+        let Some(name) = format.name() else {
+            return self.add_topic(topic, MessageKind::Image);
+        };
+        let text = super::image_codec::compressed_image_schema();
+        let sid = self.schema_id(super::image_codec::COMPRESSED_IMAGE, schema::SCHEMA_ENCODING, text.as_bytes())?;
+        let meta = BTreeMap::from([(super::image_codec::IMAGE_FORMAT_KEY.to_owned(), name.to_owned())]);
+        self.add_channel(topic, sid, schema::MESSAGE_ENCODING, meta)
+    }
+
     /// Adds a viewer channel (never replayed).
     ///
     /// # Errors
@@ -227,6 +244,7 @@ impl McapWriter {
                 id,
                 next_sequence: 0,
                 totals: TopicTotals::default(),
+                compressed: metadata.contains_key(super::image_codec::IMAGE_FORMAT_KEY),
             },
         );
         Ok(())
@@ -252,7 +270,11 @@ impl McapWriter {
             publish_time,
         };
         c.next_sequence = c.next_sequence.wrapping_add(1);
-        c.totals.add(log_time, data.len() as u64);
+        let carried = match c.compressed {
+            true => super::image_codec::restored_len(data).unwrap_or(data.len() as u64),
+            false => data.len() as u64,
+        };
+        c.totals.add(log_time, data.len() as u64, carried);
         self.inner
             .write_to_known_channel(&header, data)
             .with_context(|| format!("{}: cannot write a message on '{topic}'", self.path.display()))?;

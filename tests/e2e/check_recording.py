@@ -9,7 +9,9 @@ lineflow's code, and checked against the run's outputs:
   * `edges` messages match edges.csv (pixel counts and FNV-1a checksums over the decoded fields);
   * `gray` images match frames.csv (sizes, names and FNV-1a checksums of the pixels);
   * `images` equal the PNG files in PNG_DIR (written by `lineflow synth` for the same scene), if given;
-  * image previews, annotations and scene entities parse and agree with the messages they render.
+  * image previews, annotations and scene entities parse and agree with the messages they render;
+  * images recorded compressed (`lineflow_msgs/msg/CompressedImage`, `[record] images = "png"`) are read through
+    PIL from the PNG file in their `data`, and must then pass the same checks.
 Prints one line per channel and exits non-zero on the first mismatch.
 """
 import csv
@@ -26,6 +28,20 @@ def fnv1a64(data, h=0xCBF29CE484222325):
     for b in data:
         h = ((h ^ b) * 0x100000001B3) & 0xFFFFFFFFFFFFFFFF
     return h
+
+
+def pixels(schema_name, d):
+    """The pixel bytes of an Image message, or of a CompressedImage one through PIL (PNG: lossless)."""
+    if schema_name != "lineflow_msgs/msg/CompressedImage":
+        return bytes(d.data)
+    import io
+
+    from PIL import Image
+
+    img = Image.open(io.BytesIO(bytes(d.data)))
+    if img.format != "PNG" or img.size != (d.width, d.height) or img.mode not in ("L", "RGB"):
+        fail(f"compressed image {d.name}: {img.format} {img.size} {img.mode} for {d.width}x{d.height}")
+    return img.tobytes()
 
 
 def fail(msg):
@@ -107,9 +123,9 @@ def main():
 
     # gray against frames.csv
     frame_rows = {int(r["frame"]): r for r in csv.DictReader(open(out / "frames.csv"))}
-    for _, _, d in by_topic["gray"]:
+    for name, _, d in by_topic["gray"]:
         r = frame_rows[d.stamp.frame]
-        if (d.name, d.width, d.height) != (r["image"], int(r["width"]), int(r["height"])) or fnv1a64(d.data) != int(r["fnv1a64"], 16):
+        if (d.name, d.width, d.height) != (r["image"], int(r["width"]), int(r["height"])) or fnv1a64(pixels(name, d)) != int(r["fnv1a64"], 16):
             fail(f"gray frame {d.stamp.frame} differs from frames.csv")
     print(f"gray             {len(by_topic['gray'])} images = frames.csv (checksums of the pixels)")
 
@@ -117,9 +133,9 @@ def main():
     if png_dir is not None:
         from PIL import Image
 
-        for _, _, d in by_topic["images"]:
+        for name, _, d in by_topic["images"]:
             png = Image.open(png_dir / d.name).convert("RGB")
-            if png.size != (d.width, d.height) or png.tobytes() != bytes(d.data):
+            if png.size != (d.width, d.height) or png.tobytes() != pixels(name, d):
                 fail(f"images: {d.name} differs from {png_dir / d.name}")
         print(f"images           {len(by_topic['images'])} images = the PNG files")
 
@@ -145,6 +161,16 @@ def main():
             for (_, _, p), (_, _, s) in zip(msgs, source):
                 if len(p.data) != p.step * p.height or p.width > s.width or p.encoding not in ("mono8", "rgb8"):
                     fail(f"{topic}: preview {p.width}x{p.height} step {p.step} of {s.width}x{s.height}")
+        elif name == "foxglove_msgs/msg/CompressedImage":
+            import io
+
+            from PIL import Image
+
+            source = by_topic[topic.rsplit("/", 1)[0]]
+            for (_, _, p), (_, _, s) in zip(msgs, source):
+                img = Image.open(io.BytesIO(bytes(p.data)))
+                if p.format != "jpeg" or img.format != "JPEG" or img.size[0] > s.width:
+                    fail(f"{topic}: compressed preview {p.format} {img.format} {img.size} of {s.width}x{s.height}")
         elif name == "foxglove.ImageAnnotations":
             source = by_topic[topic.rsplit("/", 1)[0]]
             for (_, _, a), (_, _, s) in zip(msgs, source):

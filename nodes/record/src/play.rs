@@ -104,7 +104,7 @@ fn body() -> Result<()> {
     let mut stopped = false;
     loop {
         let (start, mut first_log) = (Instant::now(), None);
-        let result = rec.for_each_message(|m| {
+        let result = rec.for_each_message(|mut m| {
             let Some((kind, out)) = outputs.get(&m.topic) else {
                 return Ok(());
             };
@@ -119,6 +119,8 @@ fn body() -> Result<()> {
                     std::thread::sleep(wait);
                 }
             }
+            // An image recorded compressed is published as the graph carried it.
+            m.restore(&mut scratch)?;
             let (header, payload) =
                 decode_view(*kind, &m.data, &mut scratch).with_context(|| format!("topic '{}' message {}", m.topic, m.sequence))?;
             out.emit(header, payload)?;

@@ -10,6 +10,7 @@ use anyhow::{Context, Result};
 use crossbeam::channel::Receiver;
 use lineflow_messages::schema::{bytes_of, encode, slice_bytes};
 use lineflow_messages::{with_kind, Message, MessageKind, NodeStatus};
+use lineflow_recordings::image_codec::{ImageCompressor, ImageFormat};
 use lineflow_recordings::views::ViewRenderer;
 use lineflow_recordings::{now_ns, Compression, McapWriter, META_END, META_RUN};
 use lineflow_runtime::launch::Graph;
@@ -21,9 +22,16 @@ struct Params {
     /// Recording file's name in the run's output folder (no folder: nothing is written outside it).
     #[serde(default = "default_file")]
     file: String,
-    /// Chunk compression: none, lz4, zstd.
+    /// Chunk compression: none, lz4, zstd; by default none for raw images (they barely compress and it would
+    /// halve the recorder's throughput), zstd when the images are compressed already (the rest then dominates).
     #[serde(default)]
-    compression: Compression,
+    compression: Option<Compression>,
+    /// How image topics are recorded: raw, png (lossless), jpeg.
+    #[serde(default)]
+    images: ImageFormat,
+    /// JPEG quality of `images = "jpeg"`, 1–100.
+    #[serde(default = "default_jpeg_quality")]
+    jpeg_quality: u8,
     /// Longest side of the image previews for viewers; 0 turns previews off.
     #[serde(default = "default_preview")]
     preview_max_px: u32,
@@ -33,6 +41,9 @@ struct Params {
 }
 fn default_file() -> String {
     "recording.mcap".into()
+}
+fn default_jpeg_quality() -> u8 {
+    90
 }
 fn default_preview() -> u32 {
     1280
@@ -112,6 +123,9 @@ fn body() -> Result<()> {
     let ctx = NodeContext::from_env()?;
     let p: Params = ctx.params()?;
     lineflow_runtime::params::file_name("file", &p.file)?;
+    if !(1..=100).contains(&p.jpeg_quality) {
+        anyhow::bail!("record.jpeg_quality must be 1 to 100, got {}", p.jpeg_quality);
+    }
     let graph = ctx.graph().clone();
     let mut topics = Vec::new();
     for e in graph.edges.iter().filter(|e| e.to.iter().any(|t| t == ctx.name())) {
@@ -132,11 +146,18 @@ fn body() -> Result<()> {
     }
     // The file exists before the graph starts: an unwritable path fails the run before any frame is lost.
     let path = ctx.out_dir().join(&p.file);
-    let mut writer = McapWriter::create(&path, p.compression)?;
+    let compression = p.compression.unwrap_or(match p.images {
+        ImageFormat::Raw => Compression::None,
+        ImageFormat::Png | ImageFormat::Jpeg => Compression::Zstd,
+    });
+    let mut writer = McapWriter::create(&path, compression)?;
     writer.metadata(META_RUN, run_metadata(&graph))?;
-    let renderer = ViewRenderer::new(p.preview_max_px);
+    let renderer = ViewRenderer::new(p.preview_max_px).with_compressed_previews(p.images != ImageFormat::Raw);
     for t in &topics {
-        writer.add_topic(&t.name, t.kind)?;
+        match t.kind {
+            MessageKind::Image => writer.add_image_topic(&t.name, p.images)?,
+            kind => writer.add_topic(&t.name, kind)?,
+        }
         for (suffix, view) in renderer.views(t.kind) {
             writer.add_view(&format!("{}/{suffix}", t.name), view)?;
         }
@@ -147,7 +168,8 @@ fn body() -> Result<()> {
     let (tx, rx) = crossbeam::channel::bounded::<Item>(capacity);
     let (give_back, pool) = crossbeam::channel::bounded::<Vec<u8>>(capacity);
     let names: Vec<(String, MessageKind)> = topics.iter().map(|t| (t.name.clone(), t.kind)).collect();
-    let thread = spawn_writer(writer, rx, give_back, names, renderer)?;
+    let images = (p.images != ImageFormat::Raw).then_some((p.images, p.jpeg_quality));
+    let thread = spawn_writer(writer, rx, give_back, names, renderer, images)?;
     ctx.connect()?;
     tracing::info!("recording {} topics to {}", topics.len(), path.display());
 
@@ -192,20 +214,32 @@ fn body() -> Result<()> {
     ended.map(|_| ())
 }
 
-/// The writer thread: writes every item and its viewer renderings; returns the writer for the last records.
+/// The writer thread: writes every item (images compressed when `images` says so) and its viewer renderings;
+/// returns the writer for the last records.
 fn spawn_writer(
     mut writer: McapWriter,
     rx: Receiver<Item>,
     give_back: crossbeam::channel::Sender<Vec<u8>>,
     topics: Vec<(String, MessageKind)>,
     mut renderer: ViewRenderer,
+    images: Option<(ImageFormat, u8)>,
 ) -> Result<JoinHandle<Result<McapWriter>>> {
+    let mut compressor = ImageCompressor::default();
+    let mut packed = Vec::new();
     std::thread::Builder::new()
         .name("mcap-writer".into())
         .spawn(move || {
             for item in rx {
                 let (topic, kind) = &topics[item.topic];
-                writer.write(topic, item.log_time, item.publish_time, &item.cdr)?;
+                match images {
+                    Some((format, quality)) if *kind == MessageKind::Image => {
+                        compressor
+                            .compress(&item.cdr, format, quality, &mut packed)
+                            .with_context(|| format!("cannot compress an image of '{topic}'"))?;
+                        writer.write(topic, item.log_time, item.publish_time, &packed)?;
+                    }
+                    _ => writer.write(topic, item.log_time, item.publish_time, &item.cdr)?,
+                }
                 for (suffix, bytes) in renderer.render(*kind, &item.cdr) {
                     writer.write(&format!("{topic}/{suffix}"), item.log_time, item.publish_time, &bytes)?;
                 }

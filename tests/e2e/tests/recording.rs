@@ -87,16 +87,35 @@ fn a_demo_recording_replays_byte_for_byte_swaps_a_stage_and_decodes_in_python() 
     );
     assert_eq!(gray["schema"], "lineflow_msgs/msg/Image");
 
-    // The same graph on the recorded source topics: every derived topic byte for byte the same.
+    // The same graph on the recorded source topics: every derived topic byte for byte the same. The re-run records
+    // its images as PNG, which `diff` compares as the images they restore.
     let again = sb.path().join("again");
-    assert!(rerun(&sb, &rec, &[], &again), "rerun failed");
-    let d = sb.run(&["diff", rec.to_str().unwrap(), again.join("recording.mcap").to_str().unwrap()]);
+    assert!(rerun(&sb, &rec, &["record.images=\"png\""], &again), "rerun failed");
+    let png_rec = again.join("recording.mcap");
+    let d = sb.run(&["diff", rec.to_str().unwrap(), png_rec.to_str().unwrap()]);
     assert!(d.status.success(), "replay differs:\n{}", stdout(&d));
     assert!(stdout(&d).contains("recordings are equal on all 16 topics"), "{}", stdout(&d));
     assert_eq!(
         std::fs::read(sb.path().join("live/lines2d.csv")).unwrap(),
         std::fs::read(again.join("lines2d.csv")).unwrap()
     );
+    let info = stdout(&sb.run(&["info", png_rec.to_str().unwrap()]));
+    assert!(
+        info.contains("lineflow_msgs/msg/CompressedImage") && info.contains("status:    complete"),
+        "{info}"
+    );
+    let size = |p: &Path| std::fs::metadata(p).unwrap().len();
+    assert!(
+        size(&png_rec) < size(&rec),
+        "a PNG recording is smaller: {} vs {}",
+        size(&png_rec),
+        size(&rec)
+    );
+    // A PNG recording replays as the raw one did.
+    let third = sb.path().join("third");
+    assert!(rerun(&sb, &png_rec, &[], &third), "rerun of the PNG recording failed");
+    let d = sb.run(&["diff", rec.to_str().unwrap(), third.join("recording.mcap").to_str().unwrap()]);
+    assert!(d.status.success(), "a PNG recording's replay differs:\n{}", stdout(&d));
 
     // Sobel instead of Canny on replay: only the edge topic and what follows from it differ.
     let swapped = sb.path().join("sobel");
@@ -120,13 +139,16 @@ fn a_demo_recording_replays_byte_for_byte_swaps_a_stage_and_decodes_in_python() 
         scene.to_str().unwrap(),
     ]);
     assert!(r.status.success());
-    let py = std::process::Command::new(lineflow_e2e::python())
-        .arg(repo_file("tests/e2e/check_recording.py"))
-        .args([&rec, &sb.path().join("live"), &scene.join("images")])
-        .output()
-        .expect("python3");
-    eprintln!("{}{}", stdout(&py), String::from_utf8_lossy(&py.stderr));
-    assert!(py.status.success(), "the Python check failed");
+    // The same for the re-run that recorded its images as PNG files.
+    for (recording, out) in [(&rec, sb.path().join("live")), (&png_rec, again.clone())] {
+        let py = std::process::Command::new(lineflow_e2e::python())
+            .arg(repo_file("tests/e2e/check_recording.py"))
+            .args([recording, &out, &scene.join("images")])
+            .output()
+            .expect("python3");
+        eprintln!("{}{}", stdout(&py), String::from_utf8_lossy(&py.stderr));
+        assert!(py.status.success(), "the Python check failed on {}", recording.display());
+    }
 
     // Export gives the formats of conventions.md back.
     let exported = sb.path().join("exported");
