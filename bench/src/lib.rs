@@ -11,7 +11,7 @@ mod lines2d;
 pub mod model;
 mod modelfit;
 pub mod reader;
-mod record;
+pub mod record;
 mod render;
 pub mod seed001;
 pub mod seed004;
@@ -243,10 +243,13 @@ pub enum BenchCmd {
         /// Frames.
         #[arg(long, default_value_t = 30)]
         frames: usize,
-        /// Frame width.
+        /// The frames: a noisy pattern (`--width` × `--height`) or the synthetic camera's façade at full size.
+        #[arg(long, value_enum, default_value = "noise")]
+        source: record::FrameSource,
+        /// Frame width (noise).
         #[arg(long, default_value_t = 4288)]
         width: u32,
-        /// Frame height.
+        /// Frame height (noise).
         #[arg(long, default_value_t = 2848)]
         height: u32,
         /// The recorder's image previews for viewers (longest side; 0 = off), as in `[record] preview_max_px`.
@@ -364,10 +367,11 @@ pub fn bench(cmd: BenchCmd) -> Result<ExitCode> {
         }),
         BenchCmd::Record {
             frames,
+            source,
             width,
             height,
             preview_max_px,
-        } => record::bench_record(frames, width, height, preview_max_px),
+        } => record::bench_record(frames, source, width, height, preview_max_px),
         BenchCmd::Reader { gb, dir, json } => reader::bench_reader(gb, dir, json),
     }
 }

@@ -3,18 +3,20 @@
 //! so that disk I/O never holds a sample in shared memory. On end-of-stream on every topic, or on SIGINT/SIGTERM,
 //! it writes every node's counters and finishes the file.
 use std::collections::BTreeMap;
-use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
-use anyhow::{Context, Result};
+use anyhow::Result;
 use crossbeam::channel::Receiver;
 use lineflow_messages::schema::{bytes_of, encode, slice_bytes};
 use lineflow_messages::{with_kind, Message, MessageKind, NodeStatus};
-use lineflow_recordings::image_codec::{ImageCompressor, ImageFormat};
+use lineflow_recordings::image_codec::ImageFormat;
 use lineflow_recordings::views::ViewRenderer;
 use lineflow_recordings::{now_ns, Compression, McapWriter, META_END, META_RUN};
 use lineflow_runtime::launch::Graph;
 use lineflow_runtime::{Flow, Input, NodeContext, RunEnd};
+use pipeline::{Item, Pipeline};
+
+mod pipeline;
 
 #[derive(serde::Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -50,14 +52,6 @@ fn default_preview() -> u32 {
 }
 fn default_queue_mib() -> u64 {
     1024
-}
-
-/// One received message on its way to the writer thread.
-struct Item {
-    topic: usize,
-    log_time: u64,
-    publish_time: u64,
-    cdr: Vec<u8>,
 }
 
 /// A subscribed topic of any message type.
@@ -165,15 +159,14 @@ fn body() -> Result<()> {
     // Bounded by memory: as many of the largest messages as fit in the queue budget.
     let largest = graph.edges.iter().map(|e| e.max_payload_bytes).max().unwrap_or(1).max(1);
     let capacity = ((p.queue_mib << 20) / largest).clamp(4, 4096) as usize;
-    let (tx, rx) = crossbeam::channel::bounded::<Item>(capacity);
     let (give_back, pool) = crossbeam::channel::bounded::<Vec<u8>>(capacity);
     let names: Vec<(String, MessageKind)> = topics.iter().map(|t| (t.name.clone(), t.kind)).collect();
     let images = (p.images != ImageFormat::Raw).then_some((p.images, p.jpeg_quality));
-    let thread = spawn_writer(writer, rx, give_back, names, renderer, images)?;
+    let mut pipeline = Pipeline::start(writer, names, renderer, images, give_back, capacity)?;
     ctx.connect()?;
     tracing::info!("recording {} topics to {}", topics.len(), path.display());
 
-    let mut send = |item: Item| -> Result<()> { tx.send(item).map_err(|_| anyhow::anyhow!("the recording's writer stopped")) };
+    let mut send = |item: Item| pipeline.send(item);
     let ended = ctx.run(|| {
         // Status first: what a finished publisher sent is already waiting, and the drain below takes it.
         update_ended(&mut topics, status.as_mut());
@@ -198,8 +191,7 @@ fn body() -> Result<()> {
         .as_mut()
         .map(|s| final_counters(s, &graph, ctx.name(), complete))
         .unwrap_or_default();
-    drop(tx);
-    let mut writer = thread.join().map_err(|_| anyhow::anyhow!("the recording's writer panicked"))??;
+    let mut writer = pipeline.finish()?;
     writer.metadata(META_END, end_metadata(&graph, &topics, &counters, complete, &reason))?;
     let (messages, bytes) = (writer.messages, writer.bytes);
     writer.finish()?;
@@ -212,42 +204,6 @@ fn body() -> Result<()> {
     );
     ctx.finish();
     ended.map(|_| ())
-}
-
-/// The writer thread: writes every item (images compressed when `images` says so) and its viewer renderings;
-/// returns the writer for the last records.
-fn spawn_writer(
-    mut writer: McapWriter,
-    rx: Receiver<Item>,
-    give_back: crossbeam::channel::Sender<Vec<u8>>,
-    topics: Vec<(String, MessageKind)>,
-    mut renderer: ViewRenderer,
-    images: Option<(ImageFormat, u8)>,
-) -> Result<JoinHandle<Result<McapWriter>>> {
-    let mut compressor = ImageCompressor::default();
-    let mut packed = Vec::new();
-    std::thread::Builder::new()
-        .name("mcap-writer".into())
-        .spawn(move || {
-            for item in rx {
-                let (topic, kind) = &topics[item.topic];
-                match images {
-                    Some((format, quality)) if *kind == MessageKind::Image => {
-                        compressor
-                            .compress(&item.cdr, format, quality, &mut packed)
-                            .with_context(|| format!("cannot compress an image of '{topic}'"))?;
-                        writer.write(topic, item.log_time, item.publish_time, &packed)?;
-                    }
-                    _ => writer.write(topic, item.log_time, item.publish_time, &item.cdr)?,
-                }
-                for (suffix, bytes) in renderer.render(*kind, &item.cdr) {
-                    writer.write(&format!("{topic}/{suffix}"), item.log_time, item.publish_time, &bytes)?;
-                }
-                let _ = give_back.try_send(item.cdr);
-            }
-            Ok(writer)
-        })
-        .context("cannot start the recording's writer thread")
 }
 
 fn final_counters(status: &mut lineflow_runtime::StatusWatch, graph: &Graph, me: &str, wait: bool) -> BTreeMap<u32, NodeStatus> {
