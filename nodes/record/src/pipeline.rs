@@ -23,8 +23,11 @@ pub struct Item {
     pub cdr: Vec<u8>,
 }
 
-/// An item with its place in the order of arrival and, for an image recorded compressed, its compressed form.
-type Ready = (u64, Item, Result<Option<Vec<u8>>, String>);
+/// An image's compressed form (`None`: the message is written as it is), or why it could not be compressed.
+type Packed = Result<Option<Vec<u8>>, String>;
+
+/// An item with its place in the order of arrival and its packed form.
+type Ready = (u64, Item, Packed);
 
 /// How images are recorded: the format and the JPEG quality.
 pub type Images = Option<(ImageFormat, u8)>;
@@ -138,7 +141,7 @@ fn write_loop(
     give_back: &Sender<Vec<u8>>,
 ) -> Result<McapWriter> {
     // Encoders finish out of order: hold what comes early until its turn.
-    let mut early: BTreeMap<u64, (Item, Result<Option<Vec<u8>>, String>)> = BTreeMap::new();
+    let mut early: BTreeMap<u64, (Item, Packed)> = BTreeMap::new();
     let mut next = 0u64;
     for (seq, item, packed) in ready {
         early.insert(seq, (item, packed));
