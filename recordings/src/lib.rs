@@ -155,10 +155,10 @@ impl Recording {
             && file.read_exact(&mut tail).is_ok()
             && tail == MAGIC;
         let (summary, damage) = if finished {
-            match std::panic::catch_unwind(|| reader::summary(path, size_bytes)) {
-                Ok(Ok(s)) => (s, None),
-                Ok(Err(e)) => (None, Some(format!("the summary section is corrupt ({e})"))),
-                Err(_) => (None, Some("the summary section is corrupt".to_owned())),
+            match reader::catch_quietly(|| reader::summary(path, size_bytes)) {
+                Some(Ok(s)) => (s, None),
+                Some(Err(e)) => (None, Some(format!("the summary section is corrupt ({e})"))),
+                None => (None, Some("the summary section is corrupt".to_owned())),
             }
         } else {
             (

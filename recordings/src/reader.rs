@@ -60,7 +60,7 @@ pub(crate) fn scanned_metadata(path: &Path) -> BTreeMap<String, BTreeMap<String,
     let mut source = BufReader::with_capacity(READ_BUFFER, file);
     let options = LinearReaderOptions::default().with_skip_end_magic(true).with_emit_chunks(true);
     let mut reader = LinearReader::new_with_options(options);
-    let scan = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+    let scan = catch_quietly(|| {
         while let Some(Ok(event)) = reader.next_event() {
             match event {
                 LinearReadEvent::ReadRequest(n) => match source.read(reader.insert(n)) {
@@ -74,7 +74,7 @@ pub(crate) fn scanned_metadata(path: &Path) -> BTreeMap<String, BTreeMap<String,
                 }
             }
         }
-    }));
+    });
     // A panic inside the mcap crate is a damaged record, as an error would be; what was read stays.
     let _ = scan;
     out
@@ -118,12 +118,22 @@ impl<T, I: Iterator<Item = mcap::McapResult<T>>> Iterator for Guarded<I> {
 
     fn next(&mut self) -> Option<Self::Item> {
         let inner = self.0.as_mut()?;
-        match std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| inner.next())) {
-            Ok(item) => item.map(|r| r.map_err(ReadError::Mcap)),
-            Err(_) => {
+        match catch_quietly(|| inner.next()) {
+            Some(item) => item.map(|r| r.map_err(ReadError::Mcap)),
+            None => {
                 self.0 = None;
                 Some(Err(ReadError::Panicked))
             }
         }
     }
+}
+
+/// Runs `f`; a panic inside the mcap crate (a damaged or still growing file, see [`ReadError::Panicked`]) becomes
+/// `None`, without the panic's message on the terminal: the caller reports it as an error of the file.
+pub(crate) fn catch_quietly<T>(f: impl FnOnce() -> T) -> Option<T> {
+    let hook = std::panic::take_hook();
+    std::panic::set_hook(Box::new(|_| {}));
+    let result = std::panic::catch_unwind(std::panic::AssertUnwindSafe(f));
+    std::panic::set_hook(hook);
+    result.ok()
 }
