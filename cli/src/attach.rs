@@ -115,7 +115,7 @@ macro_rules! with_kind {
         }
     };
 }
-use with_kind;
+pub(crate) use with_kind;
 
 /// How `lineflow echo` prints a message.
 #[derive(Debug, Clone, Copy)]

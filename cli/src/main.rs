@@ -4,6 +4,7 @@ mod doctor;
 mod logs;
 mod model_cmd;
 mod ps;
+mod record_cmd;
 mod recordings;
 mod run;
 mod synth;
@@ -173,6 +174,22 @@ enum Cmd {
         /// which takes milliseconds on a file of any size).
         #[arg(long)]
         verify: bool,
+    },
+    /// Attach to a running run and record chosen topics (every topic by default) into a new MCAP file, until the
+    /// run ends, the topics end, or Ctrl-C.
+    Record {
+        /// Topics to record (repeat the option); every topic of the run when none is given.
+        #[arg(long)]
+        topic: Vec<String>,
+        /// The recording file to write.
+        #[arg(long)]
+        out: PathBuf,
+        /// Run id [default: the newest running run].
+        #[arg(long)]
+        run: Option<String>,
+        /// How images are recorded: raw, png (lossless) or jpeg.
+        #[arg(long, default_value = "raw")]
+        images: lineflow_recordings::image_codec::ImageFormat,
     },
     /// Compare two recordings topic by topic, message by message; exit status 1 when they differ.
     Diff {
@@ -358,6 +375,7 @@ fn main() -> ExitCode {
             };
             attach::echo(&topic, run.as_deref(), count, form)
         }
+        Cmd::Record { topic, out, run, images } => record_cmd::record(run.as_deref(), &topic, &out, images),
         Cmd::Hz { topic, run, seconds } => attach::hz(&topic, run.as_deref(), seconds),
         Cmd::Replay {
             recording,

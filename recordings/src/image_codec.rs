@@ -51,6 +51,18 @@ impl ImageFormat {
     }
 }
 
+impl std::str::FromStr for ImageFormat {
+    type Err = anyhow::Error;
+    fn from_str(s: &str) -> Result<Self> {
+        Ok(match s {
+            "raw" => Self::Raw,
+            "png" => Self::Png,
+            "jpeg" => Self::Jpeg,
+            _ => bail!("unknown image format '{s}' (raw, png, jpeg)"),
+        })
+    }
+}
+
 /// Reusable buffers of a compressor.
 #[derive(Default)]
 pub struct ImageCompressor {

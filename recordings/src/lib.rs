@@ -322,6 +322,32 @@ fn channel_info(c: &mcap::Channel<'_>) -> ChannelInfo {
     }
 }
 
+/// The [`META_RUN`] record of a run of `graph`.
+pub fn run_metadata(graph: &lineflow_runtime::launch::Graph, run_id: &str) -> BTreeMap<String, String> {
+    let mut m = BTreeMap::from([
+        ("version".to_owned(), env!("CARGO_PKG_VERSION").to_owned()),
+        ("run_id".to_owned(), run_id.to_owned()),
+        ("graph_name".to_owned(), graph.name.clone()),
+        ("launch_path".to_owned(), graph.source.display().to_string()),
+        ("launch_text".to_owned(), graph.text.clone()),
+        ("graph_json".to_owned(), serde_json::to_string(graph).unwrap_or_default()),
+        ("created_unix_ns".to_owned(), now_ns().to_string()),
+    ]);
+    for n in &graph.nodes {
+        m.insert(
+            format!("node.{}", n.name),
+            format!(
+                "stage={} impl={} version={} command={}",
+                n.stage.as_deref().unwrap_or("-"),
+                n.implementation.as_deref().unwrap_or("default"),
+                env!("CARGO_PKG_VERSION"),
+                n.command.join(" ")
+            ),
+        );
+    }
+    m
+}
+
 /// Nanoseconds since the Unix epoch now.
 pub fn now_ns() -> u64 {
     std::time::SystemTime::now()

@@ -11,7 +11,7 @@ use lineflow_messages::schema::{bytes_of, encode, slice_bytes};
 use lineflow_messages::{with_kind, Message, MessageKind, NodeStatus};
 use lineflow_recordings::image_codec::ImageFormat;
 use lineflow_recordings::views::ViewRenderer;
-use lineflow_recordings::{now_ns, Compression, McapWriter, META_END, META_RUN};
+use lineflow_recordings::{now_ns, run_metadata, Compression, McapWriter, META_END, META_RUN};
 use lineflow_runtime::launch::Graph;
 use lineflow_runtime::{Flow, Input, NodeContext, RunEnd};
 use pipeline::{Item, Pipeline};
@@ -145,7 +145,8 @@ fn body() -> Result<()> {
         ImageFormat::Png | ImageFormat::Jpeg => Compression::Zstd,
     });
     let mut writer = McapWriter::create(&path, compression)?;
-    writer.metadata(META_RUN, run_metadata(&graph))?;
+    let run_id = std::env::var(lineflow_runtime::env::RUN_ID).unwrap_or_default();
+    writer.metadata(META_RUN, run_metadata(&graph, &run_id))?;
     let renderer = ViewRenderer::new(p.preview_max_px).with_compressed_previews(p.images != ImageFormat::Raw);
     for t in &topics {
         match t.kind {
@@ -220,34 +221,6 @@ fn final_counters(status: &mut lineflow_runtime::StatusWatch, graph: &Graph, me:
         }
         std::thread::sleep(Duration::from_millis(20));
     }
-}
-
-fn run_metadata(graph: &Graph) -> BTreeMap<String, String> {
-    let mut m = BTreeMap::from([
-        ("version".to_owned(), env!("CARGO_PKG_VERSION").to_owned()),
-        (
-            "run_id".to_owned(),
-            std::env::var(lineflow_runtime::env::RUN_ID).unwrap_or_default(),
-        ),
-        ("graph_name".to_owned(), graph.name.clone()),
-        ("launch_path".to_owned(), graph.source.display().to_string()),
-        ("launch_text".to_owned(), graph.text.clone()),
-        ("graph_json".to_owned(), serde_json::to_string(graph).unwrap_or_default()),
-        ("created_unix_ns".to_owned(), now_ns().to_string()),
-    ]);
-    for n in &graph.nodes {
-        m.insert(
-            format!("node.{}", n.name),
-            format!(
-                "stage={} impl={} version={} command={}",
-                n.stage.as_deref().unwrap_or("-"),
-                n.implementation.as_deref().unwrap_or("default"),
-                env!("CARGO_PKG_VERSION"),
-                n.command.join(" ")
-            ),
-        );
-    }
-    m
 }
 
 fn end_metadata(

@@ -406,6 +406,24 @@ fn a_recording_plays_back_for_viewers_until_ctrl_c() {
         "{}",
         stdout(&hz)
     );
+    // `record` attaches to the running playback and records two topics, the images as PNG, until the run ends.
+    let attached = sb.path().join("attached.mcap");
+    let recorder = sb
+        .lineflow(&[
+            "record",
+            "--topic",
+            "lines2d",
+            "--topic",
+            "images",
+            "--images",
+            "png",
+            "--out",
+            attached.to_str().unwrap(),
+        ])
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    std::thread::sleep(Duration::from_secs(3));
     // `ps` lists the playback; `stop` ends it as Ctrl-C would.
     let ps = stdout(&sb.run(&["ps", "--json"]));
     let runs: Vec<serde_json::Value> = ps.lines().map(|l| serde_json::from_str(l).unwrap()).collect();
@@ -422,6 +440,17 @@ fn a_recording_plays_back_for_viewers_until_ctrl_c() {
         "the player stops cleanly on Ctrl-C: {err}"
     );
     assert!(stdout(&sb.run(&["ps"])).contains("no lineflow run is running"));
+    let r = recorder.wait_with_output().unwrap();
+    let err = String::from_utf8_lossy(&r.stderr);
+    // The stopped player ends its topics, which ends the attached recording.
+    assert!(r.status.success() && err.contains("messages of 2 topics"), "{err}");
+    let info = stdout(&sb.run(&["info", attached.to_str().unwrap(), "--json"]));
+    let v: serde_json::Value = serde_json::from_str(info.trim()).unwrap_or_else(|e| panic!("{e}: {info}"));
+    let topic = |name: &str| v["topics"].as_array().unwrap().iter().find(|t| t["topic"] == name).cloned();
+    assert!(topic("lines2d").unwrap()["messages"].as_u64().unwrap() > 0, "{v}");
+    assert_eq!(topic("images").unwrap()["schema"], "lineflow_msgs/msg/CompressedImage", "{v}");
+    assert!(topic("tiepoints").is_none(), "only the chosen topics: {v}");
+    assert!(v["status"].as_str().unwrap().contains("attached to a running run"), "{v}");
     assert!(!sb.run(&["stop", &id]).status.success(), "a run that ended cannot be stopped");
 }
 
