@@ -5,7 +5,7 @@ use std::time::{Duration, Instant};
 use anyhow::{Context, Result};
 use iceoryx2::port::update_connections::UpdateConnections;
 use iceoryx2::prelude::*;
-use lineflow_messages::{kinds, Encoding, ImageHeader, Message, MessageKind};
+use lineflow_messages::{with_kind, Encoding, ImageHeader, Message, MessageKind};
 use lineflow_runtime::launch::{EdgeSpec, Graph};
 use lineflow_runtime::runs::RunRecord;
 use lineflow_runtime::transport;
@@ -51,71 +51,6 @@ pub fn topics(run: Option<&str>) -> Result<ExitCode> {
     }
     Ok(ExitCode::SUCCESS)
 }
-
-/// Calls `$body` with `$M` bound to the marker type of a [`MessageKind`].
-macro_rules! with_kind {
-    ($kind:expr, $M:ident => $body:expr) => {
-        match $kind {
-            MessageKind::Image => {
-                type $M = kinds::Image;
-                $body
-            }
-            MessageKind::CameraModel => {
-                type $M = kinds::CameraModel;
-                $body
-            }
-            MessageKind::ControlPoints => {
-                type $M = kinds::ControlPoints;
-                $body
-            }
-            MessageKind::Observations => {
-                type $M = kinds::Observations;
-                $body
-            }
-            MessageKind::Site => {
-                type $M = kinds::Site;
-                $body
-            }
-            MessageKind::Keypoints => {
-                type $M = kinds::Keypoints;
-                $body
-            }
-            MessageKind::TiePoints => {
-                type $M = kinds::TiePoints;
-                $body
-            }
-            MessageKind::Poses => {
-                type $M = kinds::Poses;
-                $body
-            }
-            MessageKind::EdgeMap => {
-                type $M = kinds::EdgeMap;
-                $body
-            }
-            MessageKind::Lines2D => {
-                type $M = kinds::Lines2D;
-                $body
-            }
-            MessageKind::Points3D => {
-                type $M = kinds::Points3D;
-                $body
-            }
-            MessageKind::Lines3D => {
-                type $M = kinds::Lines3D;
-                $body
-            }
-            MessageKind::Wireframe => {
-                type $M = kinds::Wireframe;
-                $body
-            }
-            MessageKind::ModelFaces => {
-                type $M = kinds::ModelFaces;
-                $body
-            }
-        }
-    };
-}
-pub(crate) use with_kind;
 
 /// How `lineflow echo` prints a message.
 #[derive(Debug, Clone, Copy)]

@@ -11,14 +11,12 @@ use iceoryx2::port::subscriber::Subscriber;
 use iceoryx2::port::update_connections::UpdateConnections;
 use iceoryx2::prelude::*;
 use lineflow_messages::schema::{bytes_of, encode, slice_bytes};
-use lineflow_messages::{kinds, Message, MessageKind};
+use lineflow_messages::{with_kind, Message, MessageKind};
 use lineflow_recordings::image_codec::{ImageCompressor, ImageFormat};
 use lineflow_recordings::{now_ns, run_metadata, Compression, McapWriter, META_END, META_RUN};
 use lineflow_runtime::launch::EdgeSpec;
 use lineflow_runtime::runs::RunRecord;
 use lineflow_runtime::transport;
-
-use crate::attach::with_kind;
 
 /// A subscribed topic of any message type.
 trait Tap {
