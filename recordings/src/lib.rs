@@ -25,7 +25,7 @@ use anyhow::{bail, Context, Result};
 use lineflow_messages::schema::{self, MessageSchema};
 use lineflow_messages::MessageKind;
 
-pub use writer::{Compression, McapWriter, TopicTotals};
+pub use writer::{part_path, Compression, McapWriter, SplitLimits, TopicTotals};
 
 /// Metadata record written at the start: `version`, `run_id`, `graph_name`, `launch_path`, `launch_text`,
 /// `graph_json`, and `node.<name>` = the node's stage, implementation and command.
@@ -36,6 +36,9 @@ pub const META_END: &str = "lineflow.end";
 /// Metadata record written by [`McapWriter::finish`]: `topic.<topic>.{messages,bytes,largest,first_log,last_log}`
 /// ([`TopicTotals`]), so that a finished file's totals need no pass over its messages.
 pub const META_TOPICS: &str = "lineflow.topics";
+/// Metadata record of every file of a split recording: `index` (0 for the first file, named as the recording;
+/// then `stem.001.mcap`, ...).
+pub const META_PART: &str = "lineflow.part";
 /// Channel metadata key marking a viewer channel.
 pub const VIEW_KEY: &str = "lineflow.view";
 /// The MCAP profile of lineflow recordings.
@@ -123,8 +126,10 @@ pub struct Recording {
     pub summary: Option<mcap::Summary>,
     /// Why the summary is missing.
     pub damage: Option<String>,
-    /// Metadata records by name.
+    /// Metadata records by name (of a split recording: the first file's, with the last file's end record).
     pub metadata: BTreeMap<String, BTreeMap<String, String>>,
+    /// The files after the first of a split recording ([`McapWriter::split`]), in order.
+    pub parts: Vec<Recording>,
 }
 
 impl Recording {
@@ -134,6 +139,50 @@ impl Recording {
     /// When the file cannot be read or is not an MCAP file. A file without summary (not finished) opens; its
     /// `summary` is `None` and reading its messages stops at the first incomplete record.
     pub fn open(path: &Path) -> Result<Self> {
+        let mut rec = Self::open_file(path)?;
+        rec.open_parts()?;
+        Ok(rec)
+    }
+
+    /// The files after the first of a split recording, up to the first missing one; a later file beyond a gap
+    /// marks the recording damaged (nothing after the gap is read).
+    fn open_parts(&mut self) -> Result<()> {
+        if self.metadata.get(META_PART).and_then(|m| m.get("index")).map(String::as_str) != Some("0") {
+            return Ok(());
+        }
+        let mut k = 1;
+        while part_path(&self.path, k).exists() {
+            self.parts.push(Self::open_file(&part_path(&self.path, k))?);
+            k += 1;
+        }
+        let missing = part_path(&self.path, k);
+        if let Some(later) = later_part(&self.path, k) {
+            self.damage.get_or_insert(format!(
+                "{} of the split recording is missing; {} and after are not read",
+                missing.display(),
+                later.display()
+            ));
+        }
+        for part in &self.parts {
+            self.size_bytes += part.size_bytes;
+            if let Some(d) = &part.damage {
+                self.damage.get_or_insert(format!("{}: {d}", part.path.display()));
+            }
+        }
+        match self.parts.last().and_then(|p| p.metadata.get(META_END)) {
+            Some(end) => {
+                self.metadata.insert(META_END.to_owned(), end.clone());
+            }
+            // The recorder writes its end record into the last file only.
+            None if !self.parts.is_empty() => {
+                self.metadata.remove(META_END);
+            }
+            None => {}
+        }
+        Ok(())
+    }
+
+    fn open_file(path: &Path) -> Result<Self> {
         let cannot_read = || format!("{}: cannot read", path.display());
         let mut file = std::fs::File::open(path).with_context(cannot_read)?;
         let size_bytes = file.metadata().with_context(cannot_read)?.len();
@@ -180,12 +229,13 @@ impl Recording {
             summary,
             damage,
             metadata,
+            parts: Vec::new(),
         })
     }
 
     /// Whether the file ends properly (summary and footer written).
     pub fn is_finished(&self) -> bool {
-        self.summary.is_some()
+        self.summary.is_some() && self.parts.iter().all(Self::is_finished)
     }
 
     /// Whether the recorder saw end-of-stream on every topic and nothing was dropped or missed.
@@ -218,6 +268,20 @@ impl Recording {
     /// # Errors
     /// When the file cannot be opened.
     pub fn messages(&self) -> Result<impl Iterator<Item = Result<RecordedMessage>> + '_> {
+        let mut streams = Vec::new();
+        for file in std::iter::once(self).chain(&self.parts) {
+            streams.push(file.file_messages()?);
+        }
+        // A damaged file ends the read: the files after it would leave a gap in every topic.
+        Ok(streams.into_iter().flatten().scan(false, |failed, m| {
+            (!*failed).then(|| {
+                *failed = m.is_err();
+                m
+            })
+        }))
+    }
+
+    fn file_messages(&self) -> Result<impl Iterator<Item = Result<RecordedMessage>> + '_> {
         let stream = reader::messages(&self.path).with_context(|| format!("{}: cannot read messages", self.path.display()))?;
         Ok(stream.enumerate().map(|(count, m)| {
             let m = m.map_err(|e| {
@@ -245,8 +309,17 @@ impl Recording {
     /// Each topic's totals from the [`META_TOPICS`] record of a finished file, without reading a message; `None`
     /// for an unfinished file or one of another writer.
     pub fn topic_totals(&self) -> Option<BTreeMap<String, TopicTotals>> {
-        self.summary.as_ref()?;
-        TopicTotals::from_metadata(self.metadata.get(META_TOPICS)?)
+        if self.damage.is_some() {
+            return None;
+        }
+        let mut totals = BTreeMap::<String, TopicTotals>::new();
+        for file in std::iter::once(self).chain(&self.parts) {
+            file.summary.as_ref()?;
+            for (topic, t) in TopicTotals::from_metadata(file.metadata.get(META_TOPICS)?)? {
+                totals.entry(topic).or_default().merge(&t);
+            }
+        }
+        Some(totals)
     }
 
     /// Each topic's totals by reading every message (checking every chunk), with the read's error if it ended
@@ -289,10 +362,12 @@ impl Recording {
 
     // The summary's channels; an unfinished file's are found by streaming its messages.
     fn each_channel(&self, mut f: impl FnMut(&mcap::Channel<'_>)) {
-        if let Some(s) = &self.summary {
-            s.channels.values().for_each(|c| f(c));
-        } else if let Ok(stream) = reader::messages(&self.path) {
-            stream.map_while(Result::ok).for_each(|m| f(&m.channel));
+        for file in std::iter::once(self).chain(&self.parts) {
+            if let Some(s) = &file.summary {
+                s.channels.values().for_each(|c| f(c));
+            } else if let Ok(stream) = reader::messages(&file.path) {
+                stream.map_while(Result::ok).for_each(|m| f(&m.channel));
+            }
         }
     }
 }
@@ -320,6 +395,22 @@ fn channel_info(c: &mcap::Channel<'_>) -> ChannelInfo {
         view,
         image_format,
     }
+}
+
+/// The first file named as a later file of the split recording `path` beyond index `k`, if any.
+fn later_part(path: &Path, k: usize) -> Option<PathBuf> {
+    let stem = path.file_stem()?.to_string_lossy().into_owned();
+    let dir = path.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new("."));
+    std::fs::read_dir(dir)
+        .ok()?
+        .filter_map(|e| e.ok())
+        .filter_map(|e| {
+            let name = e.file_name().to_string_lossy().into_owned();
+            let index: usize = name.strip_prefix(&format!("{stem}."))?.strip_suffix(".mcap")?.parse().ok()?;
+            (index > k).then_some((index, e.path()))
+        })
+        .min()
+        .map(|(_, p)| p)
 }
 
 /// The [`META_RUN`] record of a run of `graph`.

@@ -14,8 +14,10 @@ use super::{McapWriter, Recording, META_END, META_RUN};
 pub struct Summary {
     /// The file.
     pub file: String,
-    /// Its size, bytes.
+    /// Its size, bytes (of every file of a split recording).
     pub size_bytes: u64,
+    /// Its files: 1, or the files of a split recording.
+    pub files: usize,
     /// The run that wrote it, when the recorder stored one.
     pub run: Option<RunSummary>,
     /// From the first message to the last, seconds.
@@ -132,6 +134,7 @@ pub fn summarize(rec: &Recording, reading: Reading) -> Summary {
     Summary {
         file: rec.path.display().to_string(),
         size_bytes: rec.size_bytes,
+        files: 1 + rec.parts.len(),
         run,
         duration_s: if t1 > t0 { (t1 - t0) as f64 * 1e-9 } else { 0.0 },
         messages: topics.iter().map(|t| t.messages).sum(),
@@ -147,7 +150,12 @@ pub fn summarize(rec: &Recording, reading: Reading) -> Summary {
 /// A human-readable summary: topics, message counts, rates, duration, schemas, completeness.
 pub fn info(s: &Summary) -> String {
     let mut out = String::new();
-    let _ = writeln!(out, "file:      {} ({:.1} MB)", s.file, s.size_bytes as f64 / 1e6);
+    let files = if s.files > 1 {
+        format!(" in {} files", s.files)
+    } else {
+        String::new()
+    };
+    let _ = writeln!(out, "file:      {} ({:.1} MB{files})", s.file, s.size_bytes as f64 / 1e6);
     if let Some(r) = &s.run {
         let _ = writeln!(
             out,

@@ -11,7 +11,7 @@ use lineflow_messages::schema::{bytes_of, encode, slice_bytes};
 use lineflow_messages::{with_kind, Message, MessageKind, NodeStatus};
 use lineflow_recordings::image_codec::ImageFormat;
 use lineflow_recordings::views::ViewRenderer;
-use lineflow_recordings::{now_ns, run_metadata, Compression, McapWriter, META_END, META_RUN};
+use lineflow_recordings::{now_ns, run_metadata, Compression, McapWriter, SplitLimits, META_END, META_RUN};
 use lineflow_runtime::launch::Graph;
 use lineflow_runtime::{Flow, Input, NodeContext, RunEnd};
 use pipeline::{Item, Pipeline};
@@ -34,6 +34,12 @@ struct Params {
     /// JPEG quality of `images = "jpeg"`, 1–100.
     #[serde(default = "default_jpeg_quality")]
     jpeg_quality: u8,
+    /// Move on to the next file once one holds this many MB of messages (0: one file).
+    #[serde(default)]
+    max_file_mb: f64,
+    /// Move on to the next file once one spans this many seconds (0: one file).
+    #[serde(default)]
+    max_file_seconds: f64,
     /// Longest side of the image previews for viewers; 0 turns previews off.
     #[serde(default = "default_preview")]
     preview_max_px: u32,
@@ -120,6 +126,11 @@ fn body() -> Result<()> {
     if !(1..=100).contains(&p.jpeg_quality) {
         anyhow::bail!("record.jpeg_quality must be 1 to 100, got {}", p.jpeg_quality);
     }
+    for (key, v) in [("max_file_mb", p.max_file_mb), ("max_file_seconds", p.max_file_seconds)] {
+        if !(v.is_finite() && v >= 0.0) {
+            anyhow::bail!("record.{key} must be 0 (one file) or positive, got {v}");
+        }
+    }
     let graph = ctx.graph().clone();
     let mut topics = Vec::new();
     for e in graph.edges.iter().filter(|e| e.to.iter().any(|t| t == ctx.name())) {
@@ -145,6 +156,10 @@ fn body() -> Result<()> {
         ImageFormat::Png | ImageFormat::Jpeg => Compression::Zstd,
     });
     let mut writer = McapWriter::create(&path, compression)?;
+    writer.split(SplitLimits {
+        max_bytes: (p.max_file_mb * 1e6) as u64,
+        max_duration_ns: (p.max_file_seconds * 1e9) as u64,
+    })?;
     let run_id = std::env::var(lineflow_runtime::env::RUN_ID).unwrap_or_default();
     writer.metadata(META_RUN, run_metadata(&graph, &run_id))?;
     let renderer = ViewRenderer::new(p.preview_max_px).with_compressed_previews(p.images != ImageFormat::Raw);
