@@ -12,6 +12,21 @@ use mcap::sans_io::{LinearReadEvent, LinearReader, LinearReaderOptions, SummaryR
 /// Read buffer of the message stream: large enough for sequential throughput, small beside a chunk.
 const READ_BUFFER: usize = 1 << 20;
 
+/// The longest record (or decompressed chunk) believed in a file of `file_len` bytes. A streaming reader allocates
+/// what a record's length field claims before it reads the record, so a damaged length (`lineflow bench fuzz`
+/// found one claiming 232 GB) must be refused first. Chunks decompress to at most 16 times their file's size
+/// here, and 64 MiB covers any 4 MiB chunk and a 16-bit 10 MP frame in a file of any size.
+fn record_length_limit(file_len: u64) -> usize {
+    usize::try_from(file_len.saturating_mul(16).clamp(64 << 20, 4 << 30)).unwrap_or(usize::MAX)
+}
+
+fn options(path: &Path) -> LinearReaderOptions {
+    let len = std::fs::metadata(path).map_or(0, |m| m.len());
+    LinearReaderOptions::default()
+        .with_skip_end_magic(true)
+        .with_record_length_limit(record_length_limit(len))
+}
+
 /// The summary section of a finished file.
 pub(crate) fn summary(path: &Path, file_len: u64) -> mcap::McapResult<Option<mcap::Summary>> {
     let mut file = File::open(path)?;
@@ -58,8 +73,7 @@ pub(crate) fn scanned_metadata(path: &Path) -> BTreeMap<String, BTreeMap<String,
         return out;
     };
     let mut source = BufReader::with_capacity(READ_BUFFER, file);
-    let options = LinearReaderOptions::default().with_skip_end_magic(true).with_emit_chunks(true);
-    let mut reader = LinearReader::new_with_options(options);
+    let mut reader = LinearReader::new_with_options(options(path).with_emit_chunks(true));
     let scan = catch_quietly(|| {
         while let Some(Ok(event)) = reader.next_event() {
             match event {
@@ -84,9 +98,7 @@ pub(crate) fn scanned_metadata(path: &Path) -> BTreeMap<String, BTreeMap<String,
 /// chunk checksums (corrupt files).
 pub(crate) fn messages(path: &Path) -> std::io::Result<Guarded<mcap::io::MessageReader<BufReader<File>>>> {
     let file = BufReader::with_capacity(READ_BUFFER, File::open(path)?);
-    let options = LinearReaderOptions::default()
-        .with_skip_end_magic(true)
-        .with_validate_chunk_crcs(true);
+    let options = options(path).with_validate_chunk_crcs(true);
     Ok(Guarded(Some(mcap::io::MessageReader::new_with_options(file, options))))
 }
 
