@@ -15,9 +15,9 @@ const READ_BUFFER: usize = 1 << 20;
 /// The longest record (or decompressed chunk) believed in a file of `file_len` bytes. A streaming reader allocates
 /// what a record's length field claims before it reads the record, so a damaged length (`lineflow bench fuzz`
 /// found one claiming 232 GB) must be refused first. Chunks decompress to at most 16 times their file's size
-/// here, and 64 MiB covers any 4 MiB chunk and a 16-bit 10 MP frame in a file of any size.
+/// here (the writer closes a chunk at 4 MiB of records, so 16 MiB covers a small file's chunks at any ratio).
 fn record_length_limit(file_len: u64) -> usize {
-    usize::try_from(file_len.saturating_mul(16).clamp(64 << 20, 4 << 30)).unwrap_or(usize::MAX)
+    usize::try_from(file_len.saturating_mul(16).clamp(16 << 20, 4 << 30)).unwrap_or(usize::MAX)
 }
 
 fn options(path: &Path) -> LinearReaderOptions {
@@ -49,8 +49,13 @@ pub(crate) fn summary(path: &Path, file_len: u64) -> mcap::McapResult<Option<mca
 /// The metadata records the summary indexes.
 pub(crate) fn indexed_metadata(path: &Path, summary: &mcap::Summary) -> Result<BTreeMap<String, BTreeMap<String, String>>> {
     let mut file = File::open(path)?;
+    let file_len = file.metadata()?.len();
     let mut out = BTreeMap::new();
     for index in &summary.metadata_indexes {
+        // Checked before allocating: a damaged index may claim any length.
+        if index.offset.checked_add(index.length).is_none_or(|end| end > file_len) {
+            anyhow::bail!("the index of metadata '{}' points beyond the end of the file", index.name);
+        }
         let len = usize::try_from(index.length).context("a metadata record longer than memory")?;
         let mut record = vec![0u8; len];
         file.seek(SeekFrom::Start(index.offset))?;
