@@ -359,6 +359,63 @@ fn recordings_larger_than_the_reader_holds_are_read_in_bounded_memory() {
     );
 }
 
+/// A 6 MiB tmpfs (room for one 4 MiB chunk and a part of the next) at a fresh folder, unmounted on drop; `None`
+/// where mounting is not permitted.
+struct SmallDisk(PathBuf);
+
+impl SmallDisk {
+    fn mount(at: PathBuf) -> Option<Self> {
+        std::fs::create_dir_all(&at).ok()?;
+        let ok = std::process::Command::new("mount")
+            .args(["-t", "tmpfs", "-o", "size=6m", "tmpfs"])
+            .arg(&at)
+            .stderr(Stdio::null())
+            .status()
+            .is_ok_and(|s| s.success());
+        ok.then_some(Self(at))
+    }
+}
+
+impl Drop for SmallDisk {
+    fn drop(&mut self) {
+        let _ = std::process::Command::new("umount").arg(&self.0).status();
+    }
+}
+
+#[test]
+fn a_disk_that_fills_mid_run_stops_the_run_and_keeps_what_was_written() {
+    let sb = Sandbox::new();
+    let Some(disk) = SmallDisk::mount(sb.path().join("small-disk")) else {
+        // Mounting needs CAP_SYS_ADMIN; the case of a disk full from the start runs everywhere (above).
+        eprintln!("SKIPPED: cannot mount a tmpfs here");
+        return;
+    };
+    // The recording's name links to a file on a 6 MiB disk; the run writes 10 MB.
+    let out = sb.path().join("full-mid-run");
+    std::fs::create_dir_all(&out).unwrap();
+    std::os::unix::fs::symlink(disk.0.join("recording.mcap"), out.join("recording.mcap")).unwrap();
+    let r = sb.run(&["run", demo().to_str().unwrap(), "--set", SCALE, "--out", out.to_str().unwrap()]);
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert!(!r.status.success(), "a full disk ends the run: {err}");
+    assert!(err.contains("recording.mcap") && err.contains("No space left on device"), "{err}");
+    // What reached the disk is readable and recoverable.
+    let cut = disk.0.join("recording.mcap");
+    let info = sb.run(&["info", cut.to_str().unwrap()]);
+    assert_eq!(info.status.code(), Some(2), "{}", stdout(&info));
+    let fixed = sb.path().join("fixed.mcap");
+    let r = sb.run(&["recover", cut.to_str().unwrap(), "--out", fixed.to_str().unwrap()]);
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    let text = stdout(&sb.run(&["info", fixed.to_str().unwrap()]));
+    let messages: u64 = text
+        .lines()
+        .find_map(|l| l.strip_prefix("duration:"))
+        .and_then(|l| l.split(", ").nth(1))
+        .and_then(|m| m.split_whitespace().next())
+        .and_then(|n| n.parse().ok())
+        .unwrap_or(0);
+    assert!(messages > 0, "the chunks written before the disk filled are kept:\n{text}");
+}
+
 #[test]
 fn a_recording_split_into_files_reads_and_replays_as_one() {
     let sb = Sandbox::new();
