@@ -2,6 +2,7 @@
 //! beside a reference measured in the same run. The `lineflow` command parses [`BenchCmd`] and calls [`bench`].
 mod buildings;
 mod bundle;
+mod chaos;
 mod edges;
 mod features;
 pub mod fuzz;
@@ -256,6 +257,16 @@ pub enum BenchCmd {
         #[arg(long, default_value_t = 1280)]
         preview_max_px: u32,
     },
+    /// Faults: every node of a graph SIGKILLed at three points of a run, one run each; whether each run completes or
+    /// names the node, and whether its recording reads to the last chunk.
+    Chaos {
+        /// The graph.
+        #[arg(long, default_value = "launch/demo.toml")]
+        graph: std::path::PathBuf,
+        /// Parameter overrides (NODE.PARAM=VALUE), as for `lineflow run`.
+        #[arg(long = "set", default_values_t = ["capture.scale=0.06".to_owned()])]
+        set: Vec<String>,
+    },
     /// Recordings larger than memory: `info`, `info --verify` and `export` of one topic as child processes, their
     /// wall time and peak RSS, against a plain read of the file.
     Reader {
@@ -373,5 +384,6 @@ pub fn bench(cmd: BenchCmd) -> Result<ExitCode> {
             preview_max_px,
         } => record::bench_record(frames, source, width, height, preview_max_px),
         BenchCmd::Reader { gb, dir, json } => reader::bench_reader(gb, dir, json),
+        BenchCmd::Chaos { graph, set } => chaos::bench_chaos(&graph, &set),
     }
 }
