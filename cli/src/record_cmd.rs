@@ -12,8 +12,8 @@ use iceoryx2::port::update_connections::UpdateConnections;
 use iceoryx2::prelude::*;
 use lineflow_messages::schema::{bytes_of, encode, slice_bytes};
 use lineflow_messages::{with_kind, Message, MessageKind};
-use lineflow_recordings::image_codec::{ImageCompressor, ImageFormat};
-use lineflow_recordings::{now_ns, run_metadata, Compression, McapWriter, META_END, META_RUN};
+use lineflow_recordings::image_codec::{ImageCompressor, ImageFormat, DEFAULT_JPEG_QUALITY};
+use lineflow_recordings::{now_ns, run_metadata, McapWriter, META_END, META_RUN};
 use lineflow_runtime::launch::EdgeSpec;
 use lineflow_runtime::runs::RunRecord;
 use lineflow_runtime::transport;
@@ -81,17 +81,12 @@ pub fn record(run: Option<&str>, topics: &[String], out: &Path, images: ImageFor
             })
             .collect::<Result<_>>()?
     };
-    if out.exists() && out.is_dir() {
+    if out.is_dir() {
         bail!("{}: a folder; name the recording file", out.display());
     }
     let cfg = transport::config(&rec.prefix, &rec.root)?;
     let node = transport::create_node(&cfg, &format!("cli-record-{}", std::process::id()))?;
-    let compression = if images == ImageFormat::Raw {
-        Compression::None
-    } else {
-        Compression::Zstd
-    };
-    let mut writer = McapWriter::create(out, compression)?;
+    let mut writer = McapWriter::create(out, images.chunk_compression())?;
     let mut meta = run_metadata(&graph, &rec.id);
     meta.insert("attached".into(), "true".into());
     writer.metadata(META_RUN, meta)?;
@@ -122,7 +117,7 @@ pub fn record(run: Option<&str>, topics: &[String], out: &Path, images: ImageFor
             *ended = tap.drain(&mut |publish_time, cdr| {
                 let data = match (*kind, images) {
                     (MessageKind::Image, ImageFormat::Png | ImageFormat::Jpeg) => {
-                        compressor.compress(cdr, images, 90, &mut packed)?;
+                        compressor.compress(cdr, images, DEFAULT_JPEG_QUALITY, &mut packed)?;
                         &packed[..]
                     }
                     _ => cdr,

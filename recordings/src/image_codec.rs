@@ -40,7 +40,20 @@ pub enum ImageFormat {
     Jpeg,
 }
 
+/// JPEG quality of `images = "jpeg"` unless set.
+pub const DEFAULT_JPEG_QUALITY: u8 = 90;
+
 impl ImageFormat {
+    /// The chunk compression that suits a recording of images stored this way: none for raw images (they barely
+    /// compress and it would halve the recorder's throughput), zstd once they are compressed (the other topics then
+    /// make most of the file).
+    pub fn chunk_compression(self) -> crate::Compression {
+        match self {
+            Self::Raw => crate::Compression::None,
+            Self::Png | Self::Jpeg => crate::Compression::Zstd,
+        }
+    }
+
     /// The channel metadata value (`png`, `jpeg`); `None` for raw.
     pub fn name(self) -> Option<&'static str> {
         match self {
@@ -166,6 +179,11 @@ pub fn restored_len(cdr: &[u8]) -> Option<u64> {
     let h: ImageHeader = read_pod(header);
     // `data` is the last field, a byte sequence without padding after it.
     Some((cdr.len() - file.len()) as u64 + h.payload_len() as u64)
+}
+
+/// A recorded message's size as a graph carries it: a compressed image's restored size, any other message's own.
+pub fn carried_len(data: &[u8], compressed: bool) -> u64 {
+    compressed.then(|| restored_len(data)).flatten().unwrap_or(data.len() as u64)
 }
 
 #[cfg(test)]

@@ -86,10 +86,7 @@ impl RecordedMessage {
 
     /// The message's size as the graph carries it (a compressed image's restored size).
     pub fn carried_len(&self) -> u64 {
-        match self.compressed {
-            true => image_codec::restored_len(&self.data).unwrap_or(self.data.len() as u64),
-            false => self.data.len() as u64,
-        }
+        image_codec::carried_len(&self.data, self.compressed)
     }
 }
 

@@ -79,7 +79,8 @@ pub(crate) fn scanned_metadata(path: &Path) -> BTreeMap<String, BTreeMap<String,
     };
     let mut source = BufReader::with_capacity(READ_BUFFER, file);
     let mut reader = LinearReader::new_with_options(options(path).with_emit_chunks(true));
-    let scan = catch_quietly(|| {
+    // A panic inside the mcap crate is a damaged record, as an error would be; what was read stays.
+    let _ = catch_quietly(|| {
         while let Some(Ok(event)) = reader.next_event() {
             match event {
                 LinearReadEvent::ReadRequest(n) => match source.read(reader.insert(n)) {
@@ -94,8 +95,6 @@ pub(crate) fn scanned_metadata(path: &Path) -> BTreeMap<String, BTreeMap<String,
             }
         }
     });
-    // A panic inside the mcap crate is a damaged record, as an error would be; what was read stays.
-    let _ = scan;
     out
 }
 
@@ -145,12 +144,29 @@ impl<T, I: Iterator<Item = mcap::McapResult<T>>> Iterator for Guarded<I> {
     }
 }
 
+thread_local! {
+    /// Set while [`catch_quietly`] runs on this thread.
+    static QUIET: std::cell::Cell<bool> = const { std::cell::Cell::new(false) };
+}
+
 /// Runs `f`; a panic inside the mcap crate (a damaged or still growing file, see [`ReadError::Panicked`]) becomes
 /// `None`, without the panic's message on the terminal: the caller reports it as an error of the file.
+///
+/// One panic hook, installed at the first call, stays silent while this thread is inside `f` and hands every other
+/// panic to the hook it replaced. Swapping the process's hook around each call instead (the first version) cost a
+/// global lock per message and, with two threads reading, could leave the silent hook in place for good.
 pub(crate) fn catch_quietly<T>(f: impl FnOnce() -> T) -> Option<T> {
-    let hook = std::panic::take_hook();
-    std::panic::set_hook(Box::new(|_| {}));
+    static INSTALL: std::sync::Once = std::sync::Once::new();
+    INSTALL.call_once(|| {
+        let previous = std::panic::take_hook();
+        std::panic::set_hook(Box::new(move |info| {
+            if !QUIET.with(std::cell::Cell::get) {
+                previous(info);
+            }
+        }));
+    });
+    let was = QUIET.with(|q| q.replace(true));
     let result = std::panic::catch_unwind(std::panic::AssertUnwindSafe(f));
-    std::panic::set_hook(hook);
+    QUIET.with(|q| q.set(was));
     result.ok()
 }

@@ -405,11 +405,8 @@ impl McapWriter {
             publish_time,
         };
         c.next_sequence = c.next_sequence.wrapping_add(1);
-        let carried = match c.compressed {
-            true => super::image_codec::restored_len(data).unwrap_or(data.len() as u64),
-            false => data.len() as u64,
-        };
-        c.totals.add(log_time, data.len() as u64, carried);
+        c.totals
+            .add(log_time, data.len() as u64, super::image_codec::carried_len(data, c.compressed));
         self.inner
             .write_to_known_channel(&header, data)
             .with_context(|| format!("{}: cannot write a message on '{topic}'", self.path.display()))?;

@@ -9,7 +9,7 @@ use anyhow::Result;
 use crossbeam::channel::Receiver;
 use lineflow_messages::schema::{bytes_of, encode, slice_bytes};
 use lineflow_messages::{with_kind, Message, MessageKind, NodeStatus};
-use lineflow_recordings::image_codec::ImageFormat;
+use lineflow_recordings::image_codec::{ImageFormat, DEFAULT_JPEG_QUALITY};
 use lineflow_recordings::views::ViewRenderer;
 use lineflow_recordings::{now_ns, run_metadata, Compression, McapWriter, SplitLimits, META_END, META_RUN};
 use lineflow_runtime::launch::Graph;
@@ -51,7 +51,7 @@ fn default_file() -> String {
     "recording.mcap".into()
 }
 fn default_jpeg_quality() -> u8 {
-    90
+    DEFAULT_JPEG_QUALITY
 }
 fn default_preview() -> u32 {
     1280
@@ -151,10 +151,7 @@ fn body() -> Result<()> {
     }
     // The file exists before the graph starts: an unwritable path fails the run before any frame is lost.
     let path = ctx.out_dir().join(&p.file);
-    let compression = p.compression.unwrap_or(match p.images {
-        ImageFormat::Raw => Compression::None,
-        ImageFormat::Png | ImageFormat::Jpeg => Compression::Zstd,
-    });
+    let compression = p.compression.unwrap_or(p.images.chunk_compression());
     let mut writer = McapWriter::create(&path, compression)?;
     writer.split(SplitLimits {
         max_bytes: (p.max_file_mb * 1e6) as u64,
@@ -209,13 +206,18 @@ fn body() -> Result<()> {
         .unwrap_or_default();
     let mut writer = pipeline.finish()?;
     writer.metadata(META_END, end_metadata(&graph, &topics, &counters, complete, &reason))?;
-    let (messages, bytes) = (writer.messages, writer.bytes);
+    let (messages, bytes, files) = (writer.messages, writer.bytes, writer.files().len());
     writer.finish()?;
     tracing::info!(
-        "{} messages, {:.1} MB in {} ({})",
+        "{} messages, {:.1} MB in {}{} ({})",
         messages,
         bytes as f64 / 1e6,
         path.display(),
+        if files > 1 {
+            format!(" and {} more files", files - 1)
+        } else {
+            String::new()
+        },
         if complete { "complete" } else { &reason }
     );
     ctx.finish();
