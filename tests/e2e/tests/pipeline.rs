@@ -208,8 +208,12 @@ fn kill_gray_mid_run(sb: &Sandbox, history: usize) -> (Output, PathBuf) {
         assert!(start.elapsed() < Duration::from_secs(20), "gray never started");
         std::thread::sleep(Duration::from_millis(10));
     }
-    // The first process seen may be the short-lived `--describe` run; the node proper is the one alive later.
-    std::thread::sleep(Duration::from_millis(700));
+    // The first process seen may be the short-lived `--describe` run, and a fixed wait (700 ms here once) can end
+    // before a loaded machine has connected the graph: gray is mid-run once a message of its own has been seen.
+    while !sb.run(&["echo", "gray", "-n", "1"]).status.success() {
+        assert!(start.elapsed() < Duration::from_secs(30), "gray never published");
+        std::thread::sleep(Duration::from_millis(50));
+    }
     let gray = children_of(child.id(), "lineflow-conver");
     assert_eq!(gray.len(), 1, "one gray process mid-run");
     // SAFETY: signalling a process this test started (a child of our child).
