@@ -192,6 +192,18 @@ pub struct MatchParams {
     pub line_min_slaves: usize,
     /// Slave segments shorter than this are not used, pixels.
     pub line_min_length_px: f64,
+    /// Frames whose 2-D lines place the depths: the slaves and up to this many frames in all, by overlap (lines
+    /// cost no resampling; more frames give wider baselines than the SNCC slaves' few).
+    pub line_views: usize,
+    /// Points SNCC gives no accepted depth take the depth on which this many slaves' 2-D lines agree anywhere in
+    /// the depth range (0: such points are dropped, as in the thesis).
+    pub line_only_min_slaves: usize,
+    /// ... and where this share of the slaves with a line near the point agree on it (a chance agreement of a few
+    /// among many parallel lines, the jambs and frames of a row of windows, is not an edge).
+    pub line_only_min_share: f64,
+    /// ... and where no other depth, a pixel or more away, has this share of as many slaves agreeing (a brick
+    /// course one course off, seen from the other strip).
+    pub line_only_max_rival: f64,
 }
 
 impl Default for MatchParams {
@@ -227,6 +239,10 @@ impl Default for MatchParams {
             line_max_depth_per_px_m: 0.25,
             line_min_slaves: 2,
             line_min_length_px: 20.0,
+            line_only_min_slaves: 6,
+            line_only_min_share: 0.6,
+            line_only_max_rival: 0.5,
+            line_views: 12,
         }
     }
 }
@@ -254,6 +270,8 @@ impl lineflow_runtime::StageParams for MatchParams {
             ("front_min_m", self.front_min_m),
             ("front_max_step_m", self.front_max_step_m),
             ("front_reach_m", self.front_reach_m),
+            ("line_only_min_share", self.line_only_min_share),
+            ("line_only_max_rival", self.line_only_max_rival),
         ] {
             params::non_negative(name, v)?;
         }
@@ -343,7 +361,28 @@ impl std::fmt::Display for UnmatchedCounts {
 
 /// Matches every segment of one master (in parallel, results in segment order).
 pub fn match_master(master: &View, slaves: &[View], walls: &[WallPlane], segments: &[SegmentInput], p: &MatchParams) -> MasterMatch {
-    let results: Vec<Result<SegmentMatch, Unmatched>> = segments.par_iter().map(|s| match_segment(master, slaves, walls, s, p)).collect();
+    let line_frames: Vec<SlaveSegments> = slaves
+        .iter()
+        .filter_map(|v| v.segments.map(|segments| SlaveSegments { pose: v.pose, segments }))
+        .collect();
+    match_master_with_lines(master, slaves, &line_frames, walls, segments, p)
+}
+
+/// [`match_master`] with the frames whose 2-D lines place the depths (`line_frames`, [`slave_lines`]) given apart
+/// from the slaves SNCC correlates with: lines cost no resampling, so many more frames, and wider baselines, can
+/// serve.
+pub fn match_master_with_lines(
+    master: &View,
+    slaves: &[View],
+    line_frames: &[SlaveSegments],
+    walls: &[WallPlane],
+    segments: &[SegmentInput],
+    p: &MatchParams,
+) -> MasterMatch {
+    let results: Vec<Result<SegmentMatch, Unmatched>> = segments
+        .par_iter()
+        .map(|s| match_segment(master, slaves, line_frames, walls, s, p))
+        .collect();
     let mut out = MasterMatch::default();
     for r in results {
         match r {

@@ -7,8 +7,8 @@ use std::collections::BTreeMap;
 
 use anyhow::Result;
 use lineflow_linematch::{
-    choose_slaves, fit_walls, match_master, DistortionLut, FrameSegments, MasterMatch, MatchParams, NoWall, SegmentInput, SegmentMatch,
-    View, WallPlane, WALL_MIN_POINTS,
+    choose_slaves, fit_walls, match_master_with_lines, DistortionLut, FrameSegments, MasterMatch, MatchParams, NoWall, SegmentInput,
+    SegmentMatch, SlaveSegments, View, WallPlane, WALL_MIN_POINTS,
 };
 use lineflow_messages::{kinds, Point3, PointGroup, Points3DHeader, Pose as PoseMsg, Segment2, Stamp, StampFlags};
 use lineflow_photogrammetry::intersect::intersect_rays;
@@ -223,8 +223,8 @@ fn run(ctx: NodeContext) -> Result<()> {
         loop {
             let at_end = poses_in.is_ended() && st.snapshots.is_empty();
             match step(&mut st, &params, &ended, at_end) {
-                Step::Match(master, slaves) => {
-                    match_and_publish(&mut st, &params, (master, slaves), &output)?;
+                Step::Match(master, slaves, line_frames) => {
+                    match_and_publish(&mut st, &params, (master, slaves, line_frames), &output)?;
                     return Ok(Flow::Continue);
                 }
                 Step::Pass(frame) => {
@@ -275,8 +275,8 @@ struct Ended {
 
 /// What the scheduler does next.
 enum Step {
-    /// Match this master against these slaves.
-    Match(u64, Vec<u64>),
+    /// Match this master against these slaves, with the 2-D lines of the last frames placing depths.
+    Match(u64, Vec<u64>, Vec<u64>),
     /// A frame that is no master (`master_every`) is passed on without points.
     Pass(u64),
     /// A ready master waits for its images or lines (or the tie points for a wall fit).
@@ -375,10 +375,20 @@ fn step(st: &mut State, params: &MatchParams, ended: &Ended, at_end: bool) -> St
             .chain(slaves.iter().copied())
             .find(|f| !st.grays.contains_key(f));
         let master_lines = st.lines.contains_key(&frame);
-        // The slaves' lines refine the depths: waiting for them keeps the result independent of message timing.
-        let slave_lines_pending = params.line_depth && !ended.lines && slaves.iter().any(|f| !st.lines.contains_key(f));
+        let line_frames = if params.line_depth && params.line_only_min_slaves > 0 {
+            let mut more = choose_slaves(&camera, (frame, &pose), &candidates, &walls, params.line_views, params.min_overlap);
+            more.retain(|f| !slaves.contains(f));
+            slaves.iter().copied().chain(more).collect()
+        } else if params.line_depth {
+            slaves.clone()
+        } else {
+            Vec::new()
+        };
+        // The other frames' lines refine the depths: waiting for them keeps the result independent of message
+        // timing.
+        let slave_lines_pending = !ended.lines && line_frames.iter().any(|f| !st.lines.contains_key(f));
         match (missing_image, master_lines, slave_lines_pending) {
-            (None, true, false) => return Step::Match(frame, slaves),
+            (None, true, false) => return Step::Match(frame, slaves, line_frames),
             (Some(f), _, _) if ended.images => {
                 st.skipped.insert(frame, format!("the image of frame {f} never arrived"));
             }
@@ -398,13 +408,13 @@ fn step(st: &mut State, params: &MatchParams, ended: &Ended, at_end: bool) -> St
 fn match_and_publish(
     st: &mut State,
     params: &MatchParams,
-    (master, slaves): (u64, Vec<u64>),
+    (master, slaves, line_frames): (u64, Vec<u64>, Vec<u64>),
     output: &Output<kinds::Points3D>,
 ) -> Result<()> {
     let walls = st.walls().unwrap_or_default();
     let Some((camera, lut)) = &st.camera else { return Ok(()) };
     if params.line_depth {
-        for f in &slaves {
+        for f in &line_frames {
             if let (false, Some(lines)) = (st.frame_segments.contains_key(f), st.lines.get(f)) {
                 let segments = FrameSegments::new(camera, &lines.segments, params.line_min_length_px);
                 st.frame_segments.insert(*f, segments);
@@ -435,7 +445,18 @@ fn match_and_publish(
         .collect();
     let started = std::time::Instant::now();
     let slave_views: Vec<View> = slaves.iter().map(|&f| view(f)).collect();
-    let MasterMatch { matches, unmatched } = match_master(&view(master), &slave_views, &walls, &segments, params);
+    let line_segments: Vec<SlaveSegments> = line_frames
+        .iter()
+        .filter_map(|f| {
+            let segments = st.frame_segments.get(f)?;
+            Some(SlaveSegments {
+                pose: st.poses[f].pose,
+                segments,
+            })
+        })
+        .collect();
+    let MasterMatch { matches, unmatched } =
+        match_master_with_lines(&view(master), &slave_views, &line_segments, &walls, &segments, params);
     let points: usize = matches.iter().map(|m| m.points.len()).sum();
     let line_depths: usize = matches.iter().map(|m| m.n_line_depths).sum();
     tracing::info!(

@@ -6,7 +6,7 @@
 use lineflow_photogrammetry::Vec3;
 
 use crate::ncc::{build_cross, master_window, ncc, BandScratch, BandSums, Bands, PatchSums, MIN_VARIANCE};
-use crate::slave_lines::refine_depths;
+use crate::slave_lines::{depths_from_lines, refine_depths, LineSearch};
 use crate::view::View;
 use crate::wall::{wall_of_ray, WallPlane};
 use crate::{MatchParams, MatchedPoint, Mode};
@@ -104,6 +104,7 @@ pub enum Unmatched {
 pub fn match_segment(
     master: &View,
     slaves: &[View],
+    line_frames: &[SlaveSegments],
     walls: &[WallPlane],
     seg: &SegmentInput,
     p: &MatchParams,
@@ -182,6 +183,57 @@ pub fn match_segment(
     let gsd = cam.gsd_m((mid0 - center).norm());
     let scale = (p.min_cell_gsd * gsd / p.cell_m).max(1.0);
     let (cell, depth_step) = (p.cell_m * scale, p.depth_step_m * scale);
+    let (sncc, without_depth) = sncc_points(master, &seen, &line, (&pixels, &ideals), (gsd, cell, depth_step), &mid0, p);
+    let (chain_index, mut points): (Vec<usize>, Vec<MatchedPoint>) = sncc.into_iter().unzip();
+    // SNCC's depths are refined by the slaves' lines only: with more frames, more parallel lines (the courses of a
+    // brick wall) offer a popular wrong depth within reach of a right one.
+    let slave_segments: Vec<SlaveSegments> = seen
+        .iter()
+        .filter_map(|v| v.segments.map(|segments| SlaveSegments { pose: v.pose, segments }))
+        .collect();
+    let rays: Vec<Vec3> = points.iter().map(|q| master.pose.ray_of_ideal(cam, q.ideal)).collect();
+    let mut n_line_depths = refine_depths(cam, &center, wall, &mut points, &rays, &slave_segments, p);
+    let line_segments: Vec<SlaveSegments> = line_frames
+        .iter()
+        .filter(|s| wall.normal.dot(&(mid0 - s.pose.center)) < 0.0)
+        .filter(|s| s.pose.project(cam, &mid0).is_some_and(|px| cam.contains(px, 0.0)))
+        .cloned()
+        .collect();
+    let from_lines_alone = depths_from_lines_alone(&line, (&pixels, &ideals), &without_depth, &line_segments, master, p);
+    let points = if from_lines_alone.is_empty() {
+        points
+    } else {
+        n_line_depths += from_lines_alone.len();
+        // Back in chain order: the parallel snap fits depth against position along the line.
+        let mut ordered: Vec<(usize, MatchedPoint)> = chain_index.into_iter().zip(points).chain(from_lines_alone).collect();
+        ordered.sort_by_key(|(k, _)| *k);
+        ordered.into_iter().map(|(_, q)| q).collect()
+    };
+    let points = snap_parallel(points, &line, depth_step, p.parallel_snap_m, p.line_max_shift_m);
+    if points.is_empty() {
+        return Err(Unmatched::NoDepth);
+    }
+    Ok(SegmentMatch {
+        segment_id: seg.id,
+        wall: wall_index,
+        n_views: 1 + seen.len() as u32,
+        points,
+        n_line_depths,
+    })
+}
+
+/// SNCC over the depth range (§2.10–2.13, with the windows and choices above): the points with an accepted depth
+/// and their chain indices, and the chain indices without one.
+fn sncc_points(
+    master: &View,
+    seen: &[&View],
+    line: &Line,
+    (pixels, ideals): (&[[f64; 2]], &[[f64; 2]]),
+    (gsd, cell, depth_step): (f64, f64, f64),
+    mid0: &Vec3,
+    p: &MatchParams,
+) -> (Vec<(usize, MatchedPoint)>, Vec<usize>) {
+    let center = master.pose.center;
     let n_depths = (p.depth_range_m / depth_step).floor() as i32;
     let depth = |i: i32| i as f64 * depth_step;
     // Another surface in front has to lie a resolvable depth away: `front_min_px` pixels of parallax at the longest
@@ -205,7 +257,7 @@ pub fn match_segment(
     let h = p.half_window as i32;
     let score = |i: i32, coarse: bool, scratch: &mut Scratch| {
         let (c, hw) = if coarse { (3.0 * cell, (h / 3).max(1)) } else { (cell, h) };
-        score_depth(&views, &line, depth(i), c, hw, &singles, &linears, p.min_slaves, scratch)
+        score_depth(&views, line, depth(i), c, hw, &singles, &linears, p.min_slaves, scratch)
     };
 
     // Coarse pass: every cf-th depth on a half-resolution lattice.
@@ -291,6 +343,7 @@ pub fn match_segment(
         })
         .collect();
     let mut points = Vec::new();
+    let mut without_depth: Vec<usize> = Vec::new();
     for k in 0..n_pts {
         let mut peaks: Vec<(Peak, Mode)> = Vec::new();
         for (m, &mode) in singles.iter().enumerate() {
@@ -300,39 +353,73 @@ pub fn match_segment(
         }
         peaks.extend(linears.iter().zip(&linear_best).filter_map(|(&mode, pk)| pk.map(|pk| (pk, mode))));
         let best = choose_peak(&peaks, front_margin, (front_min / depth_step, p.front_reach_m / depth_step));
-        let Some((pk, mode)) = best else { continue };
-        if !pk.accepted {
+        let Some((pk, mode)) = best.filter(|(pk, _)| pk.accepted) else {
+            without_depth.push(k);
             continue;
-        }
+        };
         let d = pk.index * depth_step;
         let xyz = line.at(&line.rays[k], d);
-        points.push(MatchedPoint {
-            pixel: pixels[k],
-            ideal: ideals[k],
-            depth_m: d,
-            xyz,
-            sncc: pk.value,
-            mode,
-            from_lines: false,
-        });
+        points.push((
+            k,
+            MatchedPoint {
+                pixel: pixels[k],
+                ideal: ideals[k],
+                depth_m: d,
+                xyz,
+                sncc: pk.value,
+                mode,
+                from_lines: false,
+            },
+        ));
     }
-    let slave_segments: Vec<SlaveSegments> = seen
-        .iter()
-        .filter_map(|v| v.segments.map(|segments| SlaveSegments { pose: v.pose, segments }))
-        .collect();
-    let rays: Vec<Vec3> = points.iter().map(|q| master.pose.ray_of_ideal(cam, q.ideal)).collect();
-    let n_line_depths = refine_depths(cam, &center, wall, &mut points, &rays, &slave_segments, p);
-    let points = snap_parallel(points, &line, depth_step, p.parallel_snap_m, p.line_max_shift_m);
-    if points.is_empty() {
-        return Err(Unmatched::NoDepth);
+    (points, without_depth)
+}
+
+/// The points SNCC gave no accepted depth (a plastered or painted wall, eaves and cornices have little texture to
+/// correlate) placed where the 2-D lines of the other frames (`line_frames`) agree anywhere in the depth range, with
+/// the wall as the prior. With no SNCC depth to confirm it, the agreement must be broad and unrivalled
+/// ([`LineSearch`]): the courses of a brick wall seen from the other strip agree as well one course off.
+fn depths_from_lines_alone(
+    line: &Line,
+    (pixels, ideals): (&[[f64; 2]], &[[f64; 2]]),
+    which: &[usize],
+    slaves: &[SlaveSegments],
+    master: &View,
+    p: &MatchParams,
+) -> Vec<(usize, MatchedPoint)> {
+    if !p.line_depth || p.line_only_min_slaves == 0 || which.len() < 2 {
+        return Vec::new();
     }
-    Ok(SegmentMatch {
-        segment_id: seg.id,
-        wall: wall_index,
-        n_views: views.len() as u32,
-        points,
-        n_line_depths,
-    })
+    let rays: Vec<Vec3> = which.iter().map(|&k| line.rays[k]).collect();
+    let priors = vec![0.0; rays.len()];
+    let search = LineSearch {
+        priors: &priors,
+        max_shift_m: p.depth_range_m,
+        min_slaves: p.line_only_min_slaves,
+        max_rival: p.line_only_max_rival,
+        min_share: p.line_only_min_share,
+    };
+    let cam = &master.camera;
+    depths_from_lines(cam, &line.center, line.wall, &rays, slaves, &search, p)
+        .into_iter()
+        .zip(which)
+        .zip(&rays)
+        .filter_map(|((d, &k), ray)| {
+            let (depth_m, s) = d?;
+            Some((
+                k,
+                MatchedPoint {
+                    pixel: pixels[k],
+                    ideal: ideals[k],
+                    depth_m,
+                    xyz: line.center + s * ray,
+                    sncc: 0.0,
+                    mode: Mode::LinearC,
+                    from_lines: false,
+                },
+            ))
+        })
+        .collect()
 }
 
 /// A line whose depth changes by less than `tolerance` from end to end (robust straight-line fit of depth against

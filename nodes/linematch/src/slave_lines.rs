@@ -23,6 +23,21 @@ struct Candidate {
     shifted_normal: Vec3,
 }
 
+/// Where the slaves' 2-D lines are searched for one line's rays: around a prior depth per ray, within a window.
+pub struct LineSearch<'a> {
+    /// Each ray's prior depth in front of the wall, metres (its SNCC depth, or the wall itself).
+    pub priors: &'a [f64],
+    /// Largest distance of a depth from its prior, metres.
+    pub max_shift_m: f64,
+    /// Slaves whose lines must agree on a depth.
+    pub min_slaves: usize,
+    /// No depth where another one, more than a pixel away, has this share of its slaves agreeing (above 1: no
+    /// such test).
+    pub max_rival: f64,
+    /// Share of the slaves with a line near the ray (a cut anywhere in the window) that must agree.
+    pub min_share: f64,
+}
+
 /// Moves each point to the depth at which the slaves' 2-D lines put its edge, where enough slaves agree; points
 /// without such support keep their SNCC depth. `master_center` and `rays[k]` are point k's master ray, `wall` the
 /// plane its depths are measured from.
@@ -35,10 +50,51 @@ pub fn refine_depths(
     slaves: &[SlaveSegments],
     p: &MatchParams,
 ) -> usize {
-    if !p.line_depth || points.len() < 2 || slaves.is_empty() {
+    if !p.line_depth || points.len() < 2 {
         return 0;
     }
-    let (first, last) = (points[0].xyz, points[points.len() - 1].xyz);
+    let priors: Vec<f64> = points.iter().map(|q| q.depth_m).collect();
+    let search = LineSearch {
+        priors: &priors,
+        max_shift_m: p.line_max_shift_m,
+        min_slaves: p.line_min_slaves,
+        max_rival: f64::INFINITY,
+        min_share: 0.0,
+    };
+    let depths = depths_from_lines(camera, master_center, wall, rays, slaves, &search, p);
+    let mut moved = 0;
+    for ((pt, ray), d) in points.iter_mut().zip(rays).zip(depths) {
+        let Some((depth, s)) = d else { continue };
+        pt.depth_m = depth;
+        pt.xyz = master_center + s * ray;
+        pt.from_lines = true;
+        moved += 1;
+    }
+    moved
+}
+
+/// For each ray, the depth in front of the wall at which the slaves' 2-D lines put its edge within the search
+/// window, where at least `min_slaves` slaves agree, and the ray parameter that reaches it.
+pub fn depths_from_lines(
+    camera: &Camera,
+    master_center: &Vec3,
+    wall: &WallPlane,
+    rays: &[Vec3],
+    slaves: &[SlaveSegments],
+    search: &LineSearch,
+    p: &MatchParams,
+) -> Vec<Option<(f64, f64)>> {
+    let none = vec![None; rays.len()];
+    if rays.len() < 2 || slaves.is_empty() {
+        return none;
+    }
+    let at = |k: usize| {
+        wall.ray_parameter(master_center, &rays[k], search.priors[k])
+            .map(|s| master_center + s * rays[k])
+    };
+    let (Some(first), Some(last)) = (at(0), at(rays.len() - 1)) else {
+        return none;
+    };
     let max_angle = p.line_max_angle_deg.to_radians();
     // Per slave: the candidates near the master line's projection.
     let candidates: Vec<(&SlaveSegments, Vec<Candidate>)> = slaves
@@ -47,7 +103,7 @@ pub fn refine_depths(
             let (a, b) = (s.pose.project_ideal(camera, &first)?, s.pose.project_ideal(camera, &last)?);
             // A depth change of max_shift_m moves the projection by at most this much (generously: the parallax
             // of the whole shift at the nearer end, plus a few pixels of slack).
-            let parallax = |x: &Vec3| parallax_mm(camera, &s.pose, x, &wall.normal, p.line_max_shift_m);
+            let parallax = |x: &Vec3| parallax_mm(camera, &s.pose, x, &wall.normal, search.max_shift_m);
             let margin = parallax(&first).max(parallax(&last)) + 3.0 * s.segments.pixel_mm;
             let found: Vec<Candidate> = s
                 .segments
@@ -59,30 +115,36 @@ pub fn refine_depths(
         })
         .collect();
     if candidates.is_empty() {
-        return 0;
+        return none;
     }
-    let mut moved = 0;
     let mut cuts: Vec<Cut> = Vec::new();
-    for (pt, ray) in points.iter_mut().zip(rays) {
-        cuts.clear();
-        for (k, (slave, found)) in candidates.iter().enumerate() {
-            cuts.extend(
-                found
-                    .iter()
-                    .filter_map(|c| slave_depth(camera, (master_center, ray), wall, pt, slave, c, p))
-                    .map(|(depth, per_px)| Cut { depth, per_px, slave: k }),
-            );
-        }
-        if let Some(d) = consensus(&cuts, pt.depth_m, p.line_min_slaves) {
-            if let Some(s) = wall.ray_parameter(master_center, ray, d) {
-                pt.depth_m = d;
-                pt.xyz = master_center + s * ray;
-                pt.from_lines = true;
-                moved += 1;
+    rays.iter()
+        .zip(search.priors)
+        .map(|(ray, &prior)| {
+            cuts.clear();
+            for (k, (slave, found)) in candidates.iter().enumerate() {
+                cuts.extend(
+                    found
+                        .iter()
+                        .filter_map(|c| slave_depth(camera, (master_center, ray), wall, (prior, search.max_shift_m), slave, c, p))
+                        .map(|(depth, per_px)| Cut { depth, per_px, slave: k }),
+                );
             }
-        }
-    }
-    moved
+            let depth_m = consensus(&cuts, prior, search.min_slaves, search.max_rival)?;
+            let mut slaves_cut: Vec<usize> = cuts.iter().map(|c| c.slave).collect();
+            slaves_cut.dedup();
+            let agreeing = cuts
+                .iter()
+                .filter(|c| (c.depth - depth_m).abs() <= AGREE_PX * c.per_px)
+                .map(|c| c.slave);
+            let mut agreeing: Vec<usize> = agreeing.collect();
+            agreeing.dedup();
+            if (agreeing.len() as f64) < search.min_share * slaves_cut.len() as f64 {
+                return None;
+            }
+            Some((depth_m, wall.ray_parameter(master_center, ray, depth_m)?))
+        })
+        .collect()
 }
 
 /// How far (mm, ideal) the projection of `x` moves in the slave when `x` moves `shift` metres along `normal`.
@@ -118,12 +180,12 @@ fn candidate(camera: &Camera, pose: &Pose, ends: [[f64; 2]; 2], pixel_mm: f64) -
 
 /// The depth (in front of `wall`) where the master ray meets the candidate's plane, with its change per pixel
 /// across the slave line, if the slave sees the point on (or within a few pixels of) the segment, the geometry is
-/// not degenerate and the depth is within `max_shift_m` of the SNCC depth.
+/// not degenerate and the depth is within `max_shift` of the prior.
 fn slave_depth(
     camera: &Camera,
     (master_center, ray): (&Vec3, &Vec3),
     wall: &WallPlane,
-    pt: &MatchedPoint,
+    (prior, max_shift): (f64, f64),
     slave: &SlaveSegments,
     c: &Candidate,
     p: &MatchParams,
@@ -140,7 +202,7 @@ fn slave_depth(
     let x = master_center + s * ray;
     let depth = wall.depth_of(&x);
     let per_px = (wall.depth_of(&(master_center + s1 * ray)) - depth).abs();
-    if per_px.is_nan() || per_px >= p.line_max_depth_per_px_m || (depth - pt.depth_m).abs() > p.line_max_shift_m {
+    if per_px.is_nan() || per_px >= p.line_max_depth_per_px_m || (depth - prior).abs() > max_shift {
         return None;
     }
     // The slave must see the point on the segment, not on its extension.
@@ -171,8 +233,9 @@ struct Cut {
 /// (the nearest); the group with the most slaves wins, ties going to the one nearest the SNCC depth `prior`; its
 /// depths are averaged with weights 1/σ². Several parallel edges near one another (the outer and inner edges of a
 /// reveal, a frame's profile) each give a cut per slave, but only the true one gives the same depth in every slave.
-fn consensus(cuts: &[Cut], prior: f64, min_slaves: usize) -> Option<f64> {
-    let mut best: Option<(usize, f64, f64)> = None;
+fn consensus(cuts: &[Cut], prior: f64, min_slaves: usize, max_rival: f64) -> Option<f64> {
+    // (slaves, mean, largest σ per pixel) of the group each cut seeds.
+    let mut groups: Vec<(usize, f64, f64)> = Vec::with_capacity(cuts.len());
     let mut group: Vec<Cut> = Vec::new();
     for seed in cuts {
         group.clear();
@@ -188,15 +251,23 @@ fn consensus(cuts: &[Cut], prior: f64, min_slaves: usize) -> Option<f64> {
         }
         let w: f64 = group.iter().map(|c| 1.0 / (c.per_px * c.per_px).max(1e-12)).sum();
         let mean = group.iter().map(|c| c.depth / (c.per_px * c.per_px).max(1e-12)).sum::<f64>() / w;
-        let better = match best {
-            None => true,
-            Some((n, m, _)) => group.len() > n || (group.len() == n && (mean - prior).abs() < (m - prior).abs()),
-        };
-        if better {
-            best = Some((group.len(), mean, w));
-        }
+        let widest = group.iter().map(|c| c.per_px).fold(0.0, f64::max);
+        groups.push((group.len(), mean, widest));
     }
-    best.filter(|(n, _, _)| *n >= min_slaves).map(|(_, d, _)| d)
+    let best = groups.iter().copied().reduce(|best, g| {
+        let better = g.0 > best.0 || (g.0 == best.0 && (g.1 - prior).abs() < (best.1 - prior).abs());
+        if better {
+            g
+        } else {
+            best
+        }
+    })?;
+    // Repeated structure (the jambs of a row of windows, a frame's profile) can give a second depth that as many
+    // slaves agree on; without an SNCC depth to choose, such a point has none.
+    let rivalled = groups
+        .iter()
+        .any(|g| g.0 as f64 >= max_rival * best.0 as f64 && (g.1 - best.1).abs() > best.2.max(g.2));
+    (best.0 >= min_slaves && !rivalled).then_some(best.1)
 }
 
 #[cfg(test)]
@@ -250,20 +321,24 @@ mod tests {
             .unzip()
     }
 
+    /// Three slaves at −1.5, 1.5 and 3 m; each sees the edge a–b and a parallel joint 25 cm to the side.
+    fn slave_frames(cam: &Camera, a: Vec3, b: Vec3) -> Vec<(Pose, FrameSegments)> {
+        let side = Vec3::new(0.25, 0.0, 0.0);
+        [-1.5, 1.5, 3.0]
+            .iter()
+            .map(|&x| {
+                let p = pose(x);
+                let segs = [segment(cam, &p, a + side, b + side, 0), segment(cam, &p, a, b, 1)];
+                (p, FrameSegments::new(cam, &segs, 10.0))
+            })
+            .collect()
+    }
+
     fn refine(a: Vec3, b: Vec3, sncc_depth: f64) -> (Vec<MatchedPoint>, usize) {
         let cam = camera();
         let wall = WallPlane::from_plane("w", Vec3::new(0.0, -1.0, 0.0), Vec3::zeros());
         let master = pose(0.0);
-        // Each slave also sees a parallel joint 25 cm to the side and the edge itself.
-        let side = Vec3::new(0.25, 0.0, 0.0);
-        let frames: Vec<(Pose, FrameSegments)> = [-1.5, 1.5, 3.0]
-            .iter()
-            .map(|&x| {
-                let p = pose(x);
-                let segs = [segment(&cam, &p, a + side, b + side, 0), segment(&cam, &p, a, b, 1)];
-                (p, FrameSegments::new(&cam, &segs, 10.0))
-            })
-            .collect();
+        let frames = slave_frames(&cam, a, b);
         let slaves: Vec<SlaveSegments> = frames
             .iter()
             .map(|(pose, segments)| SlaveSegments { pose: *pose, segments })
@@ -302,17 +377,66 @@ mod tests {
     }
 
     #[test]
+    fn lines_alone_place_an_edge_anywhere_in_the_range_but_not_a_rivalled_one() {
+        let cam = camera();
+        let wall = WallPlane::from_plane("w", Vec3::new(0.0, -1.0, 0.0), Vec3::zeros());
+        let master = pose(0.0);
+        let (a, b) = (Vec3::new(0.5, -0.6, 0.5), Vec3::new(0.5, -0.6, 2.5));
+        let frames = slave_frames(&cam, a, b);
+        let slaves: Vec<SlaveSegments> = frames
+            .iter()
+            .map(|(pose, segments)| SlaveSegments { pose: *pose, segments })
+            .collect();
+        let (_, rays) = points(&cam, &master, &wall, a, b, 0.0);
+        let priors = vec![0.0; rays.len()];
+        let search = |min_slaves, max_rival| LineSearch {
+            priors: &priors,
+            max_shift_m: 1.0,
+            min_slaves,
+            max_rival,
+            min_share: 0.6,
+        };
+        let p = MatchParams::default();
+        // 60 cm in front of the wall, far beyond any SNCC depth's reach: every slave agrees.
+        let found = depths_from_lines(&cam, &master.center, &wall, &rays, &slaves, &search(3, 0.5), &p);
+        for d in &found {
+            let (depth, _) = d.expect("a depth for every ray");
+            assert!((depth - 0.6).abs() < 1e-6, "depth {depth}");
+        }
+        // Four slaves are more than there are.
+        let too_few = depths_from_lines(&cam, &master.center, &wall, &rays, &slaves, &search(4, 0.5), &p);
+        assert!(too_few.iter().all(Option::is_none));
+    }
+
+    #[test]
+    fn a_depth_as_many_slaves_agree_on_elsewhere_is_no_depth() {
+        let cut = |depth, slave| Cut {
+            depth,
+            per_px: 0.01,
+            slave,
+        };
+        // A course one course off: all three slaves agree there as well.
+        let cuts = [cut(0.0, 0), cut(0.001, 1), cut(0.0, 2), cut(0.3, 0), cut(0.301, 1), cut(0.3, 2)];
+        let d = consensus(&cuts, 0.0, 3, f64::INFINITY).unwrap();
+        assert!((d - 0.001 / 3.0).abs() < 1e-12, "{d}");
+        assert_eq!(consensus(&cuts, 0.0, 3, 0.5), None);
+        // Only one slave sees the other depth: no rival.
+        let lone = [cut(0.0, 0), cut(0.001, 1), cut(0.0, 2), cut(0.3, 0)];
+        assert!(consensus(&lone, 0.0, 3, 0.5).is_some());
+    }
+
+    #[test]
     fn consensus_needs_agreeing_slaves() {
         let cut = |depth, slave| Cut {
             depth,
             per_px: 0.01,
             slave,
         };
-        assert_eq!(consensus(&[cut(0.1, 0)], 0.1, 2), None);
-        assert_eq!(consensus(&[cut(0.1, 0), cut(0.3, 1)], 0.1, 2), None);
+        assert_eq!(consensus(&[cut(0.1, 0)], 0.1, 2, f64::INFINITY), None);
+        assert_eq!(consensus(&[cut(0.1, 0), cut(0.3, 1)], 0.1, 2, f64::INFINITY), None);
         // Two cuts of one slave are one vote.
-        assert_eq!(consensus(&[cut(0.1, 0), cut(0.102, 0)], 0.1, 2), None);
-        let d = consensus(&[cut(0.1, 0), cut(0.104, 1), cut(0.3, 2)], 0.1, 2).unwrap();
+        assert_eq!(consensus(&[cut(0.1, 0), cut(0.102, 0)], 0.1, 2, f64::INFINITY), None);
+        let d = consensus(&[cut(0.1, 0), cut(0.104, 1), cut(0.3, 2)], 0.1, 2, f64::INFINITY).unwrap();
         assert!((d - 0.102).abs() < 1e-12);
     }
 
@@ -332,7 +456,7 @@ mod tests {
             cut(-0.03, 2),
             cut(0.208, 2),
         ];
-        let d = consensus(&cuts, 0.03, 2).unwrap();
+        let d = consensus(&cuts, 0.03, 2, f64::INFINITY).unwrap();
         assert!((d - 0.21).abs() < 0.003, "{d}");
     }
 }
