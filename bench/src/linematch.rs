@@ -5,7 +5,8 @@ use std::process::ExitCode;
 
 use anyhow::{bail, Result};
 use lineflow_linematch::{
-    choose_slaves, match_master, DistortionLut, FrameSegments, MasterMatch, MatchParams, Mode, SegmentInput, View, WallPlane,
+    choose_slaves, match_master_with_lines, DistortionLut, FrameSegments, MasterMatch, MatchParams, Mode, SegmentInput, SlaveSegments,
+    View, WallPlane,
 };
 use lineflow_lines2d::{trace_measured_at, MeasuredSegment, TraceParams};
 use lineflow_messages::{Encoding, Segment2};
@@ -41,6 +42,16 @@ pub fn bench_linematch(preset: &str, scale: f64, reps: usize) -> Result<ExitCode
     if slaves.is_empty() {
         bail!("frame {master} of {preset} has no slaves");
     }
+    // The further frames whose lines alone place the points SNCC gives no depth.
+    let mut more = choose_slaves(
+        &cam,
+        (master as u64, &poses[master]),
+        &candidates,
+        &walls,
+        p.line_views,
+        p.min_overlap,
+    );
+    more.retain(|f| !slaves.contains(f));
     println!(
         "linematch benchmark: {preset} at scale {scale} ({w}x{h}, {:.1} MP), master {master}, slaves {slaves:?}; rendering…",
         (w * h) as f64 / 1e6
@@ -48,6 +59,7 @@ pub fn bench_linematch(preset: &str, scale: f64, reps: usize) -> Result<ExitCode
     let lut = DistortionLut::new(&cam);
     let grays: Vec<(u64, Vec<u8>)> = std::iter::once(master as u64)
         .chain(slaves.iter().copied())
+        .chain(more.iter().copied())
         .map(|f| {
             let mut g = vec![0u8; w * h];
             lineflow_imaging::gray_into(Encoding::Rgb8, w, h, w * 3, &syn.render(f as usize), &mut g).map(|_| (f, g))
@@ -83,6 +95,7 @@ pub fn bench_linematch(preset: &str, scale: f64, reps: usize) -> Result<ExitCode
         .collect();
     let views: Vec<View> = grays
         .iter()
+        .take(1 + slaves.len())
         .zip(&frame_segments)
         .map(|((f, g), segments)| View {
             frame: *f,
@@ -107,24 +120,37 @@ pub fn bench_linematch(preset: &str, scale: f64, reps: usize) -> Result<ExitCode
         .iter()
         .filter(|s| (s.end_px[0] - s.start_px[0]).hypot(s.end_px[1] - s.start_px[1]) >= p.min_length_px)
         .count();
+    let line_frames: Vec<SlaveSegments> = grays
+        .iter()
+        .zip(&frame_segments)
+        .skip(1)
+        .filter_map(|((f, _), segments)| {
+            segments.as_ref().map(|segments| SlaveSegments {
+                pose: poses[*f as usize],
+                segments,
+            })
+        })
+        .collect();
+    let match_with = |q: &MatchParams| match_master_with_lines(&views[0], &views[1..], &line_frames, &walls, &segments, q);
     let MasterMatch {
         matches: matched,
         unmatched,
-    } = match_master(&views[0], &views[1..], &walls, &segments, &p);
+    } = match_with(&p);
     let points: usize = matched.iter().map(|m| m.points.len()).sum();
     let line_depths: usize = matched.iter().map(|m| m.n_line_depths).sum();
     println!(
-        "{} segments ({long} of at least {} px), {} matched, {points} points ({line_depths} placed by the slaves' lines); {unmatched}",
+        "{} segments ({long} of at least {} px), {} matched, {points} points ({line_depths} placed by the other frames' lines: {} frames); {unmatched}",
         segments.len(),
         p.min_length_px,
-        matched.len()
+        matched.len(),
+        line_frames.len()
     );
     let c_only = MatchParams {
         modes: vec![Mode::C],
         ..p.clone()
     };
     let one = rayon::ThreadPoolBuilder::new().num_threads(1).build()?;
-    let run = |q: &MatchParams| drop(match_master(&views[0], &views[1..], &walls, &segments, q));
+    let run = |q: &MatchParams| drop(match_with(q));
     let all_1 = median_time(reps, || one.install(|| run(&p)));
     let all_n = median_time(reps, || run(&p));
     let c_n = median_time(reps, || run(&c_only));
@@ -133,6 +159,11 @@ pub fn bench_linematch(preset: &str, scale: f64, reps: usize) -> Result<ExitCode
         ..p.clone()
     };
     let s_n = median_time(reps, || run(&sncc_only));
+    let no_lines_alone = MatchParams {
+        line_only_min_slaves: 0,
+        ..p.clone()
+    };
+    let l_n = median_time(reps, || run(&no_lines_alone));
     // The thesis's choice (best SNCC over its eight windows) computes no strips.
     let thesis_choice = MatchParams {
         front_margin: -1.0,
@@ -157,6 +188,10 @@ pub fn bench_linematch(preset: &str, scale: f64, reps: usize) -> Result<ExitCode
     println!(
         "without the slaves' lines, {threads} threads {s_n:5.2} s  depths from the slaves' lines cost {:.2} s",
         all_n - s_n
+    );
+    println!(
+        "without depths from the lines alone, {threads} threads {l_n:5.2} s  they cost {:.2} s",
+        all_n - l_n
     );
     println!(
         "thesis's choice (best SNCC, no strips), {threads} threads {t_n:5.2} s  the strips and the front-most choice cost {:.2} s",

@@ -96,6 +96,9 @@ pub fn depths_from_lines(
         return none;
     };
     let max_angle = p.line_max_angle_deg.to_radians();
+    let lowest = search.priors.iter().copied().fold(f64::INFINITY, f64::min);
+    let highest = search.priors.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+    let window = (lowest - search.max_shift_m, highest + search.max_shift_m);
     // Per slave: the candidates near the master line's projection.
     let candidates: Vec<(&SlaveSegments, Vec<Candidate>)> = slaves
         .iter()
@@ -110,6 +113,7 @@ pub fn depths_from_lines(
                 .near(a, b, margin, max_angle)
                 .into_iter()
                 .filter_map(|k| candidate(camera, &s.pose, s.segments.ends[k], s.segments.pixel_mm))
+                .filter(|c| reaches_window(c, (master_center, &rays[0], &rays[rays.len() - 1]), wall, s, window))
                 .collect();
             (!found.is_empty()).then_some((s, found))
         })
@@ -130,6 +134,7 @@ pub fn depths_from_lines(
                         .map(|(depth, per_px)| Cut { depth, per_px, slave: k }),
                 );
             }
+            cuts.sort_by(|a, b| a.depth.total_cmp(&b.depth));
             let depth_m = consensus(&cuts, prior, search.min_slaves, search.max_rival)?;
             let mut slaves_cut: Vec<usize> = cuts.iter().map(|c| c.slave).collect();
             slaves_cut.dedup();
@@ -145,6 +150,27 @@ pub fn depths_from_lines(
             Some((depth_m, wall.ray_parameter(master_center, ray, depth_m)?))
         })
         .collect()
+}
+
+/// Whether a candidate's plane can cut the line's rays within the depth window: the cuts of the rays between the
+/// first and the last lie on one 3-D line, so their depths lie between those of the two ends (or the plane is
+/// met behind the master, and the candidate is kept for the per-ray test).
+fn reaches_window(
+    c: &Candidate,
+    (center, first, last): (&Vec3, &Vec3, &Vec3),
+    wall: &WallPlane,
+    slave: &SlaveSegments,
+    (lo, hi): (f64, f64),
+) -> bool {
+    let depth = |ray: &Vec3| {
+        let denom = c.normal.dot(ray);
+        let s = c.normal.dot(&(slave.pose.center - center)) / denom;
+        (denom.abs() > 1e-12 && s > 0.0).then(|| wall.depth_of(&(center + s * ray)))
+    };
+    match (depth(first), depth(last)) {
+        (Some(a), Some(b)) => a.max(b) >= lo && a.min(b) <= hi,
+        _ => true,
+    }
 }
 
 /// How far (mm, ideal) the projection of `x` moves in the slave when `x` moves `shift` metres along `normal`.
@@ -233,13 +259,20 @@ struct Cut {
 /// (the nearest); the group with the most slaves wins, ties going to the one nearest the SNCC depth `prior`; its
 /// depths are averaged with weights 1/σ². Several parallel edges near one another (the outer and inner edges of a
 /// reveal, a frame's profile) each give a cut per slave, but only the true one gives the same depth in every slave.
+/// `cuts` sorted by depth lets each seed look only at the cuts within reach of it (hundreds of cuts per ray where
+/// the courses of a brick wall are all candidates).
 fn consensus(cuts: &[Cut], prior: f64, min_slaves: usize, max_rival: f64) -> Option<f64> {
+    debug_assert!(cuts.windows(2).all(|w| w[0].depth <= w[1].depth));
+    let widest_cut = cuts.iter().map(|c| c.per_px).fold(0.0, f64::max);
     // (slaves, mean, largest σ per pixel) of the group each cut seeds.
     let mut groups: Vec<(usize, f64, f64)> = Vec::with_capacity(cuts.len());
     let mut group: Vec<Cut> = Vec::new();
     for seed in cuts {
         group.clear();
-        for c in cuts {
+        let reach = AGREE_PX * widest_cut;
+        let from = cuts.partition_point(|c| c.depth < seed.depth - reach);
+        let to = cuts.partition_point(|c| c.depth <= seed.depth + reach);
+        for c in &cuts[from..to] {
             if (c.depth - seed.depth).abs() > AGREE_PX * c.per_px.max(seed.per_px) {
                 continue;
             }
@@ -277,6 +310,12 @@ mod tests {
     use lineflow_linegeom::FrameSegments;
     use lineflow_messages::Segment2;
     use lineflow_photogrammetry::rotation_from_opk;
+
+    fn sorted(cuts: &[Cut]) -> Vec<Cut> {
+        let mut v = cuts.to_vec();
+        v.sort_by(|a, b| a.depth.total_cmp(&b.depth));
+        v
+    }
 
     fn camera() -> Camera {
         Camera::pinhole(4000, 3000, 0.005, 20.0)
@@ -417,12 +456,12 @@ mod tests {
         };
         // A course one course off: all three slaves agree there as well.
         let cuts = [cut(0.0, 0), cut(0.001, 1), cut(0.0, 2), cut(0.3, 0), cut(0.301, 1), cut(0.3, 2)];
-        let d = consensus(&cuts, 0.0, 3, f64::INFINITY).unwrap();
+        let d = consensus(&sorted(&cuts), 0.0, 3, f64::INFINITY).unwrap();
         assert!((d - 0.001 / 3.0).abs() < 1e-12, "{d}");
-        assert_eq!(consensus(&cuts, 0.0, 3, 0.5), None);
+        assert_eq!(consensus(&sorted(&cuts), 0.0, 3, 0.5), None);
         // Only one slave sees the other depth: no rival.
         let lone = [cut(0.0, 0), cut(0.001, 1), cut(0.0, 2), cut(0.3, 0)];
-        assert!(consensus(&lone, 0.0, 3, 0.5).is_some());
+        assert!(consensus(&sorted(&lone), 0.0, 3, 0.5).is_some());
     }
 
     #[test]
@@ -432,11 +471,11 @@ mod tests {
             per_px: 0.01,
             slave,
         };
-        assert_eq!(consensus(&[cut(0.1, 0)], 0.1, 2, f64::INFINITY), None);
-        assert_eq!(consensus(&[cut(0.1, 0), cut(0.3, 1)], 0.1, 2, f64::INFINITY), None);
+        assert_eq!(consensus(&sorted(&[cut(0.1, 0)]), 0.1, 2, f64::INFINITY), None);
+        assert_eq!(consensus(&sorted(&[cut(0.1, 0), cut(0.3, 1)]), 0.1, 2, f64::INFINITY), None);
         // Two cuts of one slave are one vote.
-        assert_eq!(consensus(&[cut(0.1, 0), cut(0.102, 0)], 0.1, 2, f64::INFINITY), None);
-        let d = consensus(&[cut(0.1, 0), cut(0.104, 1), cut(0.3, 2)], 0.1, 2, f64::INFINITY).unwrap();
+        assert_eq!(consensus(&sorted(&[cut(0.1, 0), cut(0.102, 0)]), 0.1, 2, f64::INFINITY), None);
+        let d = consensus(&sorted(&[cut(0.1, 0), cut(0.104, 1), cut(0.3, 2)]), 0.1, 2, f64::INFINITY).unwrap();
         assert!((d - 0.102).abs() < 1e-12);
     }
 
@@ -456,7 +495,7 @@ mod tests {
             cut(-0.03, 2),
             cut(0.208, 2),
         ];
-        let d = consensus(&cuts, 0.03, 2, f64::INFINITY).unwrap();
+        let d = consensus(&sorted(&cuts), 0.03, 2, f64::INFINITY).unwrap();
         assert!((d - 0.21).abs() < 0.003, "{d}");
     }
 }
