@@ -460,7 +460,7 @@ fn match_and_publish(
     let points: usize = matches.iter().map(|m| m.points.len()).sum();
     let line_depths: usize = matches.iter().map(|m| m.n_line_depths).sum();
     tracing::info!(
-        "frame {master}: {} of {} segments matched, {points} points ({line_depths} placed by the slaves' lines), slaves {slaves:?}, {:.2} s; {unmatched}",
+        "frame {master}: {} of {} segments matched, {points} points ({line_depths} placed by the 2-D lines of other frames), slaves {slaves:?}, {:.2} s; {unmatched}",
         matches.len(),
         segments.len(),
         started.elapsed().as_secs_f64()

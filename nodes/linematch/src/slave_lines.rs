@@ -136,20 +136,22 @@ pub fn depths_from_lines(
             }
             cuts.sort_by(|a, b| a.depth.total_cmp(&b.depth));
             let depth_m = consensus(&cuts, prior, search.min_slaves, search.max_rival)?;
-            let mut slaves_cut: Vec<usize> = cuts.iter().map(|c| c.slave).collect();
-            slaves_cut.dedup();
-            let agreeing = cuts
-                .iter()
-                .filter(|c| (c.depth - depth_m).abs() <= AGREE_PX * c.per_px)
-                .map(|c| c.slave);
-            let mut agreeing: Vec<usize> = agreeing.collect();
-            agreeing.dedup();
-            if (agreeing.len() as f64) < search.min_share * slaves_cut.len() as f64 {
+            let near_ray = distinct_slaves(cuts.iter());
+            let agreeing = distinct_slaves(cuts.iter().filter(|c| (c.depth - depth_m).abs() <= AGREE_PX * c.per_px));
+            if (agreeing as f64) < search.min_share * near_ray as f64 {
                 return None;
             }
             Some((depth_m, wall.ray_parameter(master_center, ray, depth_m)?))
         })
         .collect()
+}
+
+/// How many slaves the cuts come from (they are sorted by depth, not by slave).
+fn distinct_slaves<'c>(cuts: impl Iterator<Item = &'c Cut>) -> usize {
+    let mut slaves: Vec<usize> = cuts.map(|c| c.slave).collect();
+    slaves.sort_unstable();
+    slaves.dedup();
+    slaves.len()
 }
 
 /// Whether a candidate's plane can cut the line's rays within the depth window: the cuts of the rays between the
@@ -462,6 +464,18 @@ mod tests {
         // Only one slave sees the other depth: no rival.
         let lone = [cut(0.0, 0), cut(0.001, 1), cut(0.0, 2), cut(0.3, 0)];
         assert!(consensus(&sorted(&lone), 0.0, 3, 0.5).is_some());
+    }
+
+    #[test]
+    fn slaves_are_counted_once_whatever_the_order_of_their_cuts() {
+        let cut = |depth, slave| Cut {
+            depth,
+            per_px: 0.01,
+            slave,
+        };
+        // Sorted by depth, one slave's cuts are not next to each other.
+        let cuts = sorted(&[cut(0.0, 0), cut(0.1, 1), cut(0.2, 0), cut(0.3, 1), cut(0.4, 2)]);
+        assert_eq!(distinct_slaves(cuts.iter()), 3);
     }
 
     #[test]
