@@ -229,6 +229,9 @@ pub enum BenchCmd {
         /// Parameter override KEY=VALUE of the linemap stage (repeatable).
         #[arg(long)]
         set: Vec<String>,
+        /// Parameter override KEY=VALUE of the linefit stage, for the run's lines joined with linemap's (repeatable).
+        #[arg(long)]
+        join_set: Vec<String>,
     },
     /// Every parser a user's file reaches, fed mutated copies of valid files: executions, panics, slowest call.
     Fuzz {
@@ -337,7 +340,17 @@ pub fn bench(cmd: BenchCmd) -> Result<ExitCode> {
             truth_poses,
             funnel,
             set,
-        } => linemap::bench_linemap(&run, &building, scale, seed, truth_poses, funnel, &set),
+            join_set,
+        } => linemap::bench_linemap(&linemap::LinemapBench {
+            run: &run,
+            building: &building,
+            scale,
+            seed,
+            truth_poses,
+            funnel,
+            set: &set,
+            join_set: &join_set,
+        }),
         BenchCmd::Bundle { cameras, points } => bundle::bench_bundle(cameras, points),
         BenchCmd::Fuzz { executions, seed } => fuzz::bench_fuzz(executions, seed),
         BenchCmd::Buildings {

@@ -11,6 +11,7 @@ use anyhow::{Context, Result};
 use lineflow_eval::lines3d::evaluate;
 use lineflow_eval::Truth;
 use lineflow_formats::{read_lines2d, read_poses, Line3Row};
+use lineflow_linefit::{join_lines, line_elements, snap, FitParams, Merged};
 use lineflow_linemap::{line_messages, map_lines_with_stats, Guide, MapParams, Photo, View};
 use lineflow_messages::Segment2;
 use lineflow_photogrammetry::Vec3;
@@ -19,18 +20,43 @@ use rayon::prelude::*;
 
 use crate::buildings::{print_header, print_row, row};
 
-/// `lineflow bench linemap RUN --building B [--scale S] [--seed N] [--truth-poses] [--set KEY=VALUE]...`
-pub fn bench_linemap(
-    run: &Path,
-    building: &str,
-    scale: f64,
-    seed: u64,
-    truth_poses: bool,
-    funnel: bool,
-    set: &[String],
-) -> Result<ExitCode> {
+/// What `lineflow bench linemap` is asked.
+pub struct LinemapBench<'a> {
+    /// The run's output folder.
+    pub run: &'a Path,
+    /// The building it filmed, `PRESET` or `PRESET@N`.
+    pub building: &'a str,
+    /// Its image scale.
+    pub scale: f64,
+    /// Its scene's seed.
+    pub seed: u64,
+    /// The true poses instead of the run's.
+    pub truth_poses: bool,
+    /// Print where the edges are lost too.
+    pub funnel: bool,
+    /// Overrides of the linemap stage's parameters.
+    pub set: &'a [String],
+    /// Overrides of the linefit stage's, for joining the run's lines with linemap's.
+    pub join_set: &'a [String],
+}
+
+/// `lineflow bench linemap RUN --building B [--scale S] [--seed N] [--truth-poses] [--set KEY=VALUE]...
+/// [--join-set KEY=VALUE]...`
+pub fn bench_linemap(args: &LinemapBench) -> Result<ExitCode> {
+    let LinemapBench {
+        run,
+        building,
+        scale,
+        seed,
+        truth_poses,
+        funnel,
+        set,
+        join_set,
+    } = *args;
     let params: MapParams = lineflow_runtime::launch::params_from_overrides(set)?;
     lineflow_runtime::StageParams::validate(&params)?;
+    let fit: FitParams = lineflow_runtime::launch::params_from_overrides(join_set)?;
+    lineflow_runtime::StageParams::validate(&fit)?;
     let scene = Synthetic::new(building, scale, seed).map_err(|e| anyhow::anyhow!("{e}"))?;
     let camera = *scene.camera();
     let walls = scene.approximate_walls();
@@ -76,7 +102,8 @@ pub fn bench_linemap(
     let start = std::time::Instant::now();
     let (lines, stats) = map_lines_with_stats(&camera, &views, &guide, &params);
     let seconds = start.elapsed().as_secs_f64();
-    let rows: Vec<Line3Row> = line_messages(&lines, &params).iter().map(Line3Row::from).collect();
+    let messages = line_messages(&lines, &params);
+    let rows: Vec<Line3Row> = messages.iter().map(Line3Row::from).collect();
     lineflow_formats::write_lines3d(&run.join("lines3d_linemap.csv"), &rows)?;
     println!(
         "linemap on {} ({} views, {} segments, {} poses), {:.2} s:\n",
@@ -95,6 +122,30 @@ pub fn bench_linemap(
             &evaluate(&truth, &theirs),
             f64::NAN,
         ));
+        // As linefit joins linemap's final set to its own (its `joined` input), the run's lines standing for its
+        // own: meaningful on a run of a graph without linemap.
+        let start = std::time::Instant::now();
+        let mut own: Vec<Merged> = theirs
+            .iter()
+            .map(|r| Merged {
+                start: r.start,
+                end: r.end,
+                n_points: r.n_points.unwrap_or(0),
+                n_images: r.n_images.unwrap_or(0),
+                rms_m: r.rms_m.unwrap_or(0.0),
+                fragments: Vec::new(),
+            })
+            .collect();
+        let n = join_lines(&mut own, &messages, &fit);
+        snap(&mut own, &fit);
+        let pose_list: Vec<lineflow_photogrammetry::Pose> = poses.iter().map(|p| p.pose).collect();
+        let joined: Vec<Line3Row> = line_elements(&own, &fit, Some(&camera), &pose_list).iter().map(Line3Row::from).collect();
+        print_row(&row(
+            format!("{building} the run's joined by {n} stretches of linemap's"),
+            &evaluate(&truth, &joined),
+            start.elapsed().as_secs_f64(),
+        ));
+        lineflow_formats::write_lines3d(&run.join("lines3d_joined.csv"), &joined)?;
     }
     if funnel {
         print_funnel(&camera, &views, &guide, &truth, &rows, &params);

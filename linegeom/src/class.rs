@@ -15,10 +15,10 @@
 //!
 //! Measured at scale 0.3 (docs/lines3d.md, "Structure and texture"): 48–65 % of the lines of brick façades are
 //! classed texture by their field, of which 0.1–0.5 % are true edges; plaster façades have next to none.
-use std::collections::HashMap;
-
 use lineflow_messages::LineClass;
 use lineflow_photogrammetry::{Camera, Pose, Vec3};
+
+use crate::grid::Grid;
 
 /// The settings of the classing: the `class` parameter of the line stages, a table
 /// (`class = { neighbours = 6, reach_m = 0.3 }`; what it leaves out keeps its default).
@@ -250,64 +250,6 @@ fn turns_a_corner(lines: &[[Vec3; 2]], k: usize, u: &Vec3, near: &[usize], rule:
         direction(&lines[j]).is_some_and(|v| v.dot(u).abs() < CORNER_COS)
             && lines[k].iter().any(|e| lines[j].iter().any(|f| (e - f).norm() <= rule.corner_m))
     })
-}
-
-/// The lines by the cells (of `cell` metres) they pass through, so that each line's neighbours are found among
-/// the lines of the cells around its own.
-struct Grid {
-    cell: f64,
-    cells: HashMap<[i64; 3], Vec<usize>>,
-}
-
-impl Grid {
-    fn of(lines: &[[Vec3; 2]], cell: f64) -> Grid {
-        let mut grid = Grid {
-            cell,
-            cells: HashMap::new(),
-        };
-        for (k, l) in lines.iter().enumerate() {
-            let mut keys = grid.keys(l);
-            keys.sort_unstable();
-            keys.dedup();
-            for key in keys {
-                grid.cells.entry(key).or_default().push(k);
-            }
-        }
-        grid
-    }
-
-    /// The cells a segment passes through, sampled every half cell.
-    fn keys(&self, l: &[Vec3; 2]) -> Vec<[i64; 3]> {
-        let steps = ((l[1] - l[0]).norm() / (self.cell / 2.0)).ceil().clamp(1.0, 1e5) as usize;
-        (0..=steps)
-            .map(|s| {
-                let p = l[0] + (l[1] - l[0]) * (s as f64 / steps as f64);
-                [p.x, p.y, p.z].map(|c| (c / self.cell).floor() as i64)
-            })
-            .collect()
-    }
-
-    /// The other lines in the cells around those of line `k`, once each, into `out` (`seen` marks them by `k`).
-    fn near(&self, l: &[Vec3; 2], k: usize, seen: &mut [usize], out: &mut Vec<usize>) {
-        seen[k] = k;
-        for key in self.keys(l) {
-            for dx in -1..=1 {
-                for dy in -1..=1 {
-                    for dz in -1..=1 {
-                        let Some(members) = self.cells.get(&[key[0] + dx, key[1] + dy, key[2] + dz]) else {
-                            continue;
-                        };
-                        for &j in members {
-                            if seen[j] != k {
-                                seen[j] = k;
-                                out.push(j);
-                            }
-                        }
-                    }
-                }
-            }
-        }
-    }
 }
 
 #[cfg(test)]

@@ -2,16 +2,20 @@
 //! image's segments indexed in ideal photo coordinates ([`segments`]) and the estimate of a 3-D line from the
 //! interpretation planes of every image's segment of it ([`multiview`]), and the 2-D line segments are measured
 //! against ([`line2`]), whether a 3-D line is an edge of the building or lies inside a surface ([`class`]), and
-//! the plumb and level directions lines nearly following them are turned onto ([`plumb_level`]).
+//! the plumb and level directions lines nearly following them are turned onto ([`plumb_level`]), and how much of
+//! one set of lines another covers, to join two line stages' sets ([`fuse`]).
 #![warn(missing_docs)]
 
 pub mod class;
+pub mod fuse;
+mod grid;
 pub mod line2;
 pub mod multiview;
 pub mod plumb_level;
 pub mod segments;
 
 pub use class::{classify, classify_elements, classify_supported, ClassRule, RuleError, Sight};
+pub use fuse::{covered_shares, uncovered_stretches, Cover};
 pub use line2::Line2;
 pub use multiview::{refine_line, refine_line_along, MultiviewLine, MultiviewParams};
 pub use plumb_level::{azimuth_mod_quarter, plan_azimuth, signed_quarter, snap_plumb_and_level};

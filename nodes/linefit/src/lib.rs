@@ -5,8 +5,11 @@
 pub mod fit;
 pub mod merge;
 
-use lineflow_linegeom::{refine_line, ClassRule, MultiviewLine, MultiviewParams, SlaveSegments};
-use lineflow_photogrammetry::Vec3;
+use lineflow_linegeom::{
+    classify_elements, refine_line, uncovered_stretches, ClassRule, Cover, MultiviewLine, MultiviewParams, Sight, SlaveSegments,
+};
+use lineflow_messages::Line3;
+use lineflow_photogrammetry::{Camera, Pose, Vec3};
 use serde::Deserialize;
 
 pub use fit::{fit_thesis, fit_tls, Fitted, Method};
@@ -46,6 +49,11 @@ pub struct FitParams {
     pub classify: bool,
     /// The classing's settings.
     pub class: ClassRule,
+    /// A line covers a stretch of another within this distance of it, metres (and `merge_angle_deg`).
+    pub join_distance_m: f64,
+    /// With the `joined` input wired (another line stage's lines, linemap's): the stretches of its final lines
+    /// that the final lines leave uncovered join them, each of at least this length, metres.
+    pub join_stretch_m: f64,
 }
 
 impl Default for FitParams {
@@ -65,6 +73,8 @@ impl Default for FitParams {
             snap_deg: 8.0,
             classify: true,
             class: ClassRule::default(),
+            join_distance_m: 0.03,
+            join_stretch_m: 0.2,
         }
     }
 }
@@ -88,6 +98,8 @@ impl lineflow_runtime::StageParams for FitParams {
         non_negative("merge_gap_m", self.merge_gap_m)?;
         non_negative("min_length_m", self.min_length_m)?;
         in_closed("min_inlier_share", self.min_inlier_share, 0.0, 1.0)?;
+        non_negative("join_distance_m", self.join_distance_m)?;
+        positive("join_stretch_m", self.join_stretch_m)?;
         in_half_open("merge_angle_deg", self.merge_angle_deg, 0.0, 90.0)?;
         in_half_open("snap_deg", self.snap_deg, 0.0, 45.0)?;
         positive("multiview_max_distance_px", self.multiview_max_distance_px)?;
@@ -145,6 +157,56 @@ pub fn snap(lines: &mut [Merged], p: &FitParams) -> usize {
         l.end = b;
     }
     turned
+}
+
+/// Joins to `lines` the stretches of another line stage's lines (`others`) that they leave uncovered
+/// (`lineflow_linegeom::fuse`), each of at least `p.join_stretch_m`; returns how many joined. A joined stretch
+/// keeps its line's counts and RMS and has no fragments.
+pub fn join_lines(lines: &mut Vec<Merged>, others: &[Line3], p: &FitParams) -> usize {
+    let own: Vec<[Vec3; 2]> = lines.iter().map(|l| [l.start, l.end]).collect();
+    let theirs: Vec<[Vec3; 2]> = others.iter().map(|l| [Vec3::from(l.start_m), Vec3::from(l.end_m)]).collect();
+    let rule = Cover {
+        angle_deg: p.merge_angle_deg,
+        distance_m: p.join_distance_m,
+    };
+    let before = lines.len();
+    for ((l, x), free) in others.iter().zip(&theirs).zip(uncovered_stretches(&own, &theirs, &rule)) {
+        let length = (x[1] - x[0]).norm();
+        for (s, t) in free.into_iter().filter(|(s, t)| (t - s) * length >= p.join_stretch_m) {
+            lines.push(Merged {
+                start: x[0] + (x[1] - x[0]) * s,
+                end: x[0] + (x[1] - x[0]) * t,
+                n_points: l.n_points,
+                n_images: l.n_images,
+                rms_m: l.rms_m,
+                fragments: Vec::new(),
+            });
+        }
+    }
+    lines.len() - before
+}
+
+/// The message elements of the merged lines, numbered from 1, classed when `params.classify` (by their support
+/// too when the camera is given, against the images of `poses`).
+pub fn line_elements(lines: &[Merged], params: &FitParams, camera: Option<&Camera>, poses: &[Pose]) -> Vec<Line3> {
+    let mut out: Vec<Line3> = lines
+        .iter()
+        .enumerate()
+        .map(|(k, l)| Line3 {
+            id: k as u64 + 1,
+            start_m: l.start.into(),
+            end_m: l.end.into(),
+            n_points: l.n_points,
+            n_images: l.n_images,
+            rms_m: l.rms_m,
+            ..Line3::default()
+        })
+        .collect();
+    if params.classify {
+        let sight = camera.map(|camera| Sight { camera, poses });
+        classify_elements(&mut out, &params.class, sight);
+    }
+    out
 }
 
 /// The fragment of one point group, when its fit passes the support tests.

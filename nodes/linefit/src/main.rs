@@ -8,8 +8,11 @@ use std::collections::BTreeMap;
 
 use anyhow::Result;
 use lineflow_formats::{write_lines3d_results, Line3Row};
-use lineflow_linefit::{fit_group, merge, refine_multiview, snap, FitParams, Fragment, Merged, Method, MULTIVIEW_MIN_SEGMENT_PX};
-use lineflow_linegeom::{classify_elements, FrameSegments, Sight, SlaveSegments};
+use lineflow_linefit::{
+    fit_group, join_lines, line_elements, merge, refine_multiview, snap, FitParams, Fragment, Merged, Method,
+    MULTIVIEW_MIN_SEGMENT_PX,
+};
+use lineflow_linegeom::{FrameSegments, SlaveSegments};
 use lineflow_messages::{kinds, parts, Line3, LineClass, Lines3DHeader, Point3, PointGroup, Segment2, Stamp, StampFlags};
 use lineflow_photogrammetry::{Camera, Pose, Vec3};
 use lineflow_runtime::{Flow, NodeContext};
@@ -18,28 +21,10 @@ fn main() -> std::process::ExitCode {
     lineflow_runtime::run_stage("linefit", "tls", &[("tls", run_tls), ("thesis", run_thesis)])
 }
 
-/// The message elements of the merged lines, classed when `params.classify` (by their support too once the
-/// camera and poses are in).
+/// The message elements of the merged lines, against every oriented image.
 fn elements(lines: &[Merged], params: &FitParams, camera: Option<&Camera>, poses: &BTreeMap<u64, Pose>) -> Vec<Line3> {
-    let mut out: Vec<Line3> = lines
-        .iter()
-        .enumerate()
-        .map(|(k, l)| Line3 {
-            id: k as u64 + 1,
-            start_m: l.start.into(),
-            end_m: l.end.into(),
-            n_points: l.n_points,
-            n_images: l.n_images,
-            rms_m: l.rms_m,
-            ..Line3::default()
-        })
-        .collect();
-    if params.classify {
-        let poses: Vec<Pose> = poses.values().copied().collect();
-        let sight = camera.map(|camera| Sight { camera, poses: &poses });
-        classify_elements(&mut out, &params.class, sight);
-    }
-    out
+    let poses: Vec<Pose> = poses.values().copied().collect();
+    line_elements(lines, params, camera, &poses)
 }
 
 fn run_tls(ctx: NodeContext) -> Result<()> {
@@ -56,12 +41,15 @@ fn run(ctx: NodeContext, method: Method) -> Result<()> {
     let lines_in = ctx.optional_input::<kinds::Lines2D>("lines2d")?;
     let poses_in = ctx.optional_input::<kinds::Poses>("poses")?;
     let camera_in = ctx.optional_input::<kinds::CameraModel>("camera")?;
+    let joined_in = ctx.optional_input::<kinds::Lines3D>("joined")?;
     let output = ctx.output::<kinds::Lines3D>("lines3d")?;
     ctx.connect()?;
     let multiview = params.multiview && lines_in.is_some() && poses_in.is_some() && camera_in.is_some();
     let mut segments: BTreeMap<u64, Vec<Segment2>> = BTreeMap::new();
     let mut poses: BTreeMap<u64, Pose> = BTreeMap::new();
     let mut camera: Option<Camera> = None;
+    // The other line stage's newest set: its final one once its input ends.
+    let mut joined: Vec<Line3> = Vec::new();
 
     let mut fragments: BTreeMap<u64, Vec<Fragment>> = BTreeMap::new();
     let mut merged: Vec<Merged> = Vec::new();
@@ -85,6 +73,11 @@ fn run(ctx: NodeContext, method: Method) -> Result<()> {
             // Every Poses message holds every oriented frame; the last one is the final adjustment.
             while let Some(m) = i.receive()? {
                 poses = m.payload().iter().map(|p| (p.frame, p.exterior())).collect();
+            }
+        }
+        if let Some(i) = &joined_in {
+            while let Some(m) = i.receive()? {
+                joined = m.payload().to_vec();
             }
         }
         // Every frame received for the first time gets its own set, in order, so that downstream sees no frame
@@ -126,7 +119,8 @@ fn run(ctx: NodeContext, method: Method) -> Result<()> {
         let others_ended = [lines_in.as_ref().map(|i| i.is_ended()), poses_in.as_ref().map(|i| i.is_ended())]
             .iter()
             .all(|e| e.unwrap_or(true));
-        Ok(if input.is_ended() && (!multiview || others_ended) {
+        let joined_ended = joined_in.as_ref().is_none_or(|i| i.is_ended());
+        Ok(if input.is_ended() && (!multiview || others_ended) && joined_ended {
             Flow::Stop
         } else {
             Flow::Continue
@@ -154,6 +148,11 @@ fn run(ctx: NodeContext, method: Method) -> Result<()> {
         }
         (None, true) => tracing::warn!("no camera model arrived: the lines are not re-estimated from every image"),
         _ => {}
+    }
+    if joined_in.is_some() {
+        let n = join_lines(&mut merged, &joined, &params);
+        snap(&mut merged, &params);
+        tracing::info!("{n} of the {} lines of the joined stage joined, the rest already covered", joined.len());
     }
     // A revision above the last one, or subscribers would take the final set for a duplicate of it.
     last.flags |= StampFlags::FINAL;
