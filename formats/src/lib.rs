@@ -448,9 +448,15 @@ pub fn read_obj_wireframe(path: &Path) -> Result<(Vec<Vec3>, Vec<[usize; 2]>), F
 
 /// Writes a run's 3-D lines into `dir` as `lines3d.csv` and `lines3d.ply`, and returns the CSV's path.
 pub fn write_lines3d_results(dir: &Path, rows: &[Line3Row]) -> Result<std::path::PathBuf, FormatError> {
-    let csv = dir.join("lines3d.csv");
+    write_lines3d_results_as(dir, "lines3d", rows)
+}
+
+/// [`write_lines3d_results`] under another name: `STEM.csv` and `STEM.ply` in `dir` (a second line stage of one
+/// graph); returns the CSV's path.
+pub fn write_lines3d_results_as(dir: &Path, stem: &str, rows: &[Line3Row]) -> Result<std::path::PathBuf, FormatError> {
+    let csv = dir.join(format!("{stem}.csv"));
     write_lines3d(&csv, rows)?;
-    write_lines_ply(&dir.join("lines3d.ply"), rows)?;
+    write_lines_ply(&dir.join(format!("{stem}.ply")), rows)?;
     Ok(csv)
 }
 

@@ -152,7 +152,10 @@ fn run(ctx: NodeContext, method: Method) -> Result<()> {
     if joined_in.is_some() {
         let n = join_lines(&mut merged, &joined, &params);
         snap(&mut merged, &params);
-        tracing::info!("{n} of the {} lines of the joined stage joined, the rest already covered", joined.len());
+        tracing::info!(
+            "{n} stretches of the joined stage's {} lines joined, the rest already covered by these",
+            joined.len()
+        );
     }
     // A revision above the last one, or subscribers would take the final set for a duplicate of it.
     last.flags |= StampFlags::FINAL;

@@ -127,6 +127,9 @@ pub struct MapParams {
     pub classify: bool,
     /// The classing's settings.
     pub class: lineflow_linegeom::ClassRule,
+    /// Name of the result files it writes in the run's folder (`NAME.csv`, `NAME.ply`): another than linefit's
+    /// `lines3d` when both stages run in one graph.
+    pub results: String,
 }
 
 impl Default for MapParams {
@@ -169,6 +172,7 @@ impl Default for MapParams {
             corner_reach_px: 4.0,
             classify: true,
             class: lineflow_linegeom::ClassRule::default(),
+            results: "lines3d".into(),
         }
     }
 }
@@ -215,6 +219,10 @@ impl MapParams {
 
 impl lineflow_runtime::StageParams for MapParams {
     fn validate(&self) -> Result<(), ParamError> {
+        let plain = !self.results.is_empty() && !self.results.contains(['/', '\\']) && !self.results.starts_with('.');
+        if !plain {
+            return Err(ParamError::new("results", "a file name without a folder", &self.results));
+        }
         check(self.min_length_px >= 2.0, "min_length_px", "at least 2", self.min_length_px)?;
         in_half_open("min_plane_angle_deg", self.min_plane_angle_deg, 0.0, 90.0)?;
         in_half_open("min_ray_angle_deg", self.min_ray_angle_deg, 0.0, 90.0)?;

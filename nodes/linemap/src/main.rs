@@ -5,7 +5,7 @@
 use std::collections::BTreeMap;
 
 use anyhow::Result;
-use lineflow_formats::{write_lines3d_results, Line3Row};
+use lineflow_formats::{write_lines3d_results_as, Line3Row};
 use lineflow_linemap::{line_messages, MapParams, MapStage, MappedLine, Photo};
 use lineflow_messages::{kinds, Lines3DHeader, Segment2, Stamp, StampFlags};
 use lineflow_photogrammetry::{Camera, Pose, Vec3};
@@ -176,7 +176,7 @@ fn run(ctx: NodeContext) -> Result<()> {
     publish(&output, last, &lines, &params)?;
     output.end_of_stream()?;
     let rows: Vec<Line3Row> = line_messages(&lines, &params).iter().map(Line3Row::from).collect();
-    let csv = write_lines3d_results(&ctx.out_dir(), &rows)?;
+    let csv = write_lines3d_results_as(&ctx.out_dir(), &params.results, &rows)?;
     tracing::info!("{} 3-D lines -> {}", rows.len(), csv.display());
     ctx.finish();
     Ok(())
