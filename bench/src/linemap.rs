@@ -139,7 +139,10 @@ pub fn bench_linemap(args: &LinemapBench) -> Result<ExitCode> {
         let n = join_lines(&mut own, &messages, &fit);
         snap(&mut own, &fit);
         let pose_list: Vec<lineflow_photogrammetry::Pose> = poses.iter().map(|p| p.pose).collect();
-        let joined: Vec<Line3Row> = line_elements(&own, &fit, Some(&camera), &pose_list).iter().map(Line3Row::from).collect();
+        let joined: Vec<Line3Row> = line_elements(&own, &fit, Some(&camera), &pose_list)
+            .iter()
+            .map(Line3Row::from)
+            .collect();
         print_row(&row(
             format!("{building} the run's joined by {n} stretches of linemap's"),
             &evaluate(&truth, &joined),

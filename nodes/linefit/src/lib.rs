@@ -229,3 +229,62 @@ pub fn fit_group(method: Method, points: &[Vec3], master: u64, segment: u32, n_v
         rms_m: f.rms_m,
     })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn merged(a: [f64; 3], b: [f64; 3]) -> Merged {
+        Merged {
+            start: Vec3::from(a),
+            end: Vec3::from(b),
+            n_points: 10,
+            n_images: 5,
+            rms_m: 0.004,
+            fragments: vec![(1, 2)],
+        }
+    }
+
+    fn line3(a: [f64; 3], b: [f64; 3]) -> Line3 {
+        Line3 {
+            start_m: a,
+            end_m: b,
+            n_points: 7,
+            n_images: 9,
+            rms_m: 0.002,
+            ..Line3::default()
+        }
+    }
+
+    #[test]
+    fn only_the_stretches_the_own_lines_leave_uncovered_join() {
+        let p = FitParams::default();
+        let mut lines = vec![merged([1.0, 0.0, 0.0], [3.0, 0.0, 0.0])];
+        let others = [
+            // Covered on [1, 3] by the own line 1 cm away: [0.7, 1] is too short, [3, 6] joins.
+            line3([0.7, 0.01, 0.0], [6.0, 0.01, 0.0]),
+            // Wholly covered: the same edge twice.
+            line3([1.2, 0.0, 0.0], [2.8, 0.0, 0.0]),
+            // A plumb line: joins whole, with its counts.
+            line3([5.0, 0.0, 0.0], [5.0, 0.0, 2.0]),
+            // 10 cm in front of the own line: another edge.
+            line3([1.0, -0.1, 0.0], [3.0, -0.1, 0.0]),
+        ];
+        let p = FitParams { join_stretch_m: 0.5, ..p };
+        assert_eq!(join_lines(&mut lines, &others, &p), 3);
+        let ends: Vec<(Vec3, Vec3)> = lines[1..].iter().map(|l| (l.start, l.end)).collect();
+        assert!((ends[0].0 - Vec3::new(3.0, 0.01, 0.0)).norm() < 1e-9 && (ends[0].1 - Vec3::new(6.0, 0.01, 0.0)).norm() < 1e-9);
+        assert_eq!(ends[1], (Vec3::new(5.0, 0.0, 0.0), Vec3::new(5.0, 0.0, 2.0)));
+        assert_eq!(ends[2], (Vec3::new(1.0, -0.1, 0.0), Vec3::new(3.0, -0.1, 0.0)));
+        assert_eq!((lines[2].n_points, lines[2].n_images, lines[2].rms_m), (7, 9, 0.002));
+        assert!(lines[1..].iter().all(|l| l.fragments.is_empty()));
+        assert_eq!(
+            lines[0],
+            merged([1.0, 0.0, 0.0], [3.0, 0.0, 0.0]),
+            "the own lines stay as they were"
+        );
+        // Nothing to join: nothing changes.
+        assert_eq!(join_lines(&mut lines, &[], &p), 0);
+        assert_eq!(lines.len(), 4);
+    }
+}

@@ -9,8 +9,7 @@ use std::collections::BTreeMap;
 use anyhow::Result;
 use lineflow_formats::{write_lines3d_results, Line3Row};
 use lineflow_linefit::{
-    fit_group, join_lines, line_elements, merge, refine_multiview, snap, FitParams, Fragment, Merged, Method,
-    MULTIVIEW_MIN_SEGMENT_PX,
+    fit_group, join_lines, line_elements, merge, refine_multiview, snap, FitParams, Fragment, Merged, Method, MULTIVIEW_MIN_SEGMENT_PX,
 };
 use lineflow_linegeom::{FrameSegments, SlaveSegments};
 use lineflow_messages::{kinds, parts, Line3, LineClass, Lines3DHeader, Point3, PointGroup, Segment2, Stamp, StampFlags};
@@ -153,7 +152,7 @@ fn run(ctx: NodeContext, method: Method) -> Result<()> {
         let n = join_lines(&mut merged, &joined, &params);
         snap(&mut merged, &params);
         tracing::info!(
-            "{n} stretches of the joined stage's {} lines joined, the rest already covered by these",
+            "joined: {n} stretches of the other line stage's {} lines that these leave uncovered",
             joined.len()
         );
     }
