@@ -136,9 +136,13 @@ pub fn bench_linemap(args: &LinemapBench) -> Result<ExitCode> {
                 fragments: Vec::new(),
             })
             .collect();
-        let n = join_lines(&mut own, &messages, &fit);
-        snap(&mut own, &fit);
         let pose_list: Vec<lineflow_photogrammetry::Pose> = poses.iter().map(|p| p.pose).collect();
+        let sight = lineflow_linegeom::Sight {
+            camera: &camera,
+            poses: &pose_list,
+        };
+        let n = join_lines(&mut own, &messages, &fit, Some(sight));
+        snap(&mut own, &fit);
         let joined: Vec<Line3Row> = line_elements(&own, &fit, Some(&camera), &pose_list)
             .iter()
             .map(Line3Row::from)

@@ -54,6 +54,9 @@ pub struct FitParams {
     /// With the `joined` input wired (another line stage's lines, linemap's): the stretches of its final lines
     /// that the final lines leave uncovered join them, each of at least this length, metres.
     pub join_stretch_m: f64,
+    /// With the camera and poses known: a joined line whose RMS residual, in pixels at the distance of the nearest
+    /// image, exceeds this does not join (on brick most such lines are courses at a wrong depth).
+    pub join_max_rms_px: f64,
 }
 
 impl Default for FitParams {
@@ -75,6 +78,7 @@ impl Default for FitParams {
             class: ClassRule::default(),
             join_distance_m: 0.03,
             join_stretch_m: 0.2,
+            join_max_rms_px: 0.35,
         }
     }
 }
@@ -100,6 +104,7 @@ impl lineflow_runtime::StageParams for FitParams {
         in_closed("min_inlier_share", self.min_inlier_share, 0.0, 1.0)?;
         non_negative("join_distance_m", self.join_distance_m)?;
         positive("join_stretch_m", self.join_stretch_m)?;
+        positive("join_max_rms_px", self.join_max_rms_px)?;
         in_half_open("merge_angle_deg", self.merge_angle_deg, 0.0, 90.0)?;
         in_half_open("snap_deg", self.snap_deg, 0.0, 45.0)?;
         positive("multiview_max_distance_px", self.multiview_max_distance_px)?;
@@ -160,9 +165,16 @@ pub fn snap(lines: &mut [Merged], p: &FitParams) -> usize {
 }
 
 /// Joins to `lines` the stretches of another line stage's lines (`others`) that they leave uncovered
-/// (`lineflow_linegeom::fuse`), each of at least `p.join_stretch_m`; returns how many joined. A joined stretch
+/// (`lineflow_linegeom::fuse`), each of at least `p.join_stretch_m`; returns how many joined. With `sight`, a line
+/// whose RMS residual exceeds `p.join_max_rms_px` at the distance of the nearest image joins not. A joined stretch
 /// keeps its line's counts and RMS and has no fragments.
-pub fn join_lines(lines: &mut Vec<Merged>, others: &[Line3], p: &FitParams) -> usize {
+pub fn join_lines(lines: &mut Vec<Merged>, others: &[Line3], p: &FitParams, sight: Option<Sight>) -> usize {
+    let others: Vec<&Line3> = others
+        .iter()
+        .filter(|l| {
+            sight.is_none_or(|s| l.rms_m <= p.join_max_rms_px * metres_per_px(&s, &Vec3::from(l.start_m).lerp(&Vec3::from(l.end_m), 0.5)))
+        })
+        .collect();
     let own: Vec<[Vec3; 2]> = lines.iter().map(|l| [l.start, l.end]).collect();
     let theirs: Vec<[Vec3; 2]> = others.iter().map(|l| [Vec3::from(l.start_m), Vec3::from(l.end_m)]).collect();
     let rule = Cover {
@@ -184,6 +196,16 @@ pub fn join_lines(lines: &mut Vec<Merged>, others: &[Line3], p: &FitParams) -> u
         }
     }
     lines.len() - before
+}
+
+/// Metres per pixel at `point` in the nearest of `sight`'s images (infinite with none).
+fn metres_per_px(sight: &Sight, point: &Vec3) -> f64 {
+    let nearest = sight
+        .poses
+        .iter()
+        .map(|pose| (point - pose.center).norm())
+        .fold(f64::INFINITY, f64::min);
+    nearest * sight.camera.pixel_size_mm / sight.camera.focal_mm
 }
 
 /// The message elements of the merged lines, numbered from 1, classed when `params.classify` (by their support
@@ -271,7 +293,7 @@ mod tests {
             line3([1.0, -0.1, 0.0], [3.0, -0.1, 0.0]),
         ];
         let p = FitParams { join_stretch_m: 0.5, ..p };
-        assert_eq!(join_lines(&mut lines, &others, &p), 3);
+        assert_eq!(join_lines(&mut lines, &others, &p, None), 3);
         let ends: Vec<(Vec3, Vec3)> = lines[1..].iter().map(|l| (l.start, l.end)).collect();
         assert!((ends[0].0 - Vec3::new(3.0, 0.01, 0.0)).norm() < 1e-9 && (ends[0].1 - Vec3::new(6.0, 0.01, 0.0)).norm() < 1e-9);
         assert_eq!(ends[1], (Vec3::new(5.0, 0.0, 0.0), Vec3::new(5.0, 0.0, 2.0)));
@@ -283,8 +305,33 @@ mod tests {
             merged([1.0, 0.0, 0.0], [3.0, 0.0, 0.0]),
             "the own lines stay as they were"
         );
+        // Seen from 10 m by a camera of 10 µm pixels and 10 mm focal length: 1 cm per pixel. A line with an RMS
+        // of 5 mm (0.5 px) joins without the cameras, not with them.
+        let camera = Camera {
+            width: 1000,
+            height: 800,
+            pixel_size_mm: 0.01,
+            focal_mm: 10.0,
+            principal_point_mm: [0.0, 0.0],
+            radial: [0.0; 3],
+            decentering: [0.0; 2],
+        };
+        let poses = [Pose {
+            center: Vec3::new(5.0, -10.0, 1.0),
+            rotation: lineflow_photogrammetry::Mat3::identity(),
+        }];
+        let sight = Sight {
+            camera: &camera,
+            poses: &poses,
+        };
+        let rough = line3([5.0, 0.0, 3.0], [5.0, 0.0, 5.0]);
+        let rough = Line3 { rms_m: 0.005, ..rough };
+        let mut with = lines.clone();
+        assert_eq!(join_lines(&mut with, &[rough], &p, Some(sight)), 0);
+        assert_eq!(join_lines(&mut with, &[Line3 { rms_m: 0.003, ..rough }], &p, Some(sight)), 1);
+        assert_eq!(join_lines(&mut lines.clone(), &[rough], &p, None), 1);
         // Nothing to join: nothing changes.
-        assert_eq!(join_lines(&mut lines, &[], &p), 0);
+        assert_eq!(join_lines(&mut lines, &[], &p, None), 0);
         assert_eq!(lines.len(), 4);
     }
 }

@@ -11,7 +11,7 @@ use lineflow_formats::{write_lines3d_results, Line3Row};
 use lineflow_linefit::{
     fit_group, join_lines, line_elements, merge, refine_multiview, snap, FitParams, Fragment, Merged, Method, MULTIVIEW_MIN_SEGMENT_PX,
 };
-use lineflow_linegeom::{FrameSegments, SlaveSegments};
+use lineflow_linegeom::{FrameSegments, Sight, SlaveSegments};
 use lineflow_messages::{kinds, parts, Line3, LineClass, Lines3DHeader, Point3, PointGroup, Segment2, Stamp, StampFlags};
 use lineflow_photogrammetry::{Camera, Pose, Vec3};
 use lineflow_runtime::{Flow, NodeContext};
@@ -149,7 +149,9 @@ fn run(ctx: NodeContext, method: Method) -> Result<()> {
         _ => {}
     }
     if joined_in.is_some() {
-        let n = join_lines(&mut merged, &joined, &params);
+        let pose_list: Vec<Pose> = poses.values().copied().collect();
+        let sight = camera.as_ref().map(|camera| Sight { camera, poses: &pose_list });
+        let n = join_lines(&mut merged, &joined, &params, sight);
         snap(&mut merged, &params);
         tracing::info!(
             "joined: {n} stretches of the other line stage's {} lines that these leave uncovered",
