@@ -208,31 +208,7 @@ pub enum BenchCmd {
     },
     /// The linemap algorithm again, in this process, on a finished run's lines2d.csv and poses.csv of a synthetic
     /// building, scored against its truth (for trying parameters on tuning buildings, PRESET@N with N < 1000).
-    Linemap {
-        /// The run's output folder.
-        run: std::path::PathBuf,
-        /// The building the run filmed (PRESET or PRESET@N).
-        #[arg(long)]
-        building: String,
-        /// Image scale of the run.
-        #[arg(long, default_value_t = 0.3)]
-        scale: f64,
-        /// Seed of the run's scene.
-        #[arg(long, default_value_t = 1)]
-        seed: u64,
-        /// Use the true poses instead of the run's.
-        #[arg(long)]
-        truth_poses: bool,
-        /// Also print, per class of true edge, where the edges are lost.
-        #[arg(long)]
-        funnel: bool,
-        /// Parameter override KEY=VALUE of the linemap stage (repeatable).
-        #[arg(long)]
-        set: Vec<String>,
-        /// Parameter override KEY=VALUE of the linefit stage, for the run's lines joined with linemap's (repeatable).
-        #[arg(long)]
-        join_set: Vec<String>,
-    },
+    Linemap(linemap::LinemapBench),
     /// Every parser a user's file reaches, fed mutated copies of valid files: executions, panics, slowest call.
     Fuzz {
         /// Mutated inputs per parser.
@@ -332,25 +308,7 @@ pub fn bench(cmd: BenchCmd) -> Result<ExitCode> {
             flat_textures,
         }),
         BenchCmd::Linematch { preset, scale, reps } => linematch::bench_linematch(&preset, scale, reps),
-        BenchCmd::Linemap {
-            run,
-            building,
-            scale,
-            seed,
-            truth_poses,
-            funnel,
-            set,
-            join_set,
-        } => linemap::bench_linemap(&linemap::LinemapBench {
-            run: &run,
-            building: &building,
-            scale,
-            seed,
-            truth_poses,
-            funnel,
-            set: &set,
-            join_set: &join_set,
-        }),
+        BenchCmd::Linemap(args) => linemap::bench_linemap(&args),
         BenchCmd::Bundle { cameras, points } => bundle::bench_bundle(cameras, points),
         BenchCmd::Fuzz { executions, seed } => fuzz::bench_fuzz(executions, seed),
         BenchCmd::Buildings {

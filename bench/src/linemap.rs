@@ -3,7 +3,6 @@
 //! scores a whole run. For trying parameters and designs of the 3-D line stage in seconds instead of a run; use
 //! tuning buildings (`PRESET@N`, N < 1000) for that, and `bench buildings` for the held-out figures.
 use std::collections::BTreeMap;
-use std::path::Path;
 use std::process::ExitCode;
 use std::sync::Arc;
 
@@ -21,43 +20,42 @@ use rayon::prelude::*;
 use crate::buildings::{print_header, print_row, row};
 
 /// What `lineflow bench linemap` is asked.
-pub struct LinemapBench<'a> {
+#[derive(Debug, clap::Args)]
+pub struct LinemapBench {
     /// The run's output folder.
-    pub run: &'a Path,
-    /// The building it filmed, `PRESET` or `PRESET@N`.
-    pub building: &'a str,
-    /// Its image scale.
+    pub run: std::path::PathBuf,
+    /// The building the run filmed (PRESET or PRESET@N).
+    #[arg(long)]
+    pub building: String,
+    /// Image scale of the run.
+    #[arg(long, default_value_t = 0.3)]
     pub scale: f64,
-    /// Its scene's seed.
+    /// Seed of the run's scene.
+    #[arg(long, default_value_t = 1)]
     pub seed: u64,
-    /// The true poses instead of the run's.
+    /// Use the true poses instead of the run's.
+    #[arg(long)]
     pub truth_poses: bool,
-    /// Print where the edges are lost too.
+    /// Also print, per class of true edge, where the edges are lost.
+    #[arg(long)]
     pub funnel: bool,
-    /// Overrides of the linemap stage's parameters.
-    pub set: &'a [String],
-    /// Overrides of the linefit stage's, for joining the run's lines with linemap's.
-    pub join_set: &'a [String],
+    /// Parameter override KEY=VALUE of the linemap stage (repeatable).
+    #[arg(long)]
+    pub set: Vec<String>,
+    /// Parameter override KEY=VALUE of the linefit stage, for the run's lines joined with linemap's (repeatable).
+    #[arg(long)]
+    pub join_set: Vec<String>,
 }
 
 /// `lineflow bench linemap RUN --building B [--scale S] [--seed N] [--truth-poses] [--set KEY=VALUE]...
 /// [--join-set KEY=VALUE]...`
 pub fn bench_linemap(args: &LinemapBench) -> Result<ExitCode> {
-    let LinemapBench {
-        run,
-        building,
-        scale,
-        seed,
-        truth_poses,
-        funnel,
-        set,
-        join_set,
-    } = *args;
-    let params: MapParams = lineflow_runtime::launch::params_from_overrides(set)?;
+    let (run, building, truth_poses) = (args.run.as_path(), args.building.as_str(), args.truth_poses);
+    let params: MapParams = lineflow_runtime::launch::params_from_overrides(&args.set)?;
     lineflow_runtime::StageParams::validate(&params)?;
-    let fit: FitParams = lineflow_runtime::launch::params_from_overrides(join_set)?;
+    let fit: FitParams = lineflow_runtime::launch::params_from_overrides(&args.join_set)?;
     lineflow_runtime::StageParams::validate(&fit)?;
-    let scene = Synthetic::new(building, scale, seed).map_err(|e| anyhow::anyhow!("{e}"))?;
+    let scene = Synthetic::new(building, args.scale, args.seed).map_err(|e| anyhow::anyhow!("{e}"))?;
     let camera = *scene.camera();
     let walls = scene.approximate_walls();
     let walls: Vec<Vec<Vec3>> = walls.iter().map(|(_, c)| c.iter().map(|&p| Vec3::from(p)).collect()).collect();
@@ -154,7 +152,7 @@ pub fn bench_linemap(args: &LinemapBench) -> Result<ExitCode> {
         ));
         lineflow_formats::write_lines3d(&run.join("lines3d_joined.csv"), &joined)?;
     }
-    if funnel {
+    if args.funnel {
         print_funnel(&camera, &views, &guide, &truth, &rows, &params);
     }
     Ok(ExitCode::SUCCESS)
