@@ -10,7 +10,8 @@ use anyhow::{Context, Result};
 use lineflow_eval::lines3d::evaluate;
 use lineflow_eval::Truth;
 use lineflow_formats::{read_lines2d, read_poses, Line3Row};
-use lineflow_linefit::{join_lines, line_elements, snap, FitParams, Merged};
+use lineflow_linefit::{bridges, join_lines, line_elements, snap, FitParams, Merged, MULTIVIEW_MIN_SEGMENT_PX};
+use lineflow_linegeom::{FrameSegments, SlaveSegments};
 use lineflow_linemap::{line_messages, map_lines_with_stats, Guide, MapParams, Photo, View};
 use lineflow_messages::Segment2;
 use lineflow_photogrammetry::Vec3;
@@ -141,6 +142,24 @@ pub fn bench_linemap(args: &LinemapBench) -> Result<ExitCode> {
         };
         let n = join_lines(&mut own, &messages, &fit, Some(sight));
         snap(&mut own, &fit);
+        if fit.bridge_max_span_m > 0.0 {
+            let frames: Vec<(lineflow_photogrammetry::Pose, FrameSegments)> = poses
+                .iter()
+                .filter_map(|p| {
+                    Some((
+                        p.pose,
+                        FrameSegments::new(&camera, segments.get(&p.image)?, MULTIVIEW_MIN_SEGMENT_PX),
+                    ))
+                })
+                .collect();
+            let slaves: Vec<SlaveSegments> = frames
+                .iter()
+                .map(|(pose, segments)| SlaveSegments { pose: *pose, segments })
+                .collect();
+            let found = bridges(&camera, &own, &slaves, &fit);
+            own.extend(found);
+            snap(&mut own, &fit);
+        }
         let joined: Vec<Line3Row> = line_elements(&own, &fit, Some(&camera), &pose_list)
             .iter()
             .map(Line3Row::from)

@@ -2,6 +2,7 @@
 //! masters ([`merge`]).
 #![warn(missing_docs)]
 
+pub mod bridge;
 pub mod fit;
 pub mod merge;
 
@@ -12,6 +13,7 @@ use lineflow_messages::Line3;
 use lineflow_photogrammetry::{Camera, Pose, Vec3};
 use serde::Deserialize;
 
+pub use bridge::bridges;
 pub use fit::{fit_thesis, fit_tls, Fitted, Method};
 pub use merge::{merge, Fragment, MergeRule, Merged};
 
@@ -57,6 +59,17 @@ pub struct FitParams {
     /// With the camera and poses known: a joined line whose RMS residual, in pixels at the distance of the nearest
     /// image, exceeds this does not join (on brick most such lines are courses at a wrong depth).
     pub join_max_rms_px: f64,
+    /// With the 2-D lines, poses and camera: level lines between the upper (and the lower) ends of two plumb lines
+    /// at most this far apart along the façade join the final set where the images show them (an opening's head and
+    /// sill between its jambs, [`bridge`]), metres; 0 turns this off.
+    pub bridge_max_span_m: f64,
+    /// The ends of the two plumb lines lie within this height of each other, metres.
+    pub bridge_height_m: f64,
+    /// A bridge's first search for its 2-D segments reaches this far across its projection, pixels (the jambs'
+    /// ends may stop short of the corner).
+    pub bridge_search_px: f64,
+    /// The smallest share of the images whose frame holds a bridge that must show it.
+    pub bridge_min_share: f64,
 }
 
 impl Default for FitParams {
@@ -79,6 +92,10 @@ impl Default for FitParams {
             join_distance_m: 0.03,
             join_stretch_m: 0.2,
             join_max_rms_px: 0.35,
+            bridge_max_span_m: 4.0,
+            bridge_height_m: 0.1,
+            bridge_search_px: 5.0,
+            bridge_min_share: 0.67,
         }
     }
 }
@@ -105,6 +122,10 @@ impl lineflow_runtime::StageParams for FitParams {
         non_negative("join_distance_m", self.join_distance_m)?;
         positive("join_stretch_m", self.join_stretch_m)?;
         positive("join_max_rms_px", self.join_max_rms_px)?;
+        non_negative("bridge_max_span_m", self.bridge_max_span_m)?;
+        positive("bridge_height_m", self.bridge_height_m)?;
+        positive("bridge_search_px", self.bridge_search_px)?;
+        in_closed("bridge_min_share", self.bridge_min_share, 0.0, 1.0)?;
         in_half_open("merge_angle_deg", self.merge_angle_deg, 0.0, 90.0)?;
         in_half_open("snap_deg", self.snap_deg, 0.0, 45.0)?;
         positive("multiview_max_distance_px", self.multiview_max_distance_px)?;

@@ -9,7 +9,8 @@ use std::collections::BTreeMap;
 use anyhow::Result;
 use lineflow_formats::{write_lines3d_results, Line3Row};
 use lineflow_linefit::{
-    fit_group, join_lines, line_elements, merge, refine_multiview, snap, FitParams, Fragment, Merged, Method, MULTIVIEW_MIN_SEGMENT_PX,
+    bridges, fit_group, join_lines, line_elements, merge, refine_multiview, snap, FitParams, Fragment, Merged, Method,
+    MULTIVIEW_MIN_SEGMENT_PX,
 };
 use lineflow_linegeom::{FrameSegments, Sight, SlaveSegments};
 use lineflow_messages::{kinds, parts, Line3, LineClass, Lines3DHeader, Point3, PointGroup, Segment2, Stamp, StampFlags};
@@ -125,17 +126,21 @@ fn run(ctx: NodeContext, method: Method) -> Result<()> {
             Flow::Continue
         })
     })?;
+    // Every image's segments with its final pose, for the re-estimate and the bridges.
+    let frames: Vec<(Pose, FrameSegments)> = match (&camera, multiview) {
+        (Some(cam), true) => segments
+            .iter()
+            .filter_map(|(f, s)| Some((*poses.get(f)?, FrameSegments::new(cam, s, MULTIVIEW_MIN_SEGMENT_PX))))
+            .collect(),
+        _ => Vec::new(),
+    };
+    let views: Vec<SlaveSegments> = frames
+        .iter()
+        .map(|(pose, segments)| SlaveSegments { pose: *pose, segments })
+        .collect();
     match (&camera, multiview) {
         (Some(cam), true) => {
             let start = std::time::Instant::now();
-            let frames: Vec<(Pose, FrameSegments)> = segments
-                .iter()
-                .filter_map(|(f, s)| Some((*poses.get(f)?, FrameSegments::new(cam, s, MULTIVIEW_MIN_SEGMENT_PX))))
-                .collect();
-            let views: Vec<SlaveSegments> = frames
-                .iter()
-                .map(|(pose, segments)| SlaveSegments { pose: *pose, segments })
-                .collect();
             let (moved, rms_px) = refine_multiview(cam, &mut merged, &views, &params);
             snap(&mut merged, &params);
             tracing::info!(
@@ -156,6 +161,17 @@ fn run(ctx: NodeContext, method: Method) -> Result<()> {
         tracing::info!(
             "joined: {n} stretches of the other line stage's {} lines that these leave uncovered",
             joined.len()
+        );
+    }
+    if let (Some(cam), true) = (&camera, multiview && params.bridge_max_span_m > 0.0) {
+        let start = std::time::Instant::now();
+        let found = bridges(cam, &merged, &views, &params);
+        let n = found.len();
+        merged.extend(found);
+        snap(&mut merged, &params);
+        tracing::info!(
+            "bridges: {n} level lines between the ends of plumb lines, shown by the images, in {:.2} s",
+            start.elapsed().as_secs_f64()
         );
     }
     // A revision above the last one, or subscribers would take the final set for a duplicate of it.
