@@ -156,3 +156,78 @@ fn neighbour_pairs(ends: &[End], plan: f64, p: &FitParams) -> Vec<[Vec3; 2]> {
         })
         .collect()
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use lineflow_linegeom::FrameSegments;
+    use lineflow_messages::Segment2;
+    use lineflow_photogrammetry::{rotation_from_opk, Pose};
+
+    fn line(a: [f64; 3], b: [f64; 3]) -> Merged {
+        Merged {
+            start: Vec3::from(a),
+            end: Vec3::from(b),
+            n_points: 10,
+            n_images: 9,
+            rms_m: 0.002,
+            fragments: Vec::new(),
+        }
+    }
+
+    /// A strip of nine cameras 12 m in front of the wall y = 0, every metre along x, each with the 2-D segment of
+    /// a window's head (x from -0.5 to 0.5 at z = 2.5) and nothing else.
+    fn strip(camera: &Camera) -> Vec<(Pose, FrameSegments)> {
+        let (a, b) = (Vec3::new(-0.5, 0.0, 2.5), Vec3::new(0.5, 0.0, 2.5));
+        (0..9)
+            .map(|k| {
+                let pose = Pose {
+                    center: Vec3::new(k as f64 - 4.0, -12.0, 1.5),
+                    rotation: rotation_from_opk(std::f64::consts::FRAC_PI_2, 0.0, 0.0),
+                };
+                let segment = Segment2 {
+                    id: 1,
+                    start_px: pose.project(camera, &a).unwrap(),
+                    end_px: pose.project(camera, &b).unwrap(),
+                    ..Default::default()
+                };
+                (pose, FrameSegments::new(camera, &[segment], 10.0))
+            })
+            .collect()
+    }
+
+    #[test]
+    fn a_head_the_images_show_is_bridged_between_its_jambs_and_nothing_else_is() {
+        let camera = Camera::pinhole(4000, 3000, 0.005, 20.0);
+        let frames = strip(&camera);
+        let views: Vec<SlaveSegments> = frames
+            .iter()
+            .map(|(pose, segments)| SlaveSegments { pose: *pose, segments })
+            .collect();
+        // Jambs stopping 1 cm (3 px) short of the head; their lower ends (z = 1) have no sill in the images; a level
+        // ground line gives the façade's direction.
+        let mut lines = vec![
+            line([-0.5, 0.0, 1.0], [-0.5, 0.0, 2.49]),
+            line([0.5, 0.0, 2.49], [0.5, 0.0, 1.0]),
+            line([-3.0, 0.0, 0.0], [3.0, 0.0, 0.0]),
+        ];
+        let p = FitParams::default();
+        let found = bridges(&camera, &lines, &views, &p);
+        assert_eq!(found.len(), 1, "the head only, not the sill the images do not show");
+        let head = &found[0];
+        for end in [head.start, head.end] {
+            assert!((end.z - 2.5).abs() < 0.005 && end.y.abs() < 0.005, "{end:?}");
+            assert!((end.x.abs() - 0.5).abs() < 0.005, "{end:?}");
+        }
+        assert_eq!(head.n_images, 9);
+        // Already there: no bridge. Off: none.
+        lines.push(line([-0.5, 0.0, 2.5], [0.5, 0.0, 2.5]));
+        assert!(bridges(&camera, &lines, &views, &p).is_empty());
+        lines.pop();
+        let off = FitParams {
+            bridge_max_span_m: 0.8,
+            ..p.clone()
+        };
+        assert!(bridges(&camera, &lines, &views, &off).is_empty(), "the jambs are 1 m apart");
+    }
+}
