@@ -57,11 +57,7 @@ pub fn bridges(camera: &Camera, lines: &[Merged], views: &[SlaveSegments], p: &F
     for ends in [&tops, &bottoms] {
         candidates.extend(neighbour_pairs(ends, plan, p));
     }
-    let params = MultiviewParams {
-        max_distance_px: p.multiview_max_distance_px,
-        min_views: p.multiview_min_views,
-        ..MultiviewParams::default()
-    };
+    let params = p.multiview();
     use rayon::prelude::*;
     let seen: Vec<Option<Merged>> = candidates
         .par_iter()

@@ -101,6 +101,15 @@ impl Default for FitParams {
 }
 
 impl FitParams {
+    /// The multi-view re-estimate's settings these parameters describe.
+    pub fn multiview(&self) -> MultiviewParams {
+        MultiviewParams {
+            max_distance_px: self.multiview_max_distance_px,
+            min_views: self.multiview_min_views,
+            ..MultiviewParams::default()
+        }
+    }
+
     /// The merge rule these parameters describe.
     pub fn rule(&self) -> MergeRule {
         MergeRule {
@@ -151,11 +160,7 @@ pub fn refine_multiview(
     p: &FitParams,
 ) -> (usize, f64) {
     use rayon::prelude::*;
-    let params = MultiviewParams {
-        max_distance_px: p.multiview_max_distance_px,
-        min_views: p.multiview_min_views,
-        ..MultiviewParams::default()
-    };
+    let params = p.multiview();
     let refined: Vec<Option<MultiviewLine>> = lines
         .par_iter()
         .map(|l| refine_line(camera, l.start, l.end, views, &params))
