@@ -117,11 +117,16 @@ pub fn bridges(camera: &Camera, lines: &[Merged], views: &[SlaveSegments], p: &F
 /// For each end, the nearest other end on either side along the façade's plan direction (`plan`, radians modulo
 /// 90°) at about its height: the candidate bridges, each pair once, in a fixed order.
 fn neighbour_pairs(ends: &[End], plan: f64, p: &FitParams) -> Vec<[Vec3; 2]> {
+    // By height, so that each end looks only at those within `bridge_height_m` of it.
+    let mut by_z: Vec<usize> = (0..ends.len()).collect();
+    by_z.sort_by(|&a, &b| ends[a].at.z.total_cmp(&ends[b].at.z).then(a.cmp(&b)));
     let mut pairs: Vec<(usize, usize)> = Vec::new();
     for (i, e) in ends.iter().enumerate() {
         let mut nearest: [Option<(f64, usize)>; 2] = [None, None];
-        for (j, f) in ends.iter().enumerate() {
-            if f.line == e.line || (f.at.z - e.at.z).abs() > p.bridge_height_m {
+        let from = by_z.partition_point(|&k| ends[k].at.z < e.at.z - p.bridge_height_m);
+        for &j in by_z[from..].iter().take_while(|&&k| ends[k].at.z <= e.at.z + p.bridge_height_m) {
+            let f = &ends[j];
+            if f.line == e.line {
                 continue;
             }
             let d = f.at - e.at;
