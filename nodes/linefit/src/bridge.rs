@@ -212,7 +212,10 @@ mod tests {
             line([0.5, 0.0, 2.49], [0.5, 0.0, 1.0]),
             line([-3.0, 0.0, 0.0], [3.0, 0.0, 0.0]),
         ];
-        let p = FitParams::default();
+        let p = FitParams {
+            bridge_max_span_m: 4.0,
+            ..FitParams::default()
+        };
         let found = bridges(&camera, &lines, &views, &p);
         assert_eq!(found.len(), 1, "the head only, not the sill the images do not show");
         let head = &found[0];

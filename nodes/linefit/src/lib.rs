@@ -61,7 +61,8 @@ pub struct FitParams {
     pub join_max_rms_px: f64,
     /// With the 2-D lines, poses and camera: level lines between the upper (and the lower) ends of two plumb lines
     /// at most this far apart along the façade join the final set where the images show them (an opening's head and
-    /// sill between its jambs, [`bridge`]), metres; 0 turns this off.
+    /// sill between its jambs, [`bridge`]), metres; 0 (the default) turns this off: the lines gain, the model
+    /// loses openings (docs/lines3d.md, "Bridges").
     pub bridge_max_span_m: f64,
     /// The ends of the two plumb lines lie within this height of each other, metres.
     pub bridge_height_m: f64,
@@ -92,7 +93,7 @@ impl Default for FitParams {
             join_distance_m: 0.03,
             join_stretch_m: 0.2,
             join_max_rms_px: 0.35,
-            bridge_max_span_m: 4.0,
+            bridge_max_span_m: 0.0,
             bridge_height_m: 0.1,
             bridge_search_px: 5.0,
             bridge_min_share: 0.67,
