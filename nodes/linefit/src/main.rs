@@ -48,8 +48,8 @@ fn run(ctx: NodeContext, method: Method) -> Result<()> {
     let mut segments: BTreeMap<u64, Vec<Segment2>> = BTreeMap::new();
     let mut poses: BTreeMap<u64, Pose> = BTreeMap::new();
     let mut camera: Option<Camera> = None;
-    // The other line stage's newest set: its final one once its input ends.
-    let mut joined: Vec<Line3> = Vec::new();
+    // The other line stage's final set (flagged final): its earlier sets depend on when it remapped.
+    let mut joined: Option<Vec<Line3>> = None;
 
     let mut fragments: BTreeMap<u64, Vec<Fragment>> = BTreeMap::new();
     let mut merged: Vec<Merged> = Vec::new();
@@ -77,7 +77,9 @@ fn run(ctx: NodeContext, method: Method) -> Result<()> {
         }
         if let Some(i) = &joined_in {
             while let Some(m) = i.receive()? {
-                joined = m.payload().to_vec();
+                if m.user_header().stamp.flags & StampFlags::FINAL != 0 {
+                    joined = Some(m.payload().to_vec());
+                }
             }
         }
         // Every frame received for the first time gets its own set, in order, so that downstream sees no frame
@@ -153,15 +155,22 @@ fn run(ctx: NodeContext, method: Method) -> Result<()> {
         (None, true) => tracing::warn!("no camera model arrived: the lines are not re-estimated from every image"),
         _ => {}
     }
-    if joined_in.is_some() {
-        let pose_list: Vec<Pose> = poses.values().copied().collect();
-        let sight = camera.as_ref().map(|camera| Sight { camera, poses: &pose_list });
-        let n = join_lines(&mut merged, &joined, &params, sight);
-        snap(&mut merged, &params);
-        tracing::info!(
-            "joined: {n} stretches of the other line stage's {} lines that these leave uncovered",
-            joined.len()
-        );
+    match (&joined_in, &joined) {
+        (Some(_), Some(joined)) => {
+            let pose_list: Vec<Pose> = poses.values().copied().collect();
+            let sight = camera.as_ref().map(|camera| Sight { camera, poses: &pose_list });
+            let n = join_lines(&mut merged, joined, &params, sight);
+            snap(&mut merged, &params);
+            tracing::info!(
+                "joined: {n} stretches of the other line stage's {} lines that these leave uncovered",
+                joined.len()
+            );
+        }
+        (Some(i), None) => tracing::warn!(
+            "topic '{}' ended without a final set (its stage failed or stopped early): nothing joined",
+            i.topic()
+        ),
+        _ => {}
     }
     if let (Some(cam), true) = (&camera, multiview && params.bridge_max_span_m > 0.0) {
         let start = std::time::Instant::now();
