@@ -94,7 +94,7 @@ fn a_demo_recording_replays_byte_for_byte_swaps_a_stage_and_decodes_in_python() 
     let png_rec = again.join("recording.mcap");
     let d = sb.run(&["diff", rec.to_str().unwrap(), png_rec.to_str().unwrap()]);
     assert!(d.status.success(), "replay differs:\n{}", stdout(&d));
-    assert!(stdout(&d).contains("recordings are equal on all 16 topics"), "{}", stdout(&d));
+    assert!(stdout(&d).contains("recordings are equal on all 17 topics"), "{}", stdout(&d));
     assert_eq!(
         std::fs::read(sb.path().join("live/lines2d.csv")).unwrap(),
         std::fs::read(again.join("lines2d.csv")).unwrap()
