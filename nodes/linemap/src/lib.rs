@@ -258,3 +258,28 @@ impl lineflow_runtime::StageParams for MapParams {
         self.class.validate().map_err(|e| ParamError::new(e.name, e.requirement, e.value))
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use lineflow_runtime::StageParams;
+
+    #[test]
+    fn the_results_name_is_a_plain_file_name() {
+        for good in ["lines3d", "lines3d_linemap", "a.b"] {
+            let p = MapParams {
+                results: good.into(),
+                ..MapParams::default()
+            };
+            assert!(p.validate().is_ok(), "{good}");
+        }
+        for bad in ["", "../lines3d", "out/lines3d", "..", ".hidden", "a\\b", "/tmp/x"] {
+            let p = MapParams {
+                results: bad.into(),
+                ..MapParams::default()
+            };
+            let e = p.validate().expect_err(bad);
+            assert!(format!("{e}").contains("results"), "{e}");
+        }
+    }
+}
