@@ -116,6 +116,16 @@ impl Sight<'_> {
         let inside = |pose: &Pose, p: &Vec3| pose.project(self.camera, p).is_some_and(|px| self.camera.contains(px, 0.0));
         self.poses.iter().filter(|pose| line.iter().all(|p| inside(pose, p))).count() as u32
     }
+
+    /// Metres per pixel at `point` in the nearest of the images (infinite with none).
+    pub fn metres_per_px(&self, point: &Vec3) -> f64 {
+        let nearest = self
+            .poses
+            .iter()
+            .map(|pose| (point - pose.center).norm())
+            .fold(f64::INFINITY, f64::min);
+        nearest * self.camera.pixel_size_mm / self.camera.focal_mm
+    }
 }
 
 /// The class of each segment `[start, end]` (object coordinates, metres) by its neighbours alone. Independent of

@@ -8,9 +8,9 @@
 //! ends, and between the lower ends, of two plumb lines side by side at one height along the façade, and
 //! re-estimated from every image's 2-D segments along it: the images fix its height, the jambs its depth.
 use lineflow_linegeom::{
-    azimuth_mod_quarter, covered_shares, plan_azimuth, refine_line, signed_quarter, Cover, MultiviewParams, SlaveSegments,
+    azimuth_mod_quarter, covered_shares, plan_azimuth, refine_line, signed_quarter, MultiviewParams, Sight, SlaveSegments,
 };
-use lineflow_photogrammetry::{Camera, Vec3};
+use lineflow_photogrammetry::{Camera, Pose, Vec3};
 
 use crate::{FitParams, Merged};
 
@@ -58,6 +58,8 @@ pub fn bridges(camera: &Camera, lines: &[Merged], views: &[SlaveSegments], p: &F
         candidates.extend(neighbour_pairs(ends, plan, p));
     }
     let params = p.multiview();
+    let poses: Vec<Pose> = views.iter().map(|v| v.pose).collect();
+    let sight = Sight { camera, poses: &poses };
     use rayon::prelude::*;
     let seen: Vec<Option<Merged>> = candidates
         .par_iter()
@@ -74,15 +76,7 @@ pub fn bridges(camera: &Camera, lines: &[Merged], views: &[SlaveSegments], p: &F
                 },
             )?;
             let r = refine_line(camera, first.start, first.end, views, &params)?;
-            let seeing = views
-                .iter()
-                .filter(|v| {
-                    [r.start, r.end]
-                        .iter()
-                        .all(|x| v.pose.project(camera, x).is_some_and(|px| camera.contains(px, 0.0)))
-                })
-                .count();
-            if (r.views as f64) < p.bridge_min_share * seeing as f64 {
+            if (r.views as f64) < p.bridge_min_share * f64::from(sight.images_seeing(&[r.start, r.end])) {
                 return None;
             }
             Some(Merged {
@@ -96,18 +90,15 @@ pub fn bridges(camera: &Camera, lines: &[Merged], views: &[SlaveSegments], p: &F
         })
         .collect();
     let seen: Vec<Merged> = seen.into_iter().flatten().collect();
-    let rule = Cover {
-        angle_deg: p.merge_angle_deg,
-        distance_m: p.join_distance_m,
-    };
+    let rule = p.cover();
     let theirs: Vec<[Vec3; 2]> = seen.iter().map(|l| [l.start, l.end]).collect();
     let shares = covered_shares(&ends, &theirs, &rule);
     // Two bridges of one edge (from either jamb's end, or a jamb and its frame): the first, in order, stays.
     let mut out: Vec<Merged> = Vec::new();
-    for (l, share) in seen.into_iter().zip(shares) {
-        let taken: Vec<[Vec3; 2]> = out.iter().map(|o| [o.start, o.end]).collect();
-        let again = covered_shares(&taken, &[[l.start, l.end]], &rule)[0];
-        if share < MAX_COVERED && again < MAX_COVERED {
+    let mut taken: Vec<[Vec3; 2]> = Vec::new();
+    for ((l, ends), share) in seen.into_iter().zip(theirs).zip(shares) {
+        if share < MAX_COVERED && covered_shares(&taken, &[ends], &rule)[0] < MAX_COVERED {
+            taken.push(ends);
             out.push(l);
         }
     }
@@ -163,7 +154,7 @@ mod tests {
     use super::*;
     use lineflow_linegeom::FrameSegments;
     use lineflow_messages::Segment2;
-    use lineflow_photogrammetry::{rotation_from_opk, Pose};
+    use lineflow_photogrammetry::rotation_from_opk;
 
     fn line(a: [f64; 3], b: [f64; 3]) -> Merged {
         Merged {

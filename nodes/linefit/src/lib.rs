@@ -111,6 +111,15 @@ impl FitParams {
         }
     }
 
+    /// When a line covers a stretch of another (the join, the bridges): within `merge_angle_deg` and
+    /// `join_distance_m`.
+    pub fn cover(&self) -> Cover {
+        Cover {
+            angle_deg: self.merge_angle_deg,
+            distance_m: self.join_distance_m,
+        }
+    }
+
     /// The merge rule these parameters describe.
     pub fn rule(&self) -> MergeRule {
         MergeRule {
@@ -199,15 +208,12 @@ pub fn join_lines(lines: &mut Vec<Merged>, others: &[Line3], p: &FitParams, sigh
     let others: Vec<&Line3> = others
         .iter()
         .filter(|l| {
-            sight.is_none_or(|s| l.rms_m <= p.join_max_rms_px * metres_per_px(&s, &Vec3::from(l.start_m).lerp(&Vec3::from(l.end_m), 0.5)))
+            sight.is_none_or(|s| l.rms_m <= p.join_max_rms_px * s.metres_per_px(&Vec3::from(l.start_m).lerp(&Vec3::from(l.end_m), 0.5)))
         })
         .collect();
     let own: Vec<[Vec3; 2]> = lines.iter().map(|l| [l.start, l.end]).collect();
     let theirs: Vec<[Vec3; 2]> = others.iter().map(|l| [Vec3::from(l.start_m), Vec3::from(l.end_m)]).collect();
-    let rule = Cover {
-        angle_deg: p.merge_angle_deg,
-        distance_m: p.join_distance_m,
-    };
+    let rule = p.cover();
     let before = lines.len();
     for ((l, x), free) in others.iter().zip(&theirs).zip(uncovered_stretches(&own, &theirs, &rule)) {
         let length = (x[1] - x[0]).norm();
@@ -223,16 +229,6 @@ pub fn join_lines(lines: &mut Vec<Merged>, others: &[Line3], p: &FitParams, sigh
         }
     }
     lines.len() - before
-}
-
-/// Metres per pixel at `point` in the nearest of `sight`'s images (infinite with none).
-fn metres_per_px(sight: &Sight, point: &Vec3) -> f64 {
-    let nearest = sight
-        .poses
-        .iter()
-        .map(|pose| (point - pose.center).norm())
-        .fold(f64::INFINITY, f64::min);
-    nearest * sight.camera.pixel_size_mm / sight.camera.focal_mm
 }
 
 /// The message elements of the merged lines, numbered from 1, classed when `params.classify` (by their support
@@ -334,15 +330,7 @@ mod tests {
         );
         // Seen from 10 m by a camera of 10 µm pixels and 10 mm focal length: 1 cm per pixel. A line with an RMS
         // of 5 mm (0.5 px) joins without the cameras, not with them.
-        let camera = Camera {
-            width: 1000,
-            height: 800,
-            pixel_size_mm: 0.01,
-            focal_mm: 10.0,
-            principal_point_mm: [0.0, 0.0],
-            radial: [0.0; 3],
-            decentering: [0.0; 2],
-        };
+        let camera = Camera::pinhole(1000, 800, 0.01, 10.0);
         let poses = [Pose {
             center: Vec3::new(5.0, -10.0, 1.0),
             rotation: lineflow_photogrammetry::Mat3::identity(),

@@ -155,10 +155,13 @@ fn run(ctx: NodeContext, method: Method) -> Result<()> {
         (None, true) => tracing::warn!("no camera model arrived: the lines are not re-estimated from every image"),
         _ => {}
     }
+    let final_poses: Vec<Pose> = poses.values().copied().collect();
     match (&joined_in, &joined) {
         (Some(_), Some(joined)) => {
-            let pose_list: Vec<Pose> = poses.values().copied().collect();
-            let sight = camera.as_ref().map(|camera| Sight { camera, poses: &pose_list });
+            let sight = camera.as_ref().map(|camera| Sight {
+                camera,
+                poses: &final_poses,
+            });
             let n = join_lines(&mut merged, joined, &params, sight);
             snap(&mut merged, &params);
             tracing::info!(
@@ -186,7 +189,7 @@ fn run(ctx: NodeContext, method: Method) -> Result<()> {
     // A revision above the last one, or subscribers would take the final set for a duplicate of it.
     last.flags |= StampFlags::FINAL;
     last.revision += 1;
-    let lines = elements(&merged, &params, camera.as_ref(), &poses);
+    let lines = line_elements(&merged, &params, camera.as_ref(), &final_poses);
     output.publish(Lines3DHeader { stamp: last }, &lines)?;
     output.end_of_stream()?;
     let rows: Vec<Line3Row> = lines.iter().map(Line3Row::from).collect();

@@ -265,13 +265,12 @@ struct Cut {
 /// the courses of a brick wall are all candidates).
 fn consensus(cuts: &[Cut], prior: f64, min_slaves: usize, max_rival: f64) -> Option<f64> {
     debug_assert!(cuts.windows(2).all(|w| w[0].depth <= w[1].depth));
-    let widest_cut = cuts.iter().map(|c| c.per_px).fold(0.0, f64::max);
+    let reach = AGREE_PX * cuts.iter().map(|c| c.per_px).fold(0.0, f64::max);
     // (slaves, mean, largest σ per pixel) of the group each cut seeds.
     let mut groups: Vec<(usize, f64, f64)> = Vec::with_capacity(cuts.len());
     let mut group: Vec<Cut> = Vec::new();
     for seed in cuts {
         group.clear();
-        let reach = AGREE_PX * widest_cut;
         let from = cuts.partition_point(|c| c.depth < seed.depth - reach);
         let to = cuts.partition_point(|c| c.depth <= seed.depth + reach);
         for c in &cuts[from..to] {
