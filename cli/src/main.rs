@@ -290,7 +290,8 @@ enum Cmd {
         /// Camera poses (poses.csv): faces are oriented towards the cameras.
         #[arg(long)]
         poses: Option<PathBuf>,
-        /// The images' 2-D lines (lines2d.csv): Refine measures every edge again in them (needs --poses and
+        /// The images' 2-D lines (lines2d.csv): the openings a façade's rows and columns predict are looked for
+        /// in them, and with `--set refine=true` Refine measures every edge again in them (needs --poses and
         /// --camera; docs/model.md).
         #[arg(long, requires_all = ["poses", "camera"])]
         lines2d: Option<PathBuf>,

@@ -6,7 +6,7 @@ use std::collections::BTreeMap;
 use lineflow_photogrammetry::{point_in_polygon, signed_area, Vec3};
 
 use crate::disjoint::Disjoint;
-use crate::openings::Wall;
+use crate::openings::{Evidence, Wall};
 use crate::surface::{plane_basis, smaller_side, Face, Plane, SurfaceKind};
 use crate::{Cameras, Edge, ModelParams, Vertex};
 
@@ -16,17 +16,19 @@ use crate::{Cameras, Edge, ModelParams, Vertex};
 /// Openings inferred from what is seen through them ([`crate::openings`]) add their corners to `vertices` and
 /// their outlines, as completed edges, to `edges`.
 pub fn find(vertices: &mut Vec<Vertex>, edges: &mut Vec<Edge>, params: &ModelParams, cameras: &Cameras) -> Vec<Face> {
-    find_with_walls(vertices, edges, params, cameras, &[]).0
+    find_with_walls(vertices, edges, params, cameras, &[], None).0
 }
 
 /// [`find`], and the walls the openings were looked for on. `surface` holds lines known to lie inside a surface
-/// (the texture lines left out of the model): they show where the walls are.
+/// (the texture lines left out of the model): they show where the walls are. `evidence`, the images' 2-D lines,
+/// confirms the openings a façade's rows and columns predict.
 pub(crate) fn find_with_walls(
     vertices: &mut Vec<Vertex>,
     edges: &mut Vec<Edge>,
     params: &ModelParams,
     cameras: &Cameras,
     surface: &[[Vec3; 2]],
+    evidence: Option<&Evidence>,
 ) -> (Vec<Face>, Vec<Wall>) {
     let viewpoint = cameras.mean();
     if vertices.is_empty() {
@@ -81,7 +83,18 @@ pub(crate) fn find_with_walls(
     if viewpoint.is_some() {
         recessed_openings(vertices, &incident, edges, &mut faces);
         let inferred;
-        (inferred, walls) = crate::openings::infer(vertices, edges_out, &planes, &plane_edges, &faces, tol, params, cameras, surface);
+        (inferred, walls) = crate::openings::infer(
+            vertices,
+            edges_out,
+            &planes,
+            &plane_edges,
+            &faces,
+            tol,
+            params,
+            cameras,
+            surface,
+            evidence,
+        );
         crate::openings::add(inferred, vertices, edges_out, &mut faces);
     }
     nest_openings(vertices, &mut faces, params);

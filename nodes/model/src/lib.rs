@@ -31,6 +31,8 @@ pub mod regular;
 pub mod stage;
 mod surface;
 mod surface_lines;
+#[cfg(test)]
+mod test_views;
 
 use lineflow_formats::LineClass;
 use lineflow_linegeom::ClassRule;
@@ -136,8 +138,11 @@ pub struct ModelParams {
     /// Two planes of faces are one when their normals differ by less than this, degrees.
     pub plane_angle_deg: f64,
     /// Refine with the images' 2-D lines when the node has them (the `lines2d`, `camera` and `poses` inputs
-    /// wired; `lineflow model` refines whenever it is given `--lines2d`).
+    /// wired; `lineflow model` with `--lines2d`).
     pub refine: bool,
+    /// Look in the images' 2-D lines, when the node has them, for the sides of the openings a façade's rows and
+    /// columns predict where the 3-D lines missed them ([`openings`], "Openings confirmed in the images").
+    pub verify_openings: bool,
     /// Refine's thresholds, in standard deviations (the seed: two or three).
     pub refine_k: f64,
     /// Standard deviation of an image line's endpoints across it, pixels.
@@ -214,6 +219,7 @@ impl Default for ModelParams {
             plane_angle_deg: 2.0,
             // Off by default: on the pipeline's own lines it changes nothing measurable (docs/model.md, Refine).
             refine: false,
+            verify_openings: true,
             refine_k: refine::RefineParams::default().k,
             refine_image_sigma_px: refine::RefineParams::default().image_sigma_px,
             refine_min_image_line_px: refine::RefineParams::default().min_image_line_px,
@@ -533,7 +539,7 @@ pub fn build(lines: &[ModelLine], params: &ModelParams, cameras: &Cameras) -> Mo
     build_with_images(lines, params, cameras, None)
 }
 
-/// The oriented images' 2-D lines for Refine.
+/// The oriented images' 2-D lines, for Refine and for confirming predicted openings.
 #[derive(Debug, Clone, Copy)]
 pub struct Images<'a> {
     pub camera: &'a Camera,
@@ -541,8 +547,9 @@ pub struct Images<'a> {
     pub params: refine::RefineParams,
 }
 
-/// [`build`] with Refine when `images` are given: every adjusted edge is measured again in the images' 2-D lines
-/// and its corners adjusted from both observations.
+/// [`build`] with the images' 2-D lines: with `refine`, every adjusted edge is measured again in them and its
+/// corners adjusted from both observations; with `verify_openings`, they confirm the openings a façade's rows and
+/// columns predict.
 pub fn build_with_images(lines: &[ModelLine], params: &ModelParams, cameras: &Cameras, images: Option<&Images>) -> Model {
     let drop_texture = params.texture_lines == TextureLines::Drop;
     let kept: Vec<usize> = (0..lines.len())
@@ -630,7 +637,7 @@ pub fn build_with_images(lines: &[ModelLine], params: &ModelParams, cameras: &Ca
             diagnostics.objects_unadjusted += 1;
             continue;
         };
-        if let Some(images) = images {
+        if let Some(images) = images.filter(|_| params.refine) {
             // Refine: each edge measured again in the images, then both observations of it adjusted together.
             let mut lines = sub_lines.clone();
             let mut with_images = incidences.clone();
@@ -733,7 +740,11 @@ pub fn build_with_images(lines: &[ModelLine], params: &ModelParams, cameras: &Ca
         .filter(|l| drop_texture && l.texture)
         .map(|l| [l.start, l.end])
         .collect();
-    let (mut faces, walls) = faces::find_with_walls(&mut vertices, &mut edges, params, cameras, &surface);
+    let evidence = images.filter(|_| params.verify_openings).map(|i| openings::Evidence {
+        camera: i.camera,
+        images: i.lines,
+    });
+    let (mut faces, walls) = faces::find_with_walls(&mut vertices, &mut edges, params, cameras, &surface, evidence.as_ref());
     if !params.loose_lines {
         let mut loose = vec![false; lines.len()];
         for (l, corners_on) in on_line.iter().enumerate() {

@@ -36,7 +36,7 @@ fn run(ctx: NodeContext) -> Result<()> {
     let params: ModelParams = ctx.stage_params()?;
     let lines_in = ctx.input::<kinds::Lines3D>("lines3d")?;
     let poses_in = ctx.optional_input::<kinds::Poses>("poses")?;
-    // Refine needs the images' 2-D lines, the camera and the poses.
+    // Refine and the openings' evidence need the images' 2-D lines, the camera and the poses.
     let lines2d_in = ctx.optional_input::<kinds::Lines2D>("lines2d")?;
     let camera_in = ctx.optional_input::<kinds::CameraModel>("camera")?;
     let output = ctx.output::<kinds::Wireframe>("wireframe")?;

@@ -72,6 +72,17 @@ impl ImageLines {
     pub fn set_pose(&mut self, pose: Option<Pose>) {
         self.pose = pose;
     }
+
+    /// The image's pose, if oriented.
+    pub(crate) fn pose(&self) -> Option<&Pose> {
+        self.pose.as_ref()
+    }
+
+    /// The image lines whose midpoints may lie within `reach` of the segment a–b (ideal coordinates) or 5 %
+    /// beyond its ends.
+    pub(crate) fn near(&self, a: [f64; 2], b: [f64; 2], reach: f64) -> impl Iterator<Item = &[[f64; 2]; 2]> {
+        self.grid.near(a, b, reach).into_iter().map(|i| &self.segments[i as usize])
+    }
 }
 
 /// Image lines bucketed by the cells their midpoints fall in.
@@ -151,7 +162,7 @@ struct Projection {
 pub(crate) fn sub(a: [f64; 2], b: [f64; 2]) -> [f64; 2] {
     [a[0] - b[0], a[1] - b[1]]
 }
-fn dot(a: [f64; 2], b: [f64; 2]) -> f64 {
+pub(crate) fn dot(a: [f64; 2], b: [f64; 2]) -> f64 {
     a[0] * b[0] + a[1] * b[1]
 }
 pub(crate) fn cross(a: [f64; 2], b: [f64; 2]) -> f64 {
@@ -439,32 +450,7 @@ pub fn refine_line(camera: &Camera, images: &[ImageLines], s: &StructureLine, p:
 #[cfg(test)]
 mod tests {
     use super::*;
-    use lineflow_photogrammetry::Mat3;
-
-    /// Cameras 5 m in front of the wall y = 0, at the given x, looking along +y.
-    fn cameras(xs: &[f64]) -> (Camera, Vec<Pose>) {
-        let camera = Camera::pinhole(2000, 1500, 0.005, 8.0);
-        let rotation = Mat3::new(1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, -1.0, 0.0);
-        let poses = xs
-            .iter()
-            .map(|&x| Pose {
-                center: Vec3::new(x, -5.0, 0.5),
-                rotation,
-            })
-            .collect();
-        (camera, poses)
-    }
-
-    fn image_lines(camera: &Camera, pose: &Pose, edges: &[(Vec3, Vec3)], shift_px: f64) -> ImageLines {
-        let measured: Vec<([f64; 2], [f64; 2])> = edges
-            .iter()
-            .map(|(a, b)| {
-                let (p, q) = (pose.project(camera, a).unwrap(), pose.project(camera, b).unwrap());
-                ([p[0] + shift_px, p[1]], [q[0] + shift_px, q[1]])
-            })
-            .collect();
-        ImageLines::new(camera, Some(*pose), &measured, 20.0)
-    }
+    use crate::test_views::{cameras, image_lines};
 
     #[test]
     fn a_vertical_edge_is_placed_by_its_image_lines_and_a_wrong_image_is_outvoted() {

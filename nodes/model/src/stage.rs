@@ -1,5 +1,5 @@
 //! The model stage between messages, as a state machine the process shell feeds: it latches the camera, keeps the
-//! newest poses and every frame's 2-D segments (for Refine), and rebuilds the model from the newest set of 3-D lines
+//! newest poses and every frame's 2-D segments (for Refine and the openings' evidence), and rebuilds the model from the newest set of 3-D lines
 //! only (each set holds every line so far), naming the stamps to publish it under. The wire-frame and face
 //! messages are laid out here too ([`wire_edges`], [`face_vertices`]).
 use std::collections::{BTreeMap, HashMap, HashSet};
@@ -11,7 +11,7 @@ use lineflow_photogrammetry::{Camera, Pose, Vec3};
 use crate::refine::{Endpoints, ImageLines};
 use crate::{build_with_images, lines_from_rows, Cameras, Images, Model, ModelParams, SurfaceKind};
 
-/// The images' 2-D lines for Refine: segments as they arrive, indexed once the camera is known, each image
+/// The images' 2-D lines for Refine and the openings' evidence: segments as they arrive, indexed once the camera is known, each image
 /// placed at its newest pose.
 #[derive(Default)]
 struct ImageLineStore {
@@ -50,8 +50,9 @@ impl ImageLineStore {
 /// The `csr` implementation between messages.
 pub struct ModelStage {
     params: ModelParams,
-    /// Refine runs: asked for, and the 2-D lines, camera and poses are wired.
-    refining: bool,
+    /// The images' 2-D lines are used (Refine or the openings' evidence asked for, and the 2-D lines, camera and
+    /// poses wired).
+    using_images: bool,
     cameras: Cameras,
     camera: Option<Camera>,
     image_lines: ImageLineStore,
@@ -67,7 +68,7 @@ impl ModelStage {
     /// A stage with `params`; `images_wired`: the lines2d, camera and poses inputs are all connected.
     pub fn new(params: ModelParams, images_wired: bool) -> ModelStage {
         ModelStage {
-            refining: params.refine && images_wired,
+            using_images: (params.refine || params.verify_openings) && images_wired,
             params,
             cameras: Cameras::default(),
             camera: None,
@@ -81,7 +82,7 @@ impl ModelStage {
 
     /// Refine was asked for but cannot run (its inputs are not wired).
     pub fn refine_unavailable(&self) -> bool {
-        self.params.refine && !self.refining
+        self.params.refine && !self.using_images
     }
 
     /// The camera model (latched; the newest wins).
@@ -98,9 +99,9 @@ impl ModelStage {
         self.image_lines.poses = oriented.iter().map(|p| (p.frame, p.exterior())).collect();
     }
 
-    /// One frame's 2-D segments (kept only when Refine runs).
+    /// One frame's 2-D segments (kept only when the images are used).
     pub fn on_segments(&mut self, frame: u64, segments: &[Segment2]) {
-        if self.refining {
+        if self.using_images {
             let endpoints = segments.iter().map(|s| (s.start_px, s.end_px)).collect();
             self.image_lines.pending.insert(frame, endpoints);
         }
@@ -118,7 +119,7 @@ impl ModelStage {
         let Some(rows) = self.latest.take() else { return Vec::new() };
         let received = std::mem::take(&mut self.received);
         let lines = lines_from_rows(&rows, &self.params);
-        let images = match (&self.camera, self.refining) {
+        let images = match (&self.camera, self.using_images) {
             (Some(camera), true) => match self.image_lines.update(camera, self.params.refine_min_image_line_px) {
                 (lines, oriented) if oriented >= 2 => Some(Images {
                     camera,
@@ -266,8 +267,12 @@ mod tests {
 
     #[test]
     fn refine_without_its_inputs_is_reported_and_segments_are_not_kept() {
-        let mut stage = ModelStage::new(ModelParams::default(), false);
-        assert_eq!(stage.refine_unavailable(), ModelParams::default().refine);
+        let params = ModelParams {
+            refine: true,
+            ..ModelParams::default()
+        };
+        let mut stage = ModelStage::new(params, false);
+        assert!(stage.refine_unavailable());
         stage.on_segments(0, &[Segment2::default()]);
         assert!(stage.image_lines.pending.is_empty());
     }

@@ -213,7 +213,11 @@ fn refine_with_the_images_lines_pins_the_corners_where_the_images_see_sharply() 
     let (truth, params, lines, cameras) = a55_noisy(1.0);
     // Without alignment, which already shares heights and positions along the wall between the lines of a storey
     // or a column: here the image lines alone should pin them.
-    let params = ModelParams { align: false, ..params };
+    let params = ModelParams {
+        align: false,
+        refine: true,
+        ..params
+    };
     let shaped = build(&lines, &params, &cameras);
     let image_lines = true_image_lines(&truth, 0.3);
     let images = lineflow_model::Images {

@@ -1,15 +1,18 @@
 //! Rule three: the rows and columns of the openings found on a wall predict the ones missed. A façade repeats its
 //! openings: the windows of a storey share their head and foot, those of a bay their sides. Where the lines of one
 //! opening did not make a rectangle (a side unmatched, a foot hidden by its sill), the row and column it sits in say
-//! where its outline is, and the edges seen there decide.
+//! where its outline is, and the edges seen there (the 3-D lines', or the images' 2-D lines where the 3-D lines
+//! missed a side: [`super::evidence`]) decide.
 use super::*;
 
 /// The openings predicted on `view`'s wall by the rows and columns of those already `taken` there (bounds
 /// `[x0, x1, z0, z1]` in the wall's coordinates): every cell of a column (openings whose sides lie within
 /// [`GRID_TOLERANCE_M`]) and a row (likewise their foot and top) that overlaps no opening, and where at least three
-/// of the four sides are seen ([`seen_sides`]) and the wall's courses do not run through it
-/// ([`WallView::courses_within`]). A cell takes the mean sides of its column and row.
-pub(super) fn from_grid(view: &WallView, taken: &[[f64; 4]]) -> Vec<Rect> {
+/// of the four sides are seen ([`seen_sides`]: by the 3-D lines, or where they missed a side, by the images'
+/// 2-D lines when `evidence` is given) and the wall's courses do not run through it
+/// ([`WallView::courses_within`]). A cell takes the mean sides of its column and row. `near` is a point near the
+/// wall (the cameras' mean centre).
+pub(super) fn from_grid(view: &WallView, taken: &[[f64; 4]], near: &Vec3, evidence: Option<&Evidence>) -> Vec<Rect> {
     let standing = view.standing.iter().chain(&view.standing_on_wall);
     let across = span(standing.map(|s| s.at));
     let columns = repeated(
@@ -28,9 +31,8 @@ pub(super) fn from_grid(view: &WallView, taken: &[[f64; 4]]) -> Vec<Rect> {
             if taken.iter().chain(out.iter().map(|r| &r.bounds)).any(|b| overlaps(b, &bounds)) {
                 continue;
             }
-            if seen_sides(view, bounds) >= if openings >= 2 { 3 } else { 4 }
-                && view.courses_within(bounds, FLUSH_END_REACH_M / 2.0) <= MAX_FLUSH_LEVELS
-            {
+            let seen = seen_sides(view, bounds, near, evidence);
+            if seen >= if openings >= 2 { 3 } else { 4 } && view.courses_within(bounds, FLUSH_END_REACH_M / 2.0) <= MAX_FLUSH_LEVELS {
                 out.push(Rect {
                     bounds,
                     on_wall: [true; 4],
@@ -112,23 +114,32 @@ pub(super) fn period(starts: &[f64], min_period: f64) -> Option<f64> {
     })
 }
 
-/// How many sides of the rectangle `[x0, x1, z0, z1]` edges on the wall or behind it run along: within
-/// [`GRID_TOLERANCE_M`] across, over at least [`MIN_STANDING_COVER`] of the side, and ending within
-/// [`MAX_SIDE_GAP_M`] of its ends (a course running across the wall past the opening is none of its sides).
-fn seen_sides(view: &WallView, [x0, x1, z0, z1]: [f64; 4]) -> usize {
-    let seen = |sides: &[&Vec<Side>], at: f64, lo: f64, hi: f64| {
+/// How many sides of the rectangle `[x0, x1, z0, z1]` are seen: edges on the wall or behind it run along the
+/// side (within [`GRID_TOLERANCE_M`] across, over at least [`MIN_STANDING_COVER`] of the side, and ending within
+/// [`MAX_SIDE_GAP_M`] of its ends: a course running across the wall past the opening is none of its sides), or,
+/// where none does, the images show it within [`GRID_TOLERANCE_M`] ([`Evidence::measure`]). The sides stay where
+/// the grid predicts them: the images' strongest lines at an opening are often the glazing's, a frame's width in.
+fn seen_sides(view: &WallView, [x0, x1, z0, z1]: [f64; 4], near: &Vec3, evidence: Option<&Evidence>) -> usize {
+    let in_3d = |sides: &[&Vec<Side>], at: f64, lo: f64, hi: f64| {
         sides
             .iter()
             .flat_map(|s| s.iter())
             .any(|s| (s.at - at).abs() <= GRID_TOLERANCE_M && s.cover(lo, hi) >= MIN_STANDING_COVER && ends_within(s, lo, hi))
     };
+    let wall = &view.wall;
+    let in_images = |a: (f64, f64), b: (f64, f64), across: Vec3| {
+        evidence.is_some_and(|e| {
+            e.measure(&wall.point(a.0, a.1, near), &wall.point(b.0, b.1, near), &across, GRID_TOLERANCE_M)
+                .seen()
+        })
+    };
     let standing = [&view.standing, &view.standing_on_wall];
     let lying = [&view.lying, &view.lying_on_wall];
     [
-        seen(&standing, x0, z0, z1),
-        seen(&standing, x1, z0, z1),
-        seen(&lying, z0, x0, x1),
-        seen(&lying, z1, x0, x1),
+        in_3d(&standing, x0, z0, z1) || in_images((x0, z0), (x0, z1), wall.across),
+        in_3d(&standing, x1, z0, z1) || in_images((x1, z0), (x1, z1), wall.across),
+        in_3d(&lying, z0, x0, x1) || in_images((x0, z0), (x1, z0), Vec3::z()),
+        in_3d(&lying, z1, x0, x1) || in_images((x0, z1), (x1, z1), Vec3::z()),
     ]
     .into_iter()
     .filter(|&s| s)

@@ -69,6 +69,7 @@ pub(crate) enum Inferred {
     New(Vec<Vertex>, Vec3),
 }
 
+mod evidence;
 #[cfg(test)]
 mod flush_tests;
 mod grid;
@@ -76,6 +77,7 @@ mod recesses;
 mod rectangles;
 mod sides;
 mod wall;
+pub(crate) use evidence::Evidence;
 pub(crate) use wall::{Outline, Wall};
 mod wall_from_edges;
 
@@ -108,6 +110,7 @@ pub(crate) fn infer(
     params: &ModelParams,
     cameras: &Cameras,
     surface: &[[Vec3; 2]],
+    evidence: Option<&Evidence>,
 ) -> (Vec<Inferred>, Vec<Wall>) {
     let Some(viewpoint) = cameras.mean() else {
         return (Vec::new(), Vec::new());
@@ -173,7 +176,7 @@ pub(crate) fn infer(
         let wall = &view.wall;
         let on_this_wall = |o: &&Outline| o.normal.dot(&wall.out).abs() > cos_par && wall.depth(&o.centroid).abs() < sizes.recess_m.0;
         let taken: Vec<[f64; 4]> = found.iter().filter(on_this_wall).map(|o| o.bounds_in(wall)).collect();
-        for rect in from_grid(view, &taken) {
+        for rect in from_grid(view, &taken, &viewpoint, evidence) {
             let [x0, x1, z0, z1] = rect.bounds;
             let centre = wall.point((x0 + x1) / 2.0, (z0 + z1) / 2.0, &viewpoint);
             let corners = opening_corners(wall, rect, 0.0, centres, None, &centre);

@@ -31,23 +31,23 @@ impl Side {
 
     /// Share of [lo, hi] its spans cover.
     pub(super) fn cover(&self, lo: f64, hi: f64) -> f64 {
-        let mut spans: Vec<(f64, f64)> = self
-            .spans
-            .iter()
-            .map(|&(a, b)| (a.max(lo), b.min(hi)))
-            .filter(|(a, b)| b > a)
-            .collect();
-        spans.sort_by(|a, b| a.0.total_cmp(&b.0));
-        let (mut covered, mut end) = (0.0, lo);
-        for (a, b) in spans {
-            let a = a.max(end);
-            if b > a {
-                covered += b - a;
-                end = b;
-            }
-        }
-        covered / (hi - lo).max(1e-9)
+        covered_share(&self.spans, lo, hi)
     }
+}
+
+/// Share of [lo, hi] the intervals `spans` cover (overlaps counted once).
+pub(super) fn covered_share(spans: &[(f64, f64)], lo: f64, hi: f64) -> f64 {
+    let mut spans: Vec<(f64, f64)> = spans.iter().map(|&(a, b)| (a.max(lo), b.min(hi))).filter(|(a, b)| b > a).collect();
+    spans.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let (mut covered, mut end) = (0.0, lo);
+    for (a, b) in spans {
+        let a = a.max(end);
+        if b > a {
+            covered += b - a;
+            end = b;
+        }
+    }
+    covered / (hi - lo).max(1e-9)
 }
 
 /// One observed edge in a wall's coordinates: its position across its direction, its depth, the interval it
