@@ -97,11 +97,20 @@ fn a_window_missing_a_side_is_predicted_by_its_row_and_the_bays_spacing_and_one_
 }
 
 #[test]
-fn the_period_of_bays_is_found_from_the_centres_found_and_none_without_two() {
-    let p = grid::period(&[5.03, 11.0, 17.04, 27.03], 0.8).expect("a period");
-    assert!((p - 2.0).abs() < 0.01, "{p}");
-    assert_eq!(grid::period(&[5.0], 0.8), None);
-    assert_eq!(grid::period(&[], 0.8), None);
+fn the_lattice_of_bays_is_found_from_the_centres_found_and_none_without_two() {
+    let l = grid::lattice(&[5.03, 11.0, 17.04, 27.03], 0.8).expect("a lattice");
+    assert!((l.period - 2.0).abs() < 0.01, "{l:?}");
+    assert!(
+        ((l.phase - 5.03) / l.period - ((l.phase - 5.03) / l.period).round()).abs() < 0.01,
+        "{l:?}"
+    );
+    assert_eq!(grid::lattice(&[5.0], 0.8), None);
+    assert_eq!(grid::lattice(&[], 0.8), None);
     // Gaps of 2.0 and 3.45 m share no period of at least the smallest opening.
-    assert_eq!(grid::period(&[0.0, 2.0, 5.45], 0.8), None);
+    assert_eq!(grid::lattice(&[0.0, 2.0, 5.45], 0.8), None);
+    // One opening found 30 cm off among five on bays of 2.5 m: the lattice is the others'.
+    let l = grid::lattice(&[0.88, 3.7, 11.2, 13.72, 16.24, 18.77], 0.8).expect("a lattice");
+    assert!((l.period - 2.52).abs() < 0.01, "{l:?}");
+    // Two of five off is too many.
+    assert_eq!(grid::lattice(&[0.88, 3.7, 11.2, 13.72, 17.0], 0.8), None);
 }

@@ -21,8 +21,18 @@ pub(super) fn from_grid(view: &WallView, taken: &[[f64; 4]], near: &Vec3, eviden
         view.sizes.opening_m.0,
     );
     // A storey is known from two of its openings; one alone may be anything at the height of nothing else (a
-    // balcony's rail, the panes above a door), so its cells need all four sides seen.
-    let rows = ranges(taken.iter().map(|b| [b[2], b[3]]));
+    // balcony's rail, the panes above a door), and one the storeys' spacing predicts is known from none, so their
+    // cells need all four sides seen.
+    let found_rows = ranges(taken.iter().map(|b| [b[2], b[3]]));
+    let lying = view.lying.iter().chain(&view.lying_on_wall);
+    let rows: Vec<([f64; 2], usize)> = repeated(
+        found_rows.iter().map(|r| r.0).collect(),
+        span(lying.map(|s| s.at)),
+        view.sizes.opening_m.0,
+    )
+    .into_iter()
+    .map(|r| (r, found_rows.iter().find(|f| f.0 == r).map_or(0, |f| f.1)))
+    .collect();
     let overlaps = |a: &[f64; 4], b: &[f64; 4]| a[0] < b[1] && b[0] < a[1] && a[2] < b[3] && b[2] < a[3];
     let mut out: Vec<Rect> = Vec::new();
     for &[x0, x1] in &columns {
@@ -44,14 +54,16 @@ pub(super) fn from_grid(view: &WallView, taken: &[[f64; 4]], near: &Vec3, eviden
 }
 
 /// The distinct intervals among `intervals`: those whose ends both lie within [`GRID_TOLERANCE_M`] of a group's
-/// first are one, at their mean. In order of their start.
+/// mean are one, at their mean. In order of their start.
 fn ranges(intervals: impl Iterator<Item = [f64; 2]>) -> Vec<([f64; 2], usize)> {
     let mut sorted: Vec<[f64; 2]> = intervals.collect();
     sorted.sort_by(|a, b| a[0].total_cmp(&b[0]).then(a[1].total_cmp(&b[1])));
     let mut groups: Vec<([f64; 2], [f64; 2], f64)> = Vec::new();
     for r in sorted {
-        let near =
-            |g: &&mut ([f64; 2], [f64; 2], f64)| (g.0[0] - r[0]).abs() <= GRID_TOLERANCE_M && (g.0[1] - r[1]).abs() <= GRID_TOLERANCE_M;
+        // Against the group's mean, not its first: a cluster's first member may lie at its edge.
+        let near = |g: &&mut ([f64; 2], [f64; 2], f64)| {
+            (g.1[0] / g.2 - r[0]).abs() <= GRID_TOLERANCE_M && (g.1[1] / g.2 - r[1]).abs() <= GRID_TOLERANCE_M
+        };
         match groups.iter_mut().find(near) {
             Some(g) => {
                 g.1 = [g.1[0] + r[0], g.1[1] + r[1]];
@@ -66,23 +78,38 @@ fn ranges(intervals: impl Iterator<Item = [f64; 2]>) -> Vec<([f64; 2], usize)> {
         .collect()
 }
 
+/// The sorted `points` with those within [`GRID_TOLERANCE_M`] of their neighbour's group mean made one, at their
+/// mean.
+fn ranges_of_points(points: &[f64]) -> Vec<f64> {
+    let mut groups: Vec<(f64, f64)> = Vec::new();
+    for &p in points {
+        match groups.last_mut() {
+            Some(g) if (g.0 / g.1 - p).abs() <= GRID_TOLERANCE_M => *g = (g.0 + p, g.1 + 1.0),
+            _ => groups.push((p, 1.0)),
+        }
+    }
+    groups.into_iter().map(|(sum, n)| sum / n).collect()
+}
+
 /// The smallest and largest of `values`.
 fn span(values: impl Iterator<Item = f64>) -> [f64; 2] {
     values.fold([f64::INFINITY, f64::NEG_INFINITY], |[lo, hi], v| [lo.min(v), hi.max(v)])
 }
 
-/// `ranges` and the ones their spacing predicts within `within`: where the gaps between consecutive ranges are all
-/// whole multiples (within [`GRID_TOLERANCE_M`]) of one period of at least `min_period` (bays of windows, a
-/// storey's height), the ranges the missing multiples stand for, at the ranges' mean size. As found where the gaps
-/// share no period.
+/// `ranges` and the ones their spacing predicts within `[lo, hi]`: where the ranges' centres lie on a lattice of one
+/// period of at least `min_period` (bays of windows, a storey's height; [`lattice`]), the ranges at the lattice's
+/// empty places, at the ranges' mean size. As found where the centres share no period.
 fn repeated(ranges: Vec<[f64; 2]>, [lo, hi]: [f64; 2], min_period: f64) -> Vec<[f64; 2]> {
-    // Centres, not starts: a range found on the glazing and one on the opening's edge share their centre.
-    let centres: Vec<f64> = ranges.iter().map(|r| (r[0] + r[1]) / 2.0).collect();
-    let Some(period) = period(&centres, min_period) else {
+    // Centres, not starts: a range found on the glazing and one on the opening's edge share their centre (and a
+    // door and the windows above it, ranges of different widths). Centres within the tolerance are one.
+    let mut centres: Vec<f64> = ranges.iter().map(|r| (r[0] + r[1]) / 2.0).collect();
+    centres.sort_by(f64::total_cmp);
+    let centres = ranges_of_points(&centres);
+    let Some(Lattice { period, phase }) = lattice(&centres, min_period) else {
         return ranges;
     };
     let half = ranges.iter().map(|r| r[1] - r[0]).sum::<f64>() / ranges.len() as f64 / 2.0;
-    let mut centre = centres[0] - ((centres[0] - half - lo) / period).floor() * period;
+    let mut centre = phase + ((lo + half - GRID_TOLERANCE_M - phase) / period).ceil() * period;
     let mut out = ranges.clone();
     while centre + half <= hi + GRID_TOLERANCE_M {
         if !centres.iter().any(|c| (c - centre).abs() <= GRID_TOLERANCE_M) {
@@ -94,24 +121,78 @@ fn repeated(ranges: Vec<[f64; 2]>, [lo, hi]: [f64; 2], min_period: f64) -> Vec<[
     out
 }
 
-/// The period of the sorted `starts` (centres): the longest p of at least `min_period` that every gap between
-/// neighbours is a whole multiple of (within [`GRID_TOLERANCE_M`]), from the shortest gap divided by 1 to 6
-/// and refined by least squares over all the gaps. None for fewer than two starts.
-pub(super) fn period(starts: &[f64], min_period: f64) -> Option<f64> {
-    if starts.len() < 2 {
+/// Places `phase + k · period`, integer k.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(super) struct Lattice {
+    pub(super) period: f64,
+    pub(super) phase: f64,
+}
+
+/// The lattice the sorted `centres` lie on: the longest period of at least `min_period`, among every gap between
+/// two centres divided by 1 to 6, on whose places (within [`GRID_TOLERANCE_M`]) the most centres lie, refined by
+/// least squares over them, with at least a third of its places between the first and the last of them taken. One
+/// centre in four may lie off it (an opening found a few decimetres off, a door among windows); more, and there is
+/// none. None for fewer than two centres.
+pub(super) fn lattice(centres: &[f64], min_period: f64) -> Option<Lattice> {
+    if centres.len() < 2 {
         return None;
     }
-    let gaps: Vec<f64> = starts.windows(2).map(|w| w[1] - w[0]).collect();
-    let shortest = gaps.iter().copied().fold(f64::INFINITY, f64::min);
-    (1..=6).map(|k| shortest / k as f64).take_while(|&p| p >= min_period).find_map(|p| {
-        let multiples: Vec<f64> = gaps.iter().map(|g| (g / p).round()).collect();
-        let refined = gaps.iter().zip(&multiples).map(|(g, n)| g * n).sum::<f64>() / multiples.iter().map(|n| n * n).sum::<f64>();
-        let fits = gaps
+    let on = |l: &Lattice| -> Vec<(f64, f64)> {
+        centres
             .iter()
-            .zip(&multiples)
-            .all(|(g, n)| (g - n * refined).abs() <= GRID_TOLERANCE_M);
-        fits.then_some(refined)
-    })
+            .map(|&c| ((c - l.phase) / l.period).round())
+            .zip(centres)
+            .filter(|&(k, &c)| (c - l.phase - k * l.period).abs() <= GRID_TOLERANCE_M)
+            .map(|(k, &c)| (k, c))
+            .collect()
+    };
+    // c = phase + k · period by least squares over the centres on the lattice.
+    let refit = |l: Lattice| -> Lattice {
+        let points = on(&l);
+        let n = points.len() as f64;
+        let (sk, sc) = points.iter().fold((0.0, 0.0), |(a, b), p| (a + p.0, b + p.1));
+        let (skk, skc) = points.iter().fold((0.0, 0.0), |(a, b), p| (a + p.0 * p.0, b + p.0 * p.1));
+        let det = n * skk - sk * sk;
+        if points.len() < 2 || det.abs() < 1e-12 {
+            return l;
+        }
+        let period = (n * skc - sk * sc) / det;
+        Lattice {
+            period,
+            phase: (sc - period * sk) / n,
+        }
+    };
+    let mut best: Option<(usize, Lattice)> = None;
+    for (i, &a) in centres.iter().enumerate() {
+        for &b in &centres[i + 1..] {
+            for k in 1..=6 {
+                let period = (b - a) / k as f64;
+                if period < min_period {
+                    break;
+                }
+                let l = refit(refit(Lattice { period, phase: a }));
+                let places = on(&l);
+                let count = places.len();
+                // A third of the places between the first and last centre on it taken: a short period fits some centres of
+                // any set by chance, leaving most of its places empty.
+                let spanned = places.iter().map(|p| p.0).fold(f64::NEG_INFINITY, f64::max)
+                    - places.iter().map(|p| p.0).fold(f64::INFINITY, f64::min)
+                    + 1.0;
+                if 3.0 * (count as f64) < spanned {
+                    continue;
+                }
+                let better = match best {
+                    None => true,
+                    Some((n, old)) => count > n || (count == n && l.period > old.period + GRID_TOLERANCE_M),
+                };
+                if better && l.period >= min_period {
+                    best = Some((count, l));
+                }
+            }
+        }
+    }
+    let (count, l) = best?;
+    (count >= 2 && 4 * count >= 3 * centres.len()).then_some(l)
 }
 
 /// How many sides of the rectangle `[x0, x1, z0, z1]` are seen: edges on the wall or behind it run along the
