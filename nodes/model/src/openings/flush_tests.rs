@@ -114,3 +114,43 @@ fn the_lattice_of_bays_is_found_from_the_centres_found_and_none_without_two() {
     // Two of five off is too many.
     assert_eq!(grid::lattice(&[0.88, 3.7, 11.2, 13.72, 17.0], 0.8), None);
 }
+
+#[test]
+fn a_window_whose_sides_only_the_images_show_is_confirmed_there() {
+    // Window 2 lacks its left side and its top in the 3-D lines: the grid predicts it, but two sides are too few.
+    let missing = [[2, 0], [2, 3]];
+    let (camera, poses) = crate::test_views::cameras(&[6.8, 7.6, 8.4]);
+    let centres = crate::Cameras::new(poses.iter().map(|p| p.center).collect());
+    let find_with = |images: Option<&[crate::refine::ImageLines]>| {
+        let (mut vertices, mut edges, _) = row_of_flush_windows(&missing);
+        let first = vertices.len();
+        let evidence = images.map(|images| Evidence { camera: &camera, images });
+        let (faces, _) =
+            crate::faces::find_with_walls(&mut vertices, &mut edges, &ModelParams::default(), &centres, &[], evidence.as_ref());
+        openings(&vertices, &faces, first).len()
+    };
+    assert_eq!(find_with(None), 3);
+    // The images see window 2's outline (and a course beside it, which they take for no side of it).
+    let (x0, x1) = (7.0, 8.2);
+    let outline = [
+        (Vec3::new(x0, 0.0, 1.0), Vec3::new(x0, 0.0, 2.5)),
+        (Vec3::new(x1, 0.0, 1.0), Vec3::new(x1, 0.0, 2.5)),
+        (Vec3::new(x0, 0.0, 1.0), Vec3::new(x1, 0.0, 1.0)),
+        (Vec3::new(x0, 0.0, 2.5), Vec3::new(x1, 0.0, 2.5)),
+    ];
+    let images: Vec<_> = poses
+        .iter()
+        .map(|p| crate::test_views::image_lines(&camera, p, &outline, 0.0))
+        .collect();
+    assert_eq!(find_with(Some(&images)), 4);
+    // Lines that only run along the wall past the window (courses at its head and foot, no jambs) confirm nothing.
+    let courses = [
+        (Vec3::new(5.0, 0.0, 1.0), Vec3::new(10.0, 0.0, 1.0)),
+        (Vec3::new(5.0, 0.0, 2.5), Vec3::new(10.0, 0.0, 2.5)),
+    ];
+    let images: Vec<_> = poses
+        .iter()
+        .map(|p| crate::test_views::image_lines(&camera, p, &courses, 0.0))
+        .collect();
+    assert_eq!(find_with(Some(&images)), 3);
+}
