@@ -154,3 +154,36 @@ fn a_window_whose_sides_only_the_images_show_is_confirmed_there() {
         .collect();
     assert_eq!(find_with(Some(&images)), 3);
 }
+
+#[test]
+fn courses_left_out_of_the_model_as_surface_lines_still_keep_the_piers_from_passing_for_windows() {
+    // The line stage classes most of a brick wall's courses texture, and the model leaves them out of its edges;
+    // they come to the openings' rules as surface lines. The courses beside the windows' heads and feet stay
+    // edges (aligned with the heads and feet, they pass for structure): between two windows they close a
+    // rectangle of the pier's width.
+    let (vertices, edges, viewpoint) = row_of_flush_windows(&[]);
+    let is_course = |e: &Edge| {
+        let (p, q) = (vertices[e.a].point, vertices[e.b].point);
+        let on_course = ((p.z - 0.15) / 0.1 - ((p.z - 0.15) / 0.1).round()).abs() < 1e-6;
+        let beside_window = (p.z - 1.05).abs() < 1e-6 || (p.z - 2.45).abs() < 1e-6;
+        p.z == q.z && p.y == 0.0 && q.y == 0.0 && on_course && !beside_window
+    };
+    let surface: Vec<[Vec3; 2]> = edges
+        .iter()
+        .filter(|e| is_course(e))
+        .map(|e| [vertices[e.a].point, vertices[e.b].point])
+        .collect();
+    assert!(surface.len() > 50, "{}", surface.len());
+    let kept: Vec<Edge> = edges.iter().filter(|e| !is_course(e)).cloned().collect();
+    let windows = |surface: &[[Vec3; 2]]| {
+        let (mut vertices, mut edges) = (vertices.clone(), kept.clone());
+        let first = vertices.len();
+        let (faces, _) =
+            crate::faces::find_with_walls(&mut vertices, &mut edges, &ModelParams::default(), &viewpoint.into(), surface, None);
+        openings(&vertices, &faces, first)
+    };
+    let found = windows(&surface);
+    assert_eq!(found.len(), 4, "{found:?}");
+    // Without them the piers between the windows are bare and pass for windows.
+    assert!(windows(&[]).len() > 4);
+}

@@ -264,6 +264,16 @@ fn walls(
         chosen.retain(|p| !parallel_near(p, &wall));
         chosen.insert(0, wall);
     }
+    // The surface lines as edges of their own: the courses they are run across the wall too.
+    let surface_vertices: Vec<Vertex> = surface.iter().flatten().map(|&point| Vertex { point, sigma: None }).collect();
+    let surface_edges: Vec<Edge> = (0..surface.len())
+        .map(|k| Edge {
+            a: 2 * k,
+            b: 2 * k + 1,
+            line: usize::MAX,
+            completed: false,
+        })
+        .collect();
     chosen
         .into_iter()
         .filter_map(|plane| {
@@ -271,8 +281,13 @@ fn walls(
             // Up to where a recess starts, so that a nearly flush frame (3 to 6 cm back) is on the wall, not lost
             // between the two.
             let on_wall = (-DEPTH_TOLERANCE_M, sizes.recess_m.0);
+            // The courses on the wall, among its edges and among the surface lines left out of the model (on brick
+            // the line stage classes most courses texture, and a pier between two windows would look bare).
+            let mut courses = pieces(&wall, vertices, edges, false, on_wall);
+            courses.extend(pieces(&wall, &surface_vertices, &surface_edges, false, on_wall));
+            courses.sort_by(|x, y| x.0.total_cmp(&y.0).then(x.1.total_cmp(&y.1)).then(x.2.total_cmp(&y.2)));
             Some(WallView {
-                lying_pieces_on_wall: pieces(&wall, vertices, edges, false, on_wall),
+                lying_pieces_on_wall: courses,
                 standing: sides(&wall, vertices, edges, true, sizes.recess_m),
                 lying: sides(&wall, vertices, edges, false, sizes.recess_m),
                 standing_on_wall: sides(&wall, vertices, edges, true, on_wall),
