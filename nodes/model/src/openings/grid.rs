@@ -15,27 +15,20 @@ use super::*;
 pub(super) fn from_grid(view: &WallView, taken: &[[f64; 4]], near: &Vec3, evidence: Option<&Evidence>) -> Vec<Rect> {
     let standing = view.standing.iter().chain(&view.standing_on_wall);
     let across = span(standing.map(|s| s.at));
-    let columns = repeated(
-        ranges(taken.iter().map(|b| [b[0], b[1]])).into_iter().map(|(r, _)| r).collect(),
-        across,
-        view.sizes.opening_m.0,
-    );
+    let columns = with_counts(ranges(taken.iter().map(|b| [b[0], b[1]])), |found| {
+        repeated(found, across, view.sizes.opening_m.0)
+    });
     // A storey is known from two of its openings; one alone may be anything at the height of nothing else (a
     // balcony's rail, the panes above a door), and one the storeys' spacing predicts is known from none, so their
     // cells need all four sides seen.
-    let found_rows = ranges(taken.iter().map(|b| [b[2], b[3]]));
     let lying = view.lying.iter().chain(&view.lying_on_wall);
-    let rows: Vec<([f64; 2], usize)> = repeated(
-        found_rows.iter().map(|r| r.0).collect(),
-        span(lying.map(|s| s.at)),
-        view.sizes.opening_m.0,
-    )
-    .into_iter()
-    .map(|r| (r, found_rows.iter().find(|f| f.0 == r).map_or(0, |f| f.1)))
-    .collect();
+    let height = span(lying.map(|s| s.at));
+    let rows = with_counts(ranges(taken.iter().map(|b| [b[2], b[3]])), |found| {
+        repeated(found, height, view.sizes.opening_m.0)
+    });
     let overlaps = |a: &[f64; 4], b: &[f64; 4]| a[0] < b[1] && b[0] < a[1] && a[2] < b[3] && b[2] < a[3];
     let mut out: Vec<Rect> = Vec::new();
-    for &[x0, x1] in &columns {
+    for &([x0, x1], _) in &columns {
         for &([z0, z1], openings) in &rows {
             let bounds = [x0, x1, z0, z1];
             if taken.iter().chain(out.iter().map(|r| &r.bounds)).any(|b| overlaps(b, &bounds)) {
@@ -76,6 +69,18 @@ fn ranges(intervals: impl Iterator<Item = [f64; 2]>) -> Vec<([f64; 2], usize)> {
         .into_iter()
         .map(|(_, sum, n)| ([sum[0] / n, sum[1] / n], n as usize))
         .collect()
+}
+
+/// The ranges `extend` makes of the `found` ones, each with the number of openings found in it (none for those
+/// it adds), those of more openings first: where two ranges of one storey or bay overlap (a foot found 8 cm lower
+/// on two of its five windows), the cells take the one most openings share.
+fn with_counts(found: Vec<([f64; 2], usize)>, extend: impl FnOnce(Vec<[f64; 2]>) -> Vec<[f64; 2]>) -> Vec<([f64; 2], usize)> {
+    let mut out: Vec<([f64; 2], usize)> = extend(found.iter().map(|f| f.0).collect())
+        .into_iter()
+        .map(|r| (r, found.iter().find(|f| f.0 == r).map_or(0, |f| f.1)))
+        .collect();
+    out.sort_by(|a, b| b.1.cmp(&a.1).then(a.0[0].total_cmp(&b.0[0])).then(a.0[1].total_cmp(&b.0[1])));
+    out
 }
 
 /// The sorted `points` with those within [`GRID_TOLERANCE_M`] of their neighbour's group mean made one, at their
