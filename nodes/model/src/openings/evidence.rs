@@ -15,14 +15,14 @@ const MIN_PROJECTED_PX: f64 = 15.0;
 /// An image line lies on a side where both its ends lie within this of it, pixels (the lines' own noise).
 const ON_SIDE_PX: f64 = 1.5;
 /// An image shows a side where its lines cover at least this share of the side's projection…
-pub(super) const MIN_IMAGE_COVER: f64 = 0.4;
+const MIN_IMAGE_COVER: f64 = 0.4;
 /// …and run on at most this far beyond either end, metres: a brick course or a storey line runs on past where an
 /// opening's sill or head stops, and lies at every height.
 const MAX_RUN_ON_M: f64 = 0.3;
 /// A side counts as seen in the images where at least this share of the images that look at it show it…
-pub(super) const MIN_IMAGE_SHARE: f64 = 0.5;
+const MIN_IMAGE_SHARE: f64 = 0.5;
 /// …and at least this many.
-pub(super) const MIN_IMAGES: usize = 2;
+const MIN_IMAGES: usize = 2;
 
 /// The oriented images' 2-D lines and their camera.
 #[derive(Clone, Copy)]
@@ -74,9 +74,9 @@ impl Evidence<'_> {
     /// at least [`MIN_PROJECTED_PX`] long) looks for 2-D lines along it within `reach_m` of it along `across`
     /// (both ends within [`ON_SIDE_PX`] of one position); the position where most images' lines cover at least
     /// [`MIN_IMAGE_COVER`] of the side without running on past its ends ([`MAX_RUN_ON_M`]) is the side's (the
-    /// nearest to the prediction among equals). Lines of one
-    /// edge agree on a position in object space; an edge behind the wall (a frame, a reveal) is seen at
-    /// positions that differ with the viewpoint and gathers fewer images.
+    /// nearest to the prediction among equals). Lines of one edge agree on a position in object space; an edge
+    /// behind the wall (a frame, a reveal) is seen at positions that differ with the viewpoint and gathers fewer
+    /// images.
     pub(crate) fn measure(&self, a: &Vec3, b: &Vec3, across: &Vec3, reach_m: f64) -> Measured {
         let views: Vec<View> = self
             .images
@@ -115,7 +115,9 @@ impl Evidence<'_> {
             return None;
         }
         let u = [d[0] / len, d[1] / len];
-        let units_per_m = cross(u, sub(pose.project_ideal(self.camera, &(a + across))?, pa));
+        // The projection's scale across the side, from a step small against the distance.
+        const STEP_M: f64 = 0.01;
+        let units_per_m = cross(u, sub(pose.project_ideal(self.camera, &(a + across * STEP_M))?, pa)) / STEP_M;
         if units_per_m.abs() < 1e-12 {
             return None;
         }

@@ -85,7 +85,7 @@ fn with_counts(found: Vec<([f64; 2], usize)>, extend: impl FnOnce(Vec<[f64; 2]>)
 
 /// The sorted `points` with those within [`GRID_TOLERANCE_M`] of their neighbour's group mean made one, at their
 /// mean.
-fn ranges_of_points(points: &[f64]) -> Vec<f64> {
+fn merged_points(points: &[f64]) -> Vec<f64> {
     let mut groups: Vec<(f64, f64)> = Vec::new();
     for &p in points {
         match groups.last_mut() {
@@ -109,7 +109,7 @@ fn repeated(ranges: Vec<[f64; 2]>, [lo, hi]: [f64; 2], min_period: f64) -> Vec<[
     // door and the windows above it, ranges of different widths). Centres within the tolerance are one.
     let mut centres: Vec<f64> = ranges.iter().map(|r| (r[0] + r[1]) / 2.0).collect();
     centres.sort_by(f64::total_cmp);
-    let centres = ranges_of_points(&centres);
+    let centres = merged_points(&centres);
     let Some(Lattice { period, phase }) = lattice(&centres, min_period) else {
         return ranges;
     };
@@ -178,8 +178,8 @@ pub(super) fn lattice(centres: &[f64], min_period: f64) -> Option<Lattice> {
                 let l = refit(refit(Lattice { period, phase: a }));
                 let places = on(&l);
                 let count = places.len();
-                // A third of the places between the first and last centre on it taken: a short period fits some centres of
-                // any set by chance, leaving most of its places empty.
+                // A third of the places between the first and last centre on it taken: a short period fits some
+                // centres of any set by chance, leaving most of its places empty.
                 let spanned = places.iter().map(|p| p.0).fold(f64::NEG_INFINITY, f64::max)
                     - places.iter().map(|p| p.0).fold(f64::INFINITY, f64::min)
                     + 1.0;
