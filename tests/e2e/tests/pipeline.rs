@@ -703,7 +703,8 @@ fn the_demo_graph_orients_both_strips_and_extracts_3d_lines_and_a_model_the_same
     assert!(lines[0] == lines[1], "two runs gave different 3-D lines");
     assert!(models[0] == models[1], "two runs gave different models");
 
-    // Refine offline: the same lines with the images' 2-D lines, the camera they were measured with and the poses.
+    // Refine offline: the same lines with the images' 2-D lines, the camera they were measured with and the poses
+    // (the 2-D lines alone confirm openings; Refine is asked for).
     let out = sb.path().join("out0");
     let camera = sb.path().join("camera.toml");
     let scene = lineflow_synthetic::Synthetic::new("a55-two-strips", 0.3, 1).unwrap();
@@ -721,6 +722,8 @@ fn the_demo_graph_orients_both_strips_and_extracts_3d_lines_and_a_model_the_same
         camera.to_str().unwrap(),
         "--out",
         refined.to_str().unwrap(),
+        "--set",
+        "refine=true",
     ]);
     let said = String::from_utf8_lossy(&r.stdout).into_owned();
     assert!(r.status.success(), "{said}{}", String::from_utf8_lossy(&r.stderr));
