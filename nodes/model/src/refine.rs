@@ -78,6 +78,12 @@ impl ImageLines {
         self.pose.as_ref()
     }
 
+    /// Where the oriented image sees `x` (ideal coordinates), if inside its frame.
+    pub(crate) fn visible(&self, camera: &Camera, x: &Vec3) -> Option<[f64; 2]> {
+        let i = self.pose.as_ref()?.project_ideal(camera, x)?;
+        camera.ideal_to_pixel(i).filter(|px| camera.contains(*px, 0.0)).map(|_| i)
+    }
+
     /// The image lines whose midpoints may lie within `reach` of the segment a–b (ideal coordinates) or 5 %
     /// beyond its ends.
     pub(crate) fn near(&self, a: [f64; 2], b: [f64; 2], reach: f64) -> impl Iterator<Item = &[[f64; 2]; 2]> {
@@ -185,11 +191,7 @@ fn projection_jacobian(camera: &Camera, pose: &Pose, x: &Vec3) -> Option<[[f64; 
 
 fn project(camera: &Camera, image: &ImageLines, s: &StructureLine, p: &RefineParams) -> Option<Projection> {
     let pose = image.pose.as_ref()?;
-    let visible = |x: &Vec3| {
-        let i = pose.project_ideal(camera, x)?;
-        camera.ideal_to_pixel(i).filter(|px| camera.contains(*px, 0.0)).map(|_| i)
-    };
-    let (a, b) = (visible(&s.start)?, visible(&s.end)?);
+    let (a, b) = (image.visible(camera, &s.start)?, image.visible(camera, &s.end)?);
     let d = sub(b, a);
     let len = d[0].hypot(d[1]);
     if len < p.min_image_line_px * camera.pixel_size_mm {

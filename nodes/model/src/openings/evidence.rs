@@ -8,17 +8,17 @@
 use lineflow_photogrammetry::{Camera, Vec3};
 
 use super::sides::covered_share;
+use super::MAX_SIDE_GAP_M;
 use crate::refine::{cross, dot, sub, ImageLines};
 
 /// A projected side shorter than this is not judged in that image, pixels.
 const MIN_PROJECTED_PX: f64 = 15.0;
 /// An image line lies on a side where both its ends lie within this of it, pixels (the lines' own noise).
 const ON_SIDE_PX: f64 = 1.5;
-/// An image shows a side where its lines cover at least this share of the side's projection…
+/// An image shows a side where its lines cover at least this share of the side's projection, and run on at most
+/// [`MAX_SIDE_GAP_M`] past either end, as the 3-D lines must ([`super::ends_within`]): a brick course or a storey
+/// line runs on past where an opening's sill or head stops, and lies at every height.
 const MIN_IMAGE_COVER: f64 = 0.4;
-/// …and run on at most this far beyond either end, metres: a brick course or a storey line runs on past where an
-/// opening's sill or head stops, and lies at every height.
-const MAX_RUN_ON_M: f64 = 0.3;
 /// A side counts as seen in the images where at least this share of the images that look at it show it…
 const MIN_IMAGE_SHARE: f64 = 0.5;
 /// …and at least this many.
@@ -59,7 +59,7 @@ struct View {
 
 impl View {
     /// Whether the lines `offset_m` across show the side: they cover at least [`MIN_IMAGE_COVER`] of it, and none
-    /// that reaches it runs on more than [`MAX_RUN_ON_M`] past its ends.
+    /// that reaches it runs on more than [`MAX_SIDE_GAP_M`] past its ends.
     fn shows(&self, offset_m: f64, pixel_mm: f64) -> bool {
         let tol = ON_SIDE_PX * pixel_mm / self.units_per_m;
         let spans: Vec<(f64, f64)> = self.lines.iter().filter(|l| (l.0 - offset_m).abs() <= tol).map(|l| l.1).collect();
@@ -73,7 +73,7 @@ impl Evidence<'_> {
     /// The side `a`–`b` measured in the images: every oriented image that sees it whole (both ends in the frame,
     /// at least [`MIN_PROJECTED_PX`] long) looks for 2-D lines along it within `reach_m` of it along `across`
     /// (both ends within [`ON_SIDE_PX`] of one position); the position where most images' lines cover at least
-    /// [`MIN_IMAGE_COVER`] of the side without running on past its ends ([`MAX_RUN_ON_M`]) is the side's (the
+    /// [`MIN_IMAGE_COVER`] of the side without running on past its ends ([`MAX_SIDE_GAP_M`]) is the side's (the
     /// nearest to the prediction among equals). Lines of one edge agree on a position in object space; an edge
     /// behind the wall (a frame, a reveal) is seen at positions that differ with the viewpoint and gathers fewer
     /// images.
@@ -104,11 +104,7 @@ impl Evidence<'_> {
     /// `image`'s view of the side `a`–`b`; none where the image does not see it whole.
     fn view(&self, image: &ImageLines, a: &Vec3, b: &Vec3, across: &Vec3, reach_m: f64) -> Option<View> {
         let pose = image.pose()?;
-        let visible = |x: &Vec3| {
-            let i = pose.project_ideal(self.camera, x)?;
-            self.camera.ideal_to_pixel(i).filter(|px| self.camera.contains(*px, 0.0)).map(|_| i)
-        };
-        let (pa, pb) = (visible(a)?, visible(b)?);
+        let (pa, pb) = (image.visible(self.camera, a)?, image.visible(self.camera, b)?);
         let d = sub(pb, pa);
         let len = d[0].hypot(d[1]);
         if len < MIN_PROJECTED_PX * self.camera.pixel_size_mm {
@@ -136,7 +132,7 @@ impl Evidence<'_> {
             lines,
             len,
             units_per_m: units_per_m.abs(),
-            run_on: MAX_RUN_ON_M * len / (b - a).norm(),
+            run_on: MAX_SIDE_GAP_M * len / (b - a).norm(),
         })
     }
 }
