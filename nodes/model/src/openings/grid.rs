@@ -73,7 +73,8 @@ fn ranges(intervals: impl Iterator<Item = [f64; 2]>) -> Vec<([f64; 2], usize)> {
 
 /// The ranges `extend` makes of the `found` ones, each with the number of openings found in it (none for those
 /// it adds), those of more openings first: where two ranges of one storey or bay overlap (a foot found 8 cm lower
-/// on two of its five windows), the cells take the one most openings share.
+/// on two of its five windows), the cells take the one most openings share. A range's count is found by equality:
+/// `extend` returns the ranges it is given unchanged ([`repeated`]).
 fn with_counts(found: Vec<([f64; 2], usize)>, extend: impl FnOnce(Vec<[f64; 2]>) -> Vec<[f64; 2]>) -> Vec<([f64; 2], usize)> {
     let mut out: Vec<([f64; 2], usize)> = extend(found.iter().map(|f| f.0).collect())
         .into_iter()
