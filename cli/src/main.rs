@@ -40,6 +40,32 @@ struct VerbosityArgs {
     json: bool,
 }
 
+/// The live viewer of a run (`run`, `process`).
+#[derive(clap::Args, Clone, Copy)]
+struct ViewArgs {
+    /// Serve the run live to Foxglove: images, 2-D lines, cameras, 3-D lines and the model over the Foxglove
+    /// WebSocket protocol on ws://127.0.0.1:8765 (docs/viewer.md; `[view]` in a launch file does the same).
+    #[arg(long)]
+    view: bool,
+    /// Port of the live view (0: any free port, printed); implies --view.
+    #[arg(long, value_name = "PORT")]
+    view_port: Option<u16>,
+}
+
+impl ViewArgs {
+    /// The `--set`s that add the viewer, after the user's own.
+    fn with_sets(self, set: &[String]) -> Vec<String> {
+        let mut all = set.to_vec();
+        if self.view || self.view_port.is_some() {
+            all.push("view.enabled=true".into());
+        }
+        if let Some(port) = self.view_port {
+            all.push(format!("view.port={port}"));
+        }
+        all
+    }
+}
+
 impl From<VerbosityArgs> for lineflow_runtime::run::Verbosity {
     fn from(a: VerbosityArgs) -> Self {
         Self {
@@ -63,6 +89,8 @@ enum Cmd {
         #[arg(long, default_value = "out")]
         out: PathBuf,
         #[command(flatten)]
+        view: ViewArgs,
+        #[command(flatten)]
         verbosity: VerbosityArgs,
     },
     /// Process a project folder (images/, camera.toml, ...) and write results into FOLDER/out/.
@@ -78,6 +106,8 @@ enum Cmd {
         /// Override a node parameter: NODE.PARAM=VALUE. Repeatable.
         #[arg(long = "set", value_name = "NODE.PARAM=VALUE")]
         set: Vec<String>,
+        #[command(flatten)]
+        view: ViewArgs,
         #[command(flatten)]
         verbosity: VerbosityArgs,
     },
@@ -350,15 +380,17 @@ fn main() -> ExitCode {
             graph,
             set,
             out,
+            view,
             verbosity,
-        } => run::run(&graph, &set, &out, None, verbosity.into()),
+        } => run::run(&graph, &view.with_sets(&set), &out, None, verbosity.into()),
         Cmd::Process {
             folder,
             out,
             graph,
             set,
+            view,
             verbosity,
-        } => run::process(&folder, out, graph, &set, verbosity.into()),
+        } => run::process(&folder, out, graph, &view.with_sets(&set), verbosity.into()),
         Cmd::Logs { out, node, follow } => logs::logs(&out, node.as_deref(), follow),
         Cmd::Topics { run } => attach::topics(run.as_deref()),
         Cmd::Echo {

@@ -142,7 +142,7 @@ pub fn rerun_graph(rec: &Recording, graph: Option<&Path>, set: &[String], resolv
     let sources: Vec<String> = g
         .nodes
         .iter()
-        .filter(|n| g.is_source(&n.name) && n.name != launch::RECORDER)
+        .filter(|n| g.is_source(&n.name) && !launch::is_observer(&n.name))
         .map(|n| n.name.clone())
         .collect();
     if sources.is_empty() {

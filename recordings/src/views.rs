@@ -4,11 +4,14 @@
 //! Images become `foxglove_msgs/msg/RawImage` previews (ros2msg + CDR), box-filtered down to at most
 //! `preview_max_px` on the long side so that previews do not double the recording; 2-D segments and keypoints
 //! become `foxglove.ImageAnnotations` in the preview's pixel grid; poses, 3-D lines and wire-frame models become
-//! `foxglove.SceneUpdate` entities (JSON) in the object frame `world`.
+//! `foxglove.SceneUpdate` entities (JSON) in the object frame `world`. Each preview is in the frame `camera/<frame>`,
+//! with a `foxglove.CameraCalibration` of the preview's pixel grid beside it, and each pose places that frame in
+//! `world` (`foxglove.FrameTransforms`), so that Foxglove's image panel can draw the 3-D lines and the model over
+//! the images.
 use lineflow_messages::schema::{decode_view, read_elements, read_pod, Decoded};
 use lineflow_messages::{
-    parts, Encoding, ImageHeader, Keypoint, KeypointsHeader, Line3, LineClass, Lines2DHeader, MessageKind, Pose, Segment2, Stamp, WireEdge,
-    WireframeHeader,
+    parts, CameraModelHeader, Encoding, ImageHeader, Keypoint, KeypointsHeader, Line3, LineClass, Lines2DHeader, MessageKind, Pose,
+    Segment2, Stamp, WireEdge, WireframeHeader,
 };
 use serde_json::{json, Value};
 
@@ -65,14 +68,36 @@ pub const SCENE_UPDATE: ViewSchema = ViewSchema {
     message_encoding: "json",
 };
 
+/// `foxglove.CameraCalibration` (JSON).
+pub const CAMERA_CALIBRATION: ViewSchema = ViewSchema {
+    name: "foxglove.CameraCalibration",
+    schema_encoding: "jsonschema",
+    data: r#"{"title":"foxglove.CameraCalibration","type":"object","properties":{"timestamp":{"type":"object"},"frame_id":{"type":"string"},"width":{"type":"integer"},"height":{"type":"integer"},"distortion_model":{"type":"string"},"D":{"type":"array"},"K":{"type":"array"},"R":{"type":"array"},"P":{"type":"array"}}}"#,
+    message_encoding: "json",
+};
+
+/// `foxglove.FrameTransforms` (JSON).
+pub const FRAME_TRANSFORMS: ViewSchema = ViewSchema {
+    name: "foxglove.FrameTransforms",
+    schema_encoding: "jsonschema",
+    data: r#"{"title":"foxglove.FrameTransforms","type":"object","properties":{"transforms":{"type":"array","items":{"type":"object","properties":{"timestamp":{"type":"object"},"parent_frame_id":{"type":"string"},"child_frame_id":{"type":"string"},"translation":{"type":"object"},"rotation":{"type":"object"}}}}}}"#,
+    message_encoding: "json",
+};
+
 /// The viewer channels a kind can have: (channel suffix, schema).
 fn views_of(kind: MessageKind) -> &'static [(&'static str, &'static ViewSchema)] {
     match kind {
-        MessageKind::Image => &[("preview", &RAW_IMAGE)],
+        MessageKind::Image => &[("preview", &RAW_IMAGE), ("calibration", &CAMERA_CALIBRATION)],
         MessageKind::Lines2D | MessageKind::Keypoints => &[("annotations", &IMAGE_ANNOTATIONS)],
-        MessageKind::Poses | MessageKind::Lines3D | MessageKind::Wireframe => &[("scene", &SCENE_UPDATE)],
+        MessageKind::Poses => &[("scene", &SCENE_UPDATE), ("transforms", &FRAME_TRANSFORMS)],
+        MessageKind::Lines3D | MessageKind::Wireframe => &[("scene", &SCENE_UPDATE)],
         _ => &[],
     }
+}
+
+/// The frame of an image's preview and calibration, placed in `world` by its pose.
+fn camera_frame(frame: u64) -> String {
+    format!("camera/{frame}")
 }
 
 /// Renders viewer messages of one topic; remembers the preview scale so annotations match the previews.
@@ -84,6 +109,11 @@ pub struct ViewRenderer {
     scale: f64,
     /// Previews as JPEG `CompressedImage` instead of `RawImage`.
     compressed_previews: bool,
+    /// The camera of the images, once its message has come: the previews' calibration.
+    camera: Option<CameraModelHeader>,
+    /// Capture time of every frame rendered: a pose's transform is stamped with its image's time, since Foxglove
+    /// draws an image only with a transform at or before the image's own stamp.
+    frame_times: std::collections::BTreeMap<u64, u64>,
     /// Decoding buffers reused from message to message.
     scratch: Decoded,
 }
@@ -95,6 +125,8 @@ impl ViewRenderer {
             preview_max_px,
             scale: 1.0,
             compressed_previews: false,
+            camera: None,
+            frame_times: Default::default(),
             scratch: Decoded::default(),
         }
     }
@@ -111,7 +143,7 @@ impl ViewRenderer {
         views_of(kind)
             .iter()
             .copied()
-            .filter(move |(suffix, _)| self.preview_max_px > 0 || *suffix != "preview")
+            .filter(move |(suffix, _)| self.preview_max_px > 0 || !matches!(*suffix, "preview" | "calibration"))
             .map(move |(suffix, schema)| match (suffix, self.compressed_previews) {
                 ("preview", true) => (suffix, &COMPRESSED_PREVIEW),
                 _ => (suffix, schema),
@@ -120,6 +152,12 @@ impl ViewRenderer {
 
     /// The viewer messages of one recorded message: `(channel suffix, bytes)`.
     pub fn render(&mut self, kind: MessageKind, cdr: &[u8]) -> Vec<(&'static str, Vec<u8>)> {
+        if kind == MessageKind::CameraModel {
+            if let Ok((header, _)) = decode_view(kind, cdr, &mut self.scratch) {
+                self.camera = Some(read_pod(header));
+            }
+            return Vec::new();
+        }
         // Most messages (edge maps, tie points) have no view: do not decode them at all.
         if self.views(kind).next().is_none() {
             return Vec::new();
@@ -132,11 +170,17 @@ impl ViewRenderer {
         match kind {
             MessageKind::Image => {
                 let h: ImageHeader = read_pod(header);
+                self.frame_times.insert(stamp.frame, stamp.capture_time_ns);
                 let factor = h.width.max(h.height).div_ceil(self.preview_max_px).max(1);
                 self.scale = 1.0 / factor as f64;
-                preview(&h, payload, factor, self.compressed_previews)
-                    .map(|p| vec![("preview", p)])
-                    .unwrap_or_default()
+                let Some(p) = preview(&h, payload, factor, self.compressed_previews) else {
+                    return Vec::new();
+                };
+                let calibration = self
+                    .camera
+                    .filter(|c| (c.width, c.height) == (h.width, h.height))
+                    .map(|c| ("calibration", calibration(&c, &stamp, factor)));
+                std::iter::once(("preview", p)).chain(calibration).collect()
             }
             MessageKind::Lines2D => {
                 let h: Lines2DHeader = read_pod(header);
@@ -186,7 +230,13 @@ impl ViewRenderer {
                     serde_json::to_vec(&json!({ "deletions": [], "entities": entities })).unwrap_or_default(),
                 )]
             }
-            MessageKind::Poses => vec![("scene", scene_poses(&stamp, &read_elements::<Pose>(payload)))],
+            MessageKind::Poses => {
+                let poses = read_elements::<Pose>(payload);
+                vec![
+                    ("scene", scene_poses(&stamp, &poses)),
+                    ("transforms", transforms(&poses, &self.frame_times)),
+                ]
+            }
             MessageKind::Lines3D => vec![("scene", scene_lines(&stamp, &read_elements::<Line3>(payload)))],
             _ => Vec::new(),
         }
@@ -237,7 +287,7 @@ fn preview(h: &ImageHeader, pixels: &[u8], factor: u32, jpeg: bool) -> Option<Ve
     let ns = h.stamp.capture_time_ns;
     cdr.u32((ns / 1_000_000_000) as u32);
     cdr.u32((ns % 1_000_000_000) as u32);
-    cdr.string("camera");
+    cdr.string(&camera_frame(h.stamp.frame));
     if jpeg {
         let color = if channels == 1 {
             image::ExtendedColorType::L8
@@ -265,6 +315,56 @@ fn preview(h: &ImageHeader, pixels: &[u8], factor: u32, jpeg: bool) -> Option<Ve
     cdr.u32(out.len() as u32);
     cdr.0.extend_from_slice(&out);
     Some(cdr.0)
+}
+
+/// The camera as Foxglove's pinhole model of the preview's pixel grid (`factor` image pixels a preview pixel), in
+/// the optical frame (x right, y down, z along the view; `conventions.md` has y up and looks along −z). The lens
+/// correction becomes `plumb_bob` to first order: the correction model is not OpenCV's, and the inverse of a
+/// correction is its negative only while it is small (a drawing aid, not a measurement).
+fn calibration(c: &CameraModelHeader, stamp: &Stamp, factor: u32) -> Vec<u8> {
+    let f = factor as f64;
+    let focal_px = c.focal_mm / c.pixel_size_mm;
+    let cx = (c.width as f64 - 1.0) / 2.0 + c.principal_point_mm[0] / c.pixel_size_mm;
+    let cy = (c.height as f64 - 1.0) / 2.0 - c.principal_point_mm[1] / c.pixel_size_mm;
+    let (fp, cxp, cyp) = (focal_px / f, (cx + 0.5) / f - 0.5, (cy + 0.5) / f - 0.5);
+    let fm = c.focal_mm;
+    let [k1, k2, k3] = c.radial;
+    let [p1, p2] = c.decentering;
+    let msg = json!({
+        "timestamp": time(stamp.capture_time_ns),
+        "frame_id": camera_frame(stamp.frame),
+        "width": c.width / factor,
+        "height": c.height / factor,
+        "distortion_model": "plumb_bob",
+        "D": [-k1 * fm.powi(2), -k2 * fm.powi(4), p2 * fm, -p1 * fm, -k3 * fm.powi(6)],
+        "K": [fp, 0.0, cxp, 0.0, fp, cyp, 0.0, 0.0, 1.0],
+        "R": [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0],
+        "P": [fp, 0.0, cxp, 0.0, 0.0, fp, cyp, 0.0, 0.0, 0.0, 1.0, 0.0],
+    });
+    serde_json::to_vec(&msg).unwrap_or_default()
+}
+
+/// Each pose as the transform from `world` to the image's optical frame: the frame's origin at the perspective
+/// centre, its axes the rows of diag(1, −1, −1)·M; stamped with its image's capture time, or 0 (valid from the
+/// start) when the image was not seen.
+fn transforms(poses: &[Pose], frame_times: &std::collections::BTreeMap<u64, u64>) -> Vec<u8> {
+    let transforms: Vec<Value> = poses
+        .iter()
+        .map(|p| {
+            let m = nalgebra::Matrix3::from_row_slice(&p.rotation);
+            let optical = nalgebra::Matrix3::from_diagonal(&nalgebra::Vector3::new(1.0, -1.0, -1.0)) * m;
+            let to_world = nalgebra::Rotation3::from_matrix(&optical.transpose());
+            let q = nalgebra::UnitQuaternion::from_rotation_matrix(&to_world);
+            json!({
+                "timestamp": time(frame_times.get(&p.frame).copied().unwrap_or(0)),
+                "parent_frame_id": "world",
+                "child_frame_id": camera_frame(p.frame),
+                "translation": point(p.center_m),
+                "rotation": { "x": q.i, "y": q.j, "z": q.k, "w": q.w },
+            })
+        })
+        .collect();
+    serde_json::to_vec(&json!({ "transforms": transforms })).unwrap_or_default()
 }
 
 struct Cdr(Vec<u8>);
@@ -424,6 +524,82 @@ mod tests {
         // ... width 2, height 1, "mono8", step 2, then 2 bytes: means of the 2x2 boxes.
         assert_eq!(&p[p.len() - 2..], &[3, 25]);
         assert_eq!(r.scale, 0.5);
+    }
+
+    /// Where Foxglove's image panel draws a world point: the pose's transform into the optical frame, then the
+    /// calibration's K and plumb_bob distortion in the preview's grid.
+    fn foxglove_pixel(transform: &Value, calibration: &Value, x: [f64; 3]) -> [f64; 2] {
+        let t = &transform["translation"];
+        let r = &transform["rotation"];
+        let q = nalgebra::UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(
+            r["w"].as_f64().unwrap(),
+            r["x"].as_f64().unwrap(),
+            r["y"].as_f64().unwrap(),
+            r["z"].as_f64().unwrap(),
+        ));
+        let origin = nalgebra::Vector3::new(t["x"].as_f64().unwrap(), t["y"].as_f64().unwrap(), t["z"].as_f64().unwrap());
+        let o = q.inverse() * (nalgebra::Vector3::from(x) - origin);
+        let (xn, yn) = (o.x / o.z, o.y / o.z);
+        let d: Vec<f64> = calibration["D"].as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).collect();
+        let k: Vec<f64> = calibration["K"].as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).collect();
+        let r2 = xn * xn + yn * yn;
+        let radial = 1.0 + d[0] * r2 + d[1] * r2 * r2 + d[4] * r2 * r2 * r2;
+        let xd = xn * radial + 2.0 * d[2] * xn * yn + d[3] * (r2 + 2.0 * xn * xn);
+        let yd = yn * radial + d[2] * (r2 + 2.0 * yn * yn) + 2.0 * d[3] * xn * yn;
+        [k[0] * xd + k[2], k[4] * yd + k[5]]
+    }
+
+    #[test]
+    fn foxglove_projects_the_world_into_a_preview_where_the_collinearity_does() {
+        use lineflow_photogrammetry::{rotation_from_opk, Camera, Pose as Eo, Vec3};
+        let camera = Camera {
+            width: 4000,
+            height: 3000,
+            pixel_size_mm: 0.006,
+            focal_mm: 24.0,
+            principal_point_mm: [0.05, -0.03],
+            radial: [-2e-5, 1e-8, 0.0],
+            decentering: [3e-6, -2e-6],
+        };
+        let eo = Eo {
+            center: Vec3::new(102.0, -15.0, 6.0),
+            rotation: rotation_from_opk(1.45, 0.2, -0.1),
+        };
+        let stamp = Stamp {
+            frame: 7,
+            capture_time_ns: 5,
+            ..Default::default()
+        };
+        let pose = Pose {
+            frame: 7,
+            center_m: eo.center.into(),
+            rotation: std::array::from_fn(|k| eo.rotation[(k / 3, k % 3)]),
+            ..Default::default()
+        };
+        let factor = 4;
+        let calib: Value = serde_json::from_slice(&calibration(&CameraModelHeader::from_camera(&camera), &stamp, factor)).unwrap();
+        let tf: Value = serde_json::from_slice(&transforms(&[pose], &[(7, 5)].into())).unwrap();
+        let tf = &tf["transforms"][0];
+        assert_eq!(
+            (tf["child_frame_id"].as_str(), calib["frame_id"].as_str()),
+            (Some("camera/7"), Some("camera/7"))
+        );
+        assert_eq!((calib["width"].as_u64(), calib["height"].as_u64()), (Some(1000), Some(750)));
+        assert_eq!(
+            (tf["timestamp"]["nsec"].as_u64(), calib["timestamp"]["nsec"].as_u64()),
+            (Some(5), Some(5))
+        );
+        let mut worst = 0.0f64;
+        for (dx, dz) in [(0.0, 0.0), (8.0, 4.0), (-9.0, -5.0), (5.0, -3.0)] {
+            // Points on a wall 20 m in front of the camera, spread over the frame.
+            let x = eo.center + eo.rotation.transpose() * Vec3::new(dx, dz, -20.0);
+            let px = eo.project(&camera, &x).unwrap();
+            let expected = [(px[0] + 0.5) / factor as f64 - 0.5, (px[1] + 0.5) / factor as f64 - 0.5];
+            let got = foxglove_pixel(tf, &calib, x.into());
+            worst = worst.max((got[0] - expected[0]).hypot(got[1] - expected[1]));
+        }
+        // First order in the lens correction: a tenth of a preview pixel at the corners.
+        assert!(worst < 0.1, "{worst} preview px");
     }
 
     #[test]

@@ -80,12 +80,25 @@ struct LaunchFile {
     /// Settings of the recorder; `enabled = false` turns it off, the other keys are its parameters.
     #[serde(default)]
     record: toml::Table,
+    /// Settings of the live viewer; `enabled = true` adds it, the other keys are its parameters.
+    #[serde(default)]
+    view: toml::Table,
 }
 
 /// Name of the recorder node the supervisor adds to every graph (unless `[record] enabled = false`).
 pub const RECORDER: &str = "recorder";
 /// Stage of the recorder node.
 pub const RECORDER_STAGE: &str = "record";
+/// Name of the live viewer node the supervisor adds to a graph with `[view] enabled = true` (`lineflow run --view`).
+pub const VIEWER: &str = "viewer";
+/// Stage of the live viewer node.
+pub const VIEWER_STAGE: &str = "view";
+
+/// Whether a node is one the loader adds to watch the whole run (the recorder, the viewer): it subscribes to every
+/// topic and does no work of the graph's own.
+pub fn is_observer(node: &str) -> bool {
+    node == RECORDER || node == VIEWER
+}
 
 #[derive(Debug, Default, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -335,12 +348,8 @@ pub fn parse(path: &Path, text: &str, overrides: &[String], resolver: &Resolver)
     for (index, n) in file.node.iter().enumerate() {
         nodes.push(node_spec(index, n, &base, resolver).map_err(invalid)?);
     }
-    let mut record = file.record.clone();
-    let enabled = match record.remove("enabled") {
-        None => true,
-        Some(toml::Value::Boolean(b)) => b,
-        Some(v) => return Err(invalid(("[record]".into(), format!("`enabled` must be true or false, got {v}")))),
-    };
+    let record = observer_table(&file.record, "[record]", true).map_err(invalid)?;
+    let view = observer_table(&file.view, "[view]", false).map_err(invalid)?;
     if let Some(t) = file.graph.connect_timeout_s.filter(|t| !(t.is_finite() && *t > 0.0 && *t < 1e9)) {
         return Err(invalid((
             "[graph]".into(),
@@ -358,18 +367,19 @@ pub fn parse(path: &Path, text: &str, overrides: &[String], resolver: &Resolver)
                 "duplicate topic: each topic has one edge with one publisher".into(),
             )));
         }
-        edges.push(edge_spec(e, &names, &nodes, enabled, &camera_bytes).map_err(invalid)?);
+        edges.push(edge_spec(e, &names, &nodes, record.is_some(), &camera_bytes).map_err(invalid)?);
     }
-    if enabled {
-        if names.contains(RECORDER) {
+    for (name, stage, table, params) in [(RECORDER, RECORDER_STAGE, "record", record), (VIEWER, VIEWER_STAGE, "view", view)] {
+        let Some(params) = params else { continue };
+        if names.contains(name) {
             return Err(invalid((
-                format!("node '{RECORDER}'"),
-                format!("the name '{RECORDER}' is reserved for the recorder; rename the node or set [record] enabled = false"),
+                format!("node '{name}'"),
+                format!("the name '{name}' is reserved; rename the node or set [{table}] enabled = false"),
             )));
         }
-        nodes.push(recorder_spec(&record, nodes.len(), resolver).map_err(invalid)?);
+        nodes.push(observer_spec(name, stage, params, nodes.len(), resolver).map_err(|(_, m)| invalid((format!("[{table}]"), m)))?);
         for e in &mut edges {
-            e.to.push(RECORDER.into());
+            e.to.push(name.into());
         }
     }
     Ok(Graph {
@@ -518,18 +528,29 @@ fn edge_spec(
     })
 }
 
-/// The recorder the loader adds to a graph, with the `[record]` table (less `enabled`) as its parameters.
-fn recorder_spec(record: &toml::Table, index: usize, resolver: &Resolver) -> Result<NodeSpec, Invalid> {
-    let command = vec![resolver.stage(RECORDER_STAGE).map_err(|m| ("[record]".to_owned(), m))?];
+/// The parameters of an observer's table (`[record]`, `[view]`) less `enabled`, or `None` when it is off.
+fn observer_table(table: &toml::Table, entry: &str, on_by_default: bool) -> Result<Option<toml::Table>, Invalid> {
+    let mut params = table.clone();
+    match params.remove("enabled") {
+        None if on_by_default => Ok(Some(params)),
+        None | Some(toml::Value::Boolean(false)) => Ok(None),
+        Some(toml::Value::Boolean(true)) => Ok(Some(params)),
+        Some(v) => Err((entry.into(), format!("`enabled` must be true or false, got {v}"))),
+    }
+}
+
+/// A node the loader adds to watch the whole run (the recorder, the viewer), with its table as its parameters.
+fn observer_spec(name: &str, stage: &str, table: toml::Table, index: usize, resolver: &Resolver) -> Result<NodeSpec, Invalid> {
+    let command = vec![resolver.stage(stage).map_err(|m| (String::new(), m))?];
     let mut params = serde_json::Map::new();
-    for (k, v) in record {
-        let value = serde_json::to_value(v).map_err(|e| ("[record]".to_owned(), format!("{k}: {e}")))?;
-        params.insert(k.clone(), value);
+    for (k, v) in table {
+        let value = serde_json::to_value(&v).map_err(|e| (String::new(), format!("{k}: {e}")))?;
+        params.insert(k, value);
     }
     Ok(NodeSpec {
-        name: RECORDER.into(),
+        name: name.into(),
         index: index as u32,
-        stage: Some(RECORDER_STAGE.into()),
+        stage: Some(stage.into()),
         implementation: None,
         command,
         params,
@@ -732,9 +753,16 @@ fn apply_override(file: &mut LaunchFile, item: &str) -> Result<(), String> {
     let (key, value) = item.split_once('=').ok_or("expected NODE.PARAM=VALUE")?;
     let (node, param) = key.split_once('.').ok_or("expected NODE.PARAM=VALUE")?;
     let parsed = override_value(value);
-    if node == RECORDER_STAGE && !file.node.iter().any(|n| n.name == node) {
-        file.record.insert(param.to_owned(), parsed);
-        return Ok(());
+    if !file.node.iter().any(|n| n.name == node) {
+        let table = match node {
+            RECORDER_STAGE => Some(&mut file.record),
+            VIEWER_STAGE => Some(&mut file.view),
+            _ => None,
+        };
+        if let Some(table) = table {
+            table.insert(param.to_owned(), parsed);
+            return Ok(());
+        }
     }
     let n = file
         .node
@@ -763,7 +791,7 @@ mod tests {
     use super::*;
 
     fn resolver(dir: &Path) -> Resolver {
-        for s in ["capture", "stats", "record"] {
+        for s in ["capture", "stats", "record", "view"] {
             std::fs::write(dir.join(format!("lineflow-{s}")), "").unwrap();
         }
         Resolver { bin_dir: dir.to_owned() }
@@ -817,7 +845,25 @@ mod tests {
             .replace("name = \"sink\"", "name = \"recorder\"")
             .replace("to = [\"sink\"]", "to = [\"recorder\"]");
         let err = parse(&p, &clash, &[], &r).unwrap_err().to_string();
-        assert!(err.contains("reserved for the recorder"), "{err}");
+        assert!(err.contains("'recorder' is reserved"), "{err}");
+    }
+
+    #[test]
+    fn the_viewer_is_added_only_when_asked_and_watches_every_topic() {
+        let dir = tempfile::tempdir().unwrap();
+        let r = resolver(dir.path());
+        let p = dir.path().join("g.toml");
+        assert!(parse(&p, GOOD, &[], &r).unwrap().node(VIEWER).is_none(), "off by default");
+        let sut = parse(&p, GOOD, &["view.enabled=true".into(), "view.port=9000".into()], &r).unwrap();
+        assert_eq!(sut.node(VIEWER).unwrap().params["port"], 9000);
+        assert!(sut.node(VIEWER).unwrap().params.get("enabled").is_none());
+        assert_eq!(sut.edges[0].to, ["sink", RECORDER, VIEWER]);
+        let in_file = parse(&p, &format!("[view]\nenabled = true\n{GOOD}"), &["record.enabled=false".into()], &r).unwrap();
+        assert_eq!(in_file.edges[0].to, ["sink", VIEWER]);
+        let err = parse(&p, &format!("[view]\nenabled = \"yes\"\n{GOOD}"), &[], &r)
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("[view]: `enabled` must be true or false"), "{err}");
     }
 
     #[test]

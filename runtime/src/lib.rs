@@ -14,6 +14,7 @@ pub mod run;
 pub mod runs;
 pub mod shm;
 pub mod supervisor;
+pub mod tap;
 pub mod transport;
 
 /// The bound of the payload parts `Output::publish_parts` takes, re-exported so that nodes need no iceoryx2 dependency.

@@ -800,7 +800,7 @@ impl Progress {
                         .max()
                         .unwrap_or(0),
                     finished: c.finished(),
-                    tracked: !graph.is_source(&c.spec.name) && c.spec.name != launch::RECORDER,
+                    tracked: !graph.is_source(&c.spec.name) && !launch::is_observer(&c.spec.name),
                 }
             })
             .collect();

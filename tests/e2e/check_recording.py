@@ -177,6 +177,18 @@ def main():
                 expected = 2 * len(s.segments) if hasattr(s, "segments") else len(s.keypoints)
                 if len(a["points"][0]["points"]) != expected:
                     fail(f"{topic}: annotation points disagree with the message they render")
+        elif name == "foxglove.CameraCalibration":
+            # Each calibration is in the frame of a preview of its image topic, in the preview's pixel grid.
+            previews = {(p.frame_id, p.width, p.height) for _, _, p in by_topic.get(topic.rsplit("/", 1)[0] + "/preview", [])}
+            for _, _, c in msgs:
+                if len(c["K"]) != 9 or len(c["P"]) != 12 or (c["frame_id"], c["width"], c["height"]) not in previews:
+                    fail(f"{topic}: calibration {c['frame_id']} {c['width']}x{c['height']} matches no preview")
+        elif name == "foxglove.FrameTransforms":
+            for _, _, u in msgs:
+                for t in u["transforms"]:
+                    q = t["rotation"]
+                    if t["parent_frame_id"] != "world" or not t["child_frame_id"].startswith("camera/") or abs(sum(q[k] ** 2 for k in "xyzw") - 1) > 1e-9:
+                        fail(f"{topic}: transform malformed: {t}")
         elif name == "foxglove.SceneUpdate":
             # An empty result (no frame oriented yet) renders as an empty scene.
             for _, _, u in msgs:

@@ -6,14 +6,14 @@ use std::collections::BTreeMap;
 use std::time::{Duration, Instant};
 
 use anyhow::Result;
-use crossbeam::channel::Receiver;
-use lineflow_messages::schema::{bytes_of, encode, slice_bytes};
-use lineflow_messages::{with_kind, Message, MessageKind, NodeStatus};
+use lineflow_messages::schema::encode;
+use lineflow_messages::{MessageKind, NodeStatus};
 use lineflow_recordings::image_codec::{ImageFormat, DEFAULT_JPEG_QUALITY};
 use lineflow_recordings::views::ViewRenderer;
 use lineflow_recordings::{now_ns, run_metadata, Compression, McapWriter, SplitLimits, META_END, META_RUN};
 use lineflow_runtime::launch::Graph;
-use lineflow_runtime::{Flow, Input, NodeContext, RunEnd};
+use lineflow_runtime::tap::{all_ended, subscribe_all, update_ended, Topic};
+use lineflow_runtime::{Flow, NodeContext, RunEnd};
 use pipeline::{Item, Pipeline};
 
 mod pipeline;
@@ -60,63 +60,8 @@ fn default_queue_mib() -> u64 {
     1024
 }
 
-/// A subscribed topic of any message type.
-trait Tap {
-    /// Encodes every waiting message into a buffer from `pool` and hands it on; returns how many.
-    fn drain(&self, topic: usize, pool: &Receiver<Vec<u8>>, send: &mut dyn FnMut(Item) -> Result<()>) -> Result<usize>;
-    fn is_ended(&self) -> bool;
-}
-
-struct TypedTap<M: Message>(Input<M>);
-
-impl<M: Message> Tap for TypedTap<M> {
-    fn drain(&self, topic: usize, pool: &Receiver<Vec<u8>>, send: &mut dyn FnMut(Item) -> Result<()>) -> Result<usize> {
-        let mut n = 0;
-        while let Some(msg) = self.0.receive()? {
-            // Buffers come back from the writer thread: large images reuse memory already faulted in.
-            let mut cdr = pool.try_recv().unwrap_or_default();
-            encode(M::KIND, bytes_of(msg.user_header()), slice_bytes(msg.payload()), &mut cdr);
-            let publish_time = M::stamp(msg.user_header()).capture_time_ns;
-            drop(msg);
-            send(Item {
-                topic,
-                log_time: now_ns(),
-                publish_time,
-                cdr,
-            })?;
-            n += 1;
-        }
-        Ok(n)
-    }
-    fn is_ended(&self) -> bool {
-        self.0.is_ended()
-    }
-}
-
 fn main() -> std::process::ExitCode {
     lineflow_runtime::run_node(body)
-}
-
-struct Topic {
-    name: String,
-    kind: MessageKind,
-    tap: Box<dyn Tap>,
-    messages: u64,
-    /// Index of the publishing node.
-    from: u32,
-    ended: bool,
-}
-
-/// Latched topics (camera, control, site) carry no end-of-stream, so that a late subscriber still gets the
-/// message: they end when their publisher has finished.
-fn update_ended(topics: &mut [Topic], status: Option<&mut lineflow_runtime::StatusWatch>) {
-    let latest = status.map(|s| s.poll());
-    for t in topics {
-        let publisher_finished = latest
-            .and_then(|l| l.get(&t.from))
-            .is_some_and(|s| s.flags & NodeStatus::FINISHED != 0);
-        t.ended = t.tap.is_ended() || (t.kind.latched() && publisher_finished);
-    }
 }
 
 fn body() -> Result<()> {
@@ -132,19 +77,7 @@ fn body() -> Result<()> {
         }
     }
     let graph = ctx.graph().clone();
-    let mut topics = Vec::new();
-    for e in graph.edges.iter().filter(|e| e.to.iter().any(|t| t == ctx.name())) {
-        let kind = e.kind();
-        let tap: Box<dyn Tap> = with_kind!(kind, M => Box::new(TypedTap(ctx.input::<M>(&e.topic)?)));
-        topics.push(Topic {
-            name: e.topic.clone(),
-            kind,
-            tap,
-            messages: 0,
-            from: graph.node(&e.from).map_or(u32::MAX, |n| n.index),
-            ended: false,
-        });
-    }
+    let mut topics = subscribe_all(&ctx)?;
     let mut status = ctx.watch_status()?;
     if lineflow_runtime::env::RunEnv::describe_requested() {
         return ctx.connect();
@@ -179,18 +112,30 @@ fn body() -> Result<()> {
     ctx.connect()?;
     tracing::info!("recording {} topics to {}", topics.len(), path.display());
 
-    let mut send = |item: Item| pipeline.send(item);
+    let mut taken = Vec::new();
     let ended = ctx.run(|| {
         // Status first: what a finished publisher sent is already waiting, and the drain below takes it.
         update_ended(&mut topics, status.as_mut());
         for (i, t) in topics.iter_mut().enumerate() {
-            t.messages += t.tap.drain(i, &pool, &mut send)? as u64;
+            let kind = t.kind;
+            t.messages += t.tap.drain(&mut |publish_time, header, payload| {
+                // Buffers come back from the writer thread: large images reuse memory already faulted in.
+                let mut cdr = pool.try_recv().unwrap_or_default();
+                encode(kind, header, payload, &mut cdr);
+                taken.push(Item {
+                    topic: i,
+                    log_time: now_ns(),
+                    publish_time,
+                    cdr,
+                });
+                Ok(())
+            })? as u64;
+            // Handed on once the samples are released: a full queue never holds shared memory.
+            for item in taken.drain(..) {
+                pipeline.send(item)?;
+            }
         }
-        Ok(if topics.iter().all(|t| t.ended || t.tap.is_ended()) {
-            Flow::Stop
-        } else {
-            Flow::Continue
-        })
+        Ok(if all_ended(&topics) { Flow::Stop } else { Flow::Continue })
     });
     update_ended(&mut topics, status.as_mut());
     let complete = matches!(ended, Ok(RunEnd::Finished)) && topics.iter().all(|t| t.ended);
