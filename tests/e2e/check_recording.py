@@ -178,10 +178,15 @@ def main():
                 if len(a["points"][0]["points"]) != expected:
                     fail(f"{topic}: annotation points disagree with the message they render")
         elif name == "foxglove.CameraCalibration":
-            # Each calibration is in the frame of a preview of its image topic, in the preview's pixel grid.
-            previews = {(p.frame_id, p.width, p.height) for _, _, p in by_topic.get(topic.rsplit("/", 1)[0] + "/preview", [])}
+            # Each calibration is in the frame of a preview of its image topic, in the preview's pixel grid (a
+            # compressed preview's size is in its JPEG, not in the message).
+            previews = {
+                (p.frame_id, getattr(p, "width", None), getattr(p, "height", None))
+                for _, _, p in by_topic.get(topic.rsplit("/", 1)[0] + "/preview", [])
+            }
             for _, _, c in msgs:
-                if len(c["K"]) != 9 or len(c["P"]) != 12 or (c["frame_id"], c["width"], c["height"]) not in previews:
+                raw = (c["frame_id"], c["width"], c["height"])
+                if len(c["K"]) != 9 or len(c["P"]) != 12 or (raw not in previews and (c["frame_id"], None, None) not in previews):
                     fail(f"{topic}: calibration {c['frame_id']} {c['width']}x{c['height']} matches no preview")
         elif name == "foxglove.FrameTransforms":
             for _, _, u in msgs:

@@ -7,6 +7,8 @@ use std::process::{Command, Stdio};
 use lineflow_e2e::*;
 
 const SCALE: &str = "capture.scale=0.06";
+/// Frames at 5 a second: the run lasts long enough for the client to connect while it goes.
+const PACE: &str = "capture.fps=5";
 
 fn free_port() -> u16 {
     TcpListener::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port()
@@ -18,12 +20,14 @@ fn a_foxglove_client_receives_the_run_live_and_the_recording_stays_complete() {
     let out = sb.path().join("live");
     let port = free_port();
     let demo = repo_file("launch/demo.toml");
-    let mut run = sb
+    let run = sb
         .lineflow(&[
             "run",
             demo.to_str().unwrap(),
             "--set",
             SCALE,
+            "--set",
+            PACE,
             "--view-port",
             &port.to_string(),
             "--out",
