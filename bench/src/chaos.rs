@@ -1,6 +1,8 @@
 //! `lineflow bench chaos`: every node of a graph SIGKILLed at three points of a run (a fifth, half and four fifths
 //! of an undisturbed run's time), one run each: whether the run completes or ends with an error naming the node,
-//! whether it ends at all, and whether its recording reads to its last chunk (#34's fault target).
+//! whether it ends at all, and whether its recording reads to its last chunk (#34's fault target). With `--stop S`
+//! the node is SIGSTOPped for S seconds and then continued instead: a node that hangs and comes back must cost
+//! nothing, so the run must complete and its recording be complete (every topic ended, nothing dropped).
 use std::path::{Path, PathBuf};
 use std::process::{Command, ExitCode, Stdio};
 use std::time::{Duration, Instant};
@@ -25,7 +27,17 @@ struct Outcome {
     readable: bool,
     /// Why the recording could not be read, when it could not.
     why: String,
+    /// The recording says every topic ended and nothing was dropped or missed.
+    complete: bool,
     seconds: f64,
+}
+
+/// What is done to the node.
+#[derive(Clone, Copy)]
+enum Fault {
+    Kill,
+    /// SIGSTOP, then SIGCONT after this long.
+    Stop(Duration),
 }
 
 /// The process of node `name` among the children of `parent` (the supervisor), by the node's environment.
@@ -54,14 +66,23 @@ fn run_command(graph: &Path, sets: &[String], out: &Path) -> Result<Command> {
     Ok(c)
 }
 
-fn killed_run(graph: &Path, sets: &[String], out: &Path, node: &str, after: Duration, limit: Duration) -> Result<Outcome> {
+fn faulted_run(graph: &Path, sets: &[String], out: &Path, node: &str, after: Duration, fault: Fault, limit: Duration) -> Result<Outcome> {
     let start = Instant::now();
     let mut child = run_command(graph, sets, out)?.spawn().context("cannot start the run")?;
     std::thread::sleep(after);
     let pid = node_pid(child.id(), node);
     if let Some(pid) = pid {
-        // SAFETY: a plain signal to a process of this run.
-        unsafe { libc::kill(pid, libc::SIGKILL) };
+        // SAFETY: plain signals to a process of this run.
+        match fault {
+            Fault::Kill => unsafe {
+                libc::kill(pid, libc::SIGKILL);
+            },
+            Fault::Stop(pause) => {
+                unsafe { libc::kill(pid, libc::SIGSTOP) };
+                std::thread::sleep(pause);
+                unsafe { libc::kill(pid, libc::SIGCONT) };
+            }
+        }
     }
     let status = loop {
         if let Some(s) = child.try_wait()? {
@@ -84,7 +105,7 @@ fn killed_run(graph: &Path, sets: &[String], out: &Path, node: &str, after: Dura
         })
         .unwrap_or_default();
     let named = stderr.lines().filter(|l| l.contains("error")).any(|l| l.contains(node));
-    let (mut messages, mut readable, mut why) = (0, false, String::new());
+    let (mut messages, mut readable, mut why, mut complete) = (0, false, String::new(), false);
     let file = out.join("recording.mcap");
     match Recording::open(&file) {
         // Killed while the supervisor was still starting the graph: no message flowed, so none can be lost.
@@ -93,6 +114,7 @@ fn killed_run(graph: &Path, sets: &[String], out: &Path, node: &str, after: Dura
             why = "no file: nothing flowed before the kill".into();
         }
         Ok(rec) => {
+            complete = rec.is_complete();
             let read = rec.for_each_message(|_| {
                 messages += 1;
                 Ok(())
@@ -112,12 +134,14 @@ fn killed_run(graph: &Path, sets: &[String], out: &Path, node: &str, after: Dura
         messages,
         readable,
         why,
+        complete,
         seconds: start.elapsed().as_secs_f64(),
     })
 }
 
-/// Runs the benchmark on `graph` (with `sets`), every node at every point.
-pub fn bench_chaos(graph: &Path, sets: &[String]) -> Result<ExitCode> {
+/// Runs the benchmark on `graph` (with `sets`), every node at every point: SIGKILL, or SIGSTOP for `stop`.
+pub fn bench_chaos(graph: &Path, sets: &[String], stop: Option<Duration>) -> Result<ExitCode> {
+    let fault = stop.map_or(Fault::Kill, Fault::Stop);
     let dir = tempfile::Builder::new().prefix("lineflow-bench-chaos").tempdir()?;
     let g = launch::load(graph, sets, &Resolver::beside_current_exe())?;
     let start = Instant::now();
@@ -126,20 +150,25 @@ pub fn bench_chaos(graph: &Path, sets: &[String]) -> Result<ExitCode> {
     if !status.success() {
         anyhow::bail!("the undisturbed run failed ({status})");
     }
+    let what = match fault {
+        Fault::Kill => "SIGKILLed".to_owned(),
+        Fault::Stop(d) => format!("SIGSTOPped for {:.1} s, then continued,", d.as_secs_f64()),
+    };
     println!(
-        "{}: {} nodes, undisturbed run {:.1} s; each node SIGKILLed at {POINTS:?} of that time\n",
+        "{}: {} nodes, undisturbed run {:.1} s; each node {what} at {POINTS:?} of that time\n",
         graph.display(),
         g.nodes.len(),
         reference.as_secs_f64()
     );
-    println!("| node | at | outcome | error names it | recording messages | readable | s |");
-    println!("|---|---|---|---|---|---|---|");
-    let (mut cases, mut clear, mut hung, mut readable) = (0, 0, 0, 0);
+    println!("| node | at | outcome | error names it | recording messages | readable | complete | s |");
+    println!("|---|---|---|---|---|---|---|---|");
+    let (mut cases, mut clear, mut hung, mut readable, mut complete) = (0, 0, 0, 0, 0);
     for node in &g.nodes {
         for (k, share) in POINTS.iter().enumerate() {
             let out: PathBuf = dir.path().join(format!("{}-{k}", node.name));
             let after = reference.mul_f64(*share);
-            let o = killed_run(graph, sets, &out, &node.name, after, reference * 10 + Duration::from_secs(30))?;
+            let limit = reference * 10 + Duration::from_secs(30) + stop.unwrap_or_default();
+            let o = faulted_run(graph, sets, &out, &node.name, after, fault, limit)?;
             let outcome = match (o.killed, o.status) {
                 (_, None) => "HUNG (stopped after 10× the run)".to_owned(),
                 (false, Some(0)) => "had finished; run completed".to_owned(),
@@ -150,8 +179,9 @@ pub fn bench_chaos(graph: &Path, sets: &[String]) -> Result<ExitCode> {
             hung += usize::from(o.status.is_none());
             clear += usize::from(o.status == Some(0) || o.named);
             readable += usize::from(o.readable);
+            complete += usize::from(o.complete);
             println!(
-                "| {} | {:.0} % | {outcome} | {} | {} | {} | {:.1} |",
+                "| {} | {:.0} % | {outcome} | {} | {} | {} | {} | {:.1} |",
                 node.name,
                 share * 100.0,
                 if o.status == Some(0) {
@@ -167,17 +197,22 @@ pub fn bench_chaos(graph: &Path, sets: &[String]) -> Result<ExitCode> {
                     (true, false) => format!("yes ({})", o.why),
                     (false, _) => format!("NO: {}", o.why),
                 },
+                if o.complete { "yes" } else { "no" },
                 o.seconds
             );
         }
     }
     println!(
-        "\n{cases} killed runs: {clear} completed or ended with an error naming the node, {hung} hung, {readable} \
-         recordings readable to their last chunk (target: all)"
+        "\n{cases} runs: {clear} completed or ended with an error naming the node, {hung} hung, {readable} \
+         recordings readable to their last chunk, {complete} complete (every topic ended, nothing dropped)"
     );
-    Ok(if clear == cases && hung == 0 && readable == cases {
-        ExitCode::SUCCESS
-    } else {
-        ExitCode::FAILURE
-    })
+    let ok = hung == 0
+        && readable == cases
+        && match fault {
+            // A killed node may end the run: it must say which node, and the file must read to its last chunk.
+            Fault::Kill => clear == cases,
+            // A node that only paused must cost nothing.
+            Fault::Stop(_) => complete == cases,
+        };
+    Ok(if ok { ExitCode::SUCCESS } else { ExitCode::FAILURE })
 }

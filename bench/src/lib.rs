@@ -236,8 +236,8 @@ pub enum BenchCmd {
         #[arg(long, default_value_t = 1280)]
         preview_max_px: u32,
     },
-    /// Faults: every node of a graph SIGKILLed at three points of a run, one run each; whether each run completes or
-    /// names the node, and whether its recording reads to the last chunk.
+    /// Faults: every node of a graph SIGKILLed (or SIGSTOPped for a while, `--stop`) at three points of a run, one
+    /// run each; whether each run completes or names the node, and whether its recording reads to the last chunk.
     Chaos {
         /// The graph.
         #[arg(long, default_value = "launch/demo.toml")]
@@ -245,6 +245,10 @@ pub enum BenchCmd {
         /// Parameter overrides (NODE.PARAM=VALUE), as for `lineflow run`.
         #[arg(long = "set", default_values_t = ["capture.scale=0.06".to_owned()])]
         set: Vec<String>,
+        /// SIGSTOP the node for this many seconds, then SIGCONT, instead of SIGKILL: a node that hangs and comes
+        /// back; the run must then complete with nothing lost.
+        #[arg(long, value_name = "SECONDS")]
+        stop: Option<f64>,
     },
     /// Recordings larger than memory: `info`, `info --verify` and `export` of one topic as child processes, their
     /// wall time and peak RSS, against a plain read of the file.
@@ -355,6 +359,6 @@ pub fn bench(cmd: BenchCmd) -> Result<ExitCode> {
             preview_max_px,
         } => record::bench_record(frames, source, width, height, preview_max_px),
         BenchCmd::Reader { gb, dir, json } => reader::bench_reader(gb, dir, json),
-        BenchCmd::Chaos { graph, set } => chaos::bench_chaos(&graph, &set),
+        BenchCmd::Chaos { graph, set, stop } => chaos::bench_chaos(&graph, &set, stop.map(std::time::Duration::from_secs_f64)),
     }
 }

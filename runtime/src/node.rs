@@ -389,27 +389,39 @@ impl NodeContext {
             .map_err(|e| anyhow::anyhow!("cannot attach interval: {e:?}"))?;
         let mut result = Ok(Flow::Continue);
         let mut orphaned = false;
-        let outcome = waitset
-            .wait_and_process(|_id| {
-                if self.supervisor_gone() {
-                    orphaned = true;
-                    return CallbackProgression::Stop;
-                }
-                for l in &listeners {
-                    let _ = l.try_wait(|_| {});
-                }
-                for c in self.connects.borrow().iter() {
-                    c.refresh();
-                }
-                self.reporter.flush(false);
-                result = on_wake();
-                self.reporter.commit();
-                match result {
-                    Ok(Flow::Continue) => CallbackProgression::Continue,
-                    _ => CallbackProgression::Stop,
-                }
-            })
-            .map_err(|e| anyhow::anyhow!("WaitSet failed: {e:?}"))?;
+        let mut on_event = |_id| {
+            if self.supervisor_gone() {
+                orphaned = true;
+                return CallbackProgression::Stop;
+            }
+            for l in &listeners {
+                let _ = l.try_wait(|_| {});
+            }
+            for c in self.connects.borrow().iter() {
+                c.refresh();
+            }
+            self.reporter.flush(false);
+            result = on_wake();
+            self.reporter.commit();
+            match result {
+                Ok(Flow::Continue) => CallbackProgression::Continue,
+                _ => CallbackProgression::Stop,
+            }
+        };
+        let outcome = loop {
+            let outcome = waitset
+                .wait_and_process(&mut on_event)
+                .map_err(|e| anyhow::anyhow!("WaitSet failed: {e:?}"))?;
+            // A stop signal and SIGCONT (Ctrl-Z and `fg`, a debugger, a suspended laptop) end the WaitSet's epoll
+            // with EINTR, which it reports as an interrupt although no SIGINT came: the node would quit mid-run and
+            // its subscriptions would vanish under lossless publishers. A real SIGINT or SIGTERM is still seen: the
+            // WaitSet checks for one before it waits again, and returns a termination request.
+            if interrupted_without_signal(&outcome) {
+                tracing::debug!("woken by a signal that asks nothing (SIGCONT after a stop); waiting on");
+                continue;
+            }
+            break outcome;
+        };
         result?;
         Ok(match outcome {
             _ if orphaned => RunEnd::Interrupted,
@@ -487,4 +499,9 @@ impl StatusWatch {
         }
         &self.latest
     }
+}
+
+/// Whether the WaitSet stopped for an interrupted wait (EINTR) rather than for its callback or a termination signal.
+fn interrupted_without_signal(outcome: &iceoryx2::waitset::WaitSetRunResult) -> bool {
+    matches!(outcome, iceoryx2::waitset::WaitSetRunResult::Interrupt)
 }

@@ -197,15 +197,16 @@ fn process_streams_a_folder_with_progress_and_keeps_every_nodes_log_in_its_out_f
     assert_nothing_left(&sb, &out);
 }
 
-/// Starts the chain graph, SIGKILLs `gray` once it has run a while, and waits for the run to end.
-fn kill_gray_mid_run(sb: &Sandbox, history: usize) -> (Output, PathBuf) {
+/// Starts the chain graph, calls `fault` with the pid of the process whose name starts with `comm` once `gray` has
+/// run a while, and waits for the run to end.
+fn fault_mid_run(sb: &Sandbox, history: usize, comm: &str, fault: impl FnOnce(i32)) -> (Output, PathBuf) {
     let folder = sb.project(40, 48, 32);
     let graph = sb.graph("g.toml", &chain_graph(&folder, 20, history));
     let out = sb.path().join("out");
     let child = sb.run_command(&graph, &out).stderr(Stdio::piped()).spawn().unwrap();
     let start = Instant::now();
-    while children_of(child.id(), "lineflow-conver").is_empty() {
-        assert!(start.elapsed() < Duration::from_secs(20), "gray never started");
+    while children_of(child.id(), comm).is_empty() {
+        assert!(start.elapsed() < Duration::from_secs(20), "{comm} never started");
         std::thread::sleep(Duration::from_millis(10));
     }
     // The first process seen may be the short-lived `--describe` run, and a fixed wait (700 ms here once) can end
@@ -214,13 +215,46 @@ fn kill_gray_mid_run(sb: &Sandbox, history: usize) -> (Output, PathBuf) {
         assert!(start.elapsed() < Duration::from_secs(30), "gray never published");
         std::thread::sleep(Duration::from_millis(50));
     }
-    let gray = children_of(child.id(), "lineflow-conver");
-    assert_eq!(gray.len(), 1, "one gray process mid-run");
-    // SAFETY: signalling a process this test started (a child of our child).
-    unsafe { libc::kill(gray[0] as i32, libc::SIGKILL) };
+    let found = children_of(child.id(), comm);
+    assert_eq!(found.len(), 1, "one {comm} process mid-run");
+    fault(found[0] as i32);
     let r = child.wait_with_output().unwrap();
     eprintln!("{}", String::from_utf8_lossy(&r.stderr));
     (r, out)
+}
+
+/// Starts the chain graph, SIGKILLs `gray` once it has run a while, and waits for the run to end.
+fn kill_gray_mid_run(sb: &Sandbox, history: usize) -> (Output, PathBuf) {
+    // SAFETY: signalling a process this test started (a child of our child).
+    fault_mid_run(sb, history, "lineflow-conver", |pid| unsafe {
+        libc::kill(pid, libc::SIGKILL);
+    })
+}
+
+/// Ctrl-Z and `fg`, a debugger, a suspended laptop: a node stopped and continued (SIGSTOP, SIGCONT) wakes from its
+/// wait with EINTR, which iceoryx2's WaitSet reports as an interrupt. It must wait on, not quit as on Ctrl-C:
+/// nothing is lost and the run completes.
+#[test]
+fn a_node_stopped_and_continued_mid_run_loses_nothing() {
+    let sb = Sandbox::new();
+    let (r, out) = fault_mid_run(&sb, 0, "lineflow-stats", |pid| {
+        // SAFETY: signalling a process this test started (a child of our child).
+        unsafe { libc::kill(pid, libc::SIGSTOP) };
+        std::thread::sleep(Duration::from_millis(1500));
+        unsafe { libc::kill(pid, libc::SIGCONT) };
+    });
+    assert!(r.status.success(), "run failed");
+    for node in ["capture", "gray", "stats"] {
+        let row = summary_row(&out, node);
+        assert_eq!(
+            (row[4].as_str(), row[9].as_str()),
+            ("0", "-"),
+            "{node}: drops and missed frames {row:?}"
+        );
+    }
+    let got: Vec<u64> = frames(&out).iter().map(|r| r.0).collect();
+    assert_eq!(got, (0..40).collect::<Vec<_>>(), "every frame exactly once, in order");
+    assert_nothing_left(&sb, &out);
 }
 
 #[test]
