@@ -16,6 +16,9 @@ struct Replay {
     latest: Arc<Latest<u64>>,
 }
 
+/// Messages queued per client.
+const BACKLOG: usize = 32;
+
 fn key(id: ChannelId) -> u64 {
     u64::from(id)
 }
@@ -66,6 +69,9 @@ impl LiveServer {
         let handle = WebSocketServer::new()
             .name("lineflow")
             .context(&context)
+            // Per client; the oldest go first when a client reads slower than the run sends. The SDK's 1024 would
+            // hold 2 GB of 960-px previews for one stalled client.
+            .message_backlog_size(BACKLOG)
             .bind(host, port)
             .listener(Arc::new(replay))
             .start_blocking()

@@ -1,6 +1,7 @@
 //! End-to-end tests of the live view (`lineflow run --view`): the demo graph served over the Foxglove WebSocket
-//! protocol to an independent client (Python's `websockets`) that subscribes and decodes what it receives, and a
-//! port already in use refused before the graph starts.
+//! protocol to an independent client (Python's `websockets`) that subscribes and decodes what it receives, beside
+//! clients that connect and leave in a loop or stop reading; and a port already in use refused before the graph
+//! starts.
 use std::net::TcpListener;
 use std::process::{Command, Stdio};
 
@@ -37,6 +38,14 @@ fn a_foxglove_client_receives_the_run_live_and_the_recording_stays_complete() {
         .stderr(Stdio::piped())
         .spawn()
         .unwrap();
+    // Misbehaving clients beside the good one, for as long as the run goes.
+    let hostile = Command::new(python())
+        .arg(repo_file("tests/e2e/hostile_view_clients.py"))
+        .arg(format!("ws://127.0.0.1:{port}"))
+        .arg("8")
+        .stdout(Stdio::piped())
+        .spawn()
+        .expect("python3");
     let client = Command::new(python())
         .arg(repo_file("tests/e2e/live_view_client.py"))
         .arg(format!("ws://127.0.0.1:{port}"))
@@ -63,6 +72,9 @@ fn a_foxglove_client_receives_the_run_live_and_the_recording_stays_complete() {
     assert!(finished.status.success(), "the run failed with the viewer on");
     let received: serde_json::Value = serde_json::from_str(report.trim()).unwrap();
     assert!(received["channels"].as_u64().unwrap() >= 8, "{report}");
+    let hostile = hostile.wait_with_output().unwrap();
+    let misbehaved: serde_json::Value = serde_json::from_slice(&hostile.stdout).unwrap();
+    assert!(misbehaved["churn"].as_u64().unwrap() >= 3 && misbehaved["stalled"] == true, "{misbehaved}");
 
     // The viewer is a subscriber like the recorder, never a cause of drops: the recording is complete.
     let info = sb.run(&["info", "--json", out.join("recording.mcap").to_str().unwrap()]);
