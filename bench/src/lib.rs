@@ -19,6 +19,7 @@ pub mod seed004;
 mod stream;
 mod transport;
 mod util;
+mod view;
 
 use std::process::ExitCode;
 
@@ -250,6 +251,19 @@ pub enum BenchCmd {
         #[arg(long, value_name = "SECONDS")]
         stop: Option<f64>,
     },
+    /// The live view's cost and latency: the 2-D stages on full-size frames without and with the viewer and a
+    /// WebSocket client; the wall-time ratio and, per channel, capture-to-client latency.
+    View {
+        /// Scene preset (d2x-strip: 4288 x 2848, 12 MP).
+        #[arg(long, default_value = "d2x-strip")]
+        preset: String,
+        /// Image size relative to the preset.
+        #[arg(long, default_value_t = 1.0)]
+        scale: f64,
+        /// Frames per run.
+        #[arg(long, default_value_t = 8)]
+        frames: u64,
+    },
     /// Recordings larger than memory: `info`, `info --verify` and `export` of one topic as child processes, their
     /// wall time and peak RSS, against a plain read of the file.
     Reader {
@@ -359,6 +373,7 @@ pub fn bench(cmd: BenchCmd) -> Result<ExitCode> {
             preview_max_px,
         } => record::bench_record(frames, source, width, height, preview_max_px),
         BenchCmd::Reader { gb, dir, json } => reader::bench_reader(gb, dir, json),
+        BenchCmd::View { preset, scale, frames } => view::bench_view(&preset, scale, frames),
         BenchCmd::Chaos { graph, set, stop } => chaos::bench_chaos(&graph, &set, stop.map(std::time::Duration::from_secs_f64)),
     }
 }

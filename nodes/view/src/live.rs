@@ -7,6 +7,7 @@ use anyhow::{bail, Context as _, Result};
 use crossbeam::channel::{Receiver, Sender, TrySendError};
 use lineflow_messages::schema::encode;
 use lineflow_messages::MessageKind;
+use lineflow_recordings::now_ns;
 use lineflow_recordings::views::{ViewRenderer, ViewSchema};
 use lineflow_runtime::tap::{all_ended, subscribe_all, update_ended, Topic};
 use lineflow_runtime::{Flow, NodeContext, RunEnd};
@@ -49,7 +50,9 @@ const QUEUE: usize = 8;
 /// One message on its way to the renderer.
 struct Item {
     topic: usize,
-    capture_time: u64,
+    /// When the viewer took it from shared memory, ns since the epoch: the log time its views are sent with (as
+    /// the recorder's), so that a client can tell the viewer's own latency from the pipeline's.
+    taken_ns: u64,
     cdr: Vec<u8>,
 }
 
@@ -126,7 +129,7 @@ fn take(topics: &mut [Topic], to_render: &Sender<Item>, skipped: &mut u64) -> Re
     for (i, t) in topics.iter_mut().enumerate() {
         let kind = t.kind;
         let full = to_render.is_full();
-        t.messages += t.tap.drain(&mut |capture_time, header, payload| {
+        t.messages += t.tap.drain(&mut |_capture_time, header, payload| {
             if skippable(kind) && full {
                 *skipped += 1;
                 return Ok(());
@@ -135,7 +138,7 @@ fn take(topics: &mut [Topic], to_render: &Sender<Item>, skipped: &mut u64) -> Re
             encode(kind, header, payload, &mut cdr);
             taken.push(Item {
                 topic: i,
-                capture_time,
+                taken_ns: now_ns(),
                 cdr,
             });
             Ok(())
@@ -162,7 +165,7 @@ fn render_loop(queue: &Receiver<Item>, topics: &[(String, MessageKind)], mut ren
     for item in queue {
         let (name, kind) = &topics[item.topic];
         for (suffix, bytes) in renderer.render(*kind, &item.cdr) {
-            server.publish(&format!("{name}/{suffix}"), &bytes, item.capture_time);
+            server.publish(&format!("{name}/{suffix}"), &bytes, item.taken_ns);
         }
     }
     Ok(())

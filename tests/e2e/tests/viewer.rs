@@ -74,7 +74,10 @@ fn a_foxglove_client_receives_the_run_live_and_the_recording_stays_complete() {
     assert!(received["channels"].as_u64().unwrap() >= 8, "{report}");
     let hostile = hostile.wait_with_output().unwrap();
     let misbehaved: serde_json::Value = serde_json::from_slice(&hostile.stdout).unwrap();
-    assert!(misbehaved["churn"].as_u64().unwrap() >= 3 && misbehaved["stalled"] == true, "{misbehaved}");
+    assert!(
+        misbehaved["churn"].as_u64().unwrap() >= 3 && misbehaved["stalled"] == true,
+        "{misbehaved}"
+    );
 
     // The viewer is a subscriber like the recorder, never a cause of drops: the recording is complete.
     let info = sb.run(&["info", "--json", out.join("recording.mcap").to_str().unwrap()]);
