@@ -29,6 +29,9 @@ struct Params {
     /// After the graph has ended, seconds to keep serving while a client is connected (Ctrl-C ends sooner).
     #[serde(default = "default_linger")]
     linger_s: f64,
+    /// Image topics served as previews; by default those a source publishes (the camera's frames).
+    #[serde(default)]
+    previews: Option<Vec<String>>,
 }
 fn default_host() -> String {
     "127.0.0.1".into()
@@ -64,6 +67,13 @@ pub fn channels(topics: &[(String, MessageKind)], renderer: &ViewRenderer) -> Ve
         .collect()
 }
 
+/// Whether an image topic is served as previews: the ones `previews` names, or by default those a source publishes
+/// (the camera's frames): a grey copy or another derived image would double the viewer's work, a 12 MP frame's
+/// preview costing a tenth of a second, and show nothing new.
+pub fn previewed(name: &str, from_source: bool, previews: Option<&[String]>) -> bool {
+    previews.map_or(from_source, |list| list.iter().any(|t| t == name))
+}
+
 /// Whether a message may be skipped when the renderer is behind: an image is followed by a newer one, while a
 /// skipped model or set of lines would leave the view stale until the next.
 pub fn skippable(kind: MessageKind) -> bool {
@@ -87,10 +97,19 @@ pub fn run(ctx: NodeContext) -> Result<()> {
     if lineflow_runtime::env::RunEnv::describe_requested() {
         return ctx.connect();
     }
+    let graph = ctx.graph();
+    let shown: Vec<bool> = topics
+        .iter()
+        .map(|t| {
+            let from_source = graph.nodes.iter().any(|n| n.index == t.from && graph.is_source(&n.name));
+            t.kind != MessageKind::Image || previewed(&t.name, from_source, p.previews.as_deref())
+        })
+        .collect();
     let names: Vec<(String, MessageKind)> = topics.iter().map(|t| (t.name.clone(), t.kind)).collect();
+    let served: Vec<(String, MessageKind)> = names.iter().zip(&shown).filter(|(_, s)| **s).map(|(n, _)| n.clone()).collect();
     let renderer = ViewRenderer::new(p.preview_max_px);
     // Bound before the graph starts: a port in use fails the run before any frame is lost.
-    let server = LiveServer::start(&p.host, p.port, &channels(&names, &renderer))?;
+    let server = LiveServer::start(&p.host, p.port, &channels(&served, &renderer))?;
     tracing::info!(
         "live view on ws://{}:{} (Foxglove: Open connection → Foxglove WebSocket; layout docs/foxglove-layout.json)",
         p.host,
@@ -105,7 +124,7 @@ pub fn run(ctx: NodeContext) -> Result<()> {
     let mut skipped = 0u64;
     let ended = ctx.run(|| {
         update_ended(&mut topics, status.as_mut());
-        take(&mut topics, &to_render, &mut skipped)?;
+        take(&mut topics, &shown, &to_render, &mut skipped)?;
         Ok(if all_ended(&topics) { Flow::Stop } else { Flow::Continue })
     });
     drop(to_render);
@@ -124,10 +143,15 @@ pub fn run(ctx: NodeContext) -> Result<()> {
 }
 
 /// Takes every waiting message; a skippable one is dropped when the renderer is behind, any other waits for room.
-fn take(topics: &mut [Topic], to_render: &Sender<Item>, skipped: &mut u64) -> Result<()> {
+/// Topics not `shown` are drained without a copy.
+fn take(topics: &mut [Topic], shown: &[bool], to_render: &Sender<Item>, skipped: &mut u64) -> Result<()> {
     let mut taken = Vec::new();
     for (i, t) in topics.iter_mut().enumerate() {
         let kind = t.kind;
+        if !shown[i] {
+            t.messages += t.tap.drain(&mut |_, _, _| Ok(()))? as u64;
+            continue;
+        }
         let full = to_render.is_full();
         t.messages += t.tap.drain(&mut |_capture_time, header, payload| {
             if skippable(kind) && full {
@@ -212,6 +236,10 @@ mod tests {
             ]
         );
         assert!(skippable(MessageKind::Image));
+        // The camera's frames by default, not their grey copies; a list names them.
+        assert!(previewed("images", true, None) && !previewed("gray", false, None));
+        let chosen = ["gray".to_owned()];
+        assert!(previewed("gray", false, Some(&chosen)) && !previewed("images", true, Some(&chosen)));
         for kind in [
             MessageKind::Lines3D,
             MessageKind::Wireframe,
