@@ -457,16 +457,26 @@ impl NodeContext {
     /// Reports the final counters; call after the last end-of-stream is published. Then stays until the
     /// subscribers of every output have left (at most [`LINGER`]): iceoryx2 drops the samples of a publisher that
     /// exits before its subscribers took them, which would lose the last messages and the end-of-stream of a node
-    /// that finishes quickly.
+    /// that finishes quickly. Meanwhile whatever still arrives on the inputs is taken and dropped: a node may finish
+    /// before an input's end (it had what it needed), and an upstream node blocked on it would keep every node in
+    /// between waiting here, each for `LINGER` (a restarted `gray` made the demo graph take 30 s more that way).
     pub fn finish(&self) {
         self.reporter.finished();
         if self.env.is_none() {
             return;
         }
         let connects = self.connects.borrow();
-        let drained = crate::transport::wait_until(LINGER, || self.should_stop() || connects.iter().all(|c| c.drained()));
+        let mut dropped = 0;
+        let drained = crate::transport::wait_until(LINGER, || {
+            dropped += connects.iter().map(|c| c.discard()).sum::<usize>();
+            self.should_stop() || connects.iter().all(|c| c.drained())
+        });
+        if dropped > 0 {
+            tracing::debug!("{dropped} messages arrived after the node had finished; dropped");
+        }
         if !drained {
-            tracing::debug!("subscribers still connected after {LINGER:?}; exiting");
+            let held: Vec<&str> = connects.iter().filter(|c| !c.drained()).map(|c| c.topic()).collect();
+            tracing::warn!("subscribers of {} still connected after {LINGER:?}; exiting", held.join(", "));
         }
     }
 }

@@ -30,6 +30,14 @@ pub(crate) trait Connect {
     fn drained(&self) -> bool {
         true
     }
+    /// The topic, for messages.
+    fn topic(&self) -> &str;
+    /// Takes and drops what waits on an input; how many. Called once the node has finished: a lossless publisher
+    /// would otherwise wait for a node that no longer reads, while that node waits for its own subscribers to
+    /// leave (each up to [`LINGER`](crate::node::LINGER)).
+    fn discard(&self) -> usize {
+        0
+    }
 }
 
 /// A subscribed topic.
@@ -127,6 +135,7 @@ impl<M: Message> Input<M> {
             };
             let stamp = *M::stamp(sample.user_header());
             if stamp.is_end_of_stream() {
+                tracing::debug!("end-of-stream on '{}'", inner.topic);
                 inner.ended.set(true);
                 inner.reporter.input_ended();
                 continue;
@@ -175,6 +184,18 @@ impl Input<lineflow_messages::kinds::Lines2D> {
 }
 
 impl<M: Message> Connect for InputInner<M> {
+    fn topic(&self) -> &str {
+        &self.topic
+    }
+    fn discard(&self) -> usize {
+        let _ = self.subscriber.update_connections();
+        let mut n = 0;
+        while let Ok(Some(_)) = self.subscriber.receive() {
+            n += 1;
+        }
+        n
+    }
+
     /// Connects publishers that appeared since, and ends an input whose publisher left without end-of-stream (its
     /// end-of-stream was dropped, or it exited abnormally and will not be restarted): otherwise the node, and
     /// everything downstream, would wait forever.
@@ -384,6 +405,9 @@ impl<M: Message<Element = u8>> Output<M> {
 }
 
 impl<M: Message> Connect for OutputInner<M> {
+    fn topic(&self) -> &str {
+        &self.topic
+    }
     fn drained(&self) -> bool {
         self.service.dynamic_config().number_of_subscribers() == 0
     }
