@@ -86,13 +86,18 @@ pub fn skippable(kind: MessageKind) -> bool {
 /// Bad parameters, a port that cannot be bound, a transport error.
 pub fn run(ctx: NodeContext) -> Result<()> {
     let p: Params = ctx.params()?;
-    if !(p.linger_s.is_finite() && p.linger_s >= 0.0) {
-        bail!("view.linger_s must be 0 or a positive number of seconds, got {}", p.linger_s);
-    }
+    let Ok(linger_for) = Duration::try_from_secs_f64(p.linger_s) else {
+        bail!("view.linger_s must be 0 or a positive number of seconds, got {:?}", p.linger_s);
+    };
     if p.preview_max_px == 0 {
         bail!("view.preview_max_px must be positive (the viewer's images are its previews)");
     }
     let mut topics = subscribe_all(&ctx)?;
+    for name in p.previews.iter().flatten() {
+        if !topics.iter().any(|t| &t.name == name && t.kind == MessageKind::Image) {
+            bail!("view.previews: '{name}' is not an image topic of the graph");
+        }
+    }
     let mut status = ctx.watch_status()?;
     if lineflow_runtime::env::RunEnv::describe_requested() {
         return ctx.connect();
@@ -135,7 +140,7 @@ pub fn run(ctx: NodeContext) -> Result<()> {
         tracing::info!("{skipped} images skipped while the view caught up (the previews show the newest)");
     }
     if matches!(ended, Ok(RunEnd::Finished)) {
-        linger(&ctx, &server, Duration::from_secs_f64(p.linger_s));
+        linger(&ctx, &server, linger_for);
     }
     server.stop();
     ctx.finish();
