@@ -416,7 +416,7 @@ impl NodeContext {
             // with EINTR, which it reports as an interrupt although no SIGINT came: the node would quit mid-run and
             // its subscriptions would vanish under lossless publishers. A real SIGINT or SIGTERM is still seen: the
             // WaitSet checks for one before it waits again, and returns a termination request.
-            if interrupted_without_signal(&outcome) {
+            if matches!(outcome, iceoryx2::waitset::WaitSetRunResult::Interrupt) {
                 tracing::debug!("woken by a signal that asks nothing (SIGCONT after a stop); waiting on");
                 continue;
             }
@@ -509,9 +509,4 @@ impl StatusWatch {
         }
         &self.latest
     }
-}
-
-/// Whether the WaitSet stopped for an interrupted wait (EINTR) rather than for its callback or a termination signal.
-fn interrupted_without_signal(outcome: &iceoryx2::waitset::WaitSetRunResult) -> bool {
-    matches!(outcome, iceoryx2::waitset::WaitSetRunResult::Interrupt)
 }
