@@ -41,6 +41,8 @@ pub(crate) struct Row {
     structure_precision_2gsd: f64,
     endpoint_gsd: f64,
     seconds: f64,
+    /// Edges found / true edges of at least 0.5 m, by part of the building.
+    kinds: Vec<(&'static str, usize, usize)>,
 }
 
 const CLASSES: [&str; 4] = ["all", "horizontal", "vertical", "depth"];
@@ -58,6 +60,7 @@ pub(crate) fn row(building: String, report: &Lines3dReport, seconds: f64) -> Row
         structure_precision_2gsd: at_2gsd("structure lines").map_or(f64::NAN, |a| a.segment_precision),
         endpoint_gsd: report.endpoint_m.iter().sum::<f64>() / n / report.gsd_m,
         seconds,
+        kinds: report.kinds.iter().map(|k| (k.kind, k.n_found, k.n_long)).collect(),
     }
 }
 
@@ -84,6 +87,26 @@ pub(crate) fn print_row(r: &Row) {
         r.endpoint_gsd,
         r.seconds
     );
+}
+
+/// Edges found by part of the building (outline, opening, reveal, sill, ...), one row per building.
+pub(crate) fn print_kinds<'a>(rows: impl Iterator<Item = &'a Row> + Clone) {
+    let mut kinds: Vec<&str> = rows.clone().flat_map(|r| r.kinds.iter().map(|k| k.0)).collect();
+    kinds.sort_unstable();
+    kinds.dedup();
+    println!("\nEdges of 0.5 m or more found, by part of the building (found / true):\n");
+    println!("| building | {} |", kinds.join(" | "));
+    println!("|---|{}", "---|".repeat(kinds.len()));
+    for r in rows {
+        let cells: Vec<String> = kinds
+            .iter()
+            .map(|k| match r.kinds.iter().find(|c| c.0 == *k) {
+                Some(&(_, found, n)) => format!("{found} / {n}"),
+                None => "–".into(),
+            })
+            .collect();
+        println!("| {} | {} |", r.building, cells.join(" | "));
+    }
 }
 
 /// The table's header.
@@ -148,6 +171,7 @@ pub fn bench_buildings(a: BuildingsArgs<'_>) -> Result<ExitCode> {
     for r in &held_out {
         print_row(r);
     }
+    print_kinds(std::iter::once(&reference).chain(&held_out));
     let worst = |f: &dyn Fn(&Row) -> f64| held_out.iter().map(f).fold(f64::INFINITY, f64::min);
     let worst_success = worst(&|r| r.success[0]);
     let worst_recall = worst(&|r| r.recall_2gsd);

@@ -71,6 +71,34 @@ pub struct Lines3dReport {
     /// Mean endpoint distance of each estimate (NaN when unmatched), for plots.
     pub error_m: Vec<f64>,
     pub classes: Vec<ClassScores>,
+    /// Success by what the true edges belong to (outline, opening, reveal, sill, roof, ...), synthetic scenes only.
+    pub kinds: Vec<KindScores>,
+    /// Each true edge as scored (in the order of `truth`).
+    pub true_edges: Vec<TrueEdge>,
+}
+
+/// One true edge as the scores saw it.
+#[derive(Debug, Clone)]
+pub struct TrueEdge {
+    /// What it belongs to in the synthetic scene.
+    pub kind: &'static str,
+    pub class: Class,
+    /// The images resolve it from its parallel neighbours.
+    pub resolvable: bool,
+    /// Recovered (edges of at least 0.5 m; `None` for shorter ones, which the success rate does not count).
+    pub found: Option<bool>,
+}
+
+/// How many true edges of one kind (at least 0.5 m) were recovered.
+#[derive(Debug, Clone)]
+pub struct KindScores {
+    pub kind: &'static str,
+    /// True edges of this kind of at least 0.5 m.
+    pub n_long: usize,
+    pub n_found: usize,
+    /// Of those the images resolve from their parallel neighbours.
+    pub n_resolvable: usize,
+    pub n_found_resolvable: usize,
 }
 
 /// Tolerances: 5, 10, 20, 50 mm and 1, 2, 5 GSD.
@@ -273,6 +301,9 @@ pub fn evaluate(truth: &Truth, rows: &[Line3Row]) -> Lines3dReport {
         })
         .collect();
 
+    let true_edges = true_edges(truth, &gt, &gt_class, &resolved, |g| recovered(g, &est, &est_grid, reach, gsd));
+    let kinds = kind_scores(&true_edges);
+
     Lines3dReport {
         gsd_m: gsd,
         estimated: est,
@@ -283,7 +314,66 @@ pub fn evaluate(truth: &Truth, rows: &[Line3Row]) -> Lines3dReport {
         angle_long_deg,
         error_m,
         classes,
+        kinds,
+        true_edges,
     }
+}
+
+/// What the scene says each true edge belongs to: the kind of the scene's edge with its endpoints ("other" when the
+/// truth came from elsewhere), so the report says which parts of the building the lines miss.
+fn true_edges(truth: &Truth, gt: &[Seg], class: &[Class], resolved: &[bool], found: impl Fn(&Seg) -> bool) -> Vec<TrueEdge> {
+    // Files hold micrometres: the scene's edge whose ends both lie within 0.1 mm (a few thousand edges, once).
+    let edges: Vec<(Vec3, Vec3, &'static str)> = truth
+        .scene
+        .building
+        .edges
+        .iter()
+        .map(|e| (Vec3::from(e.a), Vec3::from(e.b), e.kind))
+        .collect();
+    let kind_of = |g: &Seg| {
+        let near = |p: &Vec3, q: &Vec3| (p - q).norm() < 1e-4;
+        edges
+            .iter()
+            .find(|(a, b, _)| (near(a, &g.a) && near(b, &g.b)) || (near(a, &g.b) && near(b, &g.a)))
+            .map_or("other", |e| e.2)
+    };
+    gt.iter()
+        .enumerate()
+        .map(|(i, g)| TrueEdge {
+            kind: kind_of(g),
+            class: class[i],
+            resolvable: resolved[i],
+            found: (g.length() >= 0.5).then(|| found(g)),
+        })
+        .collect()
+}
+
+/// The true edges of at least 0.5 m found, by kind, most numerous first.
+fn kind_scores(edges: &[TrueEdge]) -> Vec<KindScores> {
+    let mut kinds: Vec<KindScores> = Vec::new();
+    for e in edges {
+        let Some(f) = e.found else { continue };
+        let at = match kinds.iter().position(|k| k.kind == e.kind) {
+            Some(at) => at,
+            None => {
+                kinds.push(KindScores {
+                    kind: e.kind,
+                    n_long: 0,
+                    n_found: 0,
+                    n_resolvable: 0,
+                    n_found_resolvable: 0,
+                });
+                kinds.len() - 1
+            }
+        };
+        let k = &mut kinds[at];
+        k.n_long += 1;
+        k.n_found += f as usize;
+        k.n_resolvable += e.resolvable as usize;
+        k.n_found_resolvable += (f && e.resolvable) as usize;
+    }
+    kinds.sort_by(|a, b| b.n_long.cmp(&a.n_long).then(a.kind.cmp(b.kind)));
+    kinds
 }
 
 /// A true edge is recovered when estimates within 2 GSD and 2° of it cover at least half of its length.

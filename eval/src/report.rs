@@ -127,6 +127,28 @@ fn lines2d_section(md: &mut String, eval: &Evaluation) {
 }
 
 /// The 3-D lines: the thesis's tables, each class's figures, and the plots written beside the report.
+/// The true edges of at least 0.5 m no line recovered, with what they belong to, for finding where lines go missing.
+fn write_missed(l: &crate::lines3d::Lines3dReport, path: &Path) -> Result<()> {
+    let mut csv = String::from("X1,Y1,Z1,X2,Y2,Z2,length_m,kind,class,resolvable\n");
+    for (g, e) in l.truth.iter().zip(&l.true_edges).filter(|(_, e)| e.found == Some(false)) {
+        let _ = writeln!(
+            csv,
+            "{:.6},{:.6},{:.6},{:.6},{:.6},{:.6},{:.3},{},{},{}",
+            g.a.x,
+            g.a.y,
+            g.a.z,
+            g.b.x,
+            g.b.y,
+            g.b.z,
+            g.length(),
+            e.kind,
+            format!("{:?}", e.class).to_lowercase(),
+            e.resolvable
+        );
+    }
+    std::fs::write(path, csv).with_context(|| format!("writing {}", path.display()))
+}
+
 fn lines3d_section(md: &mut String, eval: &Evaluation, out: &Path) -> Result<()> {
     let _ = writeln!(md, "## 3-D lines\n");
     match &eval.lines3d {
@@ -188,6 +210,25 @@ fn lines3d_section(md: &mut String, eval: &Evaluation, out: &Path) -> Result<()>
                     );
                 }
                 md.push('\n');
+            }
+            if !l.kinds.is_empty() {
+                md.push_str("### Success by part of the building\n\nTrue edges of at least 0.5 m, by what they belong to in the synthetic scene; resolvable as above.\n\n| part | edges | found | success | resolvable | found of those |\n|---|---|---|---|---|---|\n");
+                for k in &l.kinds {
+                    let share = |n: usize, of: usize| if of == 0 { f64::NAN } else { n as f64 / of as f64 };
+                    let _ = writeln!(
+                        md,
+                        "| {} | {} | {} | {} | {} | {} |",
+                        k.kind,
+                        k.n_long,
+                        k.n_found,
+                        pct(share(k.n_found, k.n_long)),
+                        k.n_resolvable,
+                        k.n_found_resolvable
+                    );
+                }
+                md.push('\n');
+                write_missed(l, &out.join("lines3d_missed.csv"))?;
+                md.push_str("The true edges of at least 0.5 m that were not found: `lines3d_missed.csv`.\n\n");
             }
             let max_error = (5.0 * l.gsd_m).max(0.01);
             plot::histogram(&l.endpoint_m, max_error, 25, &out.join("lines3d_endpoint_hist.png"))?;

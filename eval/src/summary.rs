@@ -64,6 +64,13 @@ pub fn summary(eval: &Evaluation) -> Value {
             "angle_deg": {"mean": angle_mean, "std": angle_std, "max": angle_max},
             "angle_long_deg": {"mean": long_mean, "std": long_std, "max": long_max},
             "classes": classes,
+            "kinds": l.kinds.iter().map(|k| json!({
+                "kind": k.kind,
+                "edges": k.n_long,
+                "found": k.n_found,
+                "resolvable": k.n_resolvable,
+                "found_resolvable": k.n_found_resolvable,
+            })).collect::<Vec<Value>>(),
         })
     });
     let openings = eval.openings.as_ref().map(|o| {
