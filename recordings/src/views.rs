@@ -109,6 +109,8 @@ pub struct ViewRenderer {
     scale: f64,
     /// Previews as JPEG `CompressedImage` instead of `RawImage`.
     compressed_previews: bool,
+    /// Pixels averaged per side of each preview pixel's box (`None`: the whole box).
+    preview_samples: Option<usize>,
     /// The camera of the images, once its message has come: the previews' calibration.
     camera: Option<CameraModelHeader>,
     /// Capture time of every frame rendered: a pose's transform is stamped with its image's time, since Foxglove
@@ -125,6 +127,7 @@ impl ViewRenderer {
             preview_max_px,
             scale: 1.0,
             compressed_previews: false,
+            preview_samples: None,
             camera: None,
             frame_times: Default::default(),
             scratch: Decoded::default(),
@@ -134,6 +137,13 @@ impl ViewRenderer {
     /// Previews as JPEG `foxglove_msgs/msg/CompressedImage` (for a recording whose images are compressed).
     pub fn with_compressed_previews(mut self, on: bool) -> Self {
         self.compressed_previews = on;
+        self
+    }
+
+    /// Previews that average `n` × `n` pixels spread over each box instead of all of it (at least 1): a live view's
+    /// preview of a 12 MP frame then reads a few rows in each box, not all 36 MB, at the price of some aliasing.
+    pub fn with_sampled_previews(mut self, n: usize) -> Self {
+        self.preview_samples = Some(n.max(1));
         self
     }
 
@@ -173,7 +183,8 @@ impl ViewRenderer {
                 self.frame_times.insert(stamp.frame, stamp.capture_time_ns);
                 let factor = h.width.max(h.height).div_ceil(self.preview_max_px).max(1);
                 self.scale = 1.0 / factor as f64;
-                let Some(p) = preview(&h, payload, factor, self.compressed_previews) else {
+                let samples = self.preview_samples.map_or(factor as usize, |n| n.min(factor as usize));
+                let Some(p) = preview(&h, payload, factor, samples, self.compressed_previews) else {
                     return Vec::new();
                 };
                 let calibration = self
@@ -249,7 +260,9 @@ fn time(ns: u64) -> Value {
 
 /// A box-filtered preview of a mono8 or rgb8 image, CDR-encoded as `foxglove_msgs/msg/RawImage`, or as a JPEG
 /// `foxglove_msgs/msg/CompressedImage` when `jpeg`.
-fn preview(h: &ImageHeader, pixels: &[u8], factor: u32, jpeg: bool) -> Option<Vec<u8>> {
+/// A preview `factor` times smaller than the image: each pixel the mean of `samples` × `samples` pixels spread
+/// evenly over its box (all of them when `samples` is `factor`).
+fn preview(h: &ImageHeader, pixels: &[u8], factor: u32, samples: usize, jpeg: bool) -> Option<Vec<u8>> {
     let enc = h.encoding()?;
     let channels = match enc {
         Encoding::Mono8 => 1,
@@ -258,27 +271,30 @@ fn preview(h: &ImageHeader, pixels: &[u8], factor: u32, jpeg: bool) -> Option<Ve
     };
     let (f, step) = (factor as usize, h.step as usize);
     let (w, ht) = (h.width as usize / f, h.height as usize / f);
-    if w == 0 || ht == 0 || pixels.len() < step * h.height as usize {
+    if w == 0 || ht == 0 || samples == 0 || pixels.len() < step * h.height as usize {
         return None;
     }
+    // Offsets of the sampled rows and columns within a box: the centres of `samples` equal parts of it.
+    let offsets: Vec<usize> = (0..samples).map(|k| (2 * k + 1) * f / (2 * samples)).collect();
     let mut out = vec![0u8; w * ht * channels];
     let mut sums = vec![0u32; w * channels];
     for (y, row_out) in out.chunks_exact_mut(w * channels).enumerate() {
         sums.fill(0);
-        for row in pixels[y * f * step..].chunks(step).take(f) {
+        for &dy in &offsets {
+            let row = &pixels[(y * f + dy) * step..][..w * f * channels];
             for (s, block) in sums.chunks_exact_mut(channels).zip(row.chunks_exact(f * channels)) {
-                if channels == 1 {
+                if samples == f && channels == 1 {
                     s[0] += block.iter().map(|&v| v as u32).sum::<u32>();
-                } else {
-                    for px in block.chunks_exact(channels) {
-                        for (s, &v) in s.iter_mut().zip(px) {
-                            *s += v as u32;
-                        }
+                    continue;
+                }
+                for &dx in &offsets {
+                    for (s, &v) in s.iter_mut().zip(&block[dx * channels..(dx + 1) * channels]) {
+                        *s += v as u32;
                     }
                 }
             }
         }
-        let n = (f * f) as u32;
+        let n = (samples * samples) as u32;
         for (o, s) in row_out.iter_mut().zip(&sums) {
             *o = ((s + n / 2) / n) as u8;
         }
@@ -505,6 +521,32 @@ fn scene_lines(stamp: &Stamp, lines: &[Line3]) -> Vec<u8> {
 mod tests {
     use super::*;
     use lineflow_messages::schema::{bytes_of, encode};
+
+    #[test]
+    fn sampled_preview_averages_pixels_spread_over_each_box() {
+        // One 4x4 box of an RGB image: 2 samples per side read rows and columns 1 and 3.
+        let header = ImageHeader {
+            width: 4,
+            height: 4,
+            step: 12,
+            encoding: lineflow_messages::Encoding::Rgb8 as u32,
+            ..Default::default()
+        };
+        let pixels: Vec<u8> = (0..48u8).collect();
+        let want = |c: usize| {
+            let v: Vec<u32> = [(1, 1), (1, 3), (3, 1), (3, 3)]
+                .iter()
+                .map(|&(y, x)| pixels[y * 12 + x * 3 + c] as u32)
+                .collect();
+            ((v.iter().sum::<u32>() + 2) / 4) as u8
+        };
+        let p = preview(&header, &pixels, 4, 2, false).unwrap();
+        assert_eq!(&p[p.len() - 3..], &[want(0), want(1), want(2)]);
+        // All samples: the box mean.
+        let full = preview(&header, &pixels, 4, 4, false).unwrap();
+        let mean = |c: usize| ((0..16).map(|i| pixels[i * 3 + c] as u32).sum::<u32>() + 8) / 16;
+        assert_eq!(&full[full.len() - 3..], &[mean(0) as u8, mean(1) as u8, mean(2) as u8]);
+    }
 
     #[test]
     fn preview_is_box_filtered_and_valid_cdr() {
