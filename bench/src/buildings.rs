@@ -41,8 +41,8 @@ pub(crate) struct Row {
     structure_precision_2gsd: f64,
     endpoint_gsd: f64,
     seconds: f64,
-    /// Edges found / true edges of at least 0.5 m, by part of the building.
-    kinds: Vec<(&'static str, usize, usize)>,
+    /// By part of the building: edges of at least 0.5 m found, true, and of those the images resolve.
+    kinds: Vec<lineflow_eval::lines3d::KindScores>,
 }
 
 const CLASSES: [&str; 4] = ["all", "horizontal", "vertical", "depth"];
@@ -60,7 +60,7 @@ pub(crate) fn row(building: String, report: &Lines3dReport, seconds: f64) -> Row
         structure_precision_2gsd: at_2gsd("structure lines").map_or(f64::NAN, |a| a.segment_precision),
         endpoint_gsd: report.endpoint_m.iter().sum::<f64>() / n / report.gsd_m,
         seconds,
-        kinds: report.kinds.iter().map(|k| (k.kind, k.n_found, k.n_long)).collect(),
+        kinds: report.kinds.clone(),
     }
 }
 
@@ -91,17 +91,17 @@ pub(crate) fn print_row(r: &Row) {
 
 /// Edges found by part of the building (outline, opening, reveal, sill, ...), one row per building.
 pub(crate) fn print_kinds<'a>(rows: impl Iterator<Item = &'a Row> + Clone) {
-    let mut kinds: Vec<&str> = rows.clone().flat_map(|r| r.kinds.iter().map(|k| k.0)).collect();
+    let mut kinds: Vec<&str> = rows.clone().flat_map(|r| r.kinds.iter().map(|k| k.kind)).collect();
     kinds.sort_unstable();
     kinds.dedup();
-    println!("\nEdges of 0.5 m or more found, by part of the building (found / true):\n");
+    println!("\nEdges of 0.5 m or more found, by part of the building (found / true; in brackets, of those the images resolve):\n");
     println!("| building | {} |", kinds.join(" | "));
     println!("|---|{}", "---|".repeat(kinds.len()));
     for r in rows {
         let cells: Vec<String> = kinds
             .iter()
-            .map(|k| match r.kinds.iter().find(|c| c.0 == *k) {
-                Some(&(_, found, n)) => format!("{found} / {n}"),
+            .map(|k| match r.kinds.iter().find(|c| c.kind == *k) {
+                Some(c) => format!("{} / {} ({} / {})", c.n_found, c.n_long, c.n_found_resolvable, c.n_resolvable),
                 None => "–".into(),
             })
             .collect();

@@ -6,6 +6,7 @@ mod chaos;
 mod edges;
 mod features;
 pub mod fuzz;
+mod layers;
 mod linemap;
 mod linematch;
 mod lines2d;
@@ -210,6 +211,9 @@ pub enum BenchCmd {
     /// The linemap algorithm again, in this process, on a finished run's lines2d.csv and poses.csv of a synthetic
     /// building, scored against its truth (for trying parameters on tuning buildings, PRESET@N with N < 1000).
     Linemap(linemap::LinemapBench),
+    /// linefit's depth layers again, in this process, on a finished run's final lines of a synthetic building,
+    /// scored before and after (for trying their settings on tuning buildings, PRESET@N with N < 1000).
+    Layers(layers::LayersBench),
     /// Every parser a user's file reaches, fed mutated copies of valid files: executions, panics, slowest call.
     Fuzz {
         /// Mutated inputs per parser.
@@ -327,6 +331,7 @@ pub fn bench(cmd: BenchCmd) -> Result<ExitCode> {
         }),
         BenchCmd::Linematch { preset, scale, reps } => linematch::bench_linematch(&preset, scale, reps),
         BenchCmd::Linemap(args) => linemap::bench_linemap(&args),
+        BenchCmd::Layers(args) => layers::bench_layers(&args),
         BenchCmd::Bundle { cameras, points } => bundle::bench_bundle(cameras, points),
         BenchCmd::Fuzz { executions, seed } => fuzz::bench_fuzz(executions, seed),
         BenchCmd::Buildings {

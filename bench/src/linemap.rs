@@ -79,14 +79,7 @@ pub fn bench_linemap(args: &LinemapBench) -> Result<ExitCode> {
     } else {
         read_poses(&run.join("poses.csv")).with_context(|| format!("{}: the run's poses", run.display()))?
     };
-    let mut segments: BTreeMap<String, Vec<Segment2>> = BTreeMap::new();
-    for r in read_lines2d(&run.join("lines2d.csv")).with_context(|| format!("{}: the run's 2-D lines", run.display()))? {
-        segments.entry(r.image.clone()).or_default().push(Segment2 {
-            start_px: r.start_px,
-            end_px: r.end_px,
-            ..Default::default()
-        });
-    }
+    let segments = run_segments(run)?;
     let views: Vec<View> = poses
         .iter()
         .filter_map(|p| {
@@ -124,17 +117,7 @@ pub fn bench_linemap(args: &LinemapBench) -> Result<ExitCode> {
         // As linefit joins linemap's final set to its own (its `joined` input), the run's lines standing for its
         // own: meaningful on a run of a graph without linemap.
         let start = std::time::Instant::now();
-        let mut own: Vec<Merged> = theirs
-            .iter()
-            .map(|r| Merged {
-                start: r.start,
-                end: r.end,
-                n_points: r.n_points.unwrap_or(0),
-                n_images: r.n_images.unwrap_or(0),
-                rms_m: r.rms_m.unwrap_or(0.0),
-                fragments: Vec::new(),
-            })
-            .collect();
+        let mut own: Vec<Merged> = theirs.iter().map(Merged::from_row).collect();
         let pose_list: Vec<lineflow_photogrammetry::Pose> = poses.iter().map(|p| p.pose).collect();
         let sight = lineflow_linegeom::Sight {
             camera: &camera,
@@ -175,6 +158,19 @@ pub fn bench_linemap(args: &LinemapBench) -> Result<ExitCode> {
         print_funnel(&camera, &views, &guide, &truth, &rows, &params);
     }
     Ok(ExitCode::SUCCESS)
+}
+
+/// A run's 2-D segments (`lines2d.csv`) by image name.
+pub(crate) fn run_segments(run: &std::path::Path) -> Result<BTreeMap<String, Vec<Segment2>>> {
+    let mut segments: BTreeMap<String, Vec<Segment2>> = BTreeMap::new();
+    for r in read_lines2d(&run.join("lines2d.csv")).with_context(|| format!("{}: the run's 2-D lines", run.display()))? {
+        segments.entry(r.image.clone()).or_default().push(Segment2 {
+            start_px: r.start_px,
+            end_px: r.end_px,
+            ..Default::default()
+        });
+    }
+    Ok(segments)
 }
 
 /// Frame `f` of the scene as the convert stage's grey image.

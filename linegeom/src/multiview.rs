@@ -106,6 +106,33 @@ pub fn refine_line_along(
     Some(solve_line(camera, [first.start, first.end], views, p, true).unwrap_or(first))
 }
 
+/// The line `start`–`end` where it is, as its images see it: the views whose segment along its projection lies
+/// within `max_residual_px` of it at both ends, the RMS of their residuals and the covariance across the line; none
+/// when fewer than `min_views` images show it there. For testing a position proposed from elsewhere (a prior).
+pub fn line_support(camera: &Camera, start: Vec3, end: Vec3, views: &[SlaveSegments], p: &MultiviewParams) -> Option<MultiviewLine> {
+    let dir = (end - start).try_normalize(1e-12)?;
+    let ends = [start, end];
+    let residual = |pv: &PlaneView, i: usize| pv.normal.dot(&(ends[i] - pv.center)) / pv.metres_per_px[i];
+    let planes: Vec<PlaneView> = views
+        .iter()
+        .filter_map(|v| plane_view(camera, &start, &end, v, p))
+        .filter(|pv| residual(pv, 0).abs().max(residual(pv, 1).abs()) <= p.max_residual_px)
+        .collect();
+    if planes.len() < p.min_views {
+        return None;
+    }
+    let u = dir.cross(&if dir.z.abs() < 0.9 { Vec3::z() } else { Vec3::x() }).normalize();
+    let v = dir.cross(&u);
+    let sum: f64 = planes.iter().map(|pv| residual(pv, 0).powi(2) + residual(pv, 1).powi(2)).sum();
+    Some(MultiviewLine {
+        start,
+        end,
+        views: planes.len(),
+        rms_px: (sum / (2 * planes.len()) as f64).sqrt(),
+        across_cov: across_covariance(&ends, &u, &v, &planes, p),
+    })
+}
+
 /// One estimate from the views whose segments lie along the projection of `ends`; with `rigid` both endpoints move
 /// by one offset, keeping the direction.
 fn solve_line(camera: &Camera, ends: [Vec3; 2], views: &[SlaveSegments], p: &MultiviewParams, rigid: bool) -> Option<MultiviewLine> {

@@ -7,7 +7,8 @@ pub mod fit;
 pub mod merge;
 
 use lineflow_linegeom::{
-    classify_elements, refine_line, uncovered_stretches, ClassRule, Cover, MultiviewLine, MultiviewParams, Sight, SlaveSegments,
+    classify_elements, refine_line, uncovered_stretches, ClassRule, Cover, LayerParams, LayerStats, MultiviewLine, MultiviewParams, Sight,
+    SlaveSegments,
 };
 use lineflow_messages::Line3;
 use lineflow_photogrammetry::{Camera, Pose, Vec3};
@@ -71,6 +72,21 @@ pub struct FitParams {
     pub bridge_search_px: f64,
     /// The smallest share of the images whose frame holds a bridge that must show it.
     pub bridge_min_share: f64,
+    /// With the 2-D lines, poses and camera: a final line moves onto the nearest depth layer (a plane of the
+    /// façade that the well-placed lines share, [`lineflow_linegeom::layers`]) within this many of its standard
+    /// deviations, where its images still show it there; 0 turns this off.
+    pub layer_k_sigma: f64,
+    /// Lines within this distance of each other's coordinate are one layer, metres.
+    pub layer_bandwidth_m: f64,
+    /// Lines a layer needs.
+    pub layer_min_lines: usize,
+    /// Lines placed to this standard deviation or better define the layers, metres.
+    pub layer_define_sigma_m: f64,
+    /// Farthest a line moves onto a layer, metres.
+    pub layer_max_move_m: f64,
+    /// The layers near a line come from the lines within this distance of it across the layer's axis, metres (an
+    /// opening's recess has a depth of its own); 0: the whole building.
+    pub layer_radius_m: f64,
 }
 
 impl Default for FitParams {
@@ -97,6 +113,12 @@ impl Default for FitParams {
             bridge_height_m: 0.1,
             bridge_search_px: 5.0,
             bridge_min_share: 0.67,
+            layer_k_sigma: 0.0,
+            layer_bandwidth_m: 0.01,
+            layer_min_lines: 4,
+            layer_define_sigma_m: 0.03,
+            layer_max_move_m: 0.15,
+            layer_radius_m: 1.5,
         }
     }
 }
@@ -145,6 +167,12 @@ impl lineflow_runtime::StageParams for FitParams {
         positive("bridge_height_m", self.bridge_height_m)?;
         positive("bridge_search_px", self.bridge_search_px)?;
         in_closed("bridge_min_share", self.bridge_min_share, 0.0, 1.0)?;
+        non_negative("layer_k_sigma", self.layer_k_sigma)?;
+        positive("layer_bandwidth_m", self.layer_bandwidth_m)?;
+        at_least("layer_min_lines", self.layer_min_lines, 2)?;
+        positive("layer_define_sigma_m", self.layer_define_sigma_m)?;
+        positive("layer_max_move_m", self.layer_max_move_m)?;
+        non_negative("layer_radius_m", self.layer_radius_m)?;
         in_half_open("merge_angle_deg", self.merge_angle_deg, 0.0, 90.0)?;
         in_half_open("snap_deg", self.snap_deg, 0.0, 45.0)?;
         positive("multiview_max_distance_px", self.multiview_max_distance_px)?;
@@ -186,6 +214,30 @@ pub fn refine_multiview(
         }
     }
     (moved, (sum_sq / moved.max(1) as f64).sqrt())
+}
+
+/// Moves the lines onto the depth layers the well-placed lines share ([`lineflow_linegeom::snap_to_layers`]) with
+/// `p.layer_*`; nothing when `layer_k_sigma` is 0.
+pub fn snap_layers(camera: &Camera, lines: &mut [Merged], views: &[SlaveSegments], p: &FitParams) -> LayerStats {
+    if p.layer_k_sigma <= 0.0 {
+        return LayerStats::default();
+    }
+    let mut ends: Vec<[Vec3; 2]> = lines.iter().map(|l| [l.start, l.end]).collect();
+    let layer = LayerParams {
+        bandwidth_m: p.layer_bandwidth_m,
+        min_lines: p.layer_min_lines,
+        define_sigma_m: p.layer_define_sigma_m,
+        k_sigma: p.layer_k_sigma,
+        max_move_m: p.layer_max_move_m,
+        radius_m: p.layer_radius_m,
+        ..LayerParams::default()
+    };
+    let stats = lineflow_linegeom::snap_to_layers(camera, &mut ends, views, &p.multiview(), &layer);
+    for (l, [a, b]) in lines.iter_mut().zip(ends) {
+        l.start = a;
+        l.end = b;
+    }
+    stats
 }
 
 /// Turns the lines nearly plumb or level onto those directions ([`lineflow_linegeom::snap_plumb_and_level`]) with

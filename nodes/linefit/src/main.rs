@@ -9,7 +9,7 @@ use std::collections::BTreeMap;
 use anyhow::Result;
 use lineflow_formats::{write_lines3d_results, Line3Row};
 use lineflow_linefit::{
-    bridges, fit_group, join_lines, line_elements, merge, refine_multiview, snap, FitParams, Fragment, Merged, Method,
+    bridges, fit_group, join_lines, line_elements, merge, refine_multiview, snap, snap_layers, FitParams, Fragment, Merged, Method,
     MULTIVIEW_MIN_SEGMENT_PX,
 };
 use lineflow_linegeom::{FrameSegments, Sight, SlaveSegments};
@@ -183,6 +183,17 @@ fn run(ctx: NodeContext, method: Method) -> Result<()> {
         snap(&mut merged, &params);
         tracing::info!(
             "bridges: {n} level lines between the ends of plumb lines, shown by the images, in {:.2} s",
+            start.elapsed().as_secs_f64()
+        );
+    }
+    if let (Some(cam), true) = (&camera, multiview && params.layer_k_sigma > 0.0) {
+        let start = std::time::Instant::now();
+        let stats = snap_layers(cam, &mut merged, &views, &params);
+        snap(&mut merged, &params);
+        tracing::info!(
+            "depth layers: {} lines moved onto the plane their neighbours share, {} refused by their images, in {:.2} s",
+            stats.moved,
+            stats.refused,
             start.elapsed().as_secs_f64()
         );
     }

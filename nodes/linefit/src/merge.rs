@@ -41,6 +41,20 @@ pub struct Merged {
     pub fragments: Vec<(u64, u32)>,
 }
 
+impl Merged {
+    /// A line read back from `lines3d.csv` (no fragments).
+    pub fn from_row(r: &lineflow_formats::Line3Row) -> Self {
+        Merged {
+            start: r.start,
+            end: r.end,
+            n_points: r.n_points.unwrap_or(0),
+            n_images: r.n_images.unwrap_or(0),
+            rms_m: r.rms_m.unwrap_or(0.0),
+            fragments: Vec::new(),
+        }
+    }
+}
+
 /// When two fragments are one edge.
 #[derive(Debug, Clone, Copy)]
 pub struct MergeRule {
