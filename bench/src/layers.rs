@@ -7,12 +7,12 @@ use anyhow::{Context, Result};
 use lineflow_eval::lines3d::evaluate;
 use lineflow_eval::Truth;
 use lineflow_formats::{read_lines3d, read_poses, Line3Row};
-use lineflow_linefit::{line_elements, snap, snap_layers, FitParams, Merged, MULTIVIEW_MIN_SEGMENT_PX};
-use lineflow_linegeom::{FrameSegments, SlaveSegments};
+use lineflow_linefit::{line_elements, snap, snap_layers, FitParams, Merged};
+use lineflow_linegeom::SlaveSegments;
 use lineflow_synthetic::Synthetic;
 
 use crate::buildings::{print_header, print_kinds, print_row, row};
-use crate::linemap::run_segments;
+use crate::linemap::{frame_segments, run_segments};
 
 /// What `lineflow bench layers` is asked.
 #[derive(Debug, clap::Args)]
@@ -46,15 +46,7 @@ pub fn bench_layers(args: &LayersBench) -> Result<ExitCode> {
     let poses = read_poses(&run.join("poses.csv")).with_context(|| format!("{}: the run's poses", run.display()))?;
     let lines = read_lines3d(&run.join("lines3d.csv")).with_context(|| format!("{}: the run's lines", run.display()))?;
     let segments = run_segments(run)?;
-    let frames: Vec<(lineflow_photogrammetry::Pose, FrameSegments)> = poses
-        .iter()
-        .filter_map(|p| {
-            Some((
-                p.pose,
-                FrameSegments::new(&camera, segments.get(&p.image)?, MULTIVIEW_MIN_SEGMENT_PX),
-            ))
-        })
-        .collect();
+    let frames = frame_segments(&camera, &poses, &segments);
     let views: Vec<SlaveSegments> = frames
         .iter()
         .map(|(pose, segments)| SlaveSegments { pose: *pose, segments })

@@ -267,6 +267,9 @@ pub enum BenchCmd {
         /// Frames per run.
         #[arg(long, default_value_t = 8)]
         frames: u64,
+        /// Runs without and with the viewer, alternating; their medians are compared.
+        #[arg(long, default_value_t = 3)]
+        pairs: usize,
     },
     /// Recordings larger than memory: `info`, `info --verify` and `export` of one topic as child processes, their
     /// wall time and peak RSS, against a plain read of the file.
@@ -378,7 +381,12 @@ pub fn bench(cmd: BenchCmd) -> Result<ExitCode> {
             preview_max_px,
         } => record::bench_record(frames, source, width, height, preview_max_px),
         BenchCmd::Reader { gb, dir, json } => reader::bench_reader(gb, dir, json),
-        BenchCmd::View { preset, scale, frames } => view::bench_view(&preset, scale, frames),
+        BenchCmd::View {
+            preset,
+            scale,
+            frames,
+            pairs,
+        } => view::bench_view(&preset, scale, frames, pairs),
         BenchCmd::Chaos { graph, set, stop } => chaos::bench_chaos(&graph, &set, stop.map(std::time::Duration::from_secs_f64)),
     }
 }

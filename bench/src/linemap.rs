@@ -126,15 +126,7 @@ pub fn bench_linemap(args: &LinemapBench) -> Result<ExitCode> {
         let n = join_lines(&mut own, &messages, &fit, Some(sight));
         snap(&mut own, &fit);
         if fit.bridge_max_span_m > 0.0 {
-            let frames: Vec<(lineflow_photogrammetry::Pose, FrameSegments)> = poses
-                .iter()
-                .filter_map(|p| {
-                    Some((
-                        p.pose,
-                        FrameSegments::new(&camera, segments.get(&p.image)?, MULTIVIEW_MIN_SEGMENT_PX),
-                    ))
-                })
-                .collect();
+            let frames = frame_segments(&camera, &poses, &segments);
             let slaves: Vec<SlaveSegments> = frames
                 .iter()
                 .map(|(pose, segments)| SlaveSegments { pose: *pose, segments })
@@ -158,6 +150,23 @@ pub fn bench_linemap(args: &LinemapBench) -> Result<ExitCode> {
         print_funnel(&camera, &views, &guide, &truth, &rows, &params);
     }
     Ok(ExitCode::SUCCESS)
+}
+
+/// Each oriented image's segments indexed as the multi-view re-estimate takes them, with its pose.
+pub(crate) fn frame_segments(
+    camera: &lineflow_photogrammetry::Camera,
+    poses: &[lineflow_formats::PoseRow],
+    segments: &BTreeMap<String, Vec<Segment2>>,
+) -> Vec<(lineflow_photogrammetry::Pose, FrameSegments)> {
+    poses
+        .iter()
+        .filter_map(|p| {
+            Some((
+                p.pose,
+                FrameSegments::new(camera, segments.get(&p.image)?, MULTIVIEW_MIN_SEGMENT_PX),
+            ))
+        })
+        .collect()
 }
 
 /// A run's 2-D segments (`lines2d.csv`) by image name.

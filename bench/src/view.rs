@@ -184,22 +184,30 @@ fn percentile(v: &mut [f64], q: f64) -> f64 {
 }
 
 /// Runs the benchmark.
-pub fn bench_view(preset: &str, scale: f64, frames: u64) -> Result<std::process::ExitCode> {
+pub fn bench_view(preset: &str, scale: f64, frames: u64, pairs: usize) -> Result<std::process::ExitCode> {
     let dir = tempfile::Builder::new().prefix("lineflow-bench-view").tempdir()?;
     let flat_out = dir.path().join("flat-out.toml");
     std::fs::write(&flat_out, graph(preset, scale, frames, 0.0))?;
     let port = || -> Result<u16> { Ok(TcpListener::bind("127.0.0.1:0")?.local_addr()?.port()) };
     println!("{preset} at scale {scale}, {frames} frames: capture -> gray, edges -> lines2d -> stats\n");
-    let (without, _) = run(&flat_out, &dir.path().join("without"), None)?;
-    let (with, _) = run(&flat_out, &dir.path().join("with"), Some(port()?))?;
+    // Runs without and with the viewer alternate, and their medians are compared: on two cores the same run
+    // varies by ±10 % from one to the next, more than the cost measured.
+    let (mut withouts, mut withs) = (Vec::new(), Vec::new());
+    for k in 0..pairs.max(1) {
+        withouts.push(run(&flat_out, &dir.path().join(format!("without-{k}")), None)?.0);
+        withs.push(run(&flat_out, &dir.path().join(format!("with-{k}")), Some(port()?))?.0);
+    }
+    let list = |v: &[f64]| v.iter().map(|s| format!("{s:.2}")).collect::<Vec<_>>().join(", ");
+    let (runs_without, runs_with) = (list(&withouts), list(&withs));
+    let (without, with) = (percentile(&mut withouts, 0.5), percentile(&mut withs, 0.5));
     let fps = 0.5 * frames as f64 / without;
     let paced = dir.path().join("paced.toml");
     std::fs::write(&paced, graph(preset, scale, frames, fps))?;
     let (paced_s, latencies) = run(&paced, &dir.path().join("paced"), Some(port()?))?;
     let latencies = latencies.unwrap_or_default();
     println!("| run | wall s |\n|---|---|");
-    println!("| flat out, without the viewer (reference) | {without:.2} |");
-    println!("| flat out, with the viewer and one client | {with:.2} |");
+    println!("| flat out, without the viewer (reference), median of {runs_without} | {without:.2} |");
+    println!("| flat out, with the viewer and one client, median of {runs_with} | {with:.2} |");
     println!("| paced at {fps:.2} frames/s, with the viewer and one client | {paced_s:.2} |");
     let cost = (with / without - 1.0) * 100.0;
     println!(
