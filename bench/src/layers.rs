@@ -9,25 +9,15 @@ use lineflow_eval::Truth;
 use lineflow_formats::{read_lines3d, read_poses, Line3Row};
 use lineflow_linefit::{line_elements, snap, snap_layers, FitParams, Merged};
 use lineflow_linegeom::SlaveSegments;
-use lineflow_synthetic::Synthetic;
 
 use crate::buildings::{print_header, print_kinds, print_row, row};
-use crate::linemap::{frame_segments, run_segments};
+use crate::linemap::{frame_segments, run_segments, FinishedRun};
 
 /// What `lineflow bench layers` is asked.
 #[derive(Debug, clap::Args)]
 pub struct LayersBench {
-    /// The run's output folder.
-    pub run: std::path::PathBuf,
-    /// The building the run filmed (PRESET or PRESET@N).
-    #[arg(long)]
-    pub building: String,
-    /// Image scale of the run.
-    #[arg(long, default_value_t = 0.3)]
-    pub scale: f64,
-    /// Seed of the run's scene.
-    #[arg(long, default_value_t = 1)]
-    pub seed: u64,
+    #[command(flatten)]
+    pub of: FinishedRun,
     /// Parameter override KEY=VALUE of the linefit stage (repeatable); `layer_k_sigma` defaults to 3 here.
     #[arg(long)]
     pub set: Vec<String>,
@@ -39,8 +29,8 @@ pub fn bench_layers(args: &LayersBench) -> Result<ExitCode> {
     set.extend(args.set.iter().cloned());
     let fit: FitParams = lineflow_runtime::launch::params_from_overrides(&set)?;
     lineflow_runtime::StageParams::validate(&fit)?;
-    let run = args.run.as_path();
-    let scene = Synthetic::new(&args.building, args.scale, args.seed).map_err(|e| anyhow::anyhow!("{e}"))?;
+    let run = args.of.run.as_path();
+    let scene = args.of.scene()?;
     let camera = *scene.camera();
     let truth = Truth::from_scene(scene);
     let poses = read_poses(&run.join("poses.csv")).with_context(|| format!("{}: the run's poses", run.display()))?;
@@ -63,17 +53,17 @@ pub fn bench_layers(args: &LayersBench) -> Result<ExitCode> {
         .collect();
     println!(
         "layers on {} ({} lines, {} views), {seconds:.2} s: {stats:?}\n",
-        args.building,
+        args.of.building,
         lines.len(),
         views.len()
     );
     print_header();
     let before = row(
-        format!("{} the run's lines3d.csv", args.building),
+        format!("{} the run's lines3d.csv", args.of.building),
         &evaluate(&truth, &lines),
         f64::NAN,
     );
-    let moved = row(format!("{} on the layers", args.building), &evaluate(&truth, &after), seconds);
+    let moved = row(format!("{} on the layers", args.of.building), &evaluate(&truth, &after), seconds);
     print_row(&before);
     print_row(&moved);
     print_kinds([&before, &moved].into_iter());

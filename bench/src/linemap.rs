@@ -20,9 +20,9 @@ use rayon::prelude::*;
 
 use crate::buildings::{print_header, print_row, row};
 
-/// What `lineflow bench linemap` is asked.
+/// A finished run of a synthetic building, for the benchmarks that rerun a stage's steps on its results.
 #[derive(Debug, clap::Args)]
-pub struct LinemapBench {
+pub struct FinishedRun {
     /// The run's output folder.
     pub run: std::path::PathBuf,
     /// The building the run filmed (PRESET or PRESET@N).
@@ -34,6 +34,20 @@ pub struct LinemapBench {
     /// Seed of the run's scene.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
+}
+
+impl FinishedRun {
+    /// The scene the run filmed.
+    pub fn scene(&self) -> Result<Synthetic> {
+        Synthetic::new(&self.building, self.scale, self.seed).map_err(|e| anyhow::anyhow!("{e}"))
+    }
+}
+
+/// What `lineflow bench linemap` is asked.
+#[derive(Debug, clap::Args)]
+pub struct LinemapBench {
+    #[command(flatten)]
+    pub of: FinishedRun,
     /// Use the true poses instead of the run's.
     #[arg(long)]
     pub truth_poses: bool,
@@ -51,12 +65,12 @@ pub struct LinemapBench {
 /// `lineflow bench linemap RUN --building B [--scale S] [--seed N] [--truth-poses] [--set KEY=VALUE]...
 /// [--join-set KEY=VALUE]...`
 pub fn bench_linemap(args: &LinemapBench) -> Result<ExitCode> {
-    let (run, building, truth_poses) = (args.run.as_path(), args.building.as_str(), args.truth_poses);
+    let (run, building, truth_poses) = (args.of.run.as_path(), args.of.building.as_str(), args.truth_poses);
     let params: MapParams = lineflow_runtime::launch::params_from_overrides(&args.set)?;
     lineflow_runtime::StageParams::validate(&params)?;
     let fit: FitParams = lineflow_runtime::launch::params_from_overrides(&args.join_set)?;
     lineflow_runtime::StageParams::validate(&fit)?;
-    let scene = Synthetic::new(building, args.scale, args.seed).map_err(|e| anyhow::anyhow!("{e}"))?;
+    let scene = args.of.scene()?;
     let camera = *scene.camera();
     let walls = scene.approximate_walls();
     let walls: Vec<Vec<Vec3>> = walls.iter().map(|(_, c)| c.iter().map(|&p| Vec3::from(p)).collect()).collect();
