@@ -60,7 +60,7 @@ pub(crate) fn row(building: String, report: &Lines3dReport, seconds: f64) -> Row
         structure_precision_2gsd: at_2gsd("structure lines").map_or(f64::NAN, |a| a.segment_precision),
         endpoint_gsd: report.endpoint_m.iter().sum::<f64>() / n / report.gsd_m,
         seconds,
-        kinds: report.kinds.clone(),
+        kinds: report.kinds(),
     }
 }
 

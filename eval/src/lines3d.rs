@@ -71,8 +71,6 @@ pub struct Lines3dReport {
     /// Mean endpoint distance of each estimate (NaN when unmatched), for plots.
     pub error_m: Vec<f64>,
     pub classes: Vec<ClassScores>,
-    /// Success by what the true edges belong to (outline, opening, reveal, sill, roof, ...), synthetic scenes only.
-    pub kinds: Vec<KindScores>,
     /// Each true edge as scored (in the order of `truth`).
     pub true_edges: Vec<TrueEdge>,
 }
@@ -218,6 +216,7 @@ pub fn evaluate(truth: &Truth, rows: &[Line3Row]) -> Lines3dReport {
         subsets.push(("structure lines", Subset::Lines(LineClass::Structure)));
         subsets.push(("texture lines", Subset::Lines(LineClass::Texture)));
     }
+    let true_edges = score_true_edges(truth, &gt, &gt_class, &resolved, |g| recovered(g, &est, &est_grid, reach, gsd));
     let classes = subsets
         .iter()
         .map(|&(name, subset)| {
@@ -279,11 +278,12 @@ pub fn evaluate(truth: &Truth, rows: &[Line3Row]) -> Lines3dReport {
                 })
                 .collect();
             let long: Vec<usize> = gi.iter().copied().filter(|&i| gt[i].length() >= 0.5).collect();
+            // Every estimate recovers the same edges for every class of edges: taken from the scores of each edge.
             let found: Vec<bool> = long
                 .iter()
                 .map(|&i| match (&own_grid, subset) {
                     (Some(grid), Subset::Lines(_)) => recovered(&gt[i], &own_est, grid, reach, gsd),
-                    _ => recovered(&gt[i], &est, &est_grid, reach, gsd),
+                    _ => true_edges[i].found == Some(true),
                 })
                 .collect();
             let share = |n: usize, of: usize| if of == 0 { f64::NAN } else { n as f64 / of as f64 };
@@ -301,9 +301,6 @@ pub fn evaluate(truth: &Truth, rows: &[Line3Row]) -> Lines3dReport {
         })
         .collect();
 
-    let true_edges = true_edges(truth, &gt, &gt_class, &resolved, |g| recovered(g, &est, &est_grid, reach, gsd));
-    let kinds = kind_scores(&true_edges);
-
     Lines3dReport {
         gsd_m: gsd,
         estimated: est,
@@ -314,14 +311,13 @@ pub fn evaluate(truth: &Truth, rows: &[Line3Row]) -> Lines3dReport {
         angle_long_deg,
         error_m,
         classes,
-        kinds,
         true_edges,
     }
 }
 
 /// What the scene says each true edge belongs to: the kind of the scene's edge with its endpoints ("other" when the
 /// truth came from elsewhere), so the report says which parts of the building the lines miss.
-fn true_edges(truth: &Truth, gt: &[Seg], class: &[Class], resolved: &[bool], found: impl Fn(&Seg) -> bool) -> Vec<TrueEdge> {
+fn score_true_edges(truth: &Truth, gt: &[Seg], class: &[Class], resolved: &[bool], found: impl Fn(&Seg) -> bool) -> Vec<TrueEdge> {
     // Files hold micrometres: the scene's edge whose ends both lie within 0.1 mm (a few thousand edges, once).
     let edges: Vec<(Vec3, Vec3, &'static str)> = truth
         .scene
@@ -348,7 +344,14 @@ fn true_edges(truth: &Truth, gt: &[Seg], class: &[Class], resolved: &[bool], fou
         .collect()
 }
 
-/// The true edges of at least 0.5 m found, by kind, most numerous first.
+impl Lines3dReport {
+    /// Success by what the true edges belong to (opening, sill, cornice, roof, ...; synthetic scenes only): the true
+    /// edges of at least 0.5 m found, by kind, most numerous first.
+    pub fn kinds(&self) -> Vec<KindScores> {
+        kind_scores(&self.true_edges)
+    }
+}
+
 fn kind_scores(edges: &[TrueEdge]) -> Vec<KindScores> {
     let mut kinds: Vec<KindScores> = Vec::new();
     for e in edges {

@@ -211,9 +211,10 @@ fn lines3d_section(md: &mut String, eval: &Evaluation, out: &Path) -> Result<()>
                 }
                 md.push('\n');
             }
-            if !l.kinds.is_empty() {
+            let kinds = l.kinds();
+            if !kinds.is_empty() {
                 md.push_str("### Success by part of the building\n\nTrue edges of at least 0.5 m, by what they belong to in the synthetic scene; resolvable as above.\n\n| part | edges | found | success | resolvable | found of those |\n|---|---|---|---|---|---|\n");
-                for k in &l.kinds {
+                for k in &kinds {
                     let share = |n: usize, of: usize| if of == 0 { f64::NAN } else { n as f64 / of as f64 };
                     let _ = writeln!(
                         md,

@@ -64,7 +64,7 @@ pub fn summary(eval: &Evaluation) -> Value {
             "angle_deg": {"mean": angle_mean, "std": angle_std, "max": angle_max},
             "angle_long_deg": {"mean": long_mean, "std": long_std, "max": long_max},
             "classes": classes,
-            "kinds": l.kinds.iter().map(|k| json!({
+            "kinds": l.kinds().iter().map(|k| json!({
                 "kind": k.kind,
                 "edges": k.n_long,
                 "found": k.n_found,
