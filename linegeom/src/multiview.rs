@@ -110,40 +110,58 @@ pub fn refine_line_along(
 /// within `max_residual_px` of it at both ends, the RMS of their residuals and the covariance across the line; none
 /// when fewer than `min_views` images show it there. For testing a position proposed from elsewhere (a prior).
 pub fn line_support(camera: &Camera, start: Vec3, end: Vec3, views: &[SlaveSegments], p: &MultiviewParams) -> Option<MultiviewLine> {
-    let dir = (end - start).try_normalize(1e-12)?;
     let ends = [start, end];
-    let residual = |pv: &PlaneView, i: usize| pv.normal.dot(&(ends[i] - pv.center)) / pv.metres_per_px[i];
+    let (u, v) = across_axes(&ends)?;
     let planes: Vec<PlaneView> = views
         .iter()
         .filter_map(|v| plane_view(camera, &start, &end, v, p))
-        .filter(|pv| residual(pv, 0).abs().max(residual(pv, 1).abs()) <= p.max_residual_px)
+        .filter(|pv| pv.worst_residual_px(&ends) <= p.max_residual_px)
         .collect();
-    if planes.len() < p.min_views {
-        return None;
-    }
+    (planes.len() >= p.min_views).then(|| line_on(ends, &u, &v, &planes, p))
+}
+
+/// Two unit directions across the line through `ends`, square to each other; each endpoint moves in their plane.
+fn across_axes(ends: &[Vec3; 2]) -> Option<(Vec3, Vec3)> {
+    let dir = (ends[1] - ends[0]).try_normalize(1e-12)?;
     let u = dir.cross(&if dir.z.abs() < 0.9 { Vec3::z() } else { Vec3::x() }).normalize();
-    let v = dir.cross(&u);
-    let sum: f64 = planes.iter().map(|pv| residual(pv, 0).powi(2) + residual(pv, 1).powi(2)).sum();
-    Some(MultiviewLine {
-        start,
-        end,
+    Some((u, dir.cross(&u)))
+}
+
+impl PlaneView {
+    /// The distance of endpoint `i` of `ends` from the plane, pixels of this image.
+    fn residual_px(&self, ends: &[Vec3; 2], i: usize) -> f64 {
+        self.normal.dot(&(ends[i] - self.center)) / self.metres_per_px[i]
+    }
+
+    /// The larger of the two endpoints' residuals, pixels.
+    fn worst_residual_px(&self, ends: &[Vec3; 2]) -> f64 {
+        self.residual_px(ends, 0).abs().max(self.residual_px(ends, 1).abs())
+    }
+}
+
+/// The line through `ends` with the views `planes`: their RMS residual and the covariance across the line.
+fn line_on(ends: [Vec3; 2], u: &Vec3, v: &Vec3, planes: &[PlaneView], p: &MultiviewParams) -> MultiviewLine {
+    let sum: f64 = planes
+        .iter()
+        .map(|pv| pv.residual_px(&ends, 0).powi(2) + pv.residual_px(&ends, 1).powi(2))
+        .sum();
+    MultiviewLine {
+        start: ends[0],
+        end: ends[1],
         views: planes.len(),
         rms_px: (sum / (2 * planes.len()) as f64).sqrt(),
-        across_cov: across_covariance(&ends, &u, &v, &planes, p),
-    })
+        across_cov: across_covariance(&ends, u, v, planes, p),
+    }
 }
 
 /// One estimate from the views whose segments lie along the projection of `ends`; with `rigid` both endpoints move
 /// by one offset, keeping the direction.
 fn solve_line(camera: &Camera, ends: [Vec3; 2], views: &[SlaveSegments], p: &MultiviewParams, rigid: bool) -> Option<MultiviewLine> {
-    let dir = (ends[1] - ends[0]).try_normalize(1e-12)?;
+    let (u, v) = across_axes(&ends)?;
     let mut planes: Vec<PlaneView> = views.iter().filter_map(|v| plane_view(camera, &ends[0], &ends[1], v, p)).collect();
     if planes.len() < p.min_views {
         return None;
     }
-    // Two directions across the line; each endpoint moves in their plane.
-    let u = dir.cross(&if dir.z.abs() < 0.9 { Vec3::z() } else { Vec3::x() }).normalize();
-    let v = dir.cross(&u);
     for _ in 0..3 {
         let moved = if rigid {
             let offset = solve_offset(&ends, &[0, 1], &u, &v, &planes, p);
@@ -151,21 +169,13 @@ fn solve_line(camera: &Camera, ends: [Vec3; 2], views: &[SlaveSegments], p: &Mul
         } else {
             [0, 1].map(|i| ends[i] + solve_offset(&ends, &[i], &u, &v, &planes, p))
         };
-        let residual = |pv: &PlaneView, i: usize| pv.normal.dot(&(moved[i] - pv.center)) / pv.metres_per_px[i];
         let before = planes.len();
-        planes.retain(|pv| residual(pv, 0).abs().max(residual(pv, 1).abs()) <= p.max_residual_px);
+        planes.retain(|pv| pv.worst_residual_px(&moved) <= p.max_residual_px);
         if planes.len() < p.min_views {
             return None;
         }
         if planes.len() == before {
-            let sum: f64 = planes.iter().map(|pv| residual(pv, 0).powi(2) + residual(pv, 1).powi(2)).sum();
-            return Some(MultiviewLine {
-                start: moved[0],
-                end: moved[1],
-                views: planes.len(),
-                rms_px: (sum / (2 * planes.len()) as f64).sqrt(),
-                across_cov: across_covariance(&moved, &u, &v, &planes, p),
-            });
+            return Some(line_on(moved, &u, &v, &planes, p));
         }
     }
     None

@@ -222,7 +222,6 @@ pub fn snap_layers(camera: &Camera, lines: &mut [Merged], views: &[SlaveSegments
     if p.layer_k_sigma <= 0.0 {
         return LayerStats::default();
     }
-    let mut ends: Vec<[Vec3; 2]> = lines.iter().map(|l| [l.start, l.end]).collect();
     let layer = LayerParams {
         bandwidth_m: p.layer_bandwidth_m,
         min_lines: p.layer_min_lines,
@@ -232,24 +231,26 @@ pub fn snap_layers(camera: &Camera, lines: &mut [Merged], views: &[SlaveSegments
         radius_m: p.layer_radius_m,
         ..LayerParams::default()
     };
-    let stats = lineflow_linegeom::snap_to_layers(camera, &mut ends, views, &p.multiview(), &layer);
+    move_ends(lines, |ends| {
+        lineflow_linegeom::snap_to_layers(camera, ends, views, &p.multiview(), &layer)
+    })
+}
+
+/// Runs `f` on the lines' endpoints and moves the lines to where it left them.
+fn move_ends<R>(lines: &mut [Merged], f: impl FnOnce(&mut [[Vec3; 2]]) -> R) -> R {
+    let mut ends: Vec<[Vec3; 2]> = lines.iter().map(|l| [l.start, l.end]).collect();
+    let result = f(&mut ends);
     for (l, [a, b]) in lines.iter_mut().zip(ends) {
         l.start = a;
         l.end = b;
     }
-    stats
+    result
 }
 
 /// Turns the lines nearly plumb or level onto those directions ([`lineflow_linegeom::snap_plumb_and_level`]) with
 /// `p.snap_deg`; returns how many turned.
 pub fn snap(lines: &mut [Merged], p: &FitParams) -> usize {
-    let mut ends: Vec<[Vec3; 2]> = lines.iter().map(|l| [l.start, l.end]).collect();
-    let turned = lineflow_linegeom::snap_plumb_and_level(&mut ends, p.snap_deg);
-    for (l, [a, b]) in lines.iter_mut().zip(ends) {
-        l.start = a;
-        l.end = b;
-    }
-    turned
+    move_ends(lines, |ends| lineflow_linegeom::snap_plumb_and_level(ends, p.snap_deg))
 }
 
 /// Joins to `lines` the stretches of another line stage's lines (`others`) that they leave uncovered
