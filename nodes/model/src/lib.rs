@@ -307,10 +307,15 @@ impl ModelParams {
         self.fitted_sigma(rms_m, n_points).unwrap_or(self.sigma_m)
     }
 
-    /// A fitted line's σ from its statistics, if they say anything (an RMS below a nanometre does not).
+    /// A fitted line's σ from its statistics, if they say anything. An RMS that `lines3d.csv` writes as 0.000000
+    /// does not: a line through two images' segments fits them exactly whatever its error, and a model built live
+    /// must be the model `lineflow model` builds from the run's file (taking sub-micrometre RMS values as 2 mm
+    /// lines live, and as unknown from the file, cost 11 of 36 openings on a tuning building).
     fn fitted_sigma(&self, rms_m: Option<f64>, n_points: Option<u32>) -> Option<f64> {
         match (rms_m, n_points) {
-            (Some(rms), Some(n)) if rms.is_finite() && rms > 1e-9 && n > 0 => Some((2.0 * rms / (n as f64).sqrt()).max(self.min_sigma_m)),
+            (Some(rms), Some(n)) if rms.is_finite() && rms >= RMS_RESOLUTION_M && n > 0 => {
+                Some((2.0 * rms / (n as f64).sqrt()).max(self.min_sigma_m))
+            }
             _ => None,
         }
     }
@@ -937,6 +942,9 @@ fn segments_of(rows: &[lineflow_formats::Line3Row]) -> Vec<[Vec3; 2]> {
     rows.iter().map(|r| [r.start, r.end]).collect()
 }
 
+/// The smallest RMS that `lines3d.csv` (six decimals, metres) does not write as zero.
+const RMS_RESOLUTION_M: f64 = 5e-7;
+
 /// The model's lines from `lines3d.csv` rows (or `Lines3D` elements through their rows), each with the endpoint
 /// σ its statistics give and its class; when no row is classed (another tool's lines, an older run) and
 /// `texture_lines` is not `keep`, they are classed here with `class`.
@@ -969,9 +977,9 @@ mod tests {
         // 2 · 1 cm / √16 = 5 mm.
         assert!((p.line_sigma(Some(0.01), Some(16)) - 0.005).abs() < 1e-12);
         assert_eq!(p.line_sigma(Some(0.001), Some(400)), p.min_sigma_m);
-        // Points placed exactly on their line (an RMS of 1e-15, written 0.000000 in lines3d.csv): unknown, live and
-        // from the file alike.
-        for rms in [None, Some(0.0), Some(1e-15), Some(f64::NAN)] {
+        // Points placed exactly on their line (an RMS of 1e-15), or as good as (3e-7 m, also written 0.000000 in
+        // lines3d.csv): unknown, live and from the file alike.
+        for rms in [None, Some(0.0), Some(1e-15), Some(3e-7), Some(f64::NAN)] {
             assert_eq!(p.line_sigma(rms, Some(12)), p.sigma_m, "{rms:?}");
         }
     }
