@@ -321,6 +321,17 @@ pub fn read_lines2d(path: &Path) -> Result<Vec<Line2Row>, FormatError> {
         .collect()
 }
 
+/// A length in metres as `lines3d.csv` writes it (to the micrometre).
+fn metres(v: f64) -> String {
+    format!("{v:.6}")
+}
+
+/// `v` metres as `lines3d.csv` holds it once written and read back: what a stage reading a run's file gets, for a
+/// stage reading the same value live to take alike.
+pub fn metres_as_written(v: f64) -> f64 {
+    metres(v).parse().unwrap_or(v)
+}
+
 /// Writes `lines3d.csv`.
 pub fn write_lines3d(path: &Path, rows: &[Line3Row]) -> Result<(), FormatError> {
     write_rows(
@@ -328,8 +339,8 @@ pub fn write_lines3d(path: &Path, rows: &[Line3Row]) -> Result<(), FormatError> 
         &[&LINES3D_HEADER[..], &[LINES3D_CLASS]].concat(),
         rows.iter().map(|r| {
             let mut v = vec![r.id.clone()];
-            v.extend(r.start.iter().chain(r.end.iter()).map(|c| format!("{c:.6}")));
-            v.extend([opt(r.n_points), opt(r.n_images), opt(r.rms_m.map(|m| format!("{m:.6}")))]);
+            v.extend(r.start.iter().chain(r.end.iter()).map(|&c| metres(c)));
+            v.extend([opt(r.n_points), opt(r.n_images), opt(r.rms_m.map(metres))]);
             v.push(r.class.name().to_string());
             v
         }),

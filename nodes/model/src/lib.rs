@@ -312,10 +312,9 @@ impl ModelParams {
     /// must be the model `lineflow model` builds from the run's file (taking sub-micrometre RMS values as 2 mm
     /// lines live, and as unknown from the file, cost 11 of 36 openings on a tuning building).
     fn fitted_sigma(&self, rms_m: Option<f64>, n_points: Option<u32>) -> Option<f64> {
+        let rms_m = rms_m.map(lineflow_formats::metres_as_written);
         match (rms_m, n_points) {
-            (Some(rms), Some(n)) if rms.is_finite() && rms >= RMS_RESOLUTION_M && n > 0 => {
-                Some((2.0 * rms / (n as f64).sqrt()).max(self.min_sigma_m))
-            }
+            (Some(rms), Some(n)) if rms.is_finite() && rms > 0.0 && n > 0 => Some((2.0 * rms / (n as f64).sqrt()).max(self.min_sigma_m)),
             _ => None,
         }
     }
@@ -942,9 +941,6 @@ fn segments_of(rows: &[lineflow_formats::Line3Row]) -> Vec<[Vec3; 2]> {
     rows.iter().map(|r| [r.start, r.end]).collect()
 }
 
-/// The smallest RMS that `lines3d.csv` (six decimals, metres) does not write as zero.
-const RMS_RESOLUTION_M: f64 = 5e-7;
-
 /// The model's lines from `lines3d.csv` rows (or `Lines3D` elements through their rows), each with the endpoint
 /// σ its statistics give and its class; when no row is classed (another tool's lines, an older run) and
 /// `texture_lines` is not `keep`, they are classed here with `class`.
@@ -981,6 +977,36 @@ mod tests {
         // lines3d.csv): unknown, live and from the file alike.
         for rms in [None, Some(0.0), Some(1e-15), Some(3e-7), Some(f64::NAN)] {
             assert_eq!(p.line_sigma(rms, Some(12)), p.sigma_m, "{rms:?}");
+        }
+    }
+
+    #[test]
+    fn a_line_has_one_sigma_live_and_from_the_run_file() {
+        // The live stage reads Lines3D elements, `lineflow model` the lines3d.csv written from them: every RMS, down
+        // to those the file writes as 0.000000, gives one σ both ways.
+        let p = ModelParams::default();
+        let rms = [0.0, 1e-15, 1e-9, 3e-7, 4.9e-7, 5e-7, 7e-7, 1.6e-5, 0.0123456789, 0.003];
+        let messages: Vec<lineflow_messages::Line3> = rms
+            .iter()
+            .enumerate()
+            .map(|(k, &rms_m)| lineflow_messages::Line3 {
+                id: k as u64,
+                start_m: [k as f64, 0.0, 1.0],
+                end_m: [k as f64, 0.0, 2.0],
+                n_points: 2,
+                n_images: 2,
+                rms_m,
+                class: 0,
+                reserved: 0,
+            })
+            .collect();
+        let live: Vec<lineflow_formats::Line3Row> = messages.iter().map(Into::into).collect();
+        let file = std::env::temp_dir().join(format!("lineflow-model-sigma-{}.csv", std::process::id()));
+        lineflow_formats::write_lines3d(&file, &live).unwrap();
+        let read = lineflow_formats::read_lines3d(&file).unwrap();
+        std::fs::remove_file(&file).ok();
+        for ((a, b), r) in lines_from_rows(&live, &p).iter().zip(lines_from_rows(&read, &p)).zip(rms) {
+            assert_eq!((a.sigma_m, a.sigma_end_m), (b.sigma_m, b.sigma_end_m), "RMS {r}");
         }
     }
 
