@@ -101,8 +101,12 @@ pub(super) fn from_rectangles(view: &WallView, centres: &[Vec3]) -> Vec<(Rect, f
             .then(p[0].total_cmp(&q[0]))
             .then(p[2].total_cmp(&q[2]))
     });
+    let rects: Vec<[f64; 4]> = found.iter().map(|f| f.0.bounds).collect();
     let mut kept: Vec<(Rect, f64, Option<Vec3>)> = Vec::new();
     for (rect, depth, sigma) in found {
+        if holds_another_beside(rect.bounds, &rects, view.sizes.frame_m.1, view.sizes.opening_m.0) {
+            continue;
+        }
         let candidate = (widened_to_frame(rect, depth, view, centres).unwrap_or(rect), depth, sigma);
         let [x0, x1, z0, z1] = candidate.0.bounds;
         let (cx, cz) = ((x0 + x1) / 2.0, (z0 + z1) / 2.0);
@@ -114,6 +118,18 @@ pub(super) fn from_rectangles(view: &WallView, centres: &[Vec3]) -> Vec<(Rect, f
         }
     }
     kept
+}
+
+/// Whether another rectangle of `rects` lies inside `outer` (within `reach`, a frame's width) and leaves beside it, or
+/// above or below it, room for a pier of [`MIN_PIER_M`] and another opening of `smallest` metres: then `outer` spans
+/// two openings and the wall between them, which the largest-first choice would take for one wide opening (lines
+/// along the heads of a row of windows, or along two storeys' jambs, cover its sides).
+pub(super) fn holds_another_beside(outer: [f64; 4], rects: &[[f64; 4]], reach: f64, smallest: f64) -> bool {
+    let room = MIN_PIER_M + smallest;
+    rects.iter().filter(|r| **r != outer).any(|r| {
+        let inside = r[0] >= outer[0] - reach && r[1] <= outer[1] + reach && r[2] >= outer[2] - reach && r[3] <= outer[3] + reach;
+        inside && (r[0] - outer[0] >= room || outer[1] - r[1] >= room || r[2] - outer[2] >= room || outer[3] - r[3] >= room)
+    })
 }
 
 /// What a standing side of a rectangle is, told by the frame's other standing edge beside it.
@@ -236,4 +252,25 @@ pub(super) fn widened_to_frame(rect: Rect, depth: f64, view: &WallView, centres:
 pub(super) fn ends_within(side: &Side, lo: f64, hi: f64) -> bool {
     let (from, to) = side.extent();
     from >= lo - MAX_SIDE_GAP_M && to <= hi + MAX_SIDE_GAP_M
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_rectangle_over_an_opening_and_the_pier_beside_it_is_two_openings_not_one() {
+        // Two windows 1.16 m wide with a 1.57 m pier between them, and the rectangle along both heads and feet.
+        let left = [11.69, 12.85, 0.80, 2.03];
+        let wide = [11.78, 15.50, 0.88, 1.92];
+        assert!(holds_another_beside(wide, &[wide, left], 0.15, 0.8));
+        // The window itself holds its frame's glazing (a frame's width inside) and nothing beside it.
+        let glazing = [11.75, 12.79, 0.86, 1.97];
+        assert!(!holds_another_beside(left, &[left, glazing], 0.15, 0.8));
+        // A storey above is beside it too; a rectangle farther than a frame's width outside is not inside.
+        let tall = [11.69, 12.85, 0.80, 6.0];
+        assert!(holds_another_beside(tall, &[tall, left], 0.15, 0.8));
+        let off = [11.40, 12.85, 0.80, 2.03];
+        assert!(!holds_another_beside(wide, &[wide, off], 0.15, 0.8));
+    }
 }
