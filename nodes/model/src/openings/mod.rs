@@ -44,8 +44,8 @@ const MAX_FLUSH_LEVELS: usize = 6;
 /// Openings of one column have their sides within this of each other, and those of one row their foot and top,
 /// metres ([`grid`]).
 const GRID_TOLERANCE_M: f64 = 0.06;
-/// The narrowest wall between two openings side by side or one above the other, metres ([`rectangles::holds_another_beside`]): a
-/// frame's mullion or transom is narrower.
+/// The narrowest wall between two openings side by side or one above the other, metres
+/// ([`rectangles::holds_another_beside`]): a frame's mullion or transom is narrower.
 const MIN_PIER_M: f64 = 0.3;
 /// Pieces of one side leave gaps of at most this, metres.
 const MAX_SIDE_GAP_M: f64 = 0.3;
