@@ -954,11 +954,14 @@ pub fn lines_from_rows(rows: &[lineflow_formats::Line3Row], params: &ModelParams
     };
     rows.iter()
         .zip(classes)
-        .map(|(r, class)| ModelLine {
-            // Without statistics the endpoints themselves carry `sigma_m`, along the line too.
-            sigma_end_m: params.fitted_sigma(r.rms_m, r.n_points).is_none().then_some(params.sigma_m),
-            texture: class == LineClass::Texture,
-            ..ModelLine::new(r.start, r.end, params.line_sigma(r.rms_m, r.n_points))
+        .map(|(r, class)| {
+            let fitted = params.fitted_sigma(r.rms_m, r.n_points);
+            ModelLine {
+                // Without statistics the endpoints themselves carry `sigma_m`, along the line too.
+                sigma_end_m: fitted.is_none().then_some(params.sigma_m),
+                texture: class == LineClass::Texture,
+                ..ModelLine::new(r.start, r.end, fitted.unwrap_or(params.sigma_m))
+            }
         })
         .collect()
 }
