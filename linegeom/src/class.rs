@@ -13,6 +13,12 @@
 //! cameras at hand ([`Sight`]), a line that fewer than `min_support` of the images seeing it show is texture too,
 //! unless it turns a corner with a line that passes.
 //!
+//! Where the line stages placed a joint at a wrong depth behind its wall (a horizontal line's depth from two strips
+//! a few metres apart is open to decimetres), it has no field of its own, yet the wall's courses still lie on both
+//! sides of it, between it and the cameras: no image could see a line there through a solid wall. With the cameras
+//! at hand such a line is texture. A recessed edge inside an opening has the courses on one side at most (a head
+//! below them, a sill above them) or none (a transom).
+//!
 //! Measured at scale 0.3 (docs/lines3d.md, "Structure and texture"): 48–65 % of the lines of brick façades are
 //! classed texture by their field, of which 0.1–0.5 % are true edges; plaster façades have next to none.
 use lineflow_messages::LineClass;
@@ -40,6 +46,9 @@ pub struct ClassRule {
     /// must show it (`n_images`) for it to be structure, unless it turns a corner with a line that passes;
     /// 0 turns the test off.
     pub min_support: f64,
+    /// With the cameras known: a line lying behind a field (between it and the cameras, more than half of
+    /// `band_m` and at most this far behind it) is texture, metres; 0 turns the test off.
+    pub behind_m: f64,
 }
 
 impl Default for ClassRule {
@@ -51,6 +60,7 @@ impl Default for ClassRule {
             corner_m: 0.15,
             parallel_deg: 8.0,
             min_support: 0.67,
+            behind_m: 0.6,
         }
     }
 }
@@ -77,6 +87,9 @@ impl ClassRule {
                 value,
             })
         };
+        if !(self.behind_m.is_finite() && self.behind_m >= 0.0) {
+            return bad("behind_m", ">= 0", self.behind_m.to_string());
+        }
         for (name, v) in [("reach_m", self.reach_m), ("band_m", self.band_m), ("corner_m", self.corner_m)] {
             if !(v.is_finite() && v > 0.0) {
                 return bad(name, "> 0", v.to_string());
@@ -115,6 +128,11 @@ impl Sight<'_> {
     pub fn images_seeing(&self, line: &[Vec3; 2]) -> u32 {
         let inside = |pose: &Pose, p: &Vec3| pose.project(self.camera, p).is_some_and(|px| self.camera.contains(px, 0.0));
         self.poses.iter().filter(|pose| line.iter().all(|p| inside(pose, p))).count() as u32
+    }
+
+    /// The mean of the cameras' centres, if there are any.
+    pub fn mean_center(&self) -> Option<Vec3> {
+        (!self.poses.is_empty()).then(|| self.poses.iter().map(|p| p.center).sum::<Vec3>() / self.poses.len() as f64)
     }
 
     /// Metres per pixel at `point` in the nearest of the images (infinite with none).
@@ -162,6 +180,9 @@ fn by_field(lines: &[[Vec3; 2]], rule: &ClassRule) -> (Vec<LineClass>, Grid) {
 /// texture, unless an end of it lies within `corner_m` of an end of a line across it that keeps its class.
 pub fn classify_supported(lines: &[[Vec3; 2]], shown: &[u32], sight: Option<Sight>, rule: &ClassRule) -> Vec<LineClass> {
     let (mut class, grid) = by_field(lines, rule);
+    if let Some(cameras) = sight.filter(|_| rule.behind_m > 0.0).and_then(|s| s.mean_center()) {
+        hidden_behind_fields(lines, &mut class, &cameras, rule);
+    }
     let Some(sight) = sight.filter(|_| rule.min_support > 0.0) else {
         return class;
     };
@@ -245,6 +266,109 @@ fn in_a_field(lines: &[[Vec3; 2]], k: usize, u: &Vec3, near: &[usize], rule: &Cl
         }
     }
     one_side.min(other_side) >= half
+}
+
+/// The structure lines that lie behind a field, seen from `cameras`, become texture ([`behind_a_field`]).
+fn hidden_behind_fields(lines: &[[Vec3; 2]], class: &mut [LineClass], cameras: &Vec3, rule: &ClassRule) {
+    use rayon::prelude::*;
+    let grid = Grid::of(lines, rule.reach_m.max(rule.behind_m));
+    let structure: Vec<usize> = (0..lines.len()).filter(|&k| class[k] == LineClass::Structure).collect();
+    let hidden: Vec<usize> = structure
+        .par_iter()
+        .map_init(
+            || (vec![usize::MAX; lines.len()], Vec::new()),
+            |(seen, near), &k| {
+                let u = direction(&lines[k])?;
+                near.clear();
+                grid.near(&lines[k], k, seen, near);
+                behind_a_field(lines, k, &u, near, cameras, rule).then_some(k)
+            },
+        )
+        .flatten()
+        .collect();
+    for k in hidden {
+        class[k] = LineClass::Texture;
+    }
+}
+
+/// Whether line `k` lies behind a field seen from `cameras`: parallel lines overlapping it along its length, at
+/// least half of `neighbours` on each side of it within `reach_m` along one surface through its
+/// direction (within a quarter of `band_m` of it), with the line more than half of `band_m` and at most `behind_m`
+/// behind that surface, on the side away from the cameras. The surface is the one through two of the neighbours
+/// that holds the most of them (the lines around a window hold a wall's courses and the recess's lines at once).
+fn behind_a_field(lines: &[[Vec3; 2]], k: usize, u: &Vec3, near: &[usize], cameras: &Vec3, rule: &ClassRule) -> bool {
+    let [a, b] = lines[k];
+    let length = (b - a).norm();
+    let cos = rule.parallel_deg.to_radians().cos();
+    let (e1, e2) = across_basis(u);
+    let reach = rule.reach_m.hypot(rule.behind_m);
+    let offsets: Vec<[f64; 2]> = near
+        .iter()
+        .filter_map(|&j| {
+            let [p, q] = lines[j];
+            let v = direction(&lines[j])?;
+            let (tp, tq) = ((p - a).dot(u), (q - a).dot(u));
+            let overlaps = tp.min(tq).max(0.0) < tp.max(tq).min(length);
+            let w = (p + q) / 2.0 - a;
+            let off = [w.dot(&e1), w.dot(&e2)];
+            (v.dot(u).abs() >= cos && overlaps && off[0].hypot(off[1]) <= reach).then_some(off)
+        })
+        .collect();
+    let half = rule.neighbours.div_ceil(2);
+    if offsets.len() < 2 * half {
+        return false;
+    }
+    let tight = rule.band_m / 4.0;
+    let mut best: Option<(usize, [f64; 2], [f64; 2])> = None;
+    for (i, o) in offsets.iter().enumerate() {
+        for q in &offsets[i + 1..] {
+            let d = [q[0] - o[0], q[1] - o[1]];
+            let n = d[0].hypot(d[1]);
+            if n < 2.0 * SAME_LINE_M {
+                continue;
+            }
+            let along = [d[0] / n, d[1] / n];
+            let out = [-along[1], along[0]];
+            let held = offsets
+                .iter()
+                .filter(|r| ((r[0] - o[0]) * out[0] + (r[1] - o[1]) * out[1]).abs() <= tight)
+                .count();
+            if best.is_none_or(|(h, _, _)| held > h) {
+                best = Some((held, *o, along));
+            }
+        }
+    }
+    let Some((_, o, along)) = best.filter(|(held, _, _)| *held >= 2 * half) else {
+        return false;
+    };
+    let out = [-along[1], along[0]];
+    // The line itself is at offset (0, 0): its foot on the surface and its distance from it.
+    let foot = -(o[0] * along[0] + o[1] * along[1]);
+    let apart = -(o[0] * out[0] + o[1] * out[1]);
+    if apart.abs() <= rule.band_m / 2.0 || apart.abs() > rule.behind_m {
+        return false;
+    }
+    let (mut one_side, mut other_side) = (0, 0);
+    for r in &offsets {
+        let (x, y) = (
+            (r[0] - o[0]) * along[0] + (r[1] - o[1]) * along[1],
+            (r[0] - o[0]) * out[0] + (r[1] - o[1]) * out[1],
+        );
+        if y.abs() <= tight && (x - foot).abs() <= rule.reach_m {
+            if x > foot {
+                one_side += 1;
+            } else if x < foot {
+                other_side += 1;
+            }
+        }
+    }
+    if one_side.min(other_side) < half {
+        return false;
+    }
+    // The surface's normal in space; the line and the cameras on opposite sides of it.
+    let normal = e1 * out[0] + e2 * out[1];
+    let on_surface = a + e1 * o[0] + e2 * o[1];
+    apart * (cameras - on_surface).dot(&normal) < 0.0
 }
 
 /// Two unit vectors completing `u` to an orthonormal frame.
@@ -362,6 +486,47 @@ mod tests {
     }
 
     #[test]
+    fn a_line_behind_the_courses_is_texture_seen_from_the_cameras_and_a_recessed_head_or_sill_is_not() {
+        let strip = Strip::new();
+        let sight = strip.sight();
+        // Courses cut by a window from x = 4 to 5.4 m, z = 0.9 to 2.4 m.
+        let mut lines: Vec<[Vec3; 2]> = Vec::new();
+        for l in courses() {
+            if (0.9..=2.4).contains(&l[0].z) {
+                lines.extend([level(0.0, 4.0, 0.0, l[0].z), level(5.4, 10.0, 0.0, l[0].z)]);
+            } else {
+                lines.push(l);
+            }
+        }
+        // A joint matched at a wrong depth, 20 cm behind the wall; the same 20 cm in front of it (a line there
+        // could be seen); the recess's head and sill 25 cm behind the wall, the courses above the head only and
+        // below the sill only.
+        let first = lines.len();
+        lines.extend([level(2.0, 3.0, 0.2, 1.5), level(2.0, 3.0, -0.2, 1.5)]);
+        let recess = lines.len();
+        lines.extend([level(4.0, 5.4, 0.25, 2.4), level(4.0, 5.4, 0.25, 0.9)]);
+        let shown = vec![9; lines.len()];
+        let class = classify_supported(&lines, &shown, Some(sight), &ClassRule::default());
+        assert_eq!(class[first], LineClass::Texture, "behind the wall");
+        assert_eq!(class[first + 1], LineClass::Structure, "in front of the wall");
+        assert_eq!(class[recess], LineClass::Structure, "the recess's head");
+        assert_eq!(class[recess + 1], LineClass::Structure, "the recess's sill");
+        // Without the cameras there is no behind; with the test off, none either.
+        assert_eq!(classify(&lines, &ClassRule::default())[first], LineClass::Structure);
+        let off = ClassRule {
+            behind_m: 0.0,
+            ..ClassRule::default()
+        };
+        assert_eq!(classify_supported(&lines, &shown, Some(sight), &off)[first], LineClass::Structure);
+        // Farther behind than `behind_m`: another surface (a courtyard's wall seen over a low one), not hidden.
+        let far = ClassRule {
+            behind_m: 0.15,
+            ..ClassRule::default()
+        };
+        assert_eq!(classify_supported(&lines, &shown, Some(sight), &far)[first], LineClass::Structure);
+    }
+
+    #[test]
     fn a_course_that_ends_at_a_corner_is_structure_and_one_that_runs_past_a_line_is_not() {
         let mut lines = courses();
         // A plumb line whose end meets the 20th course's end: a corner. One crossing the 10th in its middle: no
@@ -464,6 +629,11 @@ mod tests {
             ..ClassRule::default()
         };
         assert_eq!(bad.validate().unwrap_err().name, "class.min_support");
+        let bad = ClassRule {
+            behind_m: -0.1,
+            ..ClassRule::default()
+        };
+        assert_eq!(bad.validate().unwrap_err().name, "class.behind_m");
         assert!(ClassRule::default().validate().is_ok());
     }
 }
