@@ -18,9 +18,9 @@ pub(super) fn from_grid(view: &WallView, taken: &[[f64; 4]], near: &Vec3, eviden
     let columns = with_counts(ranges(taken.iter().map(|b| [b[0], b[1]])), |found| {
         repeated(found, across, view.sizes.opening_m.0)
     });
-    // A storey is known from two of its openings; one alone may be anything at the height of nothing else (a
-    // balcony's rail, the panes above a door), and one the storeys' spacing predicts is known from none, so their
-    // cells need all four sides seen.
+    // A storey is known from two of its openings (in any of its rows, [`storey_count`]); one alone may be anything
+    // at the height of nothing else (a balcony's rail, the panes above a door), and one the storeys' spacing
+    // predicts is known from none, so their cells need all four sides seen.
     let lying = view.lying.iter().chain(&view.lying_on_wall);
     let height = span(lying.map(|s| s.at));
     let rows = with_counts(ranges(taken.iter().map(|b| [b[2], b[3]])), |found| {
@@ -29,7 +29,8 @@ pub(super) fn from_grid(view: &WallView, taken: &[[f64; 4]], near: &Vec3, eviden
     let overlaps = |a: &[f64; 4], b: &[f64; 4]| a[0] < b[1] && b[0] < a[1] && a[2] < b[3] && b[2] < a[3];
     let mut out: Vec<Rect> = Vec::new();
     for &([x0, x1], _) in &columns {
-        for &([z0, z1], openings) in &rows {
+        for &([z0, z1], _) in &rows {
+            let openings = storey_count(&rows, [z0, z1]);
             let bounds = [x0, x1, z0, z1];
             if taken.iter().chain(out.iter().map(|r| &r.bounds)).any(|b| overlaps(b, &bounds)) {
                 continue;
@@ -45,6 +46,20 @@ pub(super) fn from_grid(view: &WallView, taken: &[[f64; 4]], near: &Vec3, eviden
     }
     out
 }
+
+/// The openings found in the storey of row `range`: its own and those of every row sharing most of its height (a
+/// foot found on a sill's lower edge, 9 cm below the others, makes a row of its own, yet the storey is known from
+/// both).
+fn storey_count(rows: &[([f64; 2], usize)], range: [f64; 2]) -> usize {
+    let shared = |r: &[f64; 2]| r[1].min(range[1]) - r[0].max(range[0]);
+    rows.iter()
+        .filter(|(r, _)| shared(r) >= STOREY_SHARE * (r[1] - r[0]).min(range[1] - range[0]))
+        .map(|(_, n)| n)
+        .sum()
+}
+
+/// Rows sharing this much of the shorter one's height are one storey ([`storey_count`]).
+const STOREY_SHARE: f64 = 0.8;
 
 /// The distinct intervals among `intervals`: those whose ends both lie within [`GRID_TOLERANCE_M`] of a group's
 /// mean are one, at their mean. In order of their start.
@@ -231,4 +246,24 @@ fn seen_sides(view: &WallView, [x0, x1, z0, z1]: [f64; 4], near: &Vec3, evidence
     .into_iter()
     .filter(|&s| s)
     .count()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_storey_counts_the_openings_of_every_row_sharing_most_of_its_height() {
+        // A ground floor found twice, once on the opening's foot and once on its sill's lower edge 9 cm below, and
+        // the storey above it: the two lower rows are one storey of two openings, the upper row one of three.
+        let rows = [([0.67, 1.95], 1), ([0.57, 1.95], 1), ([3.95, 5.28], 3)];
+        assert_eq!(storey_count(&rows, [0.67, 1.95]), 2);
+        assert_eq!(storey_count(&rows, [0.57, 1.95]), 2);
+        assert_eq!(storey_count(&rows, [3.95, 5.28]), 3);
+        // A row overlapping another by less than STOREY_SHARE of the shorter is another storey (a door beside
+        // windows set higher).
+        let rows = [([0.0, 2.2], 1), ([1.2, 2.5], 2)];
+        assert_eq!(storey_count(&rows, [0.0, 2.2]), 1);
+        assert_eq!(storey_count(&rows, [1.2, 2.5]), 2);
+    }
 }
