@@ -222,17 +222,14 @@ fn direction(l: &[Vec3; 2]) -> Option<Vec3> {
     (n > 1e-9).then(|| d / n)
 }
 
-/// Whether line `k` lies in a field: its parallel neighbours that overlap it along its length lie in one surface
-/// through it (the principal direction of their offsets across it), within `reach_m` on both sides and `band_m`
-/// out of that surface, at least half of `neighbours` on each side.
-fn in_a_field(lines: &[[Vec3; 2]], k: usize, u: &Vec3, near: &[usize], rule: &ClassRule) -> bool {
+/// The offsets across line `k` (in [`across_basis`] of its direction `u`, from its start) of the midpoints of its
+/// parallel neighbours among `near` that overlap it along its length, within `reach` of it.
+fn parallel_offsets(lines: &[[Vec3; 2]], k: usize, u: &Vec3, near: &[usize], rule: &ClassRule, reach: f64) -> Vec<[f64; 2]> {
     let [a, b] = lines[k];
     let length = (b - a).norm();
     let cos = rule.parallel_deg.to_radians().cos();
     let (e1, e2) = across_basis(u);
-    let reach = rule.reach_m.hypot(rule.band_m);
-    let offsets: Vec<[f64; 2]> = near
-        .iter()
+    near.iter()
         .filter_map(|&j| {
             let [p, q] = lines[j];
             let v = direction(&lines[j])?;
@@ -240,10 +237,17 @@ fn in_a_field(lines: &[[Vec3; 2]], k: usize, u: &Vec3, near: &[usize], rule: &Cl
             let overlaps = tp.min(tq).max(0.0) < tp.max(tq).min(length);
             let w = (p + q) / 2.0 - a;
             let off = [w.dot(&e1), w.dot(&e2)];
-            let dist = off[0].hypot(off[1]);
-            (v.dot(u).abs() >= cos && overlaps && dist <= reach && dist > SAME_LINE_M).then_some(off)
+            (v.dot(u).abs() >= cos && overlaps && off[0].hypot(off[1]) <= reach).then_some(off)
         })
-        .collect();
+        .collect()
+}
+
+/// Whether line `k` lies in a field: its parallel neighbours that overlap it along its length lie in one surface
+/// through it (the principal direction of their offsets across it), within `reach_m` on both sides and `band_m`
+/// out of that surface, at least half of `neighbours` on each side.
+fn in_a_field(lines: &[[Vec3; 2]], k: usize, u: &Vec3, near: &[usize], rule: &ClassRule) -> bool {
+    let mut offsets = parallel_offsets(lines, k, u, near, rule, rule.reach_m.hypot(rule.band_m));
+    offsets.retain(|o| o[0].hypot(o[1]) > SAME_LINE_M);
     let half = rule.neighbours.div_ceil(2);
     if offsets.len() < 2 * half {
         return false;
@@ -297,23 +301,9 @@ fn hidden_behind_fields(lines: &[[Vec3; 2]], class: &mut [LineClass], cameras: &
 /// behind that surface, on the side away from the cameras. The surface is the one through two of the neighbours
 /// that holds the most of them (the lines around a window hold a wall's courses and the recess's lines at once).
 fn behind_a_field(lines: &[[Vec3; 2]], k: usize, u: &Vec3, near: &[usize], cameras: &Vec3, rule: &ClassRule) -> bool {
-    let [a, b] = lines[k];
-    let length = (b - a).norm();
-    let cos = rule.parallel_deg.to_radians().cos();
+    let a = lines[k][0];
     let (e1, e2) = across_basis(u);
-    let reach = rule.reach_m.hypot(rule.behind_m);
-    let offsets: Vec<[f64; 2]> = near
-        .iter()
-        .filter_map(|&j| {
-            let [p, q] = lines[j];
-            let v = direction(&lines[j])?;
-            let (tp, tq) = ((p - a).dot(u), (q - a).dot(u));
-            let overlaps = tp.min(tq).max(0.0) < tp.max(tq).min(length);
-            let w = (p + q) / 2.0 - a;
-            let off = [w.dot(&e1), w.dot(&e2)];
-            (v.dot(u).abs() >= cos && overlaps && off[0].hypot(off[1]) <= reach).then_some(off)
-        })
-        .collect();
+    let offsets = parallel_offsets(lines, k, u, near, rule, rule.reach_m.hypot(rule.behind_m));
     let half = rule.neighbours.div_ceil(2);
     if offsets.len() < 2 * half {
         return false;
