@@ -16,7 +16,7 @@
 //! Where the line stages placed a joint at a wrong depth behind its wall (a horizontal line's depth from two strips
 //! a few metres apart is open to decimetres), it has no field of its own, yet the wall's courses still lie on both
 //! sides of it, between it and the cameras: no image could see a line there through a solid wall. With the cameras
-//! at hand such a line is texture. A recessed edge inside an opening has the courses on one side at most (a head
+//! at hand and `behind_m` set, such a line is texture (off by default: it costs the model openings). A recessed edge inside an opening has the courses on one side at most (a head
 //! below them, a sill above them) or none (a transom).
 //!
 //! Measured at scale 0.3 (docs/lines3d.md, "Structure and texture"): 48–65 % of the lines of brick façades are
@@ -47,7 +47,8 @@ pub struct ClassRule {
     /// 0 turns the test off.
     pub min_support: f64,
     /// With the cameras known: a line lying behind a field (between it and the cameras, more than half of
-    /// `band_m` and at most this far behind it) is texture, metres; 0 turns the test off.
+    /// `band_m` and at most this far behind it) is texture, metres; 0, the default, turns the test off (it costs
+    /// the model openings, docs/lines3d.md "Behind a field"; 0.6 is the measured setting).
     pub behind_m: f64,
 }
 
@@ -60,7 +61,7 @@ impl Default for ClassRule {
             corner_m: 0.15,
             parallel_deg: 8.0,
             min_support: 0.67,
-            behind_m: 0.6,
+            behind_m: 0.0,
         }
     }
 }
@@ -496,18 +497,21 @@ mod tests {
         let recess = lines.len();
         lines.extend([level(4.0, 5.4, 0.25, 2.4), level(4.0, 5.4, 0.25, 0.9)]);
         let shown = vec![9; lines.len()];
-        let class = classify_supported(&lines, &shown, Some(sight), &ClassRule::default());
+        let rule = ClassRule {
+            behind_m: 0.6,
+            ..ClassRule::default()
+        };
+        let class = classify_supported(&lines, &shown, Some(sight), &rule);
         assert_eq!(class[first], LineClass::Texture, "behind the wall");
         assert_eq!(class[first + 1], LineClass::Structure, "in front of the wall");
         assert_eq!(class[recess], LineClass::Structure, "the recess's head");
         assert_eq!(class[recess + 1], LineClass::Structure, "the recess's sill");
-        // Without the cameras there is no behind; with the test off, none either.
-        assert_eq!(classify(&lines, &ClassRule::default())[first], LineClass::Structure);
-        let off = ClassRule {
-            behind_m: 0.0,
-            ..ClassRule::default()
-        };
-        assert_eq!(classify_supported(&lines, &shown, Some(sight), &off)[first], LineClass::Structure);
+        // Without the cameras there is no behind; with the test off (the default), none either.
+        assert_eq!(classify(&lines, &rule)[first], LineClass::Structure);
+        assert_eq!(
+            classify_supported(&lines, &shown, Some(sight), &ClassRule::default())[first],
+            LineClass::Structure
+        );
         // Farther behind than `behind_m`: another surface (a courtyard's wall seen over a low one), not hidden.
         let far = ClassRule {
             behind_m: 0.15,
