@@ -16,8 +16,9 @@
 //! Where the line stages placed a joint at a wrong depth behind its wall (a horizontal line's depth from two strips
 //! a few metres apart is open to decimetres), it has no field of its own, yet the wall's courses still lie on both
 //! sides of it, between it and the cameras: no image could see a line there through a solid wall. With the cameras
-//! at hand and `behind_m` set, such a line is texture (off by default: it costs the model openings). A recessed edge inside an opening has the courses on one side at most (a head
-//! below them, a sill above them) or none (a transom).
+//! at hand and `behind_m` set, such a line is texture (off by default: it costs the model openings). A recessed
+//! edge inside an opening has the courses on one side at most (a head below them, a sill above them) or none (a
+//! transom).
 //!
 //! Measured at scale 0.3 (docs/lines3d.md, "Structure and texture"): 48–65 % of the lines of brick façades are
 //! classed texture by their field, of which 0.1–0.5 % are true edges; plaster façades have next to none.
@@ -310,6 +311,11 @@ fn behind_a_field(lines: &[[Vec3; 2]], k: usize, u: &Vec3, near: &[usize], camer
         return false;
     }
     let tight = rule.band_m / 4.0;
+    // An offset's position along the surface through `o` with direction `along`, and its distance from it.
+    let on = |r: &[f64; 2], o: &[f64; 2], along: &[f64; 2]| {
+        let d = [r[0] - o[0], r[1] - o[1]];
+        (d[0] * along[0] + d[1] * along[1], d[1] * along[0] - d[0] * along[1])
+    };
     let mut best: Option<(usize, [f64; 2], [f64; 2])> = None;
     for (i, o) in offsets.iter().enumerate() {
         for q in &offsets[i + 1..] {
@@ -319,11 +325,7 @@ fn behind_a_field(lines: &[[Vec3; 2]], k: usize, u: &Vec3, near: &[usize], camer
                 continue;
             }
             let along = [d[0] / n, d[1] / n];
-            let out = [-along[1], along[0]];
-            let held = offsets
-                .iter()
-                .filter(|r| ((r[0] - o[0]) * out[0] + (r[1] - o[1]) * out[1]).abs() <= tight)
-                .count();
+            let held = offsets.iter().filter(|r| on(r, o, &along).1.abs() <= tight).count();
             if best.is_none_or(|(h, _, _)| held > h) {
                 best = Some((held, *o, along));
             }
@@ -332,19 +334,14 @@ fn behind_a_field(lines: &[[Vec3; 2]], k: usize, u: &Vec3, near: &[usize], camer
     let Some((_, o, along)) = best.filter(|(held, _, _)| *held >= 2 * half) else {
         return false;
     };
-    let out = [-along[1], along[0]];
     // The line itself is at offset (0, 0): its foot on the surface and its distance from it.
-    let foot = -(o[0] * along[0] + o[1] * along[1]);
-    let apart = -(o[0] * out[0] + o[1] * out[1]);
+    let (foot, apart) = on(&[0.0, 0.0], &o, &along);
     if apart.abs() <= rule.band_m / 2.0 || apart.abs() > rule.behind_m {
         return false;
     }
     let (mut one_side, mut other_side) = (0, 0);
     for r in &offsets {
-        let (x, y) = (
-            (r[0] - o[0]) * along[0] + (r[1] - o[1]) * along[1],
-            (r[0] - o[0]) * out[0] + (r[1] - o[1]) * out[1],
-        );
+        let (x, y) = on(r, &o, &along);
         if y.abs() <= tight && (x - foot).abs() <= rule.reach_m {
             if x > foot {
                 one_side += 1;
@@ -356,8 +353,8 @@ fn behind_a_field(lines: &[[Vec3; 2]], k: usize, u: &Vec3, near: &[usize], camer
     if one_side.min(other_side) < half {
         return false;
     }
-    // The surface's normal in space; the line and the cameras on opposite sides of it.
-    let normal = e1 * out[0] + e2 * out[1];
+    // The surface's normal in space (`on`'s second coordinate); the line and the cameras on opposite sides of it.
+    let normal = e2 * along[0] - e1 * along[1];
     let on_surface = a + e1 * o[0] + e2 * o[1];
     apart * (cameras - on_surface).dot(&normal) < 0.0
 }
