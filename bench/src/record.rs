@@ -161,6 +161,7 @@ pub fn bench_record(frames: usize, source: FrameSource, width: u32, height: u32,
                 echo_logs: true,
                 node_log_level: None,
                 connect_timeout: None,
+                chaos: Vec::new(),
             },
         )?;
         let ended = now_ns();

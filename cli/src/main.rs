@@ -88,6 +88,10 @@ enum Cmd {
         /// Output folder of the run.
         #[arg(long, default_value = "out")]
         out: PathBuf,
+        /// Inject a fault: SIGKILL node NODE once it has received frame FRAME, or with `:stop=S` SIGSTOP it for S
+        /// seconds and continue it (tries the launch file's restart policies; docs/launch.md). Repeatable.
+        #[arg(long, value_name = "NODE@FRAME[:stop=S]")]
+        chaos: Vec<lineflow_runtime::chaos::Fault>,
         #[command(flatten)]
         view: ViewArgs,
         #[command(flatten)]
@@ -380,9 +384,10 @@ fn main() -> ExitCode {
             graph,
             set,
             out,
+            chaos,
             view,
             verbosity,
-        } => run::run(&graph, &view.with_sets(&set), &out, None, verbosity.into()),
+        } => run::run(&graph, &view.with_sets(&set), &out, None, verbosity.into(), &chaos),
         Cmd::Process {
             folder,
             out,

@@ -1,6 +1,7 @@
 //! The lineflow runtime: node SDK over iceoryx2, launch graphs, and the supervisor that runs them.
 #![warn(missing_docs)]
 
+pub mod chaos;
 pub mod console;
 pub mod describe;
 pub mod env;

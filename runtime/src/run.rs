@@ -6,6 +6,7 @@ use std::process::ExitCode;
 
 use anyhow::Result;
 
+use crate::chaos::Fault;
 use crate::launch;
 use crate::supervisor::{self, RunOptions};
 
@@ -23,6 +24,17 @@ pub struct Verbosity {
 /// Runs a resolved graph; prints the per-node summary and writes it to `out/summary.txt`. The nodes' lines are
 /// shown above a progress line and kept in `out/logs/NODE.log`.
 pub fn run_graph(g: &launch::Graph, out: &Path, expected_frames: Option<u64>, verbosity: Verbosity) -> Result<ExitCode> {
+    run_graph_with_faults(g, out, expected_frames, verbosity, &[])
+}
+
+/// [`run_graph`] with faults injected (`lineflow run --chaos`); the summary says which struck.
+pub fn run_graph_with_faults(
+    g: &launch::Graph,
+    out: &Path,
+    expected_frames: Option<u64>,
+    verbosity: Verbosity,
+    chaos: &[Fault],
+) -> Result<ExitCode> {
     let opts = RunOptions {
         out: out.to_owned(),
         expected_frames,
@@ -30,9 +42,20 @@ pub fn run_graph(g: &launch::Graph, out: &Path, expected_frames: Option<u64>, ve
         echo_logs: !verbosity.quiet,
         node_log_level: (verbosity.verbose && std::env::var_os("LINEFLOW_LOG").is_none()).then(|| "debug".into()),
         connect_timeout: None,
+        chaos: chaos.to_vec(),
     };
     let outcome = supervisor::run(g, &opts)?;
-    let table = outcome.table();
+    let mut table = outcome.table();
+    for (fault, struck) in &outcome.faults {
+        table += &format!(
+            "chaos: {fault}: {}\n",
+            if *struck {
+                "struck"
+            } else {
+                "did not strike (the node ended first)"
+            }
+        );
+    }
     let json = outcome.json(&g.source).to_string();
     if verbosity.json {
         println!("{json}");

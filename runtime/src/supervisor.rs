@@ -11,6 +11,7 @@ use anyhow::{bail, Context, Result};
 use iceoryx2::prelude::*;
 use lineflow_messages::NodeStatus;
 
+use crate::chaos::{Action, Fault};
 use crate::console::{clear_logs, log_path, progress_line, relay, Console, NodeProgress};
 use crate::describe::Ports;
 use crate::env;
@@ -34,6 +35,8 @@ pub struct RunOptions {
     pub node_log_level: Option<String>,
     /// How long nodes may take to connect.
     pub connect_timeout: Option<Duration>,
+    /// Faults to inject (`--chaos`).
+    pub chaos: Vec<Fault>,
 }
 
 /// How one node ended.
@@ -94,6 +97,8 @@ pub struct Outcome {
     pub nodes: Vec<NodeSummary>,
     /// Wall time.
     pub wall: Duration,
+    /// The injected faults (`--chaos`), each with whether it struck (a node may finish before its frame).
+    pub faults: Vec<(Fault, bool)>,
 }
 
 impl Outcome {
@@ -169,6 +174,13 @@ impl Outcome {
             "error": self.error,
             "wall_s": self.wall.as_secs_f64(),
             "nodes": nodes,
+            "chaos": self.faults.iter().map(|(f, struck)| serde_json::json!({
+                "node": f.node,
+                "frame": f.frame,
+                "action": match f.action { Action::Kill => "kill", Action::Stop(_) => "stop" },
+                "stop_s": match f.action { Action::Kill => None, Action::Stop(d) => Some(d.as_secs_f64()) },
+                "struck": struck,
+            })).collect::<Vec<_>>(),
         })
     }
 }
@@ -302,6 +314,16 @@ struct Child {
 }
 
 impl Child {
+    /// The furthest frame received on any input, plus 1 (0: none yet).
+    fn frames(&self) -> u64 {
+        let s = &self.current;
+        s.last_frame_plus1[..(s.n_inputs as usize).min(NodeStatus::MAX_INPUTS)]
+            .iter()
+            .copied()
+            .max()
+            .unwrap_or(0)
+    }
+
     /// Whether the node has reported its work finished, or exited cleanly.
     fn finished(&self) -> bool {
         self.current.flags & NodeStatus::FINISHED != 0 || self.end == NodeEnd::Finished
@@ -340,6 +362,16 @@ impl Child {
 /// Set-up failures (ports, shared memory, spawning); node failures are reported in the [`Outcome`].
 pub fn run(graph: &Graph, opts: &RunOptions) -> Result<Outcome> {
     let started = Instant::now();
+    if let Some(f) = opts.chaos.iter().find(|f| !graph.nodes.iter().any(|n| n.name == f.node)) {
+        let names: Vec<&str> = graph.nodes.iter().map(|n| n.name.as_str()).collect();
+        bail!(
+            "--chaos {}@{}: the graph has no node '{}' (its nodes: {})",
+            f.node,
+            f.frame,
+            f.node,
+            names.join(", ")
+        );
+    }
     raise_open_files_limit();
     let run = RunRecord::create(&opts.out)?;
     let mut graph = graph.clone();
@@ -479,8 +511,12 @@ fn supervise(graph: &Graph, run: &RunRecord, ports: &BTreeMap<String, Ports>, op
     }
 
     let mut progress = opts.progress.then(|| Progress::new(opts.expected_frames, console.is_tty()));
+    let mut chaos = Injector::new(&opts.chaos);
     loop {
         drain_status(&status_sub, &mut children);
+        if error.is_none() {
+            chaos.strike(&children, graph);
+        }
         if error.is_none() {
             if let Some(f) = reap(&mut children, true) {
                 error = Some(f.message);
@@ -491,6 +527,7 @@ fn supervise(graph: &Graph, run: &RunRecord, ports: &BTreeMap<String, Ports>, op
             }
         }
         if error.is_some() {
+            chaos.continue_stopped();
             stop_all(&mut children);
             break;
         }
@@ -555,7 +592,77 @@ fn supervise(graph: &Graph, run: &RunRecord, ports: &BTreeMap<String, Ports>, op
         error,
         nodes,
         wall: started.elapsed(),
+        faults: chaos.outcome(),
     })
+}
+
+/// The `--chaos` faults of a run: each strikes once, when its node has received its frame.
+struct Injector {
+    faults: Vec<(Fault, bool)>,
+    /// Stopped processes and when to continue them.
+    stopped: Vec<(i32, Instant)>,
+}
+
+impl Injector {
+    fn new(faults: &[Fault]) -> Self {
+        Self {
+            faults: faults.iter().map(|f| (f.clone(), false)).collect(),
+            stopped: Vec::new(),
+        }
+    }
+
+    fn strike(&mut self, children: &[Child], graph: &Graph) {
+        // A source has no inputs to count: it has sent what the furthest stage received.
+        let furthest = children
+            .iter()
+            .filter(|c| !graph.is_source(&c.spec.name))
+            .map(Child::frames)
+            .max()
+            .unwrap_or(0);
+        for (fault, struck) in self.faults.iter_mut().filter(|(_, struck)| !*struck) {
+            let Some(c) = children.iter().find(|c| c.spec.name == fault.node) else {
+                continue;
+            };
+            let frames = if graph.is_source(&c.spec.name) { furthest } else { c.frames() };
+            let Some(pid) = c.pid.filter(|_| frames > fault.frame) else {
+                continue;
+            };
+            tracing::warn!("chaos: {fault} (pid {pid})");
+            // SAFETY: signalling our own child.
+            match fault.action {
+                Action::Kill => unsafe {
+                    libc::kill(pid, libc::SIGKILL);
+                },
+                Action::Stop(pause) => {
+                    unsafe { libc::kill(pid, libc::SIGSTOP) };
+                    self.stopped.push((pid, Instant::now() + pause));
+                }
+            }
+            *struck = true;
+        }
+        let now = Instant::now();
+        self.stopped.retain(|&(pid, until)| {
+            if now < until {
+                return true;
+            }
+            tracing::warn!("chaos: SIGCONT to pid {pid}");
+            // SAFETY: as above.
+            unsafe { libc::kill(pid, libc::SIGCONT) };
+            false
+        });
+    }
+
+    /// Continues every stopped node at once: a run that ends must not leave one stopped.
+    fn continue_stopped(&mut self) {
+        for (pid, _) in self.stopped.drain(..) {
+            // SAFETY: signalling our own child, stopped and so not yet reaped.
+            unsafe { libc::kill(pid, libc::SIGCONT) };
+        }
+    }
+
+    fn outcome(&self) -> Vec<(Fault, bool)> {
+        self.faults.clone()
+    }
 }
 
 /// A run's error with the cause the failed node gave: the last line of its log (`out/logs/NODE.log`), which the
@@ -713,8 +820,10 @@ fn tv(t: libc::timeval) -> Duration {
     Duration::from_secs(t.tv_sec as u64) + Duration::from_micros(t.tv_usec as u64)
 }
 
-/// SIGTERM to every running child, SIGKILL after 5 s.
+/// SIGTERM to every running child, SIGKILL after 5 s. Only these end as `Stopped`: a node killed before (the one
+/// whose failure stops the run) keeps its signal in the summary.
 fn stop_all(children: &mut [Child]) {
+    let running: Vec<bool> = children.iter().map(|c| c.pid.is_some()).collect();
     for c in children.iter_mut() {
         c.restart_at = None;
         if let Some(pid) = c.pid {
@@ -737,7 +846,7 @@ fn stop_all(children: &mut [Child]) {
         reap(children, false);
         std::thread::sleep(Duration::from_millis(5));
     }
-    for c in children.iter_mut() {
+    for (c, _) in children.iter_mut().zip(running).filter(|(_, running)| *running) {
         if matches!(c.end, NodeEnd::Signalled(libc::SIGTERM) | NodeEnd::Signalled(libc::SIGKILL)) {
             c.end = NodeEnd::Stopped;
         }
@@ -790,18 +899,11 @@ impl Progress {
     fn line(&self, children: &[Child], graph: &Graph) -> String {
         let nodes: Vec<NodeProgress> = children
             .iter()
-            .map(|c| {
-                let s = &c.current;
-                NodeProgress {
-                    name: c.spec.name.clone(),
-                    frames: s.last_frame_plus1[..(s.n_inputs as usize).min(NodeStatus::MAX_INPUTS)]
-                        .iter()
-                        .copied()
-                        .max()
-                        .unwrap_or(0),
-                    finished: c.finished(),
-                    tracked: !graph.is_source(&c.spec.name) && !launch::is_observer(&c.spec.name),
-                }
+            .map(|c| NodeProgress {
+                name: c.spec.name.clone(),
+                frames: c.frames(),
+                finished: c.finished(),
+                tracked: !graph.is_source(&c.spec.name) && !launch::is_observer(&c.spec.name),
             })
             .collect();
         // Sources that have ended have published every frame: the furthest stage's count is the total.

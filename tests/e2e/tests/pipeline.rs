@@ -301,6 +301,85 @@ fn a_killed_middle_node_without_history_names_exactly_the_frames_it_missed() {
     assert_nothing_left(&sb, &out);
 }
 
+/// Runs the chain graph (40 frames at 20 frames/s, `gray` restarted on failure) with `lineflow run --chaos`.
+fn chain_with_chaos(sb: &Sandbox, history: usize, chaos: &[&str]) -> (Output, PathBuf, serde_json::Value) {
+    let folder = sb.project(40, 48, 32);
+    let graph = sb.graph("g.toml", &chain_graph(&folder, 20, history));
+    let out = sb.path().join("out");
+    let mut args = vec!["run", graph.to_str().unwrap(), "--out", out.to_str().unwrap()];
+    for c in chaos {
+        args.extend(["--chaos", c]);
+    }
+    let r = sb.run(&args);
+    let summary = std::fs::read_to_string(out.join("summary.json")).map_or(serde_json::Value::Null, |t| serde_json::from_str(&t).unwrap());
+    (r, out, summary)
+}
+
+/// `--chaos`: the supervisor itself kills `gray` after frame 10 and stops `stats` for a second after frame 20; with
+/// history on the edge the restarted `gray` misses nothing, and the summary says both faults struck.
+#[test]
+fn faults_injected_by_run_chaos_strike_once_and_a_restarted_node_misses_nothing() {
+    let sb = Sandbox::new();
+    let (r, out, summary) = chain_with_chaos(&sb, 64, &["gray@10", "stats@20:stop=1"]);
+    assert!(r.status.success(), "run failed");
+    let stderr = String::from_utf8_lossy(&r.stderr);
+    assert!(stderr.contains("chaos: SIGKILL to 'gray' after frame 10: struck"), "{stderr}");
+    assert!(
+        stderr.contains("chaos: SIGSTOP to 'stats' after frame 20 for 1.0 s: struck"),
+        "{stderr}"
+    );
+    let faults = summary["chaos"].as_array().unwrap();
+    assert_eq!(faults.len(), 2);
+    assert!(faults.iter().all(|f| f["struck"] == true), "{faults:?}");
+    assert_eq!(faults[0]["node"], "gray");
+    assert_eq!(faults[1]["stop_s"], 1.0);
+    let row = summary_row(&out, "gray");
+    assert_eq!(
+        (row[8].as_str(), row[9].as_str()),
+        ("1", "-"),
+        "gray restarted once, missed nothing: {row:?}"
+    );
+    assert_eq!(summary_row(&out, "stats")[9], "-", "stats missed frames");
+    let got: Vec<u64> = frames(&out).iter().map(|r| r.0).collect();
+    assert_eq!(got, (0..40).collect::<Vec<_>>(), "every frame exactly once, in order");
+    assert_nothing_left(&sb, &out);
+}
+
+/// A node without a restart policy killed by `--chaos` ends the run with an error naming it; a fault whose frame
+/// never comes is reported as not struck; a fault on a node the graph lacks is refused before anything runs.
+#[test]
+fn run_chaos_names_the_killed_node_and_refuses_an_unknown_one() {
+    let sb = Sandbox::new();
+    let (r, out, summary) = chain_with_chaos(&sb, 0, &["stats@5", "gray@1000"]);
+    assert!(!r.status.success());
+    let stderr = String::from_utf8_lossy(&r.stderr);
+    assert!(stderr.contains("node 'stats' was killed by signal 9"), "{stderr}");
+    assert_eq!(
+        summary_row(&out, "stats")[1..3].join(" "),
+        "signal 9",
+        "the killed node keeps its signal in the summary"
+    );
+    assert!(
+        stderr.contains("chaos: SIGKILL to 'gray' after frame 1000: did not strike"),
+        "{stderr}"
+    );
+    assert_eq!(summary["chaos"][0]["struck"], true);
+
+    let fresh = Sandbox::new();
+    let (r, out, _) = chain_with_chaos(&fresh, 0, &["nosuch@3"]);
+    assert_eq!(r.status.code(), Some(1));
+    let stderr = String::from_utf8_lossy(&r.stderr);
+    assert!(
+        stderr.contains("the graph has no node 'nosuch' (its nodes: capture, gray, stats, recorder)"),
+        "{stderr}"
+    );
+    assert!(!out.join("summary.json").exists());
+    let graph = fresh.path().join("g.toml");
+    let r = fresh.run(&["run", graph.to_str().unwrap(), "--chaos", "gray@x"]);
+    assert_eq!(r.status.code(), Some(2), "clap's usage error");
+    assert!(String::from_utf8_lossy(&r.stderr).contains("the frame is not a whole number"));
+}
+
 #[test]
 fn a_type_mismatched_graph_is_refused_before_any_node_runs() {
     let sb = Sandbox::new();
