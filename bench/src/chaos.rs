@@ -11,6 +11,8 @@ use anyhow::{Context, Result};
 use lineflow_recordings::Recording;
 use lineflow_runtime::launch::{self, Resolver};
 
+use crate::processes::node_pid;
+
 /// Kill points as shares of the undisturbed run's time.
 const POINTS: [f64; 3] = [0.2, 0.5, 0.8];
 
@@ -38,18 +40,6 @@ enum Fault {
     Kill,
     /// SIGSTOP, then SIGCONT after this long.
     Stop(Duration),
-}
-
-/// The process of node `name` among the children of `parent` (the supervisor), by the node's environment.
-fn node_pid(parent: u32, name: &str) -> Option<i32> {
-    let wanted = format!("{}={name}", lineflow_runtime::env::NODE);
-    std::fs::read_dir("/proc").ok()?.flatten().find_map(|e| {
-        let pid: i32 = e.file_name().to_str()?.parse().ok()?;
-        let stat = std::fs::read_to_string(format!("/proc/{pid}/stat")).ok()?;
-        let ppid: u32 = stat.get(stat.rfind(')')? + 2..)?.split(' ').nth(1)?.parse().ok()?;
-        let environ = std::fs::read(format!("/proc/{pid}/environ")).ok()?;
-        (ppid == parent && environ.split(|b| *b == 0).any(|v| v == wanted.as_bytes())).then_some(pid)
-    })
 }
 
 fn run_command(graph: &Path, sets: &[String], out: &Path) -> Result<Command> {

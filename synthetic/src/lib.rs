@@ -89,13 +89,14 @@ impl Synthetic {
         &self.preset.poses
     }
 
-    /// Renders frame `frame` as packed RGB8.
+    /// Renders frame `frame` as packed RGB8. Past the last pose the strip starts over (a second pass along the
+    /// façade, with its own sensor noise): a stream of any length (`repeat` of the synthetic capture).
     pub fn render(&self, frame: usize) -> Vec<u8> {
         let mut scratch = self.scratch.lock().unwrap_or_else(|p| p.into_inner());
         render::render(
             &self.world,
             self.camera(),
-            &self.preset.poses[frame],
+            &self.preset.poses[frame % self.preset.poses.len()],
             &self.preset.sensor,
             frame as u64,
             &mut scratch,

@@ -22,13 +22,17 @@ pub fn run(ctx: NodeContext) -> Result<()> {
 
     let source = SyntheticSource::new(&p).map_err(|e| anyhow::anyhow!("node '{}': {e}", ctx.name()))?;
     let cam = *source.scene.camera();
+    let frames = if source.total == u64::MAX {
+        "frames until stopped".to_owned()
+    } else {
+        format!("{} frames", source.total)
+    };
     tracing::info!(
-        "{} at scale {} ({}x{}), {} frames, seed {}",
+        "{} at scale {} ({}x{}), {frames}, seed {}",
         p.preset,
         p.scale,
         cam.width,
         cam.height,
-        source.total,
         p.seed
     );
     let (control, observations, walls) = source.survey();
@@ -52,16 +56,18 @@ pub fn run(ctx: NodeContext) -> Result<()> {
         o.publish(Lines3DHeader { stamp: once }, &source.true_lines())?;
         o.end_of_stream()?;
     }
+    let mut published = 0;
     for frame in 0..source.total {
         if ctx.should_stop() {
             break;
         }
         let (header, rgb) = source.frame(frame, pacer.frame(frame))?;
         images.publish(header, &rgb)?;
+        published += 1;
         tracing::debug!(frame, "rendered and published");
     }
     images.end_of_stream()?;
-    tracing::info!("{} frames published", source.total);
+    tracing::info!("{published} frames published");
     ctx.finish();
     Ok(())
 }

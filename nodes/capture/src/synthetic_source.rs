@@ -19,6 +19,10 @@ pub struct SyntheticParams {
     pub fps: f64,
     /// Stop after this many frames (default: all of the preset's).
     pub frames: Option<u64>,
+    /// Start the strip over after its last frame (same poses, new sensor noise, new frame numbers and names) until
+    /// `frames` have been published, or without `frames` until the run is stopped: a stream of any length
+    /// (`lineflow bench soak`). Control-point observations and the ground truth cover the first pass only.
+    pub repeat: bool,
     /// Stamp frames from the system clock instead of the fixed start.
     pub use_clock: bool,
     /// Optics and sensor (noise_dn, blur_px, vignetting, jpeg_quality, gamma); the preset's when absent.
@@ -33,6 +37,7 @@ impl Default for SyntheticParams {
             seed: lineflow_synthetic::DEFAULT_SEED,
             fps: 0.0,
             frames: None,
+            repeat: false,
             use_clock: false,
             sensor: None,
         }
@@ -85,7 +90,10 @@ impl SyntheticSource {
             scene.preset.sensor = sensor;
         }
         let n = scene.poses().len() as u64;
-        let total = params.frames.map_or(n, |f| f.min(n));
+        let total = match (params.repeat, params.frames) {
+            (true, frames) => frames.unwrap_or(u64::MAX),
+            (false, frames) => frames.map_or(n, |f| f.min(n)),
+        };
         Ok(SyntheticSource { scene, total })
     }
 
@@ -208,6 +216,27 @@ mod tests {
         assert_eq!(rgb.len(), (cam.width * cam.height * 3) as usize);
         assert_eq!(h.stamp.frame, 1);
         assert_eq!(source.frame(1, stamp).unwrap().1, rgb);
+    }
+
+    #[test]
+    fn a_repeated_strip_starts_over_with_new_noise_and_runs_as_long_as_asked() {
+        let p = SyntheticParams {
+            repeat: true,
+            frames: None,
+            ..small()
+        };
+        let source = SyntheticSource::new(&p).unwrap();
+        assert_eq!(source.total, u64::MAX, "until stopped");
+        let n = source.scene.poses().len() as u64;
+        let stamp = Stamp::default();
+        let (first, a) = source.frame(0, stamp).unwrap();
+        let (again, b) = source.frame(n, stamp).unwrap();
+        assert_ne!(first.name, again.name, "a new name on the second pass");
+        assert_ne!(a, b, "new sensor noise");
+        let close = a.iter().zip(&b).filter(|(x, y)| x.abs_diff(**y) <= 12).count();
+        assert!(close * 10 > a.len() * 9, "the same view: {close} of {} bytes close", a.len());
+        let counted = SyntheticSource::new(&SyntheticParams { frames: Some(n + 5), ..p }).unwrap();
+        assert_eq!(counted.total, n + 5);
     }
 
     #[test]

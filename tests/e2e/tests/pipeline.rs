@@ -380,6 +380,54 @@ fn run_chaos_names_the_killed_node_and_refuses_an_unknown_one() {
     assert!(String::from_utf8_lossy(&r.stderr).contains("the frame is not a whole number"));
 }
 
+/// The soak benchmark's short version: the demo graph fed the synthetic camera's repeated strip past its last
+/// pose, every node sampled; the figures are printed, not asserted (timing), the harness's outputs are.
+#[test]
+fn bench_soak_samples_every_node_of_a_repeated_stream_and_reports_the_targets() {
+    let sb = Sandbox::new();
+    let out = sb.path().join("soak");
+    let demo = repo_file("launch/demo.toml");
+    let r = sb.run(&[
+        "bench",
+        "soak",
+        "--graph",
+        demo.to_str().unwrap(),
+        "--minutes",
+        "0.4",
+        "--fps",
+        "2",
+        "--scale",
+        "0.06",
+        "--every",
+        "0.5",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    let stdout = String::from_utf8_lossy(&r.stdout);
+    eprintln!("{stdout}");
+    assert!(r.status.success(), "no drops");
+    let csv = std::fs::read_to_string(out.join("soak.csv")).unwrap();
+    let graph: toml::Table = std::fs::read_to_string(&demo).unwrap().parse().unwrap();
+    let nodes: Vec<&str> = graph["node"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter_map(|n| n["name"].as_str())
+        .collect();
+    assert!(nodes.len() >= 10, "{nodes:?}");
+    for node in nodes.iter().chain(&["recorder"]) {
+        assert!(csv.lines().any(|l| l.split(',').nth(1) == Some(node)), "no samples of {node}");
+        assert!(stdout.contains(&format!("| {node} |")), "no row for {node}");
+    }
+    assert!(stdout.contains("drops on the edges: 0 (target 0)"));
+    assert!(stdout.contains("frame latency"));
+    let svg = std::fs::read_to_string(out.join("soak.svg")).unwrap();
+    assert!(svg.starts_with("<svg") && svg.trim_end().ends_with("</svg>") && svg.matches("<polyline").count() > 10);
+    // 48 frames from a strip of fewer: the camera went past its last pose with new frame numbers.
+    let capture = std::fs::read_to_string(out.join("run/logs/capture.log")).unwrap();
+    assert!(capture.contains("48 frames published"), "{capture}");
+}
+
 #[test]
 fn a_type_mismatched_graph_is_refused_before_any_node_runs() {
     let sb = Sandbox::new();
