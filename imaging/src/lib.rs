@@ -11,6 +11,6 @@ pub mod subpixel;
 
 pub use gradient::{gradient, gradient_at, gradient_row, Gradient};
 pub use gray::{gray_into, gray_of_image, GrayError};
-pub use receive::for_each_gray;
+pub use receive::{for_each_gray, for_each_gray_up_to};
 pub use sample::bilinear;
 pub use subpixel::subpixel_positions;

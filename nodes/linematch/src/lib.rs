@@ -169,6 +169,12 @@ pub struct MatchParams {
     pub parallel_snap_m: f64,
     /// Slaves per master (nearest by overlap).
     pub max_slaves: usize,
+    /// Slaves (and the frames whose 2-D lines place depths) come from the frames less than this many frame numbers
+    /// from the master; older frames' images and lines are let go once no pending master can use them, and at most
+    /// twice this many images are held (the rest wait in the edge): the stage's memory stays bounded on a stream of
+    /// any length (`lineflow bench soak`). 0 keeps every frame. The default holds both strips of every preset (36
+    /// frames), so their results do not change.
+    pub window: u64,
     /// Every `master_every`-th frame (by frame number) is a master; the others serve as slaves only. With six
     /// slaves, masters two frames apart still see every part of a strip from several masters.
     pub master_every: u64,
@@ -229,6 +235,7 @@ impl Default for MatchParams {
             front_max_step_m: 0.05,
             parallel_snap_m: 0.03,
             max_slaves: 6,
+            window: 48,
             master_every: 1,
             min_overlap: 0.2,
             min_slaves: 1,
@@ -423,6 +430,25 @@ pub fn overlap(camera: &Camera, master: &Pose, other: &Pose, walls: &[WallPlane]
 }
 
 /// The slaves of a master: the candidates (frame, pose) overlapping it by at least `min_overlap`, the
+/// The first frame a pending master can still take a slave or a line from under `window` (`MatchParams::window`):
+/// the earliest arrived master not yet `finished` (matched or skipped) less the window, or with none pending the
+/// frame after the last arrived less the window. Frames before it can be let go; with `window` 0, none.
+pub fn first_needed_frame(arrived: impl IntoIterator<Item = u64>, finished: impl Fn(u64) -> bool, master_every: u64, window: u64) -> u64 {
+    if window == 0 {
+        return 0;
+    }
+    let mut last = None;
+    let mut pending = None;
+    for f in arrived {
+        last = last.max(Some(f));
+        if f % master_every.max(1) == 0 && !finished(f) {
+            pending = pending.min(Some(f)).or(Some(f));
+        }
+    }
+    let Some(last) = last else { return 0 };
+    (pending.unwrap_or(last + 1) + 1).saturating_sub(window)
+}
+
 /// `max_slaves` with the largest overlap (ties to the nearer frame number, then the earlier).
 pub fn choose_slaves(
     camera: &Camera,
@@ -468,6 +494,20 @@ pub struct MatchedPoint {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn frames_a_pending_master_can_no_longer_use_are_let_go() {
+        let done = |f: u64| f < 50;
+        // Master 50 pending: slaves from 3 on (less than 48 frame numbers away).
+        assert_eq!(first_needed_frame(0..60, done, 1, 48), 3);
+        // Nothing pending: the next master is 60 at the earliest.
+        assert_eq!(first_needed_frame(0..60, |_| true, 1, 48), 13);
+        // Only every other frame is a master: 51 pending does not count.
+        assert_eq!(first_needed_frame([49, 51], |f| f <= 50, 2, 10), 43);
+        assert_eq!(first_needed_frame(0..60, done, 1, 0), 0, "window 0 keeps every frame");
+        assert_eq!(first_needed_frame([], done, 1, 48), 0);
+        assert_eq!(first_needed_frame(0..10, |_| false, 1, 48), 0, "early frames: nothing to let go");
+    }
     use lineflow_runtime::StageParams;
 
     #[test]

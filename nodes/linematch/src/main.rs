@@ -67,6 +67,20 @@ fn settled(s: &PoseState) -> bool {
 }
 
 impl State {
+    /// Lets go of the images, 2-D lines and segments of frames no pending master can use (`window`); what was
+    /// matched stays for the final re-estimate.
+    fn forget_old_frames(&mut self, params: &MatchParams) {
+        let first = lineflow_linematch::first_needed_frame(
+            self.stamps.keys().chain(self.lines.keys()).copied(),
+            |f| self.matched.contains_key(&f) || self.skipped.contains_key(&f),
+            params.master_every,
+            params.window,
+        );
+        self.grays.retain(|f, _| *f >= first);
+        self.lines.retain(|f, _| *f >= first);
+        self.frame_segments.retain(|f, _| *f >= first);
+    }
+
     /// Walls to search: the site model's, else planes fitted to the intersected tie points.
     fn walls(&self) -> Option<Vec<WallPlane>> {
         self.site.clone().or_else(|| self.fitted.clone())
@@ -173,7 +187,13 @@ fn run(ctx: NodeContext) -> Result<()> {
                 }
             }
         }
-        lineflow_imaging::for_each_gray(&images, &mut gray, |h, g| {
+        // Twice the window of images at most: every slave of the earliest pending master is among them, and the
+        // images a slower stage has not taken wait in the edge (back-pressure) instead of in this stage's memory.
+        let room = match params.window {
+            0 => usize::MAX,
+            w => (2 * w as usize).saturating_sub(st.grays.len()),
+        };
+        lineflow_imaging::for_each_gray_up_to(&images, &mut gray, room, |h, g| {
             st.grays.insert(h.stamp.frame, g.to_vec());
             st.stamps.insert(h.stamp.frame, h.stamp);
             Ok(())
@@ -225,6 +245,7 @@ fn run(ctx: NodeContext) -> Result<()> {
             match step(&mut st, &params, &ended, at_end) {
                 Step::Match(master, slaves, line_frames) => {
                     match_and_publish(&mut st, &params, (master, slaves, line_frames), &output)?;
+                    st.forget_old_frames(&params);
                     return Ok(Flow::Continue);
                 }
                 Step::Pass(frame) => {
@@ -356,7 +377,12 @@ fn step(st: &mut State, params: &MatchParams, ended: &Ended, at_end: bool) -> St
             }
             continue;
         }
-        let slaves = choose_slaves(&camera, (frame, &pose), &candidates, &walls, params.max_slaves, params.min_overlap);
+        let near: Vec<(u64, Pose)> = candidates
+            .iter()
+            .filter(|(f, _)| params.window == 0 || f.abs_diff(frame) < params.window)
+            .copied()
+            .collect();
+        let slaves = choose_slaves(&camera, (frame, &pose), &near, &walls, params.max_slaves, params.min_overlap);
         // Frames settle in order, so the first six to overlap a master are all behind it: waiting until half as
         // many frames past it are settled lets the slaves lie on both sides, as the thesis's triplets did. Seen
         // from one side only, an inner edge of a reveal is hidden behind the outer one in every slave, and they all
@@ -376,7 +402,7 @@ fn step(st: &mut State, params: &MatchParams, ended: &Ended, at_end: bool) -> St
             .find(|f| !st.grays.contains_key(f));
         let master_lines = st.lines.contains_key(&frame);
         let line_frames = if params.line_depth && params.line_only_min_slaves > 0 {
-            let mut more = choose_slaves(&camera, (frame, &pose), &candidates, &walls, params.line_views, params.min_overlap);
+            let mut more = choose_slaves(&camera, (frame, &pose), &near, &walls, params.line_views, params.min_overlap);
             more.retain(|f| !slaves.contains(f));
             slaves.iter().copied().chain(more).collect()
         } else if params.line_depth {
