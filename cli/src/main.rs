@@ -88,8 +88,7 @@ enum Cmd {
         /// Output folder of the run.
         #[arg(long, default_value = "out")]
         out: PathBuf,
-        /// Inject a fault: SIGKILL node NODE once it has received frame FRAME, or with `:stop=S` SIGSTOP it for S
-        /// seconds and continue it (tries the launch file's restart policies; docs/launch.md). Repeatable.
+        /// Inject a fault: SIGKILL NODE once it has received FRAME, or SIGSTOP it for S s (docs/launch.md). Repeatable.
         #[arg(long, value_name = "NODE@FRAME[:stop=S]")]
         chaos: Vec<lineflow_runtime::chaos::Fault>,
         #[command(flatten)]
@@ -387,7 +386,7 @@ fn main() -> ExitCode {
             chaos,
             view,
             verbosity,
-        } => run::run(&graph, &view.with_sets(&set), &out, None, verbosity.into(), &chaos),
+        } => run::run(&graph, &view.with_sets(&set), &out, verbosity.into(), &chaos),
         Cmd::Process {
             folder,
             out,

@@ -5,20 +5,12 @@ use std::process::ExitCode;
 use anyhow::{bail, Context, Result};
 use lineflow_runtime::chaos::Fault;
 use lineflow_runtime::launch::{self, Resolver};
-use lineflow_runtime::run::{launch_dir, run_graph_with_faults, Verbosity};
+use lineflow_runtime::run::{launch_dir, run_graph, run_graph_with_faults, Verbosity};
 
-/// Runs a launch graph, with `chaos`'s faults injected; prints the per-node summary and writes it to
-/// `out/summary.txt`.
-pub fn run(
-    graph: &Path,
-    set: &[String],
-    out: &Path,
-    expected_frames: Option<u64>,
-    verbosity: Verbosity,
-    chaos: &[Fault],
-) -> Result<ExitCode> {
+/// Runs a launch graph with `chaos`'s faults injected; prints the per-node summary and writes it to `out/summary.txt`.
+pub fn run(graph: &Path, set: &[String], out: &Path, verbosity: Verbosity, chaos: &[Fault]) -> Result<ExitCode> {
     let g = launch::load(graph, set, &Resolver::beside_current_exe())?;
-    run_graph_with_faults(&g, out, expected_frames, verbosity, chaos)
+    run_graph_with_faults(&g, out, None, verbosity, chaos)
 }
 
 /// Whether the launch file `graph` declares a node `name` (false when it cannot be read; loading it reports why).
@@ -56,5 +48,6 @@ pub fn process(folder: &Path, out: Option<PathBuf>, graph: Option<PathBuf>, set:
         folder.display(),
         graph.display()
     );
-    run(&graph, &set, &out, Some(project.images.len() as u64), verbosity, &[])
+    let g = launch::load(&graph, &set, &Resolver::beside_current_exe())?;
+    run_graph(&g, &out, Some(project.images.len() as u64), verbosity)
 }
