@@ -260,29 +260,7 @@ pub enum BenchCmd {
     /// Hours of streaming: the synthetic camera's strip repeated at a steady rate through a whole graph, every
     /// node's memory, shared memory and open files sampled (soak.csv, soak.svg); memory growth after the warm-up,
     /// drops, and a frame's latency at the end against the start. Exit status 1 on a drop.
-    Soak {
-        /// Minutes of streaming.
-        #[arg(long, default_value_t = 60.0)]
-        minutes: f64,
-        /// The graph.
-        #[arg(long, default_value = "launch/demo.toml")]
-        graph: std::path::PathBuf,
-        /// Parameter overrides (NODE.PARAM=VALUE), as for `lineflow run`.
-        #[arg(long = "set")]
-        set: Vec<String>,
-        /// Image scale of the synthetic camera.
-        #[arg(long, default_value_t = 0.5)]
-        scale: f64,
-        /// Frames per second.
-        #[arg(long, default_value_t = 1.0)]
-        fps: f64,
-        /// Seconds between samples.
-        #[arg(long, default_value_t = 5.0)]
-        every: f64,
-        /// Folder for the run, soak.csv and soak.svg.
-        #[arg(long, default_value = "soak")]
-        out: std::path::PathBuf,
-    },
+    Soak(soak::Soak),
     /// The live view's cost and latency: the 2-D stages on full-size frames without and with the viewer and a
     /// WebSocket client; the wall-time ratio and, per channel, capture-to-client latency.
     View {
@@ -415,23 +393,7 @@ pub fn bench(cmd: BenchCmd) -> Result<ExitCode> {
             frames,
             pairs,
         } => view::bench_view(&preset, scale, frames, pairs),
-        BenchCmd::Soak {
-            minutes,
-            graph,
-            set,
-            scale,
-            fps,
-            every,
-            out,
-        } => soak::bench_soak(&soak::Soak {
-            graph,
-            sets: set,
-            minutes,
-            scale,
-            fps,
-            every,
-            out,
-        }),
+        BenchCmd::Soak(s) => soak::bench_soak(&s),
         BenchCmd::Chaos { graph, set, stop } => chaos::bench_chaos(&graph, &set, stop.map(std::time::Duration::from_secs_f64)),
     }
 }

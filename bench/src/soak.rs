@@ -14,16 +14,29 @@ use lineflow_recordings::Recording;
 
 use crate::processes::{node_processes, usage, Usage};
 
-/// What to soak and how.
+/// What to soak and how (`lineflow bench soak`'s arguments).
+#[derive(Debug, clap::Args)]
 pub struct Soak {
-    pub graph: PathBuf,
-    pub sets: Vec<String>,
+    /// Minutes of streaming.
+    #[arg(long, default_value_t = 60.0)]
     pub minutes: f64,
+    /// The graph.
+    #[arg(long, default_value = "launch/demo.toml")]
+    pub graph: PathBuf,
+    /// Parameter overrides (NODE.PARAM=VALUE), as for `lineflow run`.
+    #[arg(long = "set", value_name = "NODE.PARAM=VALUE")]
+    pub sets: Vec<String>,
+    /// Image scale of the synthetic camera.
+    #[arg(long, default_value_t = 0.5)]
     pub scale: f64,
+    /// Frames per second.
+    #[arg(long, default_value_t = 1.0)]
     pub fps: f64,
     /// Seconds between samples.
+    #[arg(long, default_value_t = 5.0)]
     pub every: f64,
-    /// Where the run, the CSV and the plot go.
+    /// Folder for the run, soak.csv and soak.svg.
+    #[arg(long, default_value = "soak")]
     pub out: PathBuf,
 }
 
@@ -136,10 +149,7 @@ pub fn bench_soak(s: &Soak) -> Result<ExitCode> {
     println!("\nwarm-up: the first {warm:.0} s of {wall:.0} s; growth: the mean of the last tenth against the first sample after it\n");
     println!("| node | RSS after warm-up (MB) | RSS at the end (MB) | growth | shared memory (MB) | open files | target ≤ 5 % |");
     println!("|---|---|---|---|---|---|---|");
-    let mut names: Vec<&str> = rows.iter().map(|r| r.node.as_str()).collect();
-    names.sort_unstable();
-    names.dedup();
-    for name in names {
+    for name in node_names(&rows) {
         let mine: Vec<&Row> = rows.iter().filter(|r| r.node == name).collect();
         // A node that finished early is judged on its own last tenth.
         let after: Vec<&Row> = mine.into_iter().filter(|r| r.t >= warm).collect();
@@ -250,6 +260,14 @@ fn median(v: &[f64]) -> f64 {
     v.get(v.len() / 2).copied().unwrap_or(f64::NAN)
 }
 
+/// The nodes sampled, by name.
+fn node_names(rows: &[Row]) -> Vec<&str> {
+    let mut names: Vec<&str> = rows.iter().map(|r| r.node.as_str()).collect();
+    names.sort_unstable();
+    names.dedup();
+    names
+}
+
 /// Resident memory of every node against time, one line each.
 fn plot(rows: &[Row], wall: f64) -> String {
     let (w, h, left, bottom) = (900.0, 480.0, 60.0, 40.0);
@@ -281,9 +299,7 @@ fn plot(rows: &[Row], wall: f64) -> String {
             y(mb) + 4.0
         );
     }
-    let mut names: Vec<&str> = rows.iter().map(|r| r.node.as_str()).collect();
-    names.sort_unstable();
-    names.dedup();
+    let names = node_names(rows);
     for (k, name) in names.iter().enumerate() {
         let colour = format!("hsl({},70%,40%)", k * 360 / names.len().max(1));
         let points: Vec<String> = rows

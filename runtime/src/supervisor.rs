@@ -516,8 +516,6 @@ fn supervise(graph: &Graph, run: &RunRecord, ports: &BTreeMap<String, Ports>, op
         drain_status(&status_sub, &mut children);
         if error.is_none() {
             chaos.strike(&children, graph);
-        }
-        if error.is_none() {
             if let Some(f) = reap(&mut children, true) {
                 error = Some(f.message);
                 failed = Some(f.node);
@@ -592,7 +590,7 @@ fn supervise(graph: &Graph, run: &RunRecord, ports: &BTreeMap<String, Ports>, op
         error,
         nodes,
         wall: started.elapsed(),
-        faults: chaos.outcome(),
+        faults: chaos.faults,
     })
 }
 
@@ -658,10 +656,6 @@ impl Injector {
             // SAFETY: signalling our own child, stopped and so not yet reaped.
             unsafe { libc::kill(pid, libc::SIGCONT) };
         }
-    }
-
-    fn outcome(&self) -> Vec<(Fault, bool)> {
-        self.faults.clone()
     }
 }
 
