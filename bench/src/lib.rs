@@ -303,6 +303,19 @@ pub enum BenchCmd {
     UdsSub { path: String, size: usize, count: u64 },
 }
 
+/// `lineflow experiment NAME`: a seed document's experiment, its tables on stdout.
+///
+/// # Errors
+/// An unknown experiment.
+pub fn experiment(name: &str, trials: Option<u64>, seed: u64) -> Result<ExitCode> {
+    match name {
+        "seed001" => print!("{}", seed001::experiment(trials.unwrap_or(500).max(1), seed)),
+        "seed004" => print!("{}", seed004::experiment(trials.unwrap_or(20).max(1) as usize)),
+        other => anyhow::bail!("unknown experiment '{other}' (available: seed001, seed004)"),
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
 pub fn bench(cmd: BenchCmd) -> Result<ExitCode> {
     match cmd {
         BenchCmd::IoxSub { prefix, root, size, count } => transport::iox_sub(&prefix, &root, size, count).map(|_| ExitCode::SUCCESS),

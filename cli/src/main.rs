@@ -368,6 +368,11 @@ enum Cmd {
         #[arg(long, default_value_t = 1)]
         seed: u64,
     },
+    /// A camera.toml from another tool's calibration (OpenCV, COLMAP, Metashape), and back.
+    Camera {
+        #[command(subcommand)]
+        what: lineflow_interop::CameraCmd,
+    },
     /// Benchmarks.
     Bench {
         #[command(subcommand)]
@@ -488,17 +493,8 @@ fn main() -> ExitCode {
                 .map(|(lines2d, camera)| model_cmd::RefineInputs { lines2d, camera });
             model_cmd::model(&lines, poses.as_deref(), refine, out, &set)
         }
-        Cmd::Experiment { name, trials, seed } => match name.as_str() {
-            "seed001" => {
-                print!("{}", lineflow_bench::seed001::experiment(trials.unwrap_or(500).max(1), seed));
-                Ok(ExitCode::SUCCESS)
-            }
-            "seed004" => {
-                print!("{}", lineflow_bench::seed004::experiment(trials.unwrap_or(20).max(1) as usize));
-                Ok(ExitCode::SUCCESS)
-            }
-            other => Err(anyhow::anyhow!("unknown experiment '{other}' (available: seed001, seed004)")),
-        },
+        Cmd::Experiment { name, trials, seed } => lineflow_bench::experiment(&name, trials, seed),
+        Cmd::Camera { what } => lineflow_interop::camera(what),
         Cmd::Bench { what } => lineflow_bench::bench(what),
     };
     lineflow_bench::reader::report_peak_rss();

@@ -51,6 +51,13 @@ macro_rules! seed {
     };
 }
 
+/// What `lineflow camera import` does with a calibration file: read it, then fit our lens model to it.
+fn import_camera(p: &Path) {
+    if let Ok(c) = lineflow_formats::foreign_camera::read(p, Some(1)) {
+        let _ = lineflow_photogrammetry::camera_from_opencv(&c.lens, c.width, c.height, 0.005);
+    }
+}
+
 /// Every target, in the order the benchmark prints them.
 pub static TARGETS: &[Target] = &[
     Target {
@@ -134,6 +141,51 @@ pub static TARGETS: &[Target] = &[
         seed: seed!("lines3d_csv", "seed.csv"),
         parse: |p| {
             let _ = lineflow_formats::read_lines3d(p);
+        },
+    },
+    Target {
+        name: "OpenCV calibration YAML",
+        key: "opencv_yaml",
+        file: "calibration.yml",
+        seed: seed!("opencv_yaml", "seed.yml"),
+        parse: |p| {
+            import_camera(p);
+        },
+    },
+    Target {
+        name: "OpenCV calibration XML",
+        key: "opencv_xml",
+        file: "calibration.xml",
+        seed: seed!("opencv_xml", "seed.xml"),
+        parse: |p| {
+            import_camera(p);
+        },
+    },
+    Target {
+        name: "OpenCV calibration JSON",
+        key: "opencv_json",
+        file: "calibration.json",
+        seed: seed!("opencv_json", "seed.json"),
+        parse: |p| {
+            import_camera(p);
+        },
+    },
+    Target {
+        name: "COLMAP cameras.txt",
+        key: "colmap_cameras",
+        file: "cameras.txt",
+        seed: seed!("colmap_cameras", "seed.txt"),
+        parse: |p| {
+            import_camera(p);
+        },
+    },
+    Target {
+        name: "Metashape calibration XML",
+        key: "metashape_xml",
+        file: "calibration.xml",
+        seed: seed!("metashape_xml", "seed.xml"),
+        parse: |p| {
+            import_camera(p);
         },
     },
     Target {

@@ -8,6 +8,7 @@ pub mod bundle;
 mod camera;
 pub mod epipolar;
 pub mod intersect;
+pub mod lens;
 mod polygon;
 mod pose;
 pub mod random;
@@ -15,6 +16,7 @@ pub mod ransac;
 mod rotation;
 
 pub use camera::Camera;
+pub use lens::{camera_from_opencv, opencv_from_camera, FitResidual, OpenCvLens};
 pub use polygon::{point_in_polygon, polygon_normal, signed_area};
 pub use pose::Pose;
 pub use rotation::{look_at, opk_from_rotation, rotation_from_opk};

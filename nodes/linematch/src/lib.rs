@@ -429,7 +429,6 @@ pub fn overlap(camera: &Camera, master: &Pose, other: &Pose, walls: &[WallPlane]
     }
 }
 
-/// The slaves of a master: the candidates (frame, pose) overlapping it by at least `min_overlap`, the
 /// The first frame a pending master can still take a slave or a line from under `window` (`MatchParams::window`):
 /// the earliest arrived master not yet `finished` (matched or skipped) less the window, or with none pending the
 /// frame after the last arrived less the window. Frames before it can be let go; with `window` 0, none.
@@ -449,6 +448,7 @@ pub fn first_needed_frame(arrived: impl IntoIterator<Item = u64>, finished: impl
     (pending.unwrap_or(last + 1) + 1).saturating_sub(window)
 }
 
+/// The slaves of a master: the candidates (frame, pose) overlapping it by at least `min_overlap`, the
 /// `max_slaves` with the largest overlap (ties to the nearer frame number, then the earlier).
 pub fn choose_slaves(
     camera: &Camera,

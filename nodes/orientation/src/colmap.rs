@@ -10,8 +10,8 @@ use std::collections::BTreeMap;
 use std::fmt::Write as _;
 use std::path::Path;
 
-use lineflow_photogrammetry::{Camera, Mat3, Pose, Vec3};
-use nalgebra::{SMatrix, SVector, UnitQuaternion};
+use lineflow_photogrammetry::{opencv_from_camera, Camera, Mat3, Pose, Vec3};
+use nalgebra::UnitQuaternion;
 
 /// One intersected tie point: its object coordinates and its (frame, measured pixel) observations.
 pub type TrackPoint = (Vec3, Vec<(u64, [f64; 2])>);
@@ -21,62 +21,32 @@ fn flip() -> Mat3 {
     Mat3::from_diagonal(&Vec3::new(1.0, -1.0, -1.0))
 }
 
-/// `FULL_OPENCV` parameters `fx fy cx cy k1 k2 p1 p2 k3 k4 k5 k6` fitted to `camera`, and the fit's largest
-/// error in pixels over a grid covering the image.
+/// `FULL_OPENCV` parameters `fx fy cx cy k1 k2 p1 p2 k3 k4 k5 k6` fitted to `camera`
+/// ([`lineflow_photogrammetry::opencv_from_camera`]), and the fit's largest error in pixels over a grid covering the
+/// image.
 pub fn opencv_parameters(camera: &Camera) -> ([f64; 12], f64) {
-    let fpx = camera.focal_mm / camera.pixel_size_mm;
-    // Principal point in our pixel coordinates (centres at integers).
-    let c_col = (camera.width as f64 - 1.0) / 2.0 + camera.principal_point_mm[0] / camera.pixel_size_mm;
-    let c_row = (camera.height as f64 - 1.0) / 2.0 - camera.principal_point_mm[1] / camera.pixel_size_mm;
-    // Samples: (undistorted normalised x, y; distorted normalised x, y), COLMAP axes (y down).
-    let mut samples = Vec::new();
-    for i in 0..=20 {
-        for j in 0..=14 {
-            let px = [
-                (camera.width as f64 - 1.0) * i as f64 / 20.0,
-                (camera.height as f64 - 1.0) * j as f64 / 14.0,
-            ];
-            let ideal = camera.pixel_to_ideal(px);
-            samples.push((
-                ideal[0] / camera.focal_mm,
-                -ideal[1] / camera.focal_mm,
-                (px[0] - c_col) / fpx,
-                (px[1] - c_row) / fpx,
-            ));
-        }
-    }
-    // Linear in (k1, k2, k3, p1, p2).
-    let terms = |x: f64, y: f64| {
-        let r2 = x * x + y * y;
-        (
-            [x * r2, x * r2 * r2, x * r2 * r2 * r2, 2.0 * x * y, r2 + 2.0 * x * x],
-            [y * r2, y * r2 * r2, y * r2 * r2 * r2, r2 + 2.0 * y * y, 2.0 * x * y],
-        )
+    let Some((l, fit)) = opencv_from_camera(camera) else {
+        // No fit (a degenerate camera): the pinhole, its error unknown.
+        let fpx = camera.focal_mm / camera.pixel_size_mm;
+        let c = camera.photo_to_pixel(camera.principal_point_mm);
+        return ([fpx, fpx, c[0] + 0.5, c[1] + 0.5, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0], f64::NAN);
     };
-    let mut ata = SMatrix::<f64, 5, 5>::zeros();
-    let mut atb = SVector::<f64, 5>::zeros();
-    for &(x, y, xd, yd) in &samples {
-        let (rx, ry) = terms(x, y);
-        for (row, rhs) in [(rx, xd - x), (ry, yd - y)] {
-            let r = SVector::<f64, 5>::from(row);
-            ata += r * r.transpose();
-            atb += r * rhs;
-        }
-    }
-    // A camera without distortion leaves the system singular; its coefficients are zero.
-    let k = ata.try_inverse().map(|inv| inv * atb).unwrap_or_else(SVector::zeros);
-    let worst = samples
-        .iter()
-        .map(|&(x, y, xd, yd)| {
-            let (rx, ry) = terms(x, y);
-            let fx = x + SVector::<f64, 5>::from(rx).dot(&k);
-            let fy = y + SVector::<f64, 5>::from(ry).dot(&k);
-            (fx - xd).hypot(fy - yd) * fpx
-        })
-        .fold(0.0, f64::max);
     (
-        [fpx, fpx, c_col + 0.5, c_row + 0.5, k[0], k[1], k[3], k[4], k[2], 0.0, 0.0, 0.0],
-        worst,
+        [
+            l.fx,
+            l.fy,
+            l.cx + 0.5,
+            l.cy + 0.5,
+            l.k[0],
+            l.k[1],
+            l.p[0],
+            l.p[1],
+            l.k[2],
+            l.k[3],
+            l.k[4],
+            l.k[5],
+        ],
+        fit.max_px,
     )
 }
 
