@@ -373,6 +373,11 @@ enum Cmd {
         #[command(subcommand)]
         what: lineflow_interop::CameraCmd,
     },
+    /// poses.csv from a COLMAP model, in the survey's frame by a project's control points.
+    Poses {
+        #[command(subcommand)]
+        what: lineflow_interop::PosesCmd,
+    },
     /// Benchmarks.
     Bench {
         #[command(subcommand)]
@@ -471,7 +476,7 @@ fn main() -> ExitCode {
             jpeg_quality: jpeg,
             noise_dn: noise,
         }),
-        Cmd::Eval { results, gt, out, json } => eval(&results, &gt, out, json),
+        Cmd::Eval { results, gt, out, json } => lineflow_eval::command(&results, &gt, out, json),
         Cmd::Classify {
             lines,
             out,
@@ -495,6 +500,7 @@ fn main() -> ExitCode {
         }
         Cmd::Experiment { name, trials, seed } => lineflow_bench::experiment(&name, trials, seed),
         Cmd::Camera { what } => lineflow_interop::camera(what),
+        Cmd::Poses { what } => lineflow_interop::poses(what),
         Cmd::Bench { what } => lineflow_bench::bench(what),
     };
     lineflow_bench::reader::report_peak_rss();
@@ -505,45 +511,6 @@ fn main() -> ExitCode {
             ExitCode::FAILURE
         }
     }
-}
-
-fn eval(results: &std::path::Path, gt: &std::path::Path, out: Option<PathBuf>, json: bool) -> anyhow::Result<ExitCode> {
-    let truth = lineflow_eval::Truth::load(gt)?;
-    let found = lineflow_eval::Results::load(results)?;
-    let evaluation = lineflow_eval::evaluate(&truth, &found);
-    let out = out.unwrap_or_else(|| results.join("eval"));
-    let report = lineflow_eval::report::write(&truth, results, &evaluation, &out)?;
-    if json {
-        println!("{}", serde_json::to_string(&lineflow_eval::summary::summary(&evaluation))?);
-        return Ok(ExitCode::SUCCESS);
-    }
-    if let Some(o) = &evaluation.orientation {
-        println!(
-            "orientation: {} images, centre RMS {:.1} mm, rotation RMS {:.4} deg",
-            o.images.len(),
-            o.rms_center_m * 1000.0,
-            o.rms_rotation_deg
-        );
-    }
-    if let Some(l) = &evaluation.lines2d {
-        println!(
-            "2-D lines: recall {:.1} %, precision {:.1} %",
-            100.0 * l.recall,
-            100.0 * l.precision
-        );
-    }
-    if let Some(l) = &evaluation.lines3d {
-        let all = &l.classes[0];
-        println!(
-            "3-D lines: {} estimated, success rate {:.1} % ({:.1} % of the {} edges the images resolve)",
-            all.n_estimated,
-            100.0 * all.success_rate,
-            100.0 * all.success_resolvable,
-            all.n_resolvable
-        );
-    }
-    println!("report: {}", report.display());
-    Ok(ExitCode::SUCCESS)
 }
 
 /// `lineflow man`: one page for the tool and one for each command.

@@ -186,3 +186,52 @@ pub fn evaluate(truth: &Truth, results: &Results) -> Evaluation {
             .map(|((v, _), lines)| model::evaluate_surface_lines(&truth.lines, v, lines, truth.gsd_m())),
     }
 }
+
+/// `lineflow eval RESULTS --gt SCENE`: evaluates a run's results, writes the report (into `out`, by default
+/// `RESULTS/eval`) and prints the headline figures, or the summary as one JSON object with `json`.
+///
+/// # Errors
+/// When the truth or the results cannot be read, or the report cannot be written.
+pub fn command(
+    results: &std::path::Path,
+    gt: &std::path::Path,
+    out: Option<std::path::PathBuf>,
+    json: bool,
+) -> anyhow::Result<std::process::ExitCode> {
+    let truth = crate::Truth::load(gt)?;
+    let found = crate::Results::load(results)?;
+    let evaluation = crate::evaluate(&truth, &found);
+    let out = out.unwrap_or_else(|| results.join("eval"));
+    let report = crate::report::write(&truth, results, &evaluation, &out)?;
+    if json {
+        println!("{}", serde_json::to_string(&crate::summary::summary(&evaluation))?);
+        return Ok(std::process::ExitCode::SUCCESS);
+    }
+    if let Some(o) = &evaluation.orientation {
+        println!(
+            "orientation: {} images, centre RMS {:.1} mm, rotation RMS {:.4} deg",
+            o.images.len(),
+            o.rms_center_m * 1000.0,
+            o.rms_rotation_deg
+        );
+    }
+    if let Some(l) = &evaluation.lines2d {
+        println!(
+            "2-D lines: recall {:.1} %, precision {:.1} %",
+            100.0 * l.recall,
+            100.0 * l.precision
+        );
+    }
+    if let Some(l) = &evaluation.lines3d {
+        let all = &l.classes[0];
+        println!(
+            "3-D lines: {} estimated, success rate {:.1} % ({:.1} % of the {} edges the images resolve)",
+            all.n_estimated,
+            100.0 * all.success_rate,
+            100.0 * all.success_resolvable,
+            all.n_resolvable
+        );
+    }
+    println!("report: {}", report.display());
+    Ok(std::process::ExitCode::SUCCESS)
+}

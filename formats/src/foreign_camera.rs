@@ -11,10 +11,12 @@ use std::path::Path;
 
 use lineflow_photogrammetry::OpenCvLens;
 
+use crate::colmap::{self, ColmapCamera};
+
 /// A calibration file that cannot be used; the message names the file and what is wrong.
 #[derive(Debug, thiserror::Error)]
 #[error("{path}: {message}")]
-pub struct ForeignCameraError {
+pub struct ForeignFileError {
     /// The file.
     pub path: std::path::PathBuf,
     /// What is wrong.
@@ -52,22 +54,29 @@ pub enum ForeignFormat {
 ///
 /// # Errors
 /// When the file cannot be read, is none of the formats, or lacks the image size, focal length or principal point.
-pub fn read(path: &Path, camera_id: Option<u32>) -> Result<ForeignCamera, ForeignCameraError> {
-    let fail = |message: String| ForeignCameraError {
+pub fn read(path: &Path, camera_id: Option<u32>) -> Result<ForeignCamera, ForeignFileError> {
+    let fail = |message: String| ForeignFileError {
         path: path.to_owned(),
         message,
     };
     let bytes = std::fs::read(path).map_err(|e| fail(e.to_string()))?;
-    let text = String::from_utf8(bytes).map_err(|_| fail("not UTF-8 text: not a calibration file".into()))?;
     let ext = path.extension().and_then(|e| e.to_str()).unwrap_or_default().to_ascii_lowercase();
+    if ext == "bin" {
+        let cam = colmap::cameras_binary(&bytes)
+            .and_then(|c| colmap(c, camera_id, "cameras.bin"))
+            .map_err(fail)?;
+        check(&cam).map_err(fail)?;
+        return Ok(cam);
+    }
+    let text = String::from_utf8(bytes).map_err(|_| fail("not UTF-8 text: not a calibration file".into()))?;
     let out = match ext.as_str() {
-        "txt" => colmap(&text, camera_id),
+        "txt" => colmap::cameras_text(&text).and_then(|c| colmap(c, camera_id, "cameras.txt")),
         "xml" if text.contains("<calibration") => metashape(&text),
         "xml" => opencv(&text, Syntax::Xml),
         "yml" | "yaml" => opencv(&text, Syntax::Yaml),
         "json" => opencv(&text, Syntax::Json),
         _ => Err(format!(
-            "unknown extension {ext:?}: expected an OpenCV .yml/.yaml/.xml/.json, COLMAP cameras.txt or Metashape .xml"
+            "unknown extension {ext:?}: expected an OpenCV .yml/.yaml/.xml/.json, COLMAP cameras.txt or cameras.bin, or Metashape .xml"
         )),
     };
     let cam = out.map_err(fail)?;
@@ -259,43 +268,34 @@ fn json_numbers(v: &serde_json::Value) -> Option<Vec<f64>> {
     }
 }
 
-/// COLMAP's `cameras.txt`: `CAMERA_ID MODEL WIDTH HEIGHT PARAMS…`, `#` comments.
-fn colmap(text: &str, camera_id: Option<u32>) -> Result<ForeignCamera, String> {
-    let mut cameras = Vec::new();
-    for (n, line) in text.lines().enumerate() {
-        let t = line.trim();
-        if t.is_empty() || t.starts_with('#') {
-            continue;
-        }
-        let f: Vec<&str> = t.split_whitespace().collect();
-        let bad = |what: &str| format!("line {}: {what}", n + 1);
-        if f.len() < 4 {
-            return Err(bad("expected CAMERA_ID MODEL WIDTH HEIGHT PARAMS…"));
-        }
-        let id: u32 = f[0].parse().map_err(|_| bad("the camera id is not a number"))?;
-        let num = |s: &str| s.parse::<f64>().map_err(|_| bad(&format!("{s:?} is not a number")));
-        let (w, h) = (num(f[2])?, num(f[3])?);
-        let p: Vec<f64> = f[4..].iter().map(|s| num(s)).collect::<Result<_, _>>()?;
-        cameras.push((id, f[1].to_owned(), w, h, p, n + 1));
-    }
+/// One camera of a COLMAP file chosen by `camera_id` (or the only one), as a lens.
+fn colmap(cameras: Vec<ColmapCamera>, camera_id: Option<u32>, file: &str) -> Result<ForeignCamera, String> {
+    let n = cameras.len();
     let chosen = match camera_id {
         Some(id) => cameras
-            .iter()
-            .find(|c| c.0 == id)
+            .into_iter()
+            .find(|c| c.id == id)
             .ok_or_else(|| format!("no camera {id} in the file"))?,
-        None if cameras.len() == 1 => &cameras[0],
-        None if cameras.is_empty() => return Err("no camera in the file".into()),
+        None if n == 1 => cameras.into_iter().next().ok_or("no camera in the file")?,
+        None if n == 0 => return Err("no camera in the file".into()),
         None => {
-            let ids: Vec<u32> = cameras.iter().map(|c| c.0).collect();
-            return Err(format!("{} cameras ({ids:?}): choose one with --camera-id", cameras.len()));
+            let ids: Vec<u32> = cameras.iter().map(|c| c.id).collect();
+            return Err(format!("{n} cameras ({ids:?}): choose one with --camera-id"));
         }
     };
-    let (_, model, w, h, p, line) = chosen;
+    let ColmapCamera {
+        model,
+        width,
+        height,
+        params: p,
+        at,
+        id,
+    } = chosen;
     let want = |n: usize| {
         if p.len() == n {
             Ok(())
         } else {
-            Err(format!("line {line}: {model} has {n} parameters, the line {}", p.len()))
+            Err(format!("{at}: {model} has {n} parameters, not {}", p.len()))
         }
     };
     // COLMAP's principal point counts from the corner of the top-left pixel.
@@ -312,17 +312,17 @@ fn colmap(text: &str, camera_id: Option<u32>) -> Result<ForeignCamera, String> {
             opencv_lens([p[0], p[1], c(2), c(3)], &d, &mut notes)
         })?,
         other => Err(format!(
-            "line {line}: camera model {other} is not read (SIMPLE_PINHOLE, PINHOLE, SIMPLE_RADIAL, RADIAL, OPENCV, FULL_OPENCV are)"
+            "{at}: camera model {other} is not read (SIMPLE_PINHOLE, PINHOLE, SIMPLE_RADIAL, RADIAL, OPENCV, FULL_OPENCV are)"
         )),
     }?;
-    if let (Some(_), true) = (camera_id, cameras.len() > 1) {
-        notes.push(format!("camera {} of {}", chosen.0, cameras.len()));
+    if n > 1 {
+        notes.push(format!("camera {id} of {n}"));
     }
     Ok(ForeignCamera {
-        width: pixels(*w)?,
-        height: pixels(*h)?,
+        width: pixels(width)?,
+        height: pixels(height)?,
         lens,
-        format: format!("COLMAP cameras.txt, {model}"),
+        format: format!("COLMAP {file}, {model}"),
         notes,
     })
 }
@@ -431,7 +431,7 @@ fn distortion_vector(l: &OpenCvLens) -> Vec<f64> {
 mod tests {
     use super::*;
 
-    fn read_text(name: &str, text: &str, camera_id: Option<u32>) -> Result<ForeignCamera, ForeignCameraError> {
+    fn read_text(name: &str, text: &str, camera_id: Option<u32>) -> Result<ForeignCamera, ForeignFileError> {
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join(name);
         std::fs::write(&path, text).unwrap();

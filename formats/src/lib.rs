@@ -3,6 +3,7 @@
 //! columns after them; a standard deviation that was not estimated is an empty field.
 #![warn(missing_docs)]
 
+pub mod colmap;
 pub mod foreign_camera;
 pub mod natural;
 pub mod project;

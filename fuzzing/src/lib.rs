@@ -189,6 +189,33 @@ pub static TARGETS: &[Target] = &[
         },
     },
     Target {
+        name: "COLMAP images.txt",
+        key: "colmap_images_txt",
+        file: "images.txt",
+        seed: seed!("colmap_images_txt", "seed.txt"),
+        parse: |p| {
+            let _ = lineflow_formats::colmap::read_images(p);
+        },
+    },
+    Target {
+        name: "COLMAP images.bin",
+        key: "colmap_images_bin",
+        file: "images.bin",
+        seed: seed!("colmap_images_bin", "seed.bin"),
+        parse: |p| {
+            let _ = lineflow_formats::colmap::read_images(p);
+        },
+    },
+    Target {
+        name: "COLMAP cameras.bin",
+        key: "colmap_cameras_bin",
+        file: "cameras.bin",
+        seed: seed!("colmap_cameras_bin", "seed.bin"),
+        parse: |p| {
+            import_camera(p);
+        },
+    },
+    Target {
         name: "OBJ model",
         key: "obj_model",
         file: "model.obj",
