@@ -52,6 +52,25 @@ const MODELS: [(&str, usize); 11] = [
     ("THIN_PRISM_FISHEYE", 12),
 ];
 
+/// COLMAP's `FULL_OPENCV` parameters `fx fy cx cy k1 k2 p1 p2 k3 k4 k5 k6` of a lens (principal point moved half a
+/// pixel to COLMAP's convention).
+pub fn full_opencv_params(l: &lineflow_photogrammetry::OpenCvLens) -> [f64; 12] {
+    [
+        l.fx,
+        l.fy,
+        l.cx + 0.5,
+        l.cy + 0.5,
+        l.k[0],
+        l.k[1],
+        l.p[0],
+        l.p[1],
+        l.k[2],
+        l.k[3],
+        l.k[4],
+        l.k[5],
+    ]
+}
+
 /// Reads the cameras of `cameras.txt`.
 ///
 /// # Errors

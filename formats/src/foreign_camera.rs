@@ -389,19 +389,8 @@ pub fn write(format: ForeignFormat, width: u32, height: u32, lens: &OpenCvLens) 
             distortion_vector(l).iter().map(|v| format!("{v:e}")).collect::<Vec<_>>().join(", ")
         ),
         ForeignFormat::Colmap => format!(
-            "# Camera list with one line of data per camera:\n#   CAMERA_ID, MODEL, WIDTH, HEIGHT, PARAMS[]\n# Number of cameras: 1\n1 FULL_OPENCV {width} {height} {} {} {} {} {} {} {} {} {} {} {} {}\n",
-            l.fx,
-            l.fy,
-            l.cx + 0.5,
-            l.cy + 0.5,
-            l.k[0],
-            l.k[1],
-            l.p[0],
-            l.p[1],
-            l.k[2],
-            l.k[3],
-            l.k[4],
-            l.k[5]
+            "# Camera list with one line of data per camera:\n#   CAMERA_ID, MODEL, WIDTH, HEIGHT, PARAMS[]\n# Number of cameras: 1\n1 FULL_OPENCV {width} {height} {}\n",
+            colmap::full_opencv_params(l).map(|v| v.to_string()).join(" ")
         ),
         ForeignFormat::Metashape => format!(
             "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n<calibration>\n  <projection>frame</projection>\n  <width>{width}</width>\n  <height>{height}</height>\n  <f>{}</f>\n  <cx>{}</cx>\n  <cy>{}</cy>\n  <b1>{}</b1>\n  <k1>{}</k1>\n  <k2>{}</k2>\n  <k3>{}</k3>\n  <p1>{}</p1>\n  <p2>{}</p2>\n</calibration>\n",

@@ -31,23 +31,7 @@ pub fn opencv_parameters(camera: &Camera) -> ([f64; 12], f64) {
         let c = camera.photo_to_pixel(camera.principal_point_mm);
         return ([fpx, fpx, c[0] + 0.5, c[1] + 0.5, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0], f64::NAN);
     };
-    (
-        [
-            l.fx,
-            l.fy,
-            l.cx + 0.5,
-            l.cy + 0.5,
-            l.k[0],
-            l.k[1],
-            l.p[0],
-            l.p[1],
-            l.k[2],
-            l.k[3],
-            l.k[4],
-            l.k[5],
-        ],
-        fit.max_px,
-    )
+    (lineflow_formats::colmap::full_opencv_params(&l), fit.max_px)
 }
 
 /// Writes `cameras.txt`, `images.txt` and `points3D.txt` into `dir` (created); returns the distortion fit's
