@@ -373,7 +373,7 @@ enum Cmd {
         #[command(subcommand)]
         what: lineflow_interop::CameraCmd,
     },
-    /// poses.csv from a COLMAP model, in the survey's frame by a project's control points.
+    /// poses.csv from a COLMAP model or a Metashape cameras export, in the survey's frame by a project's control points.
     Poses {
         #[command(subcommand)]
         what: lineflow_interop::PosesCmd,

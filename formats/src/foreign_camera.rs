@@ -243,8 +243,44 @@ fn yaml_value(text: &str, key: &str) -> Option<Vec<f64>> {
     (!data.is_empty()).then(|| parse_numbers(&data))
 }
 
+/// Every `<tag …>…</tag>` or `<tag …/>` element of `text` in order, as (attributes, body); elements of one name do
+/// not nest in the files read here.
+pub(crate) fn xml_elements<'a>(text: &'a str, tag: &str) -> Vec<(&'a str, &'a str)> {
+    let mut out = Vec::new();
+    let (open, close) = (format!("<{tag}"), format!("</{tag}>"));
+    let mut from = 0;
+    while let Some(at) = text.get(from..).and_then(|t| t.find(&open)).map(|k| from + k) {
+        let after = at + open.len();
+        let Some(end) = text.get(after..).and_then(|t| t.find('>')).map(|k| after + k) else {
+            break;
+        };
+        from = end + 1;
+        if !text[after..].starts_with(['>', '/', ' ', '\t', '\n', '\r']) {
+            continue;
+        }
+        let attributes = text[after..end].trim_end_matches('/');
+        if text[..end].ends_with('/') {
+            out.push((attributes, ""));
+            continue;
+        }
+        let Some(stop) = text.get(from..).and_then(|t| t.find(&close)).map(|k| from + k) else {
+            break;
+        };
+        out.push((attributes, &text[from..stop]));
+        from = stop + close.len();
+    }
+    out
+}
+
+/// The value of `name="…"` in an element's attributes.
+pub(crate) fn xml_attribute<'a>(attributes: &'a str, name: &str) -> Option<&'a str> {
+    let at = attributes.find(&format!(" {name}=\""))? + name.len() + 3;
+    let rest = &attributes[at..];
+    Some(&rest[..rest.find('"')?])
+}
+
 /// The text between `<tag …>` and `</tag>` (the first such element).
-fn xml_text<'a>(text: &'a str, tag: &str) -> Option<&'a str> {
+pub(crate) fn xml_text<'a>(text: &'a str, tag: &str) -> Option<&'a str> {
     let mut from = 0;
     loop {
         let at = from + text.get(from..)?.find(&format!("<{tag}"))?;
@@ -330,7 +366,14 @@ fn colmap(cameras: Vec<ColmapCamera>, camera_id: Option<u32>, file: &str) -> Res
 /// Metashape's calibration XML (`<calibration>` with `<width>`, `<height>`, `<f>`, `<cx>`, `<cy>` offsets from the
 /// image centre, `<k1>`–`<k4>`, `<p1>`, `<p2>`, `<b1>`, `<b2>`).
 fn metashape(text: &str) -> Result<ForeignCamera, String> {
-    let calib = xml_text(text, "calibration").ok_or("no <calibration> element")?;
+    // A project export holds the initial calibration and the adjusted one: the adjusted is the camera.
+    let all = xml_elements(text, "calibration");
+    let calib = all
+        .iter()
+        .find(|(a, _)| a.contains("class=\"adjusted\""))
+        .or(all.first())
+        .map(|(_, body)| *body)
+        .ok_or("no <calibration> element")?;
     let value = |tag: &str| -> Result<Option<f64>, String> {
         xml_text(calib, tag)
             .map(|t| {
@@ -346,7 +389,16 @@ fn metashape(text: &str) -> Result<ForeignCamera, String> {
             return Err(format!("projection {:?}: only frame (pinhole) cameras are read", p.trim()));
         }
     }
-    let (width, height, f) = (need("width")?, need("height")?, need("f")?);
+    // A calibration file names the size in elements, a project export in `<resolution width=… height=…/>`.
+    let resolution = xml_elements(calib, "resolution").first().map(|(a, _)| *a);
+    let size = |tag: &str| -> Result<f64, String> {
+        match (value(tag)?, resolution.and_then(|a| xml_attribute(a, tag))) {
+            (Some(v), _) => Ok(v),
+            (None, Some(a)) => a.trim().parse().map_err(|_| format!("<resolution {tag}={a:?}> is not a number")),
+            (None, None) => Err(format!("no <{tag}> in <calibration>")),
+        }
+    };
+    let (width, height, f) = (size("width")?, size("height")?, need("f")?);
     let or0 = |tag: &str| value(tag).map(|v| v.unwrap_or(0.0));
     let (b1, b2) = (or0("b1")?, or0("b2")?);
     let mut notes = Vec::new();
@@ -493,6 +545,14 @@ mod tests {
         assert_eq!([c.lens.fx, c.lens.fy], [5313.2, 5312.4]);
         assert_eq!([c.lens.cx, c.lens.cy], [2999.5 - 12.3, 1999.5 + 8.1]);
         assert_eq!(c.lens.p, [-0.0001, 0.0003], "Metashape's P1 is OpenCV's p2");
+    }
+
+    #[test]
+    fn a_metashape_project_export_gives_its_adjusted_calibration() {
+        let text = include_str!("../../fuzz/corpus/metashape_cameras/seed.xml");
+        let c = read_text("cameras.xml", text, None).unwrap();
+        assert_eq!((c.width, c.height), (4288, 2848));
+        assert_eq!([c.lens.fx, c.lens.cx], [3201.1, 2143.5 - 19.4]);
     }
 
     #[test]

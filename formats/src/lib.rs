@@ -5,6 +5,7 @@
 
 pub mod colmap;
 pub mod foreign_camera;
+pub mod metashape;
 pub mod natural;
 pub mod project;
 

@@ -216,6 +216,16 @@ pub static TARGETS: &[Target] = &[
         },
     },
     Target {
+        name: "Metashape cameras XML",
+        key: "metashape_cameras",
+        file: "cameras.xml",
+        seed: seed!("metashape_cameras", "seed.xml"),
+        parse: |p| {
+            let _ = lineflow_formats::metashape::read_cameras(p);
+            import_camera(p);
+        },
+    },
+    Target {
         name: "OBJ model",
         key: "obj_model",
         file: "model.obj",

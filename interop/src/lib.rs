@@ -1,6 +1,6 @@
-//! Other tools' files. `lineflow poses import`: `poses.csv` from a COLMAP model ([`poses`]). `lineflow camera
-//! import | export`: a project's `camera.toml` from another tool's calibration file (OpenCV,
-//! COLMAP, Metashape) and back, through a least-squares fit between OpenCV's lens model and this project's
+//! Other tools' files. `lineflow poses import`: `poses.csv` from a COLMAP model or a Metashape cameras export
+//! ([`poses`]). `lineflow camera import | export`: a project's `camera.toml` from another tool's calibration file
+//! (OpenCV, COLMAP, Metashape) and back, through a least-squares fit between OpenCV's lens model and this project's
 //! correction model ([`lineflow_photogrammetry::lens`]), with the fit's residual over the frame printed.
 #![warn(missing_docs)]
 

@@ -1,10 +1,11 @@
-//! `lineflow poses import`: the poses of a COLMAP model as `poses.csv`, brought into the survey's frame by the
-//! project's control points where it has them (COLMAP's frame is arbitrary in position, rotation and scale).
+//! `lineflow poses import`: the poses of a COLMAP model or a Metashape cameras export as `poses.csv`, brought into
+//! the survey's frame by the project's control points where it has them (a COLMAP model's frame is arbitrary in
+//! position, rotation and scale; a Metashape chunk's may be geocentric).
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 use anyhow::{bail, Context, Result};
-use lineflow_formats::colmap::{read_images, ColmapImage};
+use lineflow_formats::colmap::read_images;
 use lineflow_formats::natural::natural_cmp;
 use lineflow_formats::project::{file_name, Project};
 use lineflow_formats::{write_poses, PoseRow};
@@ -14,10 +15,10 @@ use lineflow_photogrammetry::{Camera, Pose, Vec3};
 /// `lineflow poses …`.
 #[derive(Debug, clap::Subcommand)]
 pub enum PosesCmd {
-    /// Write poses.csv from a COLMAP model (a sparse model folder, or its images.txt or images.bin); with --project,
-    /// in the survey's frame of the project's control points
+    /// Write poses.csv from a COLMAP model (a sparse model folder, or its images.txt or images.bin) or a Metashape
+    /// cameras export (.xml); with --project, in the survey's frame of the project's control points
     Import {
-        /// The model folder (holding images.bin or images.txt) or the images file.
+        /// The COLMAP model folder (holding images.bin or images.txt), its images file, or a Metashape cameras .xml.
         model: PathBuf,
         /// A project folder whose camera.toml, control_points.csv and observations.csv place the poses in the
         /// survey's frame (a similarity fitted to the control points, the check points reported).
@@ -47,18 +48,15 @@ pub fn poses(cmd: PosesCmd) -> Result<ExitCode> {
     if out.exists() && !force {
         bail!("{} exists: pass --force to overwrite it", out.display());
     }
-    let images_file = images_file(&model)?;
-    let mut images = read_images(&images_file)?;
-    images.sort_by(|a, b| natural_cmp(&a.name, &b.name));
-    eprintln!("{}: {} registered images", images_file.display(), images.len());
+    let mut images = read_model(&model)?;
+    images.sort_by(|a, b| natural_cmp(&a.0, &b.0));
     if let Some(root) = &project {
         let project = Project::open(root, true)?;
-        let cameras: std::collections::BTreeSet<u32> = images.iter().map(|i| i.camera_id).collect();
-        if cameras.len() > 1 {
-            eprintln!(
-                "note: the model has {} cameras; the project's camera.toml is taken for all of them",
-                cameras.len()
-            );
+        // Metashape's labels drop the extension: the project's images give it back.
+        for (name, _) in &mut images {
+            if let Some(file) = project.images.iter().map(|p| file_name(p)).find(|f| same_image(f, name)) {
+                *name = file;
+            }
         }
         let fit = georeference(&images, &project)?;
         eprintln!(
@@ -75,17 +73,17 @@ pub fn poses(cmd: PosesCmd) -> Result<ExitCode> {
             let rms = (check.iter().map(|d| d * d).sum::<f64>() / check.len() as f64).sqrt();
             eprintln!("at the {} check points: {:.1} mm RMS", check.len(), rms * 1e3);
         }
-        for image in &mut images {
-            image.pose = transformed(&image.pose, &fit.transform);
+        for (_, pose) in &mut images {
+            *pose = transformed(pose, &fit.transform);
         }
     } else {
-        eprintln!("note: no --project: the poses stay in the COLMAP model's own frame (arbitrary position, rotation and scale)");
+        eprintln!("note: no --project: the poses stay in the model's own frame");
     }
     let rows: Vec<PoseRow> = images
         .iter()
-        .map(|i| PoseRow {
-            image: file_name(Path::new(&i.name)),
-            pose: i.pose,
+        .map(|(name, pose)| PoseRow {
+            image: name.clone(),
+            pose: *pose,
             sigma_center_m: None,
             sigma_angles_deg: None,
         })
@@ -95,21 +93,46 @@ pub fn poses(cmd: PosesCmd) -> Result<ExitCode> {
     Ok(ExitCode::SUCCESS)
 }
 
-/// The images file of a model path: the file itself, or the folder's images.bin (else images.txt).
-fn images_file(model: &Path) -> Result<PathBuf> {
-    if !model.is_dir() {
-        return Ok(model.to_owned());
+/// The (image file name, pose) of every registered camera of a model: a Metashape cameras `.xml`, a COLMAP images
+/// file, or a COLMAP model folder (its images.bin, else images.txt).
+fn read_model(model: &Path) -> Result<Vec<(String, Pose)>> {
+    if model.extension().is_some_and(|e| e.eq_ignore_ascii_case("xml")) {
+        let read = lineflow_formats::metashape::read_cameras(model)?;
+        eprintln!("{}: {} aligned cameras (Metashape)", model.display(), read.cameras.len());
+        for note in &read.notes {
+            eprintln!("note: {note}");
+        }
+        return Ok(read.cameras);
     }
-    ["images.bin", "images.txt"]
-        .iter()
-        .map(|f| model.join(f))
-        .find(|p| p.is_file())
-        .with_context(|| {
-            format!(
-                "{}: no images.bin or images.txt in the folder (a COLMAP sparse model)",
-                model.display()
-            )
-        })
+    let file = if model.is_dir() {
+        ["images.bin", "images.txt"]
+            .iter()
+            .map(|f| model.join(f))
+            .find(|p| p.is_file())
+            .with_context(|| {
+                format!(
+                    "{}: no images.bin or images.txt in the folder (a COLMAP sparse model)",
+                    model.display()
+                )
+            })?
+    } else {
+        model.to_owned()
+    };
+    let images = read_images(&file)?;
+    let cameras: std::collections::BTreeSet<u32> = images.iter().map(|i| i.camera_id).collect();
+    eprintln!(
+        "{}: {} registered images, {} cameras (COLMAP)",
+        file.display(),
+        images.len(),
+        cameras.len()
+    );
+    Ok(images.into_iter().map(|i| (file_name(Path::new(&i.name)), i.pose)).collect())
+}
+
+/// Whether a project's image file and a model's image name are one image: the same file name, or the same name
+/// without its extension (Metashape's labels).
+fn same_image(file: &str, name: &str) -> bool {
+    file == name || Path::new(file).file_stem().is_some_and(|s| s == name)
 }
 
 /// The similarity into the survey's frame and how well the points fit it.
@@ -129,11 +152,11 @@ pub struct Georeference {
 ///
 /// # Errors
 /// Fewer than three control points seen in two images, or all on a line.
-pub fn georeference(images: &[ColmapImage], project: &Project) -> Result<Georeference> {
+pub fn georeference(images: &[(String, Pose)], project: &Project) -> Result<Georeference> {
     let camera = project.camera.camera();
     let pose_of = |frame: u64| -> Option<Pose> {
-        let name = file_name(project.images.get(frame as usize)?);
-        images.iter().find(|i| file_name(Path::new(&i.name)) == name).map(|i| i.pose)
+        let file = file_name(project.images.get(frame as usize)?);
+        images.iter().find(|(name, _)| same_image(&file, name)).map(|(_, pose)| *pose)
     };
     let mut points = Vec::new();
     for cp in &project.control_points {
@@ -286,21 +309,18 @@ mod tests {
             rotation: rotation_from_opk(0.4, 1.2, -0.7),
             translation: Vec3::new(3.0, -1.0, 0.5),
         };
-        let images: Vec<ColmapImage> = truth
+        // Metashape's labels: no extension.
+        let images: Vec<(String, Pose)> = truth
             .iter()
             .enumerate()
-            .map(|(f, p)| ColmapImage {
-                name: format!("IMG_{f}.jpg"),
-                camera_id: 1,
-                pose: transformed(p, &to_model),
-            })
+            .map(|(f, p)| (format!("IMG_{f}"), transformed(p, &to_model)))
             .collect();
         let fit = georeference(&images, &project).unwrap();
         assert_eq!(fit.control, 4);
         assert!(fit.control_rms_m < 1e-6, "{}", fit.control_rms_m);
         assert!(fit.residuals.iter().any(|r| r.2 == "check" && r.1 < 1e-6));
-        for (image, want) in images.iter().zip(&truth) {
-            let got = transformed(&image.pose, &fit.transform);
+        for ((_, pose), want) in images.iter().zip(&truth) {
+            let got = transformed(pose, &fit.transform);
             assert!((got.center - want.center).norm() < 1e-6 && (got.rotation - want.rotation).norm() < 1e-9);
         }
         let few = Project {
