@@ -4,6 +4,7 @@
 #![warn(missing_docs)]
 
 pub mod colmap;
+pub mod exif_camera;
 pub mod foreign_camera;
 pub mod metashape;
 pub mod natural;

@@ -196,6 +196,21 @@ fn toml_error(path: &Path, text: &str, e: toml::de::Error) -> ProjectError {
     }
 }
 
+/// Writes `camera.toml`, `header` (comment lines) first, refusing a camera that [`read_camera`] would refuse.
+///
+/// # Errors
+/// An invalid camera (named as the reader names it) or a file that cannot be written.
+pub fn write_camera(path: &Path, camera: &Camera, header: &str) -> Result<(), ProjectError> {
+    let file = CameraFile::of(camera);
+    file.validate(path)?;
+    let fail = |message: String| ProjectError::Read {
+        path: path.to_owned(),
+        message,
+    };
+    let toml = toml::to_string(&file).map_err(|e| fail(e.to_string()))?;
+    std::fs::write(path, format!("{header}{toml}")).map_err(|e| fail(format!("cannot write: {e}")))
+}
+
 /// Reads and checks `camera.toml`.
 ///
 /// # Errors

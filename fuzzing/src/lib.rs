@@ -226,6 +226,15 @@ pub static TARGETS: &[Target] = &[
         },
     },
     Target {
+        name: "EXIF camera",
+        key: "exif_camera",
+        file: "photo.jpg",
+        seed: seed!("exif_camera", "seed.jpg"),
+        parse: |p| {
+            let _ = lineflow_formats::exif_camera::exif_camera(p, 4000, 3000);
+        },
+    },
+    Target {
         name: "OBJ model",
         key: "obj_model",
         file: "model.obj",

@@ -12,9 +12,10 @@ use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 use anyhow::{bail, Context, Result};
+use lineflow_formats::exif_camera::exif_camera;
 use lineflow_formats::foreign_camera::{self, ForeignFormat};
-use lineflow_formats::project::{read_camera, CameraFile};
-use lineflow_photogrammetry::{camera_from_opencv, opencv_from_camera, FitResidual};
+use lineflow_formats::project::{is_image_name, read_camera, write_camera};
+use lineflow_photogrammetry::{camera_from_opencv, opencv_from_camera, Camera, FitResidual};
 
 /// Pixel pitch assumed when neither the file nor the user gives one, mm: only the ratio of the principal distance to
 /// it enters the geometry, so any value gives the same rays, and millimetres of the right size read naturally.
@@ -27,17 +28,19 @@ const WARN_RESIDUAL_PX: f64 = 0.5;
 #[derive(Debug, clap::Subcommand)]
 pub enum CameraCmd {
     /// Write camera.toml from another tool's calibration: OpenCV calibrateCamera output (.yml/.yaml/.xml/.json),
-    /// COLMAP cameras.txt (SIMPLE_PINHOLE, PINHOLE, SIMPLE_RADIAL, RADIAL, OPENCV, FULL_OPENCV) or Agisoft
-    /// Metashape calibration .xml; prints the conversion's residual over the frame
+    /// COLMAP cameras.txt or cameras.bin (SIMPLE_PINHOLE, PINHOLE, SIMPLE_RADIAL, RADIAL, OPENCV, FULL_OPENCV) or
+    /// Agisoft Metashape calibration .xml; prints the conversion's residual over the frame. Given a photo
+    /// (.jpg/.tif/.png), a nominal camera from its EXIF instead
     Import {
-        /// The calibration file.
+        /// The calibration file, or a photo whose EXIF gives a nominal camera.
         file: PathBuf,
         /// The camera.toml to write (an existing file only with --force).
         #[arg(long, default_value = "camera.toml")]
         out: PathBuf,
-        /// The sensor's pixel pitch, mm (sets the scale of focal_mm; the rays do not depend on it).
-        #[arg(long, default_value_t = ASSUMED_PIXEL_SIZE_MM)]
-        pixel_size_mm: f64,
+        /// The sensor's pixel pitch, mm (sets the scale of focal_mm; the rays do not depend on it) [default: the
+        /// photo's EXIF, or 0.005 for a calibration file].
+        #[arg(long)]
+        pixel_size_mm: Option<f64>,
         /// The camera to take from a COLMAP file holding several.
         #[arg(long)]
         camera_id: Option<u32>,
@@ -87,13 +90,17 @@ pub fn camera(cmd: CameraCmd) -> Result<ExitCode> {
     }
 }
 
-fn import(file: &Path, out: &Path, pixel_size_mm: f64, camera_id: Option<u32>, force: bool) -> Result<ExitCode> {
-    if !(pixel_size_mm.is_finite() && pixel_size_mm > 0.0) {
-        bail!("--pixel-size-mm {pixel_size_mm}: must be a positive length");
+fn import(file: &Path, out: &Path, pixel_size_mm: Option<f64>, camera_id: Option<u32>, force: bool) -> Result<ExitCode> {
+    if let Some(p) = pixel_size_mm.filter(|p| !(p.is_finite() && *p > 0.0)) {
+        bail!("--pixel-size-mm {p}: must be a positive length");
     }
     if out.exists() && !force {
         bail!("{} exists: pass --force to overwrite it", out.display());
     }
+    if is_image_name(file) {
+        return import_exif(file, out, pixel_size_mm);
+    }
+    let pixel_size_mm = pixel_size_mm.unwrap_or(ASSUMED_PIXEL_SIZE_MM);
     let foreign = foreign_camera::read(file, camera_id)?;
     let Some((camera, fit)) = camera_from_opencv(&foreign.lens, foreign.width, foreign.height, pixel_size_mm) else {
         bail!(
@@ -103,13 +110,12 @@ fn import(file: &Path, out: &Path, pixel_size_mm: f64, camera_id: Option<u32>, f
             foreign.height
         );
     };
-    let toml = toml::to_string(&CameraFile::of(&camera))?;
     let header = format!(
         "# From {} ({}) by `lineflow camera import`; our correction model fitted over the frame: {fit}.\n",
         file.display(),
         foreign.format
     );
-    std::fs::write(out, header + &toml).with_context(|| format!("cannot write {}", out.display()))?;
+    write_camera(out, &camera, &header)?;
     eprintln!(
         "{}: {}, {}x{} px, f = {:.2} px -> {} (f = {:.4} mm at {} mm pixels)",
         file.display(),
@@ -132,6 +138,65 @@ fn import(file: &Path, out: &Path, pixel_size_mm: f64, camera_id: Option<u32>, f
     }
     report_fit(&fit);
     Ok(ExitCode::SUCCESS)
+}
+
+/// A nominal camera from a photo's EXIF (`lineflow_formats::exif_camera`).
+fn import_exif(photo: &Path, out: &Path, pixel_size_mm: Option<f64>) -> Result<ExitCode> {
+    let (width, height) = image_size(photo)?;
+    let exif = exif_camera(photo, width, height)?;
+    let (pixel_size_mm, pitch_from) = match pixel_size_mm {
+        Some(p) => (p, "--pixel-size-mm"),
+        None => (exif.pixel_size_mm, exif.pitch_from.as_str()),
+    };
+    let camera = Camera {
+        width,
+        height,
+        pixel_size_mm,
+        focal_mm: exif.focal_mm,
+        principal_point_mm: [0.0; 2],
+        radial: [0.0; 3],
+        decentering: [0.0; 2],
+    };
+    let header = format!(
+        "# Nominal camera from the EXIF of {} ({}) by `lineflow camera import`: the focal length as the lens reports it, \
+         the pixel pitch from {pitch_from}, the principal point at the centre, no distortion. A starting point, not a \
+         calibration.\n",
+        photo.display(),
+        if exif.name.is_empty() { "camera unnamed" } else { &exif.name }
+    );
+    write_camera(out, &camera, &header)?;
+    eprintln!(
+        "{}: {width}x{height} px, f = {} mm, {pixel_size_mm:.5} mm pixels (from {pitch_from}) -> {}",
+        photo.display(),
+        exif.focal_mm,
+        out.display()
+    );
+    for note in &exif.notes {
+        eprintln!("note: {note}");
+    }
+    eprintln!(
+        "warning: a nominal camera: the focal length is the lens's marked value (often 1-3 % off), the principal \
+         point and the distortion are unknown, and lineflow cannot yet estimate them (self-calibration, issue #31). \
+         Calibrate the camera (OpenCV, COLMAP, Metashape: `lineflow camera import`) for survey-grade results"
+    );
+    Ok(ExitCode::SUCCESS)
+}
+
+/// An image's size after its EXIF orientation, from its header.
+fn image_size(photo: &Path) -> Result<(u32, u32)> {
+    use image::metadata::Orientation;
+    use image::ImageDecoder;
+    let read = || -> image::ImageResult<((u32, u32), Orientation)> {
+        let mut decoder = image::ImageReader::open(photo)?.with_guessed_format()?.into_decoder()?;
+        let size = decoder.dimensions();
+        Ok((size, decoder.orientation()?))
+    };
+    let ((w, h), orientation) = read().with_context(|| format!("{}: not an image this tool reads", photo.display()))?;
+    let turned = matches!(
+        orientation,
+        Orientation::Rotate90 | Orientation::Rotate270 | Orientation::Rotate90FlipH | Orientation::Rotate270FlipH
+    );
+    Ok(if turned { (h, w) } else { (w, h) })
 }
 
 fn export(path: &Path, format: ExportFormat, out: Option<&Path>) -> Result<ExitCode> {
@@ -178,11 +243,11 @@ mod tests {
         )
         .unwrap();
         let toml = dir.path().join("camera.toml");
-        import(&colmap, &toml, 0.0039, None, false).unwrap();
+        import(&colmap, &toml, Some(0.0039), None, false).unwrap();
         let camera = read_camera(&toml).unwrap();
         assert_eq!((camera.width, camera.height, camera.pixel_size_mm), (3072, 2304, 0.0039));
         assert!((camera.focal_mm - 2559.68 * 0.0039).abs() < 1e-9);
-        let e = import(&colmap, &toml, 0.0039, None, false).unwrap_err().to_string();
+        let e = import(&colmap, &toml, Some(0.0039), None, false).unwrap_err().to_string();
         assert!(e.contains("--force"), "{e}");
         let back = dir.path().join("back.txt");
         export(&toml, ExportFormat::Colmap, Some(&back)).unwrap();
@@ -193,14 +258,43 @@ mod tests {
     }
 
     #[test]
+    fn a_photo_gives_a_nominal_camera_from_its_exif_turned_as_the_photo_is() {
+        let dir = tempfile::tempdir().unwrap();
+        let out = dir.path().join("camera.toml");
+        // A 16 x 12 JPEG tagged "rotate 90°", 24 mm lens, 24 mm on full frame (fuzz/corpus/exif_camera).
+        let seed = std::fs::read(concat!(env!("CARGO_MANIFEST_DIR"), "/../fuzz/corpus/exif_camera/seed.jpg")).unwrap();
+        // Its EXIF (the APP1 segment after SOI) in a 640 x 480 JPEG.
+        let app1_len = 2 + u16::from_be_bytes([seed[4], seed[5]]) as usize;
+        let img = image::GrayImage::from_pixel(640, 480, image::Luma([128]));
+        let mut jpeg = Vec::new();
+        image::codecs::jpeg::JpegEncoder::new(&mut jpeg).encode_image(&img).unwrap();
+        let photo = dir.path().join("IMG_0001.jpg");
+        std::fs::write(&photo, [&jpeg[..2], &seed[2..2 + app1_len], &jpeg[2..]].concat()).unwrap();
+        import(&photo, &out, None, None, false).unwrap();
+        let camera = read_camera(&out).unwrap();
+        assert_eq!((camera.width, camera.height, camera.focal_mm), (480, 640, 24.0));
+        // Full frame's diagonal over the image's 800-pixel diagonal.
+        assert!((camera.pixel_size_mm - 43.266_615_305_567_87 / 800.0).abs() < 1e-9, "{camera:?}");
+        import(&photo, &out, Some(0.004), None, true).unwrap();
+        assert_eq!(read_camera(&out).unwrap().pixel_size_mm, 0.004);
+        // The 16 x 12 seed itself would have 2 mm pixels: no camera's, refused by name and not written.
+        let tiny = dir.path().join("tiny.jpg");
+        std::fs::write(&tiny, &seed).unwrap();
+        let e = import(&tiny, &dir.path().join("t.toml"), None, None, false)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("pixel") && !dir.path().join("t.toml").exists(), "{e}");
+    }
+
+    #[test]
     fn a_missing_file_and_a_bad_pixel_size_are_named() {
         let dir = tempfile::tempdir().unwrap();
         let out = dir.path().join("camera.toml");
-        let e = import(&dir.path().join("none.yml"), &out, 0.005, None, false)
+        let e = import(&dir.path().join("none.yml"), &out, None, None, false)
             .unwrap_err()
             .to_string();
         assert!(e.contains("none.yml"), "{e}");
-        let e = import(&dir.path().join("none.yml"), &out, -1.0, None, false)
+        let e = import(&dir.path().join("none.yml"), &out, Some(-1.0), None, false)
             .unwrap_err()
             .to_string();
         assert!(e.contains("--pixel-size-mm"), "{e}");
