@@ -24,6 +24,19 @@ fn has_node(graph: &Path, name: &str) -> bool {
 
 /// Runs a graph (default `launch/folder.toml`) over a project folder.
 pub fn process(folder: &Path, out: Option<PathBuf>, graph: Option<PathBuf>, set: &[String], verbosity: Verbosity) -> Result<ExitCode> {
+    // Bare photos: a nominal camera from the first one's EXIF, written where the user sees (and can replace) it.
+    let camera_toml = folder.join("camera.toml");
+    let first = lineflow_formats::project::list_images(&folder.join("images"))
+        .ok()
+        .and_then(|i| i.into_iter().next());
+    if let (false, Some(photo)) = (camera_toml.exists(), first) {
+        eprintln!(
+            "{}: missing; a nominal camera from the EXIF of {}:",
+            camera_toml.display(),
+            photo.display()
+        );
+        lineflow_interop::import_exif(&photo, &camera_toml, None)?;
+    }
     let project = lineflow_formats::project::Project::open(folder, false).map_err(|e| anyhow::anyhow!("{e}"))?;
     let graph = graph.unwrap_or_else(|| launch_dir().join("folder.toml"));
     if !graph.is_file() {

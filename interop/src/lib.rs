@@ -140,8 +140,12 @@ fn import(file: &Path, out: &Path, pixel_size_mm: Option<f64>, camera_id: Option
     Ok(ExitCode::SUCCESS)
 }
 
-/// A nominal camera from a photo's EXIF (`lineflow_formats::exif_camera`).
-fn import_exif(photo: &Path, out: &Path, pixel_size_mm: Option<f64>) -> Result<ExitCode> {
+/// Writes `out` with a nominal camera from a photo's EXIF (`lineflow_formats::exif_camera`; the pixel pitch from
+/// the EXIF unless given), printing what it took and a warning that it is no calibration.
+///
+/// # Errors
+/// A photo without the EXIF to start from, a camera `camera.toml` would refuse, or `out` not writable.
+pub fn import_exif(photo: &Path, out: &Path, pixel_size_mm: Option<f64>) -> Result<ExitCode> {
     let (width, height) = image_size(photo)?;
     let exif = exif_camera(photo, width, height)?;
     let (pixel_size_mm, pitch_from) = match pixel_size_mm {
@@ -177,7 +181,8 @@ fn import_exif(photo: &Path, out: &Path, pixel_size_mm: Option<f64>) -> Result<E
     eprintln!(
         "warning: a nominal camera: the focal length is the lens's marked value (often 1-3 % off), the principal \
          point and the distortion are unknown, and lineflow cannot yet estimate them (self-calibration, issue #31). \
-         Calibrate the camera (OpenCV, COLMAP, Metashape: `lineflow camera import`) for survey-grade results"
+         Expect decimetres of error (docs/formats.md); calibrate the camera (OpenCV, COLMAP, Metashape: `lineflow \
+         camera import`) for survey-grade results"
     );
     Ok(ExitCode::SUCCESS)
 }
