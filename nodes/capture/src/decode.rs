@@ -83,6 +83,21 @@ pub const MAX_DECODED_BYTES: u64 = 1 << 30;
 /// # Errors
 /// The file cannot be opened or is not a complete, supported image.
 pub fn decode_file(path: &Path) -> Result<DecodedImage, DecodeError> {
+    decode_oriented(path, None)
+}
+
+/// Decodes `path` for a camera whose sensor is `sensor` (width, height) pixels: with its EXIF orientation applied,
+/// unless the image as stored, and not the turned one, has the sensor's size. A portrait photo from a landscape
+/// camera is stored as the sensor recorded it and tagged "turn 90°"; the camera model (principal point,
+/// distortion) belongs to the sensor's raster, so that raster is used and the pose takes up the turn.
+///
+/// # Errors
+/// As [`decode_file`].
+pub fn decode_file_for(path: &Path, sensor: (u32, u32)) -> Result<DecodedImage, DecodeError> {
+    decode_oriented(path, Some(sensor))
+}
+
+fn decode_oriented(path: &Path, sensor: Option<(u32, u32)>) -> Result<DecodedImage, DecodeError> {
     let io = |what| {
         move |source| DecodeError::Io {
             path: path.to_owned(),
@@ -122,7 +137,16 @@ pub fn decode_file(path: &Path) -> Result<DecodedImage, DecodeError> {
             bytes: decoder.total_bytes(),
         });
     }
-    let orientation = decoder.orientation().unwrap_or(image::metadata::Orientation::NoTransforms);
+    let mut orientation = decoder.orientation().unwrap_or(image::metadata::Orientation::NoTransforms);
+    let stored = decoder.dimensions();
+    let turned = {
+        use image::metadata::Orientation::*;
+        matches!(orientation, Rotate90 | Rotate270 | Rotate90FlipH | Rotate270FlipH)
+    };
+    let shown = if turned { (stored.1, stored.0) } else { stored };
+    if sensor.is_some_and(|s| s != shown && s == stored) {
+        orientation = image::metadata::Orientation::NoTransforms;
+    }
     let mut img = DynamicImage::from_decoder(decoder).map_err(|source| DecodeError::Corrupt {
         path: path.to_owned(),
         source,
@@ -229,6 +253,14 @@ mod tests {
         std::fs::write(&p, tagged).unwrap();
         let sut = decode_file(&p).unwrap();
         assert_eq!((sut.width, sut.height), (8, 16));
+        // For a 16 x 8 sensor the photo is used as the sensor recorded it; for an 8 x 16 one, turned.
+        let raw = decode_file_for(&p, (16, 8)).unwrap();
+        assert_eq!((raw.width, raw.height), (16, 8));
+        assert_eq!(raw.bytes[..3], [0, 0, 0][..], "the left half is black as stored");
+        let turned = decode_file_for(&p, (8, 16)).unwrap();
+        assert_eq!((turned.width, turned.height), (8, 16));
+        let other = decode_file_for(&p, (20, 10)).unwrap();
+        assert_eq!((other.width, other.height), (8, 16), "no match: as shown, for the caller to refuse");
     }
 
     #[test]

@@ -2,7 +2,7 @@
 use std::time::{Duration, Instant};
 
 use anyhow::{bail, Context, Result};
-use lineflow_capture::decode_file;
+use lineflow_capture::decode_file_for;
 use lineflow_capture::folder_params::FolderParams;
 use lineflow_capture::pacer::Pacer;
 use lineflow_formats::project::{self, Project};
@@ -31,10 +31,11 @@ pub fn run(ctx: NodeContext) -> Result<()> {
 
     let mut frame = 0u64;
     let mut publish = |path: &std::path::Path| -> Result<()> {
-        let img = decode_file(path)?;
+        let img = decode_file_for(path, (project.camera.width, project.camera.height))?;
         if (img.width, img.height) != (project.camera.width, project.camera.height) {
             bail!(
-                "{}: image is {}x{} but camera.toml says {}x{}",
+                "{}: image is {}x{} but camera.toml says {}x{} (one camera per project, its images neither cropped nor \
+                 scaled; a photo turned by its EXIF orientation is taken as stored where that fits)",
                 path.display(),
                 img.width,
                 img.height,

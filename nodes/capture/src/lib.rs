@@ -8,4 +8,4 @@ pub mod pacer;
 pub mod synthetic_source;
 pub mod watch;
 
-pub use decode::{decode_file, DecodedImage};
+pub use decode::{decode_file, decode_file_for, DecodedImage};
