@@ -7,7 +7,7 @@ use std::path::Path;
 use lineflow_photogrammetry::{Mat3, Pose, Vec3};
 use nalgebra::{Quaternion, UnitQuaternion};
 
-use crate::foreign_camera::ForeignFileError;
+use crate::foreign_file::ForeignFileError;
 
 /// One camera line (or record) of a COLMAP model.
 #[derive(Debug, Clone, PartialEq)]

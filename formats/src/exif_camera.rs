@@ -5,7 +5,7 @@ use std::path::Path;
 
 use exif::{In, Tag, Value};
 
-use crate::foreign_camera::ForeignFileError;
+use crate::foreign_file::ForeignFileError;
 
 /// 35 mm film's diagonal, mm (36 × 24).
 const FULL_FRAME_DIAGONAL_MM: f64 = 43.266_615_305_567_87;

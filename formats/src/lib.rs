@@ -6,6 +6,7 @@
 pub mod colmap;
 pub mod exif_camera;
 pub mod foreign_camera;
+pub mod foreign_file;
 pub mod metashape;
 pub mod natural;
 pub mod project;

@@ -5,7 +5,7 @@ use std::path::Path;
 
 use lineflow_photogrammetry::{Mat3, Pose, Vec3};
 
-use crate::foreign_camera::{xml_attribute, xml_elements, xml_text, ForeignFileError};
+use crate::foreign_file::{xml_attribute, xml_elements, xml_text, ForeignFileError};
 
 /// The aligned cameras of a Metashape cameras XML, by label, and notes on what was left out.
 #[derive(Debug, Clone, PartialEq)]
