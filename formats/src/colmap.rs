@@ -52,6 +52,11 @@ const MODELS: [(&str, usize); 11] = [
     ("THIN_PRISM_FISHEYE", 12),
 ];
 
+/// How many parameters a COLMAP camera model has; `None` for a model COLMAP does not define.
+pub fn parameter_count(model: &str) -> Option<usize> {
+    MODELS.iter().find(|(name, _)| *name == model).map(|(_, n)| *n)
+}
+
 /// COLMAP's `FULL_OPENCV` parameters `fx fy cx cy k1 k2 p1 p2 k3 k4 k5 k6` of a lens (principal point moved half a
 /// pixel to COLMAP's convention).
 pub fn full_opencv_params(l: &lineflow_photogrammetry::OpenCvLens) -> [f64; 12] {

@@ -53,23 +53,20 @@ pub fn read(path: &Path, camera_id: Option<u32>) -> Result<ForeignCamera, Foreig
     };
     let bytes = std::fs::read(path).map_err(|e| fail(e.to_string()))?;
     let ext = path.extension().and_then(|e| e.to_str()).unwrap_or_default().to_ascii_lowercase();
-    if ext == "bin" {
-        let cam = colmap::cameras_binary(&bytes)
-            .and_then(|c| colmap(c, camera_id, "cameras.bin"))
-            .map_err(fail)?;
-        check(&cam).map_err(fail)?;
-        return Ok(cam);
-    }
-    let text = String::from_utf8(bytes).map_err(|_| fail("not UTF-8 text: not a calibration file".into()))?;
     let out = match ext.as_str() {
-        "txt" => colmap::cameras_text(&text).and_then(|c| colmap(c, camera_id, "cameras.txt")),
-        "xml" if text.contains("<calibration") => metashape(&text),
-        "xml" => opencv(&text, Syntax::Xml),
-        "yml" | "yaml" => opencv(&text, Syntax::Yaml),
-        "json" => opencv(&text, Syntax::Json),
-        _ => Err(format!(
-            "unknown extension {ext:?}: expected an OpenCV .yml/.yaml/.xml/.json, COLMAP cameras.txt or cameras.bin, or Metashape .xml"
-        )),
+        "bin" => colmap::cameras_binary(&bytes).and_then(|c| colmap(c, camera_id, "cameras.bin")),
+        _ => std::str::from_utf8(&bytes)
+            .map_err(|_| "not UTF-8 text: not a calibration file".to_owned())
+            .and_then(|text| match ext.as_str() {
+                "txt" => colmap::cameras_text(text).and_then(|c| colmap(c, camera_id, "cameras.txt")),
+                "xml" if text.contains("<calibration") => metashape(text),
+                "xml" => opencv(text, Syntax::Xml),
+                "yml" | "yaml" => opencv(text, Syntax::Yaml),
+                "json" => opencv(text, Syntax::Json),
+                _ => Err(format!(
+                "unknown extension {ext:?}: expected an OpenCV .yml/.yaml/.xml/.json, COLMAP cameras.txt or cameras.bin, or Metashape .xml"
+            )),
+            }),
     };
     let cam = out.map_err(fail)?;
     check(&cam).map_err(fail)?;
@@ -267,29 +264,22 @@ fn colmap(cameras: Vec<ColmapCamera>, camera_id: Option<u32>, file: &str) -> Res
         at,
         id,
     } = chosen;
-    let want = |n: usize| {
-        if p.len() == n {
-            Ok(())
-        } else {
-            Err(format!("{at}: {model} has {n} parameters, not {}", p.len()))
-        }
-    };
+    let unread =
+        || format!("{at}: camera model {model} is not read (SIMPLE_PINHOLE, PINHOLE, SIMPLE_RADIAL, RADIAL, OPENCV, FULL_OPENCV are)");
+    let n_params = colmap::parameter_count(&model).ok_or_else(unread)?;
+    if p.len() != n_params {
+        return Err(format!("{at}: {model} has {n_params} parameters, not {}", p.len()));
+    }
     // COLMAP's principal point counts from the corner of the top-left pixel.
     let c = |i: usize| p[i] - 0.5;
     let mut notes = Vec::new();
     let lens = match model.as_str() {
-        "SIMPLE_PINHOLE" => want(3).map(|_| opencv_lens([p[0], p[0], c(1), c(2)], &[], &mut notes))?,
-        "PINHOLE" => want(4).map(|_| opencv_lens([p[0], p[1], c(2), c(3)], &[], &mut notes))?,
-        "SIMPLE_RADIAL" => want(4).map(|_| opencv_lens([p[0], p[0], c(1), c(2)], &[p[3], 0.0, 0.0, 0.0], &mut notes))?,
-        "RADIAL" => want(5).map(|_| opencv_lens([p[0], p[0], c(1), c(2)], &[p[3], p[4], 0.0, 0.0], &mut notes))?,
-        "OPENCV" => want(8).map(|_| opencv_lens([p[0], p[1], c(2), c(3)], &p[4..8], &mut notes))?,
-        "FULL_OPENCV" => want(12).map(|_| {
-            let d = [p[4], p[5], p[6], p[7], p[8], p[9], p[10], p[11]];
-            opencv_lens([p[0], p[1], c(2), c(3)], &d, &mut notes)
-        })?,
-        other => Err(format!(
-            "{at}: camera model {other} is not read (SIMPLE_PINHOLE, PINHOLE, SIMPLE_RADIAL, RADIAL, OPENCV, FULL_OPENCV are)"
-        )),
+        "SIMPLE_PINHOLE" => opencv_lens([p[0], p[0], c(1), c(2)], &[], &mut notes),
+        "PINHOLE" => opencv_lens([p[0], p[1], c(2), c(3)], &[], &mut notes),
+        "SIMPLE_RADIAL" => opencv_lens([p[0], p[0], c(1), c(2)], &[p[3], 0.0, 0.0, 0.0], &mut notes),
+        "RADIAL" => opencv_lens([p[0], p[0], c(1), c(2)], &[p[3], p[4], 0.0, 0.0], &mut notes),
+        "OPENCV" | "FULL_OPENCV" => opencv_lens([p[0], p[1], c(2), c(3)], &p[4..], &mut notes),
+        _ => Err(unread()),
     }?;
     if n > 1 {
         notes.push(format!("camera {id} of {n}"));
@@ -307,10 +297,10 @@ fn colmap(cameras: Vec<ColmapCamera>, camera_id: Option<u32>, file: &str) -> Res
 /// image centre, `<k1>`–`<k4>`, `<p1>`, `<p2>`, `<b1>`, `<b2>`).
 fn metashape(text: &str) -> Result<ForeignCamera, String> {
     // A project export holds the initial calibration and the adjusted one: the adjusted is the camera.
-    let all = xml_elements(text, "calibration");
+    let all: Vec<(&str, &str)> = xml_elements(text, "calibration").collect();
     let calib = all
         .iter()
-        .find(|(a, _)| a.contains("class=\"adjusted\""))
+        .find(|(a, _)| xml_attribute(a, "class") == Some("adjusted"))
         .or(all.first())
         .map(|(_, body)| *body)
         .ok_or("no <calibration> element")?;
@@ -330,7 +320,7 @@ fn metashape(text: &str) -> Result<ForeignCamera, String> {
         }
     }
     // A calibration file names the size in elements, a project export in `<resolution width=… height=…/>`.
-    let resolution = xml_elements(calib, "resolution").first().map(|(a, _)| *a);
+    let resolution = xml_elements(calib, "resolution").next().map(|(a, _)| a);
     let size = |tag: &str| -> Result<f64, String> {
         match (value(tag)?, resolution.and_then(|a| xml_attribute(a, tag))) {
             (Some(v), _) => Ok(v),

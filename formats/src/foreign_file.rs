@@ -12,33 +12,28 @@ pub struct ForeignFileError {
     pub message: String,
 }
 
-/// Every `<tag …>…</tag>` or `<tag …/>` element of `text` in order, as (attributes, body); elements of one name do
-/// not nest in the files read here.
-pub(crate) fn xml_elements<'a>(text: &'a str, tag: &str) -> Vec<(&'a str, &'a str)> {
-    let mut out = Vec::new();
+/// Every `<tag …>…</tag>` or `<tag …/>` element of `text` in order, as (attributes, body), found as they are
+/// asked for; elements of one name do not nest in the files read here.
+pub(crate) fn xml_elements<'a>(text: &'a str, tag: &str) -> impl Iterator<Item = (&'a str, &'a str)> {
     let (open, close) = (format!("<{tag}"), format!("</{tag}>"));
     let mut from = 0;
-    while let Some(at) = text.get(from..).and_then(|t| t.find(&open)).map(|k| from + k) {
+    std::iter::from_fn(move || loop {
+        let at = from + text.get(from..)?.find(&open)?;
         let after = at + open.len();
-        let Some(end) = text.get(after..).and_then(|t| t.find('>')).map(|k| after + k) else {
-            break;
-        };
+        let end = after + text.get(after..)?.find('>')?;
         from = end + 1;
         if !text[after..].starts_with(['>', '/', ' ', '\t', '\n', '\r']) {
             continue;
         }
         let attributes = text[after..end].trim_end_matches('/');
         if text[..end].ends_with('/') {
-            out.push((attributes, ""));
-            continue;
+            return Some((attributes, ""));
         }
-        let Some(stop) = text.get(from..).and_then(|t| t.find(&close)).map(|k| from + k) else {
-            break;
-        };
-        out.push((attributes, &text[from..stop]));
+        let stop = from + text.get(from..)?.find(&close)?;
+        let body = &text[from..stop];
         from = stop + close.len();
-    }
-    out
+        return Some((attributes, body));
+    })
 }
 
 /// The value of `name="…"` in an element's attributes.
@@ -48,18 +43,7 @@ pub(crate) fn xml_attribute<'a>(attributes: &'a str, name: &str) -> Option<&'a s
     Some(&rest[..rest.find('"')?])
 }
 
-/// The text between `<tag …>` and `</tag>` (the first such element).
+/// The body of the first `<tag …>…</tag>` element.
 pub(crate) fn xml_text<'a>(text: &'a str, tag: &str) -> Option<&'a str> {
-    let mut from = 0;
-    loop {
-        let at = from + text.get(from..)?.find(&format!("<{tag}"))?;
-        let after = at + 1 + tag.len();
-        let rest = text.get(after..)?;
-        if rest.starts_with(['>', ' ', '\t', '\n', '\r']) {
-            let open_end = after + rest.find('>')? + 1;
-            let close = open_end + text.get(open_end..)?.find(&format!("</{tag}>"))?;
-            return text.get(open_end..close);
-        }
-        from = after;
-    }
+    xml_elements(text, tag).next().map(|(_, body)| body)
 }

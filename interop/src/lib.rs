@@ -146,7 +146,7 @@ fn import(file: &Path, out: &Path, pixel_size_mm: Option<f64>, camera_id: Option
 /// # Errors
 /// A photo without the EXIF to start from, a camera `camera.toml` would refuse, or `out` not writable.
 pub fn import_exif(photo: &Path, out: &Path, pixel_size_mm: Option<f64>) -> Result<ExitCode> {
-    let (width, height) = image_size(photo)?;
+    let (width, height) = lineflow_capture::decode::image_size(photo)?;
     let exif = exif_camera(photo, width, height)?;
     let (pixel_size_mm, pitch_from) = match pixel_size_mm {
         Some(p) => (p, "--pixel-size-mm"),
@@ -185,23 +185,6 @@ pub fn import_exif(photo: &Path, out: &Path, pixel_size_mm: Option<f64>) -> Resu
          camera import`) for survey-grade results"
     );
     Ok(ExitCode::SUCCESS)
-}
-
-/// An image's size after its EXIF orientation, from its header.
-fn image_size(photo: &Path) -> Result<(u32, u32)> {
-    use image::metadata::Orientation;
-    use image::ImageDecoder;
-    let read = || -> image::ImageResult<((u32, u32), Orientation)> {
-        let mut decoder = image::ImageReader::open(photo)?.with_guessed_format()?.into_decoder()?;
-        let size = decoder.dimensions();
-        Ok((size, decoder.orientation()?))
-    };
-    let ((w, h), orientation) = read().with_context(|| format!("{}: not an image this tool reads", photo.display()))?;
-    let turned = matches!(
-        orientation,
-        Orientation::Rotate90 | Orientation::Rotate270 | Orientation::Rotate90FlipH | Orientation::Rotate270FlipH
-    );
-    Ok(if turned { (h, w) } else { (w, h) })
 }
 
 fn export(path: &Path, format: ExportFormat, out: Option<&Path>) -> Result<ExitCode> {

@@ -59,19 +59,19 @@ pub fn poses(cmd: PosesCmd) -> Result<ExitCode> {
             }
         }
         let fit = georeference(&images, &project)?;
+        let mm = |rms: Option<f64>| rms.map_or("-".into(), |r| format!("{:.1} mm", r * 1e3));
         eprintln!(
-            "into the survey's frame by {} control points: scale {:.6}; at the control points {:.1} mm RMS",
-            fit.control,
+            "into the survey's frame by {} control points: scale {:.6}; at the control points {} RMS",
+            fit.count(true),
             fit.transform.scale,
-            fit.control_rms_m * 1e3
+            mm(fit.rms_m(true))
         );
-        for (id, residual, role) in &fit.residuals {
-            eprintln!("  {role} {id}: {:.1} mm", residual * 1e3);
+        for r in &fit.residuals {
+            let role = if r.control { "control" } else { "check" };
+            eprintln!("  {role} {}: {:.1} mm", r.id, r.distance_m * 1e3);
         }
-        let check: Vec<f64> = fit.residuals.iter().filter(|r| r.2 == "check").map(|r| r.1).collect();
-        if !check.is_empty() {
-            let rms = (check.iter().map(|d| d * d).sum::<f64>() / check.len() as f64).sqrt();
-            eprintln!("at the {} check points: {:.1} mm RMS", check.len(), rms * 1e3);
+        if fit.count(false) > 0 {
+            eprintln!("at the {} check points: {} RMS", fit.count(false), mm(fit.rms_m(false)));
         }
         for (_, pose) in &mut images {
             *pose = transformed(pose, &fit.transform);
@@ -139,12 +139,36 @@ fn same_image(file: &str, name: &str) -> bool {
 pub struct Georeference {
     /// Model frame to survey frame.
     pub transform: Similarity,
-    /// Control points used.
-    pub control: usize,
-    /// RMS distance at them after the transformation, metres.
-    pub control_rms_m: f64,
-    /// Per point (id, distance after the transformation in metres, role "control" or "check").
-    pub residuals: Vec<(String, f64, &'static str)>,
+    /// Every control and check point seen in two images, after the transformation.
+    pub residuals: Vec<PointResidual>,
+}
+
+/// One surveyed point against its intersection, moved into the survey's frame.
+pub struct PointResidual {
+    /// Point id.
+    pub id: String,
+    /// A control point (fitted to), or a check point (held out).
+    pub control: bool,
+    /// Distance from its surveyed coordinates, metres.
+    pub distance_m: f64,
+}
+
+impl Georeference {
+    /// How many control (or check) points there are.
+    pub fn count(&self, control: bool) -> usize {
+        self.residuals.iter().filter(|r| r.control == control).count()
+    }
+
+    /// RMS distance at the control (or check) points, metres; `None` without any.
+    pub fn rms_m(&self, control: bool) -> Option<f64> {
+        let d: Vec<f64> = self
+            .residuals
+            .iter()
+            .filter(|r| r.control == control)
+            .map(|r| r.distance_m)
+            .collect();
+        (!d.is_empty()).then(|| (d.iter().map(|v| v * v).sum::<f64>() / d.len() as f64).sqrt())
+    }
 }
 
 /// Intersects every control and check point observed in two or more of `images` with the project's camera, and
@@ -183,24 +207,15 @@ pub fn georeference(images: &[(String, Pose)], project: &Project) -> Result<Geor
             control.len()
         );
     };
-    let residuals: Vec<(String, f64, &'static str)> = points
+    let residuals = points
         .iter()
-        .map(|(cp, x)| {
-            let role = if cp.role == lineflow_messages::ControlPoint::CONTROL {
-                "control"
-            } else {
-                "check"
-            };
-            (cp.id().to_owned(), (transform.apply(x) - Vec3::from(cp.xyz)).norm(), role)
+        .map(|(cp, x)| PointResidual {
+            id: cp.id().to_owned(),
+            control: cp.role == lineflow_messages::ControlPoint::CONTROL,
+            distance_m: (transform.apply(x) - Vec3::from(cp.xyz)).norm(),
         })
         .collect();
-    let control_sq: Vec<f64> = residuals.iter().filter(|r| r.2 == "control").map(|r| r.1 * r.1).collect();
-    Ok(Georeference {
-        transform,
-        control: control.len(),
-        control_rms_m: (control_sq.iter().sum::<f64>() / control_sq.len().max(1) as f64).sqrt(),
-        residuals,
-    })
+    Ok(Georeference { transform, residuals })
 }
 
 fn ray(camera: &Camera, pose: &Pose, px: [f64; 2]) -> (Vec3, Vec3) {
@@ -316,9 +331,9 @@ mod tests {
             .map(|(f, p)| (format!("IMG_{f}"), transformed(p, &to_model)))
             .collect();
         let fit = georeference(&images, &project).unwrap();
-        assert_eq!(fit.control, 4);
-        assert!(fit.control_rms_m < 1e-6, "{}", fit.control_rms_m);
-        assert!(fit.residuals.iter().any(|r| r.2 == "check" && r.1 < 1e-6));
+        assert_eq!(fit.count(true), 4);
+        assert!(fit.rms_m(true).unwrap() < 1e-6, "{:?}", fit.rms_m(true));
+        assert!(fit.residuals.iter().any(|r| !r.control && r.distance_m < 1e-6));
         for ((_, pose), want) in images.iter().zip(&truth) {
             let got = transformed(pose, &fit.transform);
             assert!((got.center - want.center).norm() < 1e-6 && (got.rotation - want.rotation).norm() < 1e-9);

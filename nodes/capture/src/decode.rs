@@ -139,12 +139,7 @@ fn decode_oriented(path: &Path, sensor: Option<(u32, u32)>) -> Result<DecodedIma
     }
     let mut orientation = decoder.orientation().unwrap_or(image::metadata::Orientation::NoTransforms);
     let stored = decoder.dimensions();
-    let turned = {
-        use image::metadata::Orientation::*;
-        matches!(orientation, Rotate90 | Rotate270 | Rotate90FlipH | Rotate270FlipH)
-    };
-    let shown = if turned { (stored.1, stored.0) } else { stored };
-    if sensor.is_some_and(|s| s != shown && s == stored) {
+    if sensor.is_some_and(|s| s != shown_size(stored, orientation) && s == stored) {
         orientation = image::metadata::Orientation::NoTransforms;
     }
     let mut img = DynamicImage::from_decoder(decoder).map_err(|source| DecodeError::Corrupt {
@@ -153,6 +148,36 @@ fn decode_oriented(path: &Path, sensor: Option<(u32, u32)>) -> Result<DecodedIma
     })?;
     img.apply_orientation(orientation);
     Ok(from_dynamic(img))
+}
+
+/// The size of an image of `stored` (width, height) once `orientation` is applied.
+fn shown_size(stored: (u32, u32), orientation: image::metadata::Orientation) -> (u32, u32) {
+    use image::metadata::Orientation::*;
+    match orientation {
+        Rotate90 | Rotate270 | Rotate90FlipH | Rotate270FlipH => (stored.1, stored.0),
+        _ => stored,
+    }
+}
+
+/// An image's size after its EXIF orientation, from its header alone.
+///
+/// # Errors
+/// The file cannot be opened or is no supported image.
+pub fn image_size(path: &Path) -> Result<(u32, u32), DecodeError> {
+    let mut decoder = ImageReader::open(path)
+        .and_then(|r| r.with_guessed_format())
+        .map_err(|source| DecodeError::Io {
+            path: path.to_owned(),
+            what: "open",
+            source,
+        })?
+        .into_decoder()
+        .map_err(|source| DecodeError::Unsupported {
+            path: path.to_owned(),
+            source,
+        })?;
+    let orientation = decoder.orientation().unwrap_or(image::metadata::Orientation::NoTransforms);
+    Ok(shown_size(decoder.dimensions(), orientation))
 }
 
 /// Converts a decoded image into message pixels.
