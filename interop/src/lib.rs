@@ -181,7 +181,7 @@ pub fn import_exif(photo: &Path, out: &Path, pixel_size_mm: Option<f64>) -> Resu
     eprintln!(
         "warning: a nominal camera: the focal length is the lens's marked value (often 1-3 % off), the principal \
          point and the distortion are unknown, and lineflow cannot yet estimate them (self-calibration, issue #31). \
-         Expect decimetres of error (docs/formats.md); calibrate the camera (OpenCV, COLMAP, Metashape: `lineflow \
+         Expect decimetres to metres of error (docs/formats.md); calibrate the camera (OpenCV, COLMAP, Metashape: `lineflow \
          camera import`) for survey-grade results"
     );
     Ok(ExitCode::SUCCESS)
