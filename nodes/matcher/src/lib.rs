@@ -668,7 +668,10 @@ mod tests {
         // Held-out A55 buildings at full size: one bay off at the jump between the strips (@1004, frame 9) and
         // within a strip (@1006, frame 15), each nearer the previous step than the true transfer and chosen by it.
         for (truth, bay_off) in [(2443, 1427), (2950, 1668), (905, 666)] {
-            let kept: Vec<usize> = comparable_support(vec![of(bay_off), of(truth)]).iter().map(|h| h.matches.len()).collect();
+            let kept: Vec<usize> = comparable_support(vec![of(bay_off), of(truth)])
+                .iter()
+                .map(|h| h.matches.len())
+                .collect();
             assert_eq!(kept, [truth]);
         }
         // Bays so alike that both transfers find about as many matches: both stay for the steady motion to decide.
