@@ -155,26 +155,6 @@ fn comparable_support(mut hypotheses: Vec<Hypothesis>) -> Vec<Hypothesis> {
 /// matches) and within a strip whose step varied by 214 px (1,668 against 2,950).
 const COMPARABLE_SUPPORT: f64 = 0.8;
 
-/// A partner whose best transfer has more than this many times the matches of the one the loops chose for it
-/// puts the frame's first transfer in doubt. At the jump between the strips of the tuning building @4 (full size)
-/// the loops bound the frame directly below to 146 matches against its own 1,392.
-const DISSENT_SHARE: f64 = 1.0 / 3.0;
-
-/// The transfers chosen for a new frame's partners: (partner, mutual matches, chosen hypothesis) in the order
-/// tried, and the first partner that disagreed strongly with the loops.
-#[derive(Default)]
-struct TransferChoice {
-    pairs: Vec<(usize, usize, Hypothesis)>,
-    dissent: Option<usize>,
-}
-
-impl TransferChoice {
-    /// Verified matches over all partners.
-    fn total(&self) -> usize {
-        self.pairs.iter().map(|(_, _, h)| h.matches.len()).sum()
-    }
-}
-
 /// Which matches move like their neighbours. The epipolar constraint cannot see a match shifted along its
 /// epipolar line, and on a façade the epipolar lines of a strip run along the brick courses, whose repetition makes
 /// exactly such matches; their displacement differs from their neighbours' by a brick period.
@@ -351,29 +331,21 @@ impl Matcher {
         };
         // Partners in order of preference (the window first): each pair's hypotheses are judged against the
         // pairs already accepted for this frame.
-        let partners: Vec<(usize, Vec<(usize, usize)>)> = self
-            .partners(&sample)
-            .into_iter()
-            .map(|p| (p, match_features(&features, &self.frames[p].features, self.params.ratio)))
-            .collect();
-        let mut choice = self.choose_transfers(new, &partners, &features, &rays, &ransac);
-        // A partner whose own best transfer the loops refused for a far weaker one says the first partner's transfer
-        // may be the wrong one (a bay off at a jump between strips): the frame is matched again with that partner
-        // first, and the set with more matches in all is kept.
-        if let Some(anchor) = choice.dissent {
-            let mut reordered = vec![partners[anchor].clone()];
-            reordered.extend(partners.iter().enumerate().filter(|&(k, _)| k != anchor).map(|(_, q)| q.clone()));
-            let other = self.choose_transfers(new, &reordered, &features, &rays, &ransac);
-            if other.total() > choice.total() {
-                choice = other;
-            }
-        }
+        let mut accepted: Vec<(usize, Matrix3<f64>)> = Vec::new();
         // The new observations with the index of their frame.
         let mut linked: Vec<(Observation, usize)> = Vec::new();
-        for (p, mutual, chosen) in choice.pairs {
-            result.partners.push((self.frames[p].number, mutual, chosen.matches.len()));
-            if let Some(h) = chosen.plane.filter(|_| !chosen.matches.is_empty()) {
+        for p in self.partners(&sample) {
+            let mutual = match_features(&features, &self.frames[p].features, self.params.ratio);
+            let predicted = accepted.iter().find_map(|&(a, h_ka)| Some(self.plane_between(a, p)? * h_ka));
+            let hypotheses = self.hypotheses(&features, &rays, p, &mutual, &ransac, predicted);
+            let chosen = self.choose(new, p, hypotheses, &accepted, &rays);
+            result.partners.push((self.frames[p].number, mutual.len(), chosen.matches.len()));
+            if chosen.matches.is_empty() {
+                continue;
+            }
+            if let Some(h) = chosen.plane {
                 self.planes.insert((new, p), h);
+                accepted.push((p, h));
             }
             for (i, j) in chosen.matches {
                 self.link((new, i), (p, j), &features, &mut linked, number);
@@ -392,38 +364,6 @@ impl Matcher {
         self.refine_observations(&mut linked, &mut result);
         result.observations = linked.into_iter().map(|(o, _)| o).collect();
         result
-    }
-
-    /// Each partner's transfer, in the order given: the first partner's on its own (or by the steady motion), each
-    /// later one's through the loops with those already accepted. Nothing is changed; `dissent` is the index (in
-    /// `partners`) of the first partner whose best supported transfer the loops refused for one with less than
-    /// [`DISSENT_SHARE`] of its matches.
-    fn choose_transfers(
-        &self,
-        new: usize,
-        partners: &[(usize, Vec<(usize, usize)>)],
-        features: &FrameFeatures,
-        rays: &[Ray],
-        ransac: &Ransac,
-    ) -> TransferChoice {
-        let mut accepted: Vec<(usize, Matrix3<f64>)> = Vec::new();
-        let mut choice = TransferChoice::default();
-        for (k, (p, mutual)) in partners.iter().enumerate() {
-            let p = *p;
-            let predicted = accepted.iter().find_map(|&(a, h_ka)| Some(self.plane_between(a, p)? * h_ka));
-            let hypotheses = self.hypotheses(features, rays, p, mutual, ransac, predicted);
-            let strongest = hypotheses.iter().map(|h| h.matches.len()).max().unwrap_or(0);
-            let looped = !accepted.is_empty();
-            let chosen = self.choose(new, p, hypotheses, &accepted, rays);
-            if looped && choice.dissent.is_none() && (chosen.matches.len() as f64) < DISSENT_SHARE * strongest as f64 {
-                choice.dissent = Some(k);
-            }
-            if let (Some(h), false) = (chosen.plane, chosen.matches.is_empty()) {
-                accepted.push((p, h));
-            }
-            choice.pairs.push((p, mutual.len(), chosen));
-        }
-        choice
     }
 
     /// Refines each new observation that is not its track's anchor against the anchor, by least-squares matching
