@@ -75,6 +75,7 @@ fn block(cameras: usize, points: usize) -> (BundleProblem, Vec<Pose>) {
             observations,
             priors,
             fixed: vec![],
+            calibration: None,
         },
         truth,
     )

@@ -342,6 +342,7 @@ fn bundle(
         observations,
         priors,
         fixed: Vec::new(),
+        calibration: None,
     };
     // No outlier removal: the noise is Gaussian by construction, and ten points have no outliers to spare.
     adjust(

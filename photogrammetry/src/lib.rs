@@ -7,6 +7,7 @@
 pub mod bundle;
 mod camera;
 pub mod epipolar;
+pub mod interior;
 pub mod intersect;
 pub mod lens;
 mod polygon;
@@ -16,6 +17,7 @@ pub mod ransac;
 mod rotation;
 
 pub use camera::Camera;
+pub use interior::{Interior, InteriorReport, SelfCalibration};
 pub use lens::{camera_from_opencv, opencv_from_camera, FitResidual, OpenCvLens};
 pub use polygon::{point_in_polygon, polygon_normal, signed_area};
 pub use pose::Pose;

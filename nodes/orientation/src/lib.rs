@@ -591,6 +591,7 @@ impl Block {
                 observations,
                 priors,
                 fixed,
+                calibration: None,
             },
             ids,
             frames,
