@@ -432,9 +432,13 @@ fn solve(p: &mut BundleProblem, active: &[bool], o: &BundleOptions) -> (usize, O
             }
         }
     }
-    // Covariance of the cameras (and the interior): the undamped reduced system's inverse.
-    let ne = normal_equations(p, active, &free, n_free, 0.0, o.huber_k);
-    let cov = ne.s.cholesky().map(|c| c.inverse());
+    // Covariance of the cameras (and the interior): the undamped reduced system's inverse. Rounding in the Schur
+    // complement of a large block (points whose rays nearly coincide) can leave it short of positive definite; a
+    // damping far below the precision of any parameter then stands in for none.
+    let cov = [0.0, 1e-12, 1e-10, 1e-8]
+        .iter()
+        .find_map(|&l| normal_equations(p, active, &free, n_free, l, o.huber_k).s.cholesky())
+        .map(|c| c.inverse());
     (iterations, cov)
 }
 
@@ -595,7 +599,17 @@ fn interior_report(c: &SelfCalibration, cov: Option<&DMatrix<f64>>, base: usize,
     let scale = InteriorScale::of(&c.camera);
     let free: [bool; N_INTERIOR] = std::array::from_fn(|k| c.free.iter().any(|p| p.index() == k));
     let var = |a: usize, b: usize| cov.filter(|_| free[a] && free[b]).map_or(f64::NAN, |m| m[(base + a, base + b)]);
+    let focal_exterior_correlation = match cov.filter(|_| free[0]) {
+        Some(m) => (0..base)
+            .filter(|i| i % 6 >= 3)
+            .map(|i| m[(base, i)] / (m[(base, base)] * m[(i, i)]).sqrt())
+            .filter(|r| r.is_finite())
+            .max_by(|a, b| a.abs().total_cmp(&b.abs()))
+            .unwrap_or(f64::NAN),
+        None => f64::NAN,
+    };
     InteriorReport {
+        focal_exterior_correlation,
         camera: c.camera,
         free: c.free.clone(),
         sigmas: std::array::from_fn(|k| match var(k, k) {

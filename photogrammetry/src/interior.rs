@@ -135,6 +135,9 @@ pub struct InteriorReport {
     pub sigmas: [f64; N_INTERIOR],
     /// Correlation coefficients of the parameters; NaN where either is fixed.
     pub correlations: [[f64; N_INTERIOR]; N_INTERIOR],
+    /// The strongest correlation of the principal distance with a coordinate of a camera centre (signed; NaN when f
+    /// is held): near ±1 the block cannot tell f from the distance to the object.
+    pub focal_exterior_correlation: f64,
 }
 
 impl InteriorReport {

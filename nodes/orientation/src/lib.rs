@@ -20,7 +20,16 @@ use std::collections::{BTreeMap, BTreeSet};
 use lineflow_photogrammetry::bundle::{adjust, resect, BundleOptions, BundleProblem, BundleReport, ImageObservation, PointPrior};
 use lineflow_photogrammetry::epipolar::{verify, Ransac, Ray};
 use lineflow_photogrammetry::intersect::{intersect_rays, similarity};
-use lineflow_photogrammetry::{Camera, Mat3, Pose, Vec3};
+use lineflow_photogrammetry::interior::parse_interior;
+use lineflow_photogrammetry::{Camera, Interior, Mat3, Pose, SelfCalibration, Vec3};
+
+/// Appends observations and their measured pixels.
+fn extend(observations: &mut Vec<ImageObservation>, pixels: &mut Vec<[f64; 2]>, obs: Vec<(ImageObservation, [f64; 2])>) {
+    for (o, px) in obs {
+        observations.push(o);
+        pixels.push(px);
+    }
+}
 
 /// A frame oriented only at the end of the stream must lie within this many median frame spacings of a frame
 /// beside it in the sequence ([`Block::near_a_neighbour`]); a hand-held strip varies its spacing by less.
@@ -55,6 +64,25 @@ pub struct OrientationParams {
     /// `bundle`: once georeferenced, the whole block is moved into the control frame again whenever its
     /// intersected control points lie this far off (RMS, metres).
     pub regeoreference_m: f64,
+    /// `bundle`: interior parameters estimated in the adjustments (self-calibration: any of `f`, `x0`, `y0`, `k1`,
+    /// `k2`, `k3`, `p1`, `p2`, or `["all"]`); empty (the default) holds the camera model as given.
+    pub self_calibrate: Vec<String>,
+    /// `bundle`: oriented frames before the interior joins the adjustments (a pair or three frames of a façade
+    /// cannot tell the principal distance from the distance to the wall).
+    pub self_calibrate_min_frames: usize,
+}
+
+impl OrientationParams {
+    /// The interior parameters to estimate.
+    ///
+    /// # Errors
+    /// An unknown name.
+    pub fn interior(&self) -> Result<Vec<Interior>, String> {
+        if self.self_calibrate.iter().any(|n| n == "all") {
+            return Ok(Interior::ALL.to_vec());
+        }
+        parse_interior(&self.self_calibrate)
+    }
 }
 
 impl lineflow_runtime::StageParams for OrientationParams {
@@ -66,6 +94,10 @@ impl lineflow_runtime::StageParams for OrientationParams {
         at_least("min_resect_points", self.min_resect_points, 6)?;
         in_half_open("min_angle_deg", self.min_angle_deg, 0.0, 90.0)?;
         positive("regeoreference_m", self.regeoreference_m)?;
+        at_least("self_calibrate_min_frames", self.self_calibrate_min_frames, 3)?;
+        if let Err(e) = self.interior() {
+            return Err(lineflow_runtime::ParamError::new("self_calibrate", e, format!("{:?}", self.self_calibrate)));
+        }
         at_least("window", self.window, 2)
     }
 }
@@ -83,6 +115,8 @@ impl Default for OrientationParams {
             check_points_as_ties: true,
             estimate_tie_sigma: true,
             regeoreference_m: 0.25,
+            self_calibrate: Vec::new(),
+            self_calibrate_min_frames: 5,
         }
     }
 }
@@ -154,6 +188,8 @@ pub struct Block {
     pub finished: bool,
     /// The tie points' a-priori standard deviation in the adjustments, pixels: `tie_sigma_px`, or its estimate.
     pub tie_sigma_px: f64,
+    /// The interior parameters the adjustments estimate (`self_calibrate`).
+    interior: Vec<Interior>,
 }
 
 /// What is known about one oriented frame besides its pose.
@@ -172,6 +208,7 @@ impl Block {
     pub fn new(params: OrientationParams, camera: Camera) -> Self {
         Self {
             tie_sigma_px: params.tie_sigma_px,
+            interior: params.interior().unwrap_or_default(),
             params,
             method: Method::Bundle,
             georeferenced_with: 0,
@@ -213,9 +250,24 @@ impl Block {
         }
     }
 
-    /// The camera the block was made for.
+    /// The camera of the block: the one it was made for, or its self-calibrated refinement.
     pub fn camera(&self) -> &Camera {
         &self.camera
+    }
+
+    /// Whether the adjustments estimate the interior orientation now.
+    fn calibrating(&self) -> bool {
+        self.method == Method::Bundle && !self.interior.is_empty() && self.poses.len() >= self.params.self_calibrate_min_frames
+    }
+
+    /// A new camera for the block: every measurement's ideal coordinates follow it.
+    fn set_camera(&mut self, camera: Camera) {
+        self.camera = camera;
+        for t in self.tracks.values_mut().chain(self.targets.values_mut()) {
+            for ((_, ideal), px) in t.obs.iter_mut().zip(&t.measured) {
+                *ideal = camera.pixel_to_ideal(*px);
+            }
+        }
     }
 
     /// Every intersected tie point with its (frame, measured pixel) observations in oriented frames.
@@ -248,7 +300,9 @@ impl Block {
     /// Adds a measurement of a surveyed point in a frame.
     pub fn add_target(&mut self, id: &str, frame: u64, px: [f64; 2]) {
         let ideal = self.ideal(px);
-        self.targets.entry(id.to_owned()).or_default().obs.push((frame, ideal));
+        let t = self.targets.entry(id.to_owned()).or_default();
+        t.obs.push((frame, ideal));
+        t.measured.push(px);
     }
 
     fn common(&self, a: u64, b: u64) -> Vec<([f64; 2], [f64; 2], u64)> {
@@ -518,17 +572,22 @@ impl Block {
         let mut points = Vec::new();
         let mut ids = Vec::new();
         let mut observations = Vec::new();
+        let mut pixels = Vec::new();
         let mut priors = Vec::new();
-        // A track's observations in the adjusted frames, as observations of point `point`.
-        let observed = |t: &Track, point: usize, sigma_mm: f64| -> Vec<ImageObservation> {
+        // A track's observations in the adjusted frames, as observations of point `point`, with their pixels.
+        let observed = |t: &Track, point: usize, sigma_mm: f64| -> Vec<(ImageObservation, [f64; 2])> {
             t.obs
                 .iter()
-                .filter_map(|(f, ideal)| {
-                    index.get(f).map(|&camera| ImageObservation {
-                        camera,
-                        point,
-                        ideal: *ideal,
-                        sigma_mm,
+                .zip(&t.measured)
+                .filter_map(|((f, ideal), px)| {
+                    index.get(f).map(|&camera| {
+                        let o = ImageObservation {
+                            camera,
+                            point,
+                            ideal: *ideal,
+                            sigma_mm,
+                        };
+                        (o, *px)
                     })
                 })
                 .collect()
@@ -539,7 +598,7 @@ impl Block {
             if obs.len() < 2 || !t.obs.iter().any(|(f, _)| in_window(f)) {
                 continue;
             }
-            observations.extend(obs);
+            extend(&mut observations, &mut pixels, obs);
             points.push(x);
             ids.push(Some(id));
         }
@@ -555,7 +614,7 @@ impl Block {
                     }
                     let obs = observed(t, points.len(), target_sigma);
                     if let (true, Some(x)) = (obs.len() >= 2, self.triangulate(t)) {
-                        observations.extend(obs);
+                        extend(&mut observations, &mut pixels, obs);
                         points.push(x);
                         ids.push(None);
                     }
@@ -565,7 +624,7 @@ impl Block {
                 if obs.is_empty() {
                     continue;
                 }
-                observations.extend(obs);
+                extend(&mut observations, &mut pixels, obs);
                 priors.push(PointPrior {
                     point: points.len(),
                     xyz: s.xyz,
@@ -591,7 +650,11 @@ impl Block {
                 observations,
                 priors,
                 fixed,
-                calibration: None,
+                calibration: self.calibrating().then(|| SelfCalibration {
+                    camera: self.camera,
+                    free: self.interior.clone(),
+                    pixels,
+                }),
             },
             ids,
             frames,
@@ -613,6 +676,9 @@ impl Block {
             }
         };
         self.report = adjust(&mut p, &options);
+        if let Some(interior) = &self.report.interior {
+            self.set_camera(interior.camera);
+        }
         for (i, (f, pose)) in frames.iter().zip(&p.poses).enumerate() {
             let state = self.states.entry(*f).or_default();
             if p.fixed.contains(&i) {

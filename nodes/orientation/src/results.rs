@@ -1,9 +1,12 @@
-//! The orientation's result files: `poses.csv`, `checkpoints.csv` and the COLMAP text model `colmap/`.
+//! The orientation's result files: `poses.csv`, `checkpoints.csv`, the COLMAP text model `colmap/` and, when the
+//! camera was self-calibrated, `camera_calibrated.toml` with the interior's precision.
 use std::collections::BTreeMap;
 use std::path::Path;
 
 use anyhow::{Context, Result};
+use lineflow_formats::project::write_camera;
 use lineflow_formats::{write_checkpoints, write_poses, CheckRow, PoseRow};
+use lineflow_photogrammetry::{Interior, InteriorReport};
 
 use crate::stage::pose_elements;
 use crate::Block;
@@ -25,6 +28,11 @@ pub fn write_results(dir: &Path, block: &Block, names: &BTreeMap<u64, String>) -
         .collect();
     let path = dir.join("poses.csv");
     write_poses(&path, &rows).with_context(|| format!("writing {}", path.display()))?;
+    if let Some(interior) = block.report.interior.as_ref().filter(|_| block.finished) {
+        let path = dir.join(CALIBRATED_CAMERA);
+        write_camera(&path, &interior.camera, &interior_header(interior)).with_context(|| format!("writing {}", path.display()))?;
+        tracing::info!("self-calibrated camera in {}", path.display());
+    }
     if !block.poses.is_empty() {
         let colmap_dir = dir.join("colmap");
         let name = |f: u64| names.get(&f).cloned().unwrap_or_else(|| format!("frame_{f:05}"));
@@ -72,6 +80,50 @@ pub fn write_results(dir: &Path, block: &Block, names: &BTreeMap<u64, String>) -
     }
     Ok(())
 }
+
+/// The self-calibrated camera's file in the run's output folder.
+pub const CALIBRATED_CAMERA: &str = "camera_calibrated.toml";
+
+/// Comment lines for the self-calibrated camera's file: each estimated parameter with its σ, and the strongest
+/// correlations.
+pub fn interior_header(r: &InteriorReport) -> String {
+    let mut out = String::from("# Self-calibrated by lineflow's bundle adjustment (value, sigma):\n");
+    let value = |p: Interior| {
+        let c = &r.camera;
+        [c.focal_mm, c.principal_point_mm[0], c.principal_point_mm[1], c.radial[0], c.radial[1], c.radial[2], c.decentering[0], c.decentering[1]]
+            [p.index()]
+    };
+    for &p in &r.free {
+        out += &format!("#   {:<2} = {:.6e} ± {:.1e} {}\n", p.name(), value(p), r.sigmas[p.index()], p.unit());
+    }
+    if let Some((a, b, rho)) = r.strongest_correlation() {
+        out += &format!("#   strongest correlation: {} / {} {:+.2}\n", a.name(), b.name(), rho);
+    }
+    if r.focal_exterior_correlation.is_finite() {
+        out += &format!("#   principal distance against the camera positions: {:+.2}\n", r.focal_exterior_correlation);
+    }
+    out
+}
+
+/// A warning when the block cannot tell the principal distance from the distance to the object: a flat façade
+/// photographed from one strip, square on.
+pub fn weak_calibration(r: &InteriorReport) -> Option<String> {
+    let f = Interior::Focal.index();
+    let relative = r.sigmas[f] / r.camera.focal_mm;
+    (r.focal_exterior_correlation.abs() > WEAK_CORRELATION || relative > WEAK_FOCAL_SIGMA).then(|| {
+        format!(
+            "self-calibration is weak: the principal distance is {:.3} ± {:.3} mm and correlates {:+.2} with the \
+             camera positions (a flat façade from one strip, square on, cannot separate them); add control points, \
+             a second strip at another height or oblique photos, or give the principal distance in camera.toml",
+            r.camera.focal_mm, r.sigmas[f], r.focal_exterior_correlation
+        )
+    })
+}
+
+/// Correlation of the principal distance with a camera position beyond which self-calibration is called weak.
+const WEAK_CORRELATION: f64 = 0.95;
+/// Relative standard deviation of the principal distance beyond which self-calibration is called weak.
+const WEAK_FOCAL_SIGMA: f64 = 0.005;
 
 /// The warning a failed orientation gets: check points `rmse_3d_m` (3-D RMS) off at a check-point GSD of `gsd_m`,
 /// when that exceeds [`CHECK_POINT_ALARM_GSD`].

@@ -277,6 +277,14 @@ impl OrientationStage {
                     b.report.rms_mm / self.pixel_mm,
                     b.report.removed.len()
                 );
+                if let Some(interior) = &b.report.interior {
+                    for line in crate::results::interior_header(interior).lines().skip(1) {
+                        tracing::info!("self-calibration: {}", line.trim_start_matches('#').trim());
+                    }
+                    if let Some(weak) = crate::results::weak_calibration(interior) {
+                        tracing::warn!("{weak}");
+                    }
+                }
             }
             Source::Supplied { path, .. } => {
                 if b.poses.is_empty() {
