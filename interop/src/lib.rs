@@ -140,6 +140,9 @@ fn import(file: &Path, out: &Path, pixel_size_mm: Option<f64>, camera_id: Option
     Ok(ExitCode::SUCCESS)
 }
 
+/// The first line of a nominal camera file begins so: `lineflow process` self-calibrates such a camera.
+pub const NOMINAL_CAMERA_HEADER: &str = "# Nominal camera";
+
 /// Writes `out` with a nominal camera from a photo's EXIF (`lineflow_formats::exif_camera`; the pixel pitch from
 /// the EXIF unless given), printing what it took and a warning that it is no calibration.
 ///
@@ -162,7 +165,7 @@ pub fn import_exif(photo: &Path, out: &Path, pixel_size_mm: Option<f64>) -> Resu
         decentering: [0.0; 2],
     };
     let header = format!(
-        "# Nominal camera from the EXIF of {} ({}) by `lineflow camera import`: the focal length as the lens reports it, \
+        "{NOMINAL_CAMERA_HEADER} from the EXIF of {} ({}) by `lineflow camera import`: the focal length as the lens reports it, \
          the pixel pitch from {pitch_from}, the principal point at the centre, no distortion. A starting point, not a \
          calibration.\n",
         photo.display(),
@@ -180,9 +183,9 @@ pub fn import_exif(photo: &Path, out: &Path, pixel_size_mm: Option<f64>) -> Resu
     }
     eprintln!(
         "warning: a nominal camera: the focal length is the lens's marked value (often 1-3 % off), the principal \
-         point and the distortion are unknown, and lineflow cannot yet estimate them (self-calibration, issue #31). \
-         Expect decimetres to metres of error (docs/formats.md); calibrate the camera (OpenCV, COLMAP, Metashape: `lineflow \
-         camera import`) for survey-grade results"
+         point and the distortion are unknown. `lineflow process` estimates them first (self-calibration, \
+         docs/orientation.md), which is weak on a flat façade from one strip; a calibrated camera (OpenCV, COLMAP, \
+         Metashape: `lineflow camera import`) remains the way to survey-grade results"
     );
     Ok(ExitCode::SUCCESS)
 }
