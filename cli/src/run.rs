@@ -22,31 +22,35 @@ fn has_node(graph: &Path, name: &str) -> bool {
         .is_some_and(|nodes| nodes.iter().any(|n| n.get("name").and_then(toml::Value::as_str) == Some(name)))
 }
 
-/// The interior parameters a nominal camera's self-calibration estimates unless `orientation.self_calibrate` is
-/// set: COLMAP's RADIAL model with the principal point. On two strips of a façade, k3 and the decentering trade
-/// against k2, the principal point and f and leave the block worse (docs/orientation.md, "Self-calibration").
-const DEFAULT_SELF_CALIBRATION: &str = r#"["f", "x0", "y0", "k1", "k2"]"#;
-
 /// Whether `camera_toml` holds a nominal camera (written from EXIF, never calibrated).
 fn is_nominal(camera_toml: &Path) -> bool {
     std::fs::read_to_string(camera_toml).is_ok_and(|t| t.starts_with(lineflow_interop::NOMINAL_CAMERA_HEADER))
 }
 
 /// The first pass over a folder with a nominal camera: `launch/calibrate.toml` estimates the interior orientation
-/// in the bundle adjustment, and the result replaces the folder's `camera.toml` (the nominal one stays beside it
-/// as `camera_nominal.toml`), so the main graph and every later run use it.
+/// in the bundle adjustment (the parameters it names, or `orientation.self_calibrate` as set), and the result
+/// replaces the folder's `camera.toml` (the nominal one stays beside it as `camera_nominal.toml`), so the main
+/// graph and every later run use it. `orientation.self_calibrate=[]` keeps the nominal camera.
 fn self_calibrate(folder: &Path, out: &Path, set: &[String], verbosity: Verbosity) -> Result<()> {
     let graph = launch_dir().join("calibrate.toml");
     let out = out.join("calibration");
-    let mut set: Vec<String> = set
+    let set: Vec<String> = set
         .iter()
-        .filter(|s| s.starts_with("capture.") || s.starts_with("orientation.") || s.starts_with("features.") || s.starts_with("matcher."))
+        .filter(|s| {
+            ["capture.", "orientation.", "features.", "matcher."]
+                .iter()
+                .any(|p| s.starts_with(p))
+        })
         .cloned()
         .collect();
-    if !set.iter().any(|s| s.starts_with("orientation.self_calibrate=")) {
-        set.push(format!("orientation.self_calibrate={DEFAULT_SELF_CALIBRATION}"));
+    if set.iter().any(|s| s.replace(' ', "") == "orientation.self_calibrate=[]") {
+        eprintln!("warning: the camera is nominal and orientation.self_calibrate = []: it is used as it is");
+        return Ok(());
     }
-    eprintln!("self-calibration: the camera is nominal; estimating its interior orientation first ({})", graph.display());
+    eprintln!(
+        "self-calibration: the camera is nominal; estimating its interior orientation first ({})",
+        graph.display()
+    );
     let g = launch::load(&graph, &set, &Resolver::beside_current_exe())?;
     let status = run_graph(&g, &out, None, verbosity)?;
     let calibrated = out.join("camera_calibrated.toml");

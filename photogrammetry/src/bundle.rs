@@ -182,7 +182,7 @@ fn cost(p: &BundleProblem, active: &[bool], k: f64) -> f64 {
         let d = p.points[q.point] - q.xyz;
         c += (0..3).map(|i| (d[i] / q.sigma_m[i]).powi(2)).sum::<f64>();
     }
-    c
+    c + p.calibration.as_ref().map_or(0.0, SelfCalibration::prior_cost)
 }
 
 /// Per point: inverse of its damped block, its gradient, (free camera, W block) pairs, and its block against the
@@ -306,7 +306,12 @@ fn normal_equations(p: &BundleProblem, active: &[bool], free: &[Option<usize>], 
         s.view_mut((6 * j, 6 * j), (6, 6)).copy_from(&uj);
         rhs.rows_mut(6 * j, 6).copy_from(&gc[j]);
     }
-    if let Some((jac, _)) = &interior {
+    if let (Some((jac, _)), Some(cal)) = (&interior, &p.calibration) {
+        let v = InteriorScale::of(&cal.camera).vector(&cal.camera);
+        for (k, value, weight) in cal.scaled_priors() {
+            u_int[(k, k)] += weight;
+            g_int[k] += weight * (value - v[k]);
+        }
         for (j, uc) in u_cam_int.iter().enumerate() {
             s.view_mut((6 * j, base), (6, N_INTERIOR)).copy_from(uc);
             s.view_mut((base, 6 * j), (N_INTERIOR, 6)).copy_from(&uc.transpose());
@@ -472,8 +477,10 @@ pub fn adjust(p: &mut BundleProblem, o: &BundleOptions) -> BundleReport {
             let d = p.points[q.point] - q.xyz;
             sum += (0..3).map(|i| (d[i] / q.sigma_m[i]).powi(2)).sum::<f64>();
         }
+        let n_interior_priors = p.calibration.as_ref().map_or(0, |c| c.scaled_priors().len());
+        sum += p.calibration.as_ref().map_or(0.0, SelfCalibration::prior_cost);
         let unknowns = 6 * (p.poses.len() - p.fixed.len()) + 3 * p.points.len() + p.n_interior_free();
-        let redundancy = (2 * n_obs + 3 * p.priors.len()) as f64 - unknowns as f64;
+        let redundancy = (2 * n_obs + 3 * p.priors.len() + n_interior_priors) as f64 - unknowns as f64;
         report.sigma0 = (sum / redundancy.max(1.0)).sqrt();
         report.rms_mm = (sum_mm / n_obs.max(1) as f64).sqrt();
         report.pose_sigmas = sigmas(p, cov.as_ref(), report.sigma0);
@@ -824,6 +831,7 @@ mod tests {
                 camera: nominal,
                 free: Interior::ALL.to_vec(),
                 pixels,
+                priors: vec![],
             }),
         };
         for (i, o) in problem.observations.iter_mut().enumerate() {

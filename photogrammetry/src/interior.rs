@@ -122,6 +122,34 @@ pub struct SelfCalibration {
     pub free: Vec<Interior>,
     /// Measured pixel positions, one per observation of the problem, in its order.
     pub pixels: Vec<[f64; 2]>,
+    /// Parameters known beforehand: (parameter, value, standard deviation) in natural units, observations of the
+    /// free parameters (a lens's marked focal length within a percent or so).
+    pub priors: Vec<(Interior, f64, f64)>,
+}
+
+impl SelfCalibration {
+    /// The priors of free parameters in scaled units: (index, value, weight).
+    pub(crate) fn scaled_priors(&self) -> Vec<(usize, f64, f64)> {
+        let scale = InteriorScale::of(&self.camera);
+        self.priors
+            .iter()
+            .filter(|(p, _, sigma)| self.free.contains(p) && *sigma > 0.0)
+            .map(|&(p, value, sigma)| {
+                let k = p.index();
+                let unit = scale.per_unit(k);
+                (k, value / unit, (unit / sigma).powi(2))
+            })
+            .collect()
+    }
+
+    /// The priors' weighted squared residuals at the camera of the moment.
+    pub(crate) fn prior_cost(&self) -> f64 {
+        let v = InteriorScale::of(&self.camera).vector(&self.camera);
+        self.scaled_priors()
+            .iter()
+            .map(|&(k, value, weight)| weight * (v[k] - value).powi(2))
+            .sum()
+    }
 }
 
 /// What a self-calibrating adjustment found about the interior orientation.

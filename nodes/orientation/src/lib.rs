@@ -19,8 +19,8 @@ use std::collections::{BTreeMap, BTreeSet};
 
 use lineflow_photogrammetry::bundle::{adjust, resect, BundleOptions, BundleProblem, BundleReport, ImageObservation, PointPrior};
 use lineflow_photogrammetry::epipolar::{verify, Ransac, Ray};
-use lineflow_photogrammetry::intersect::{intersect_rays, similarity};
 use lineflow_photogrammetry::interior::parse_interior;
+use lineflow_photogrammetry::intersect::{intersect_rays, similarity};
 use lineflow_photogrammetry::{Camera, Interior, Mat3, Pose, SelfCalibration, Vec3};
 
 /// Appends observations and their measured pixels.
@@ -70,6 +70,11 @@ pub struct OrientationParams {
     /// `bundle`: oriented frames before the interior joins the adjustments (a pair or three frames of a façade
     /// cannot tell the principal distance from the distance to the wall).
     pub self_calibrate_min_frames: usize,
+    /// `bundle`: standard deviation of the camera model's principal distance as an observation when f is
+    /// self-calibrated, relative (0.01: a lens's marked focal length within 1 %); 0 leaves f to the images alone.
+    /// Where the block cannot tell f from the distance to the wall (one or two strips of a façade, square on), it
+    /// keeps f near the marked value instead of letting it wander.
+    pub focal_sigma: f64,
 }
 
 impl OrientationParams {
@@ -95,8 +100,13 @@ impl lineflow_runtime::StageParams for OrientationParams {
         in_half_open("min_angle_deg", self.min_angle_deg, 0.0, 90.0)?;
         positive("regeoreference_m", self.regeoreference_m)?;
         at_least("self_calibrate_min_frames", self.self_calibrate_min_frames, 3)?;
+        lineflow_runtime::params::non_negative("focal_sigma", self.focal_sigma)?;
         if let Err(e) = self.interior() {
-            return Err(lineflow_runtime::ParamError::new("self_calibrate", e, format!("{:?}", self.self_calibrate)));
+            return Err(lineflow_runtime::ParamError::new(
+                "self_calibrate",
+                e,
+                format!("{:?}", self.self_calibrate),
+            ));
         }
         at_least("window", self.window, 2)
     }
@@ -117,6 +127,7 @@ impl Default for OrientationParams {
             regeoreference_m: 0.25,
             self_calibrate: Vec::new(),
             self_calibrate_min_frames: 5,
+            focal_sigma: 0.01,
         }
     }
 }
@@ -190,6 +201,8 @@ pub struct Block {
     pub tie_sigma_px: f64,
     /// The interior parameters the adjustments estimate (`self_calibrate`).
     interior: Vec<Interior>,
+    /// The principal distance of the camera the block was made for, mm (the prior of a self-calibrated f).
+    nominal_focal_mm: f64,
 }
 
 /// What is known about one oriented frame besides its pose.
@@ -209,6 +222,7 @@ impl Block {
         Self {
             tie_sigma_px: params.tie_sigma_px,
             interior: params.interior().unwrap_or_default(),
+            nominal_focal_mm: camera.focal_mm,
             params,
             method: Method::Bundle,
             georeferenced_with: 0,
@@ -654,6 +668,11 @@ impl Block {
                     camera: self.camera,
                     free: self.interior.clone(),
                     pixels,
+                    priors: vec![(
+                        Interior::Focal,
+                        self.nominal_focal_mm,
+                        self.params.focal_sigma * self.nominal_focal_mm,
+                    )],
                 }),
             },
             ids,

@@ -90,17 +90,34 @@ pub fn interior_header(r: &InteriorReport) -> String {
     let mut out = String::from("# Self-calibrated by lineflow's bundle adjustment (value, sigma):\n");
     let value = |p: Interior| {
         let c = &r.camera;
-        [c.focal_mm, c.principal_point_mm[0], c.principal_point_mm[1], c.radial[0], c.radial[1], c.radial[2], c.decentering[0], c.decentering[1]]
-            [p.index()]
+        [
+            c.focal_mm,
+            c.principal_point_mm[0],
+            c.principal_point_mm[1],
+            c.radial[0],
+            c.radial[1],
+            c.radial[2],
+            c.decentering[0],
+            c.decentering[1],
+        ][p.index()]
     };
     for &p in &r.free {
-        out += &format!("#   {:<2} = {:.6e} ± {:.1e} {}\n", p.name(), value(p), r.sigmas[p.index()], p.unit());
+        out += &format!(
+            "#   {:<2} = {:.6e} ± {:.1e} {}\n",
+            p.name(),
+            value(p),
+            r.sigmas[p.index()],
+            p.unit()
+        );
     }
     if let Some((a, b, rho)) = r.strongest_correlation() {
         out += &format!("#   strongest correlation: {} / {} {:+.2}\n", a.name(), b.name(), rho);
     }
     if r.focal_exterior_correlation.is_finite() {
-        out += &format!("#   principal distance against the camera positions: {:+.2}\n", r.focal_exterior_correlation);
+        out += &format!(
+            "#   principal distance against the camera positions: {:+.2}\n",
+            r.focal_exterior_correlation
+        );
     }
     out
 }
