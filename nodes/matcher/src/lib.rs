@@ -10,12 +10,14 @@
 //! good.
 #![warn(missing_docs)]
 pub mod descriptors;
+pub mod lattice;
 pub mod lsm;
 pub mod stage;
 
 use std::collections::HashMap;
 
 use descriptors::{guided_match, match_features, FrameFeatures};
+use lattice::{lattice_steps, repetition_periods};
 use lineflow_photogrammetry::epipolar::{dominant_plane, homography, verify, Ransac, Ray};
 use lineflow_photogrammetry::Camera;
 use lineflow_runtime::params::{self, ParamError};
@@ -59,6 +61,9 @@ pub struct MatcherParams {
     pub guided_max_distance: f32,
     /// Plane transfers tried per pair (repeated bays make more than one plausible).
     pub plane_hypotheses: usize,
+    /// A frame's first partner's transfers are also tried shifted by one period of the façade's repetition (the bay,
+    /// the storey; [`Matcher::with_lattice_shifts`]).
+    pub lattice_shifts: bool,
     /// Longest chain of consecutive frames through which two frames' plane transfer is composed for the loop check.
     pub loop_chain: usize,
     /// Refine every observation by least-squares matching against its track's first observation (needs the
@@ -104,6 +109,7 @@ impl Default for MatcherParams {
             guided_ratio: 0.8,
             guided_max_distance: 0.5,
             plane_hypotheses: 3,
+            lattice_shifts: true,
             loop_chain: 40,
             refine: true,
             refine_half_window: 8,
@@ -154,6 +160,18 @@ fn comparable_support(mut hypotheses: Vec<Hypothesis>) -> Vec<Hypothesis> {
 /// 0.5 the step chose it twice: at the jump from the first strip's end to the second's start (1,427 against 2,443
 /// matches) and within a strip whose step varied by 214 px (1,668 against 2,950).
 const COMPARABLE_SUPPORT: f64 = 0.8;
+
+/// The ratio test of a pair whose strict one leaves too few matches for a transfer.
+const LOOSE_RATIO: f32 = 0.85;
+
+/// How much farther than `plane_tolerance_px` a shifted transfer's first guided matching looks.
+const SHIFT_TOLERANCE: f64 = 3.0;
+
+/// Rounds of [`Matcher::grown`] at most.
+const GROWING_ROUNDS: usize = 3;
+
+/// Keypoints of a partner image (the strongest) among which its repetition periods are looked for.
+const LATTICE_KEYPOINTS: usize = 1500;
 
 /// Which matches move like their neighbours. The epipolar constraint cannot see a match shifted along its
 /// epipolar line, and on a façade the epipolar lines of a strip run along the brick courses, whose repetition makes
@@ -335,9 +353,20 @@ impl Matcher {
         // The new observations with the index of their frame.
         let mut linked: Vec<(Observation, usize)> = Vec::new();
         for p in self.partners(&sample) {
-            let mutual = match_features(&features, &self.frames[p].features, self.params.ratio);
+            let mut mutual = match_features(&features, &self.frames[p].features, self.params.ratio);
+            if mutual.len() < 3 * self.params.min_inliers {
+                // Too few for a transfer: two strips at different heights see a plain or repeated façade too
+                // differently for the strict ratio test; a looser one, with RANSAC's plane to sort it, still can.
+                let loose = match_features(&features, &self.frames[p].features, LOOSE_RATIO);
+                if loose.len() > mutual.len() {
+                    mutual = loose;
+                }
+            }
             let predicted = accepted.iter().find_map(|&(a, h_ka)| Some(self.plane_between(a, p)? * h_ka));
-            let hypotheses = self.hypotheses(&features, &rays, p, &mutual, &ransac, predicted);
+            let mut hypotheses = self.hypotheses(&features, &rays, p, &mutual, &ransac, predicted);
+            if accepted.is_empty() {
+                hypotheses = self.with_lattice_shifts(&features, &rays, p, hypotheses);
+            }
             let chosen = self.choose(new, p, hypotheses, &accepted, &rays);
             result.partners.push((self.frames[p].number, mutual.len(), chosen.matches.len()));
             if chosen.matches.is_empty() {
@@ -491,9 +520,77 @@ impl Matcher {
         }
     }
 
+    /// The pair's hypotheses and, where no loop through an accepted partner can judge them (the frame's first
+    /// partner), each found transfer moved by one period of the partner image's repetition
+    /// and diagonally ([`lattice_steps`] of [`repetition_periods`]: the bay and the storey) where that guides more
+    /// matches than any found. At the
+    /// jump between two strips at different heights the second strip sees each storey as the first saw the storey
+    /// below, so a transfer one storey off can be the only one the pair's mutual matches offer; shifted by the
+    /// storey it becomes the true one, which guides more matches.
+    fn with_lattice_shifts(&self, features: &FrameFeatures, rays: &[Ray], p: usize, mut hypotheses: Vec<Hypothesis>) -> Vec<Hypothesis> {
+        if !self.params.lattice_shifts {
+            return hypotheses;
+        }
+        let other = &self.frames[p];
+        let at: Vec<[f64; 2]> = other.rays.iter().map(|r| [r.x / r.z, r.y / r.z]).collect();
+        let px = self.camera.pixel_size_mm / self.camera.focal_mm;
+        let steps = lattice_steps(&repetition_periods(
+            &other.features,
+            &at,
+            LATTICE_KEYPOINTS,
+            self.params.plane_tolerance_px * px,
+            4.0 * self.params.plane_tolerance_px * px,
+            self.params.min_inliers,
+        ));
+        let found: Vec<Matrix3<f64>> = hypotheses.iter().filter_map(|h| h.plane).collect();
+        let found_best = hypotheses.iter().map(|h| h.matches.len()).max().unwrap_or(0);
+        let shifted = found
+            .iter()
+            .flat_map(|h| {
+                steps
+                    .iter()
+                    .map(move |d| Matrix3::new(1.0, 0.0, d[0], 0.0, 1.0, d[1], 0.0, 0.0, 1.0) * h)
+            })
+            .filter_map(|h| self.grown(features, rays, other, &h))
+            .max_by_key(|g| g.matches.len());
+        // Clearly more: one period off, the façade's repetition alone finds almost as many.
+        if let Some(g) = shifted.filter(|g| COMPARABLE_SUPPORT * g.matches.len() as f64 > found_best as f64) {
+            hypotheses.push(g);
+        }
+        hypotheses
+    }
+
+    /// [`guided`](Self::guided) from `h` within [`SHIFT_TOLERANCE`] times the usual distance, then again from each
+    /// refitted transfer while that guides more matches: a transfer moved by a period of the image is right near the
+    /// image centre only (the façade's lattice is a translation on the wall, not in the image, and a bay in one part
+    /// of the image is not a bay in another), and the refit carries it to the edges.
+    fn grown(&self, features: &FrameFeatures, rays: &[Ray], other: &Frame, h: &Matrix3<f64>) -> Option<Hypothesis> {
+        let mut best = self.guided_within(features, rays, other, h, SHIFT_TOLERANCE * self.params.plane_tolerance_px)?;
+        for _ in 0..GROWING_ROUNDS {
+            let Some(plane) = best.plane else { break };
+            match self.guided(features, rays, other, &plane) {
+                Some(next) if next.matches.len() > best.matches.len() => best = next,
+                _ => break,
+            }
+        }
+        Some(best)
+    }
+
     /// The matches guided by the plane transfer `h` (new frame → `other`), with `h` refitted to them.
     fn guided(&self, features: &FrameFeatures, rays: &[Ray], other: &Frame, h: &Matrix3<f64>) -> Option<Hypothesis> {
-        let tolerance = self.params.plane_tolerance_px * self.camera.pixel_size_mm / self.camera.focal_mm;
+        self.guided_within(features, rays, other, h, self.params.plane_tolerance_px)
+    }
+
+    /// [`guided`](Self::guided) with candidates within `tolerance_px` of the transfer.
+    fn guided_within(
+        &self,
+        features: &FrameFeatures,
+        rays: &[Ray],
+        other: &Frame,
+        h: &Matrix3<f64>,
+        tolerance_px: f64,
+    ) -> Option<Hypothesis> {
+        let tolerance = tolerance_px * self.camera.pixel_size_mm / self.camera.focal_mm;
         let at: Vec<[f64; 2]> = other.rays.iter().map(|r| [r.x / r.z, r.y / r.z]).collect();
         let predicted: Vec<Option<[f64; 2]>> = rays.iter().map(|r| transfer_point(h, r)).collect();
         let guided = guided_match(
