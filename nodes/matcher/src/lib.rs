@@ -161,7 +161,7 @@ fn comparable_support(mut hypotheses: Vec<Hypothesis>) -> Vec<Hypothesis> {
 /// matches) and within a strip whose step varied by 214 px (1,668 against 2,950).
 const COMPARABLE_SUPPORT: f64 = 0.8;
 
-/// The ratio test of a pair whose strict one leaves too few matches for a transfer.
+/// The ratio test of a frame that no partner verifies under the strict one.
 const LOOSE_RATIO: f32 = 0.85;
 
 /// How much farther than `plane_tolerance_px` a shifted transfer's first guided matching looks.
@@ -352,32 +352,33 @@ impl Matcher {
         let mut accepted: Vec<(usize, Matrix3<f64>)> = Vec::new();
         // The new observations with the index of their frame.
         let mut linked: Vec<(Observation, usize)> = Vec::new();
-        for p in self.partners(&sample) {
-            let mut mutual = match_features(&features, &self.frames[p].features, self.params.ratio);
-            if mutual.len() < 3 * self.params.min_inliers {
-                // Too few for a transfer: two strips at different heights see a plain or repeated façade too
-                // differently for the strict ratio test; a looser one, with RANSAC's plane to sort it, still can.
-                let loose = match_features(&features, &self.frames[p].features, LOOSE_RATIO);
-                if loose.len() > mutual.len() {
-                    mutual = loose;
+        // A frame no partner verifies under the strict ratio test is matched again under a looser one: two strips
+        // at different heights see a plain or repeated façade too differently for the strict test, while a looser
+        // one, with RANSAC's plane to sort it, still joins them. Frames the strict test joins are left as they are.
+        for ratio in [self.params.ratio, LOOSE_RATIO.max(self.params.ratio)] {
+            result.partners.clear();
+            for p in self.partners(&sample) {
+                let mutual = match_features(&features, &self.frames[p].features, ratio);
+                let predicted = accepted.iter().find_map(|&(a, h_ka)| Some(self.plane_between(a, p)? * h_ka));
+                let mut hypotheses = self.hypotheses(&features, &rays, p, &mutual, &ransac, predicted);
+                if accepted.is_empty() {
+                    hypotheses = self.with_lattice_shifts(&features, &rays, p, hypotheses);
+                }
+                let chosen = self.choose(new, p, hypotheses, &accepted, &rays);
+                result.partners.push((self.frames[p].number, mutual.len(), chosen.matches.len()));
+                if chosen.matches.is_empty() {
+                    continue;
+                }
+                if let Some(h) = chosen.plane {
+                    self.planes.insert((new, p), h);
+                    accepted.push((p, h));
+                }
+                for (i, j) in chosen.matches {
+                    self.link((new, i), (p, j), &features, &mut linked, number);
                 }
             }
-            let predicted = accepted.iter().find_map(|&(a, h_ka)| Some(self.plane_between(a, p)? * h_ka));
-            let mut hypotheses = self.hypotheses(&features, &rays, p, &mutual, &ransac, predicted);
-            if accepted.is_empty() {
-                hypotheses = self.with_lattice_shifts(&features, &rays, p, hypotheses);
-            }
-            let chosen = self.choose(new, p, hypotheses, &accepted, &rays);
-            result.partners.push((self.frames[p].number, mutual.len(), chosen.matches.len()));
-            if chosen.matches.is_empty() {
-                continue;
-            }
-            if let Some(h) = chosen.plane {
-                self.planes.insert((new, p), h);
-                accepted.push((p, h));
-            }
-            for (i, j) in chosen.matches {
-                self.link((new, i), (p, j), &features, &mut linked, number);
+            if !linked.is_empty() || new == 0 {
+                break;
             }
         }
         self.frames.push(Frame {
