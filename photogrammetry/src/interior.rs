@@ -58,6 +58,20 @@ impl Interior {
         Self::ALL.into_iter().find(|p| p.name() == name)
     }
 
+    /// The parameter's value in `c`, natural units.
+    pub fn value(self, c: &Camera) -> f64 {
+        match self {
+            Interior::Focal => c.focal_mm,
+            Interior::X0 => c.principal_point_mm[0],
+            Interior::Y0 => c.principal_point_mm[1],
+            Interior::K1 => c.radial[0],
+            Interior::K2 => c.radial[1],
+            Interior::K3 => c.radial[2],
+            Interior::P1 => c.decentering[0],
+            Interior::P2 => c.decentering[1],
+        }
+    }
+
     /// Unit of the parameter, for reports.
     pub fn unit(self) -> &'static str {
         ["mm", "mm", "mm", "mm^-2", "mm^-4", "mm^-6", "mm^-1", "mm^-1"][self.index()]
@@ -86,17 +100,7 @@ impl InteriorScale {
     }
 
     pub(crate) fn vector(&self, c: &Camera) -> [f64; N_INTERIOR] {
-        let natural = [
-            c.focal_mm,
-            c.principal_point_mm[0],
-            c.principal_point_mm[1],
-            c.radial[0],
-            c.radial[1],
-            c.radial[2],
-            c.decentering[0],
-            c.decentering[1],
-        ];
-        std::array::from_fn(|k| natural[k] / self.per_unit[k])
+        std::array::from_fn(|k| Interior::ALL[k].value(c) / self.per_unit[k])
     }
 
     /// `base` with the interior of the scaled vector `v`.

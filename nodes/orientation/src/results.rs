@@ -88,24 +88,11 @@ pub const CALIBRATED_CAMERA: &str = "camera_calibrated.toml";
 /// correlations.
 pub fn interior_header(r: &InteriorReport) -> String {
     let mut out = String::from("# Self-calibrated by lineflow's bundle adjustment (value, sigma):\n");
-    let value = |p: Interior| {
-        let c = &r.camera;
-        [
-            c.focal_mm,
-            c.principal_point_mm[0],
-            c.principal_point_mm[1],
-            c.radial[0],
-            c.radial[1],
-            c.radial[2],
-            c.decentering[0],
-            c.decentering[1],
-        ][p.index()]
-    };
     for &p in &r.free {
         out += &format!(
             "#   {:<2} = {:.6e} ± {:.1e} {}\n",
             p.name(),
-            value(p),
+            p.value(&r.camera),
             r.sigmas[p.index()],
             p.unit()
         );

@@ -1,9 +1,9 @@
 //! Bare photos: a project folder whose camera is nominal (written from EXIF: the marked focal length, the
 //! principal point at the centre, no distortion) is self-calibrated by `lineflow process` before it is processed.
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use lineflow_e2e::{repo_file, Sandbox};
-use lineflow_formats::project::read_camera;
+use lineflow_formats::project::{read_camera, CameraFile};
 
 /// The nominal camera of a synthetic scene's true one, as `lineflow camera import PHOTO` would write it.
 fn write_nominal(camera_toml: &Path) {
@@ -20,6 +20,27 @@ fn write_nominal(camera_toml: &Path) {
     std::fs::write(camera_toml, text).unwrap();
 }
 
+/// A synthetic scene of the tuning building @3 at `scale` whose camera is replaced by its nominal one: the folder,
+/// the true camera and the nominal file's text.
+fn nominal_scene(sb: &Sandbox, scale: &str) -> (PathBuf, CameraFile, String) {
+    let scene = sb.path().join("scene");
+    let args = [
+        "synth",
+        "--preset",
+        "a55-two-strips@3",
+        "--scale",
+        scale,
+        "--out",
+        scene.to_str().unwrap(),
+    ];
+    assert!(sb.run(&args).status.success(), "synth failed");
+    let camera_toml = scene.join("camera.toml");
+    let truth = read_camera(&camera_toml).unwrap();
+    write_nominal(&camera_toml);
+    let text = std::fs::read_to_string(&camera_toml).unwrap();
+    (scene, truth, text)
+}
+
 fn figure(json: &serde_json::Value, path: &[&str]) -> f64 {
     path.iter()
         .fold(json, |v, k| &v[*k])
@@ -30,21 +51,8 @@ fn figure(json: &serde_json::Value, path: &[&str]) -> f64 {
 #[test]
 fn a_nominal_camera_is_self_calibrated_before_the_folder_is_processed() {
     let sb = Sandbox::new();
-    let scene = sb.path().join("scene");
-    let r = sb.run(&[
-        "synth",
-        "--preset",
-        "a55-two-strips@3",
-        "--scale",
-        "0.3",
-        "--out",
-        scene.to_str().unwrap(),
-    ]);
-    assert!(r.status.success(), "synth failed");
+    let (scene, truth, nominal_text) = nominal_scene(&sb, "0.3");
     let camera_toml = scene.join("camera.toml");
-    let truth = read_camera(&camera_toml).unwrap();
-    write_nominal(&camera_toml);
-    let nominal_text = std::fs::read_to_string(&camera_toml).unwrap();
 
     // The orientation part of the folder graph stands in for the whole: the calibration is what is tested.
     let graph = repo_file("launch/calibrate.toml");
@@ -109,20 +117,8 @@ fn a_nominal_camera_is_self_calibrated_before_the_folder_is_processed() {
 #[test]
 fn a_nominal_camera_is_kept_when_asked_and_a_failed_calibration_is_named() {
     let sb = Sandbox::new();
-    let scene = sb.path().join("scene");
-    let r = sb.run(&[
-        "synth",
-        "--preset",
-        "a55-two-strips@3",
-        "--scale",
-        "0.13",
-        "--out",
-        scene.to_str().unwrap(),
-    ]);
-    assert!(r.status.success(), "synth failed");
+    let (scene, _, nominal_text) = nominal_scene(&sb, "0.13");
     let camera_toml = scene.join("camera.toml");
-    write_nominal(&camera_toml);
-    let nominal_text = std::fs::read_to_string(&camera_toml).unwrap();
     let graph = repo_file("launch/calibrate.toml");
     // At 640 px the A55's two strips give too few tie points to orient five frames: no calibration, named.
     let r = sb.run(&["process", scene.to_str().unwrap(), "--graph", graph.to_str().unwrap(), "-q"]);
