@@ -22,60 +22,6 @@ fn has_node(graph: &Path, name: &str) -> bool {
         .is_some_and(|nodes| nodes.iter().any(|n| n.get("name").and_then(toml::Value::as_str) == Some(name)))
 }
 
-/// Whether `camera_toml` holds a nominal camera (written from EXIF, never calibrated).
-fn is_nominal(camera_toml: &Path) -> bool {
-    std::fs::read_to_string(camera_toml).is_ok_and(|t| t.starts_with(lineflow_interop::NOMINAL_CAMERA_HEADER))
-}
-
-/// The first pass over a folder with a nominal camera: `launch/calibrate.toml` estimates the interior orientation
-/// in the bundle adjustment (the parameters it names, or `orientation.self_calibrate` as set), and the result
-/// replaces the folder's `camera.toml` (the nominal one stays beside it as `camera_nominal.toml`), so the main
-/// graph and every later run use it. `orientation.self_calibrate=[]` keeps the nominal camera.
-fn self_calibrate(folder: &Path, out: &Path, set: &[String], verbosity: Verbosity) -> Result<()> {
-    let graph = launch_dir().join("calibrate.toml");
-    let out = out.join("calibration");
-    let set: Vec<String> = set
-        .iter()
-        .filter(|s| {
-            ["capture.", "orientation.", "features.", "matcher."]
-                .iter()
-                .any(|p| s.starts_with(p))
-        })
-        .cloned()
-        .collect();
-    if set.iter().any(|s| s.replace(' ', "") == "orientation.self_calibrate=[]") {
-        eprintln!("warning: the camera is nominal and orientation.self_calibrate = []: it is used as it is");
-        return Ok(());
-    }
-    eprintln!(
-        "self-calibration: the camera is nominal; estimating its interior orientation first ({})",
-        graph.display()
-    );
-    let g = launch::load(&graph, &set, &Resolver::beside_current_exe())?;
-    let status = run_graph(&g, &out, None, verbosity)?;
-    let calibrated = out.join("camera_calibrated.toml");
-    if status != ExitCode::SUCCESS || !calibrated.is_file() {
-        bail!(
-            "self-calibration failed (logs in {}): too few images could be oriented with the nominal camera; \
-             calibrate the camera (`lineflow camera import`) and run again",
-            out.join("logs").display()
-        );
-    }
-    let camera_toml = folder.join("camera.toml");
-    let nominal = folder.join("camera_nominal.toml");
-    std::fs::copy(&camera_toml, &nominal).with_context(|| format!("keeping the nominal camera as {}", nominal.display()))?;
-    let text = std::fs::read_to_string(&calibrated).with_context(|| format!("{}", calibrated.display()))?;
-    let header = format!(
-        "# Self-calibrated by `lineflow process` ({}); the nominal camera it started from is {}. Delete this file and\n\
-         # rename that one back to calibrate again.\n",
-        out.display(),
-        nominal.display()
-    );
-    std::fs::write(&camera_toml, header + &text).with_context(|| format!("writing {}", camera_toml.display()))?;
-    eprintln!("self-calibration: {} now holds the adjusted camera", camera_toml.display());
-    Ok(())
-}
-
 /// Runs a graph (default `launch/folder.toml`) over a project folder.
 pub fn process(folder: &Path, out: Option<PathBuf>, graph: Option<PathBuf>, set: &[String], verbosity: Verbosity) -> Result<ExitCode> {
     // Bare photos: a nominal camera from the first one's EXIF, written where the user sees (and can replace) it.
@@ -109,8 +55,8 @@ pub fn process(folder: &Path, out: Option<PathBuf>, graph: Option<PathBuf>, set:
         eprintln!("using the poses in {} in place of the orientation stage", supplied.display());
         set.push("orientation.impl=\"file\"".into());
         set.push(format!("orientation.poses={}", quoted(&supplied)));
-    } else if own_orientation && is_nominal(&folder.join("camera.toml")) {
-        self_calibrate(&folder, &out, &set, verbosity)?;
+    } else if own_orientation && lineflow_interop::calibrate::is_nominal(&folder.join("camera.toml")) {
+        lineflow_interop::calibrate::self_calibrate(&folder, &out, &set, verbosity)?;
     }
     eprintln!(
         "processing {} images of {} with {}",

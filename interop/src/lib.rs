@@ -4,6 +4,7 @@
 //! correction model ([`lineflow_photogrammetry::lens`]), with the fit's residual over the frame printed.
 #![warn(missing_docs)]
 
+pub mod calibrate;
 pub mod poses;
 
 pub use poses::{poses, PosesCmd};

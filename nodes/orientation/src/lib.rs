@@ -10,6 +10,7 @@
 //! control points join the adjustment with their a-priori standard deviations. At the end a full adjustment removes
 //! outliers and solves again, and the check points are intersected for `checkpoints.csv`.
 #![warn(missing_docs)]
+pub mod calibration_report;
 pub mod colmap;
 mod essential;
 pub mod results;

@@ -278,10 +278,10 @@ impl OrientationStage {
                     b.report.removed.len()
                 );
                 if let Some(interior) = &b.report.interior {
-                    for line in crate::results::interior_header(interior).lines().skip(1) {
+                    for line in crate::calibration_report::interior_header(interior).lines().skip(1) {
                         tracing::info!("self-calibration: {}", line.trim_start_matches('#').trim());
                     }
-                    if let Some(weak) = crate::results::weak_calibration(interior) {
+                    if let Some(weak) = crate::calibration_report::weak_calibration(interior) {
                         tracing::warn!("{weak}");
                     }
                 }
