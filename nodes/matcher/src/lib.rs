@@ -61,8 +61,8 @@ pub struct MatcherParams {
     pub guided_max_distance: f32,
     /// Plane transfers tried per pair (repeated bays make more than one plausible).
     pub plane_hypotheses: usize,
-    /// A frame's first partner's transfers are also tried shifted by one period of the façade's repetition (the bay,
-    /// the storey; [`Matcher::with_lattice_shifts`]).
+    /// A frame's first partner, when that is not the previous frame, has its transfers also tried shifted by one
+    /// period of the façade's repetition (the bay, the storey; [`Matcher::with_lattice_shifts`]).
     pub lattice_shifts: bool,
     /// Longest chain of consecutive frames through which two frames' plane transfer is composed for the loop check.
     pub loop_chain: usize,
@@ -355,13 +355,20 @@ impl Matcher {
         // A frame no partner verifies under the strict ratio test is matched again under a looser one: two strips
         // at different heights see a plain or repeated façade too differently for the strict test, while a looser
         // one, with RANSAC's plane to sort it, still joins them. Frames the strict test joins are left as they are.
-        for ratio in [self.params.ratio, LOOSE_RATIO.max(self.params.ratio)] {
+        let ratios = if LOOSE_RATIO > self.params.ratio {
+            vec![self.params.ratio, LOOSE_RATIO]
+        } else {
+            vec![self.params.ratio]
+        };
+        for ratio in ratios {
             result.partners.clear();
             for p in self.partners(&sample) {
                 let mutual = match_features(&features, &self.frames[p].features, ratio);
                 let predicted = accepted.iter().find_map(|&(a, h_ka)| Some(self.plane_between(a, p)? * h_ka));
                 let mut hypotheses = self.hypotheses(&features, &rays, p, &mutual, &ransac, predicted);
-                if accepted.is_empty() {
+                // Only where `choose` has neither a loop nor the previous frame's step to judge by: the first
+                // partner when it is not the previous frame (the previous frame found nothing, as at a jump).
+                if accepted.is_empty() && p + 1 != new {
                     hypotheses = self.with_lattice_shifts(&features, &rays, p, hypotheses);
                 }
                 let chosen = self.choose(new, p, hypotheses, &accepted, &rays);
@@ -521,8 +528,8 @@ impl Matcher {
         }
     }
 
-    /// The pair's hypotheses and, where no loop through an accepted partner can judge them (the frame's first
-    /// partner), each found transfer moved by one period of the partner image's repetition
+    /// The pair's hypotheses and, where neither a loop through an accepted partner nor the camera's steady motion can
+    /// judge them (the frame's first partner, not the previous frame), each found transfer moved by one period of the partner image's repetition
     /// and diagonally ([`lattice_steps`] of [`repetition_periods`]: the bay and the storey) where that guides more
     /// matches than any found. At the
     /// jump between two strips at different heights the second strip sees each storey as the first saw the storey

@@ -112,6 +112,14 @@ impl OrientationStage {
     pub fn on_camera(&mut self, camera: Camera) {
         self.pixel_mm = camera.pixel_size_mm;
         if self.block.is_none() {
+            if !self.params.self_calibrate.is_empty() {
+                // The camera topic is latched: the stages downstream keep the camera they were given.
+                tracing::warn!(
+                    "self-calibration: the poses published follow the adjusted camera, while the other stages keep the \
+                     one on the camera topic; run it in a graph that stops at the orientation (launch/calibrate.toml, \
+                     as `lineflow process` does) and use camera_calibrated.toml for the rest"
+                );
+            }
             let block = Block::new(self.params.clone(), camera);
             self.block = Some(match self.source {
                 Source::TiePoints(method) => block.with_method(method),
