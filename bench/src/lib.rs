@@ -109,6 +109,10 @@ pub enum BenchCmd {
         /// Repetitions per measurement.
         #[arg(long, default_value_t = 1)]
         reps: usize,
+        /// Write every matched point of the master (segment, X, Y, Z, depth, SNCC, window, from the lines) to this
+        /// CSV, with the true poses, and skip the timing: for seeing where a stage places a building's edges.
+        #[arg(long)]
+        points: Option<std::path::PathBuf>,
     },
     /// The model stage on the preset's true edges with noise: vertex RMSE, edge precision and recall, time.
     Model {
@@ -351,7 +355,12 @@ pub fn bench(cmd: BenchCmd) -> Result<ExitCode> {
             subpixel: !no_subpixel,
             flat_textures,
         }),
-        BenchCmd::Linematch { preset, scale, reps } => linematch::bench_linematch(&preset, scale, reps),
+        BenchCmd::Linematch {
+            preset,
+            scale,
+            reps,
+            points,
+        } => linematch::bench_linematch(&preset, scale, reps, points.as_deref()),
         BenchCmd::Linemap(args) => linemap::bench_linemap(&args),
         BenchCmd::Layers(args) => layers::bench_layers(&args),
         BenchCmd::Bundle { cameras, points } => bundle::bench_bundle(cameras, points),

@@ -3,7 +3,7 @@
 //! core; the reference, measured in the same run, is the thesis's fully automatic mode (the C window alone).
 use std::process::ExitCode;
 
-use anyhow::{bail, Result};
+use anyhow::{bail, Context, Result};
 use lineflow_linematch::{
     choose_slaves, match_master_with_lines, DistortionLut, FrameSegments, MasterMatch, MatchParams, Mode, SegmentInput, SlaveSegments,
     View, WallPlane,
@@ -18,7 +18,7 @@ use crate::util::median_time;
 /// The target: one 12 MP master against six slaves in at most this many seconds on two cores.
 const TARGET_S: f64 = 2.0;
 
-pub fn bench_linematch(preset: &str, scale: f64, reps: usize) -> Result<ExitCode> {
+pub fn bench_linematch(preset: &str, scale: f64, reps: usize, points_csv: Option<&std::path::Path>) -> Result<ExitCode> {
     let syn = Synthetic::new(preset, scale, 1)?;
     let cam = *syn.camera();
     let (w, h) = (cam.width as usize, cam.height as usize);
@@ -145,6 +145,15 @@ pub fn bench_linematch(preset: &str, scale: f64, reps: usize) -> Result<ExitCode
         matched.len(),
         line_frames.len()
     );
+    if let Some(path) = points_csv {
+        write_points(path, &matched)?;
+        println!(
+            "master {master} (centre {:?}): points written to {}",
+            poses[master].center.as_slice(),
+            path.display()
+        );
+        return Ok(ExitCode::SUCCESS);
+    }
     let c_only = MatchParams {
         modes: vec![Mode::C],
         ..p.clone()
@@ -198,4 +207,20 @@ pub fn bench_linematch(preset: &str, scale: f64, reps: usize) -> Result<ExitCode
         all_n - t_n
     );
     Ok(ExitCode::SUCCESS)
+}
+
+/// Every matched point of the master, one CSV row each.
+fn write_points(path: &std::path::Path, matched: &[lineflow_linematch::SegmentMatch]) -> Result<()> {
+    use std::fmt::Write as _;
+    let mut out = String::from("segment,X,Y,Z,depth_m,sncc,window,from_lines\n");
+    for m in matched {
+        for q in &m.points {
+            let _ = writeln!(
+                out,
+                "{},{:.4},{:.4},{:.4},{:.4},{:.3},{:?},{}",
+                m.segment_id, q.xyz.x, q.xyz.y, q.xyz.z, q.depth_m, q.sncc, q.mode, q.from_lines
+            );
+        }
+    }
+    std::fs::write(path, out).with_context(|| format!("cannot write {}", path.display()))
 }
