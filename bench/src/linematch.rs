@@ -68,11 +68,14 @@ pub fn bench_linematch(preset: &str, scale: f64, reps: usize, points_csv: Option
     // Every image's lines, as the shipped graph has them: the master's to match, the slaves' to refine depths.
     let traced: Vec<Vec<MeasuredSegment>> = grays
         .iter()
-        .map(|(_, g)| {
-            let edges = lineflow_edges::canny(g, w, h, 0.4 * 100.0, 100.0);
-            let found = lineflow_edges::pixels(g, w, h, &edges);
+        .map(|(f, g)| {
+            // The edges stage's default: the colour channels' gradient across plumb edges.
+            let [r, gc, b] = lineflow_imaging::rgb_planes(&syn.render(*f as usize), w, h, w * 3);
+            let planes = lineflow_imaging::Planes::colour(g, &r, &gc, &b, true);
+            let edges = lineflow_edges::canny_in(&planes, w, h, 0.4 * 100.0, 100.0);
+            let found = lineflow_edges::pixels_in(&planes, w, h, &edges);
             let pixels: Vec<[u16; 2]> = found.iter().map(|e| [e.col, e.row]).collect();
-            let positions = lineflow_imaging::subpixel_positions(g, w, h, &found);
+            let positions = lineflow_imaging::subpixel_positions_in(&planes, w, h, &found);
             trace_measured_at(&cam, &pixels, &positions, &TraceParams::default())
         })
         .collect();

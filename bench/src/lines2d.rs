@@ -118,6 +118,21 @@ pub fn bench_lines2d(preset: &str, reps: usize, high: f64) -> Result<ExitCode> {
     };
     score("ours: canny + trace", &ours, total);
     score("ours: lsd (lsdetect)", &lsd, t_lsd);
+    let channels = lineflow_imaging::rgb_planes(&rgb, w, h, w * 3);
+    let [r, g, b] = &channels;
+    let color = |planes: &lineflow_imaging::Planes| {
+        let map = lineflow_edges::canny_in(planes, w, h, low, high);
+        let found = lineflow_edges::pixels_in(planes, w, h, &map);
+        let positions = lineflow_imaging::subpixel_positions_in(planes, w, h, &found);
+        let pixels: Vec<[u16; 2]> = found.iter().map(|e| [e.col, e.row]).collect();
+        lineflow_lines2d::trace_measured_at(&cam, &pixels, &positions, &params)
+    };
+    for (name, plumb_only) in [("ours: colour (plumb) + trace", true), ("ours: colour (all) + trace", false)] {
+        let planes = lineflow_imaging::Planes::colour(&gray, r, g, b, plumb_only);
+        let t = median_time(reps, || drop(color(&planes)));
+        let scores = score_image(&truth, frame, &rows(&image, color(&planes).iter().map(|t| (t.0, t.1)), 0.0));
+        score(name, &scores, t);
+    }
 
     let dir = tempfile::tempdir()?;
     let png = dir.path().join("gray.png");

@@ -2,15 +2,20 @@
 use lineflow_messages::EdgePixel;
 use rayon::prelude::*;
 
-use crate::gradient::gradient_at;
+use crate::gradient::Planes;
 
 /// Sub-pixel positions of edge pixels: the peak of a parabola through the gradient magnitude at the pixel and
 /// its two neighbours across the edge (the nearest of the 8 directions to the gradient), as (col, row).
 /// Non-maximum suppression puts an edge between two pixels on one of them; this removes that half-pixel bias.
 pub fn subpixel_positions(gray: &[u8], width: usize, height: usize, pixels: &[EdgePixel]) -> Vec<[f64; 2]> {
+    subpixel_positions_in(&Planes::gray(gray), width, height, pixels)
+}
+
+/// [`subpixel_positions`] on the gradient of the strongest plane, as the edge detector found the pixels.
+pub fn subpixel_positions_in(planes: &Planes, width: usize, height: usize, pixels: &[EdgePixel]) -> Vec<[f64; 2]> {
     let mag = |x: isize, y: isize| {
         let (x, y) = (x.clamp(0, width as isize - 1) as usize, y.clamp(0, height as isize - 1) as usize);
-        let (gx, gy) = gradient_at(gray, width, height, x, y);
+        let (gx, gy) = planes.gradient_at(width, height, x, y);
         ((gx * gx + gy * gy) as f64).sqrt()
     };
     pixels

@@ -3,7 +3,9 @@
 use lineflow_messages::EdgePixel;
 use lineflow_runtime::params::{self, ParamError};
 
-use crate::{canny, log, pixels, sobel, DEFAULT_HIGH, DEFAULT_LOW_RATIO};
+use lineflow_imaging::Planes;
+
+use crate::{canny_in, log, pixels_in, sobel_in, DEFAULT_HIGH, DEFAULT_LOW_RATIO};
 
 /// The launch file's parameters of the edges stage; each applies to some implementations only. Thresholds are on
 /// the L2 magnitude of the 3×3 Sobel gradient of the 8-bit image (0..1442).
@@ -18,6 +20,10 @@ pub struct EdgeParams {
     pub threshold: Option<f64>,
     /// log: Gaussian σ in pixels [default: 1.5].
     pub sigma: Option<f64>,
+    /// canny, sobel: how an RGB image's channels take part in the gradient: `off` (the grey image's), `plumb`
+    /// (a channel's where it is stronger, across edges near the image's columns) or `all` [default: plumb]. Grey
+    /// input is unaffected.
+    pub color: Option<lineflow_imaging::ColourEdges>,
 }
 
 /// An edge detector with its thresholds.
@@ -79,10 +85,11 @@ impl Detector {
             ("low", params.low.is_some()),
             ("threshold", params.threshold.is_some()),
             ("sigma", params.sigma.is_some()),
+            ("color", params.color.is_some()),
         ];
         let (name, takes): (&'static str, &[&str]) = match implementation {
-            "canny" => ("canny", &["high", "low"]),
-            "sobel" => ("sobel", &["threshold"]),
+            "canny" => ("canny", &["high", "low", "color"]),
+            "sobel" => ("sobel", &["threshold", "color"]),
             "log" => ("log", &["threshold", "sigma"]),
             other => return Err(EdgeParamsError::UnknownImpl(other.to_owned())),
         };
@@ -125,12 +132,20 @@ impl Detector {
 
     /// The edge pixels of a grey image, row-major.
     pub fn detect(&self, gray: &[u8], width: usize, height: usize) -> Vec<EdgePixel> {
+        self.detect_in(&Planes::gray(gray), width, height)
+    }
+
+    /// The edge pixels on the gradient of the strongest plane (Laplacian of Gaussian: on the first plane).
+    pub fn detect_in(&self, planes: &Planes, width: usize, height: usize) -> Vec<EdgePixel> {
         let map = match *self {
-            Detector::Canny { low, high } => canny(gray, width, height, low, high),
-            Detector::Sobel { threshold } => sobel(gray, width, height, threshold),
-            Detector::Log { sigma, threshold } => log(gray, width, height, sigma, threshold),
+            Detector::Canny { low, high } => canny_in(planes, width, height, low, high),
+            Detector::Sobel { threshold } => sobel_in(planes, width, height, threshold),
+            Detector::Log { sigma, threshold } => {
+                let first = planes.iter().next().unwrap_or_default();
+                log(first, width, height, sigma, threshold)
+            }
         };
-        pixels(gray, width, height, &map)
+        pixels_in(planes, width, height, &map)
     }
 }
 
@@ -173,7 +188,15 @@ mod tests {
         let e = Detector::new("canny", sigma).unwrap_err();
         assert_eq!(
             e.to_string(),
-            "parameter 'sigma' does not apply to impl 'canny' (it takes: high, low)"
+            "parameter 'sigma' does not apply to impl 'canny' (it takes: high, low, color)"
+        );
+        let colour = EdgeParams {
+            color: Some(lineflow_imaging::ColourEdges::All),
+            ..EdgeParams::default()
+        };
+        assert_eq!(
+            Detector::new("log", colour).unwrap_err().to_string(),
+            "parameter 'color' does not apply to impl 'log' (it takes: threshold, sigma)"
         );
         let inverted = EdgeParams {
             high: Some(10.0),

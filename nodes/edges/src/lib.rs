@@ -7,7 +7,7 @@
 pub mod detector;
 mod log;
 
-use lineflow_imaging::{gradient_at, gradient_row};
+use lineflow_imaging::{GradientRow, Planes, RowScratch};
 
 use lineflow_messages::EdgePixel;
 use rayon::prelude::*;
@@ -26,6 +26,11 @@ pub const DEFAULT_HIGH: f64 = 100.0;
 /// The marked pixels of `map` as a row-major list, with the gradient at each (recomputed: cheaper than keeping
 /// full-size gradient images for the few per cent of pixels that are edges).
 pub fn pixels(gray: &[u8], width: usize, height: usize, map: &[u8]) -> Vec<EdgePixel> {
+    pixels_in(&Planes::gray(gray), width, height, map)
+}
+
+/// [`pixels`] with the gradient of the strongest plane.
+pub fn pixels_in(planes: &Planes, width: usize, height: usize, map: &[u8]) -> Vec<EdgePixel> {
     if width == 0 {
         return Vec::new();
     }
@@ -38,7 +43,7 @@ pub fn pixels(gray: &[u8], width: usize, height: usize, map: &[u8]) -> Vec<EdgeP
             for (i, &k) in rows.iter().enumerate() {
                 if k == EDGE {
                     let (x, y) = (i % width, band * BAND + i / width);
-                    let (gx, gy) = gradient_at(gray, width, height, x, y);
+                    let (gx, gy) = planes.gradient_at(width, height, x, y);
                     out.push(EdgePixel {
                         col: x as u16,
                         row: y as u16,
@@ -60,7 +65,7 @@ const BAND: usize = 64;
 
 /// Gradient and non-maximum suppression in one pass over bands of rows, each band keeping only three gradient
 /// rows (as OpenCV does): survivors above `low2` become candidates, above `high2` edges (squared magnitudes).
-fn suppress(gray: &[u8], w: usize, h: usize, low2: i32, high2: i32) -> Vec<u8> {
+fn suppress(planes: &Planes, w: usize, h: usize, low2: i32, high2: i32) -> Vec<u8> {
     // tan(22.5°) in 15-bit fixed point, as OpenCV does.
     const TG22: i64 = 13573;
     let mut map = vec![0u8; w * h];
@@ -71,9 +76,15 @@ fn suppress(gray: &[u8], w: usize, h: usize, low2: i32, high2: i32) -> Vec<u8> {
         let y0 = band * BAND;
         let (mut gx, mut gy, mut mag) = (vec![vec![0i16; w]; 3], vec![vec![0i16; w]; 3], vec![vec![0i32; w]; 3]);
         let zeros = vec![0i32; w];
-        let fill = |y: usize, gx: &mut [Vec<i16>], gy: &mut [Vec<i16>], mag: &mut [Vec<i32>]| {
+        let mut scratch = RowScratch::default();
+        let mut fill = |y: usize, gx: &mut [Vec<i16>], gy: &mut [Vec<i16>], mag: &mut [Vec<i32>]| {
             let s = y % 3;
-            gradient_row(gray, w, h, y, &mut gx[s], &mut gy[s], &mut mag[s]);
+            let out = GradientRow {
+                gx: &mut gx[s],
+                gy: &mut gy[s],
+                mag2: &mut mag[s],
+            };
+            planes.gradient_row(w, h, y, out, &mut scratch);
         };
         if y0 > 0 {
             fill(y0 - 1, &mut gx, &mut gy, &mut mag);
@@ -121,7 +132,12 @@ fn squared(t: f64) -> i32 {
 
 /// Canny: suppression, then hysteresis from pixels above `high` through 8-connected pixels above `low`.
 pub fn canny(gray: &[u8], width: usize, height: usize, low: f64, high: f64) -> Vec<u8> {
-    let mut map = suppress(gray, width, height, squared(low), squared(high));
+    canny_in(&Planes::gray(gray), width, height, low, high)
+}
+
+/// [`canny`] on the gradient of the strongest plane.
+pub fn canny_in(planes: &Planes, width: usize, height: usize, low: f64, high: f64) -> Vec<u8> {
+    let mut map = suppress(planes, width, height, squared(low), squared(high));
     let (w, h) = (width as isize, height as isize);
     let mut stack: Vec<usize> = Vec::new();
     for i in 0..map.len() {
@@ -148,9 +164,14 @@ pub fn canny(gray: &[u8], width: usize, height: usize, low: f64, high: f64) -> V
 
 /// Sobel: the gradient maxima above `threshold`.
 pub fn sobel(gray: &[u8], width: usize, height: usize, threshold: f64) -> Vec<u8> {
+    sobel_in(&Planes::gray(gray), width, height, threshold)
+}
+
+/// [`sobel`] on the gradient of the strongest plane.
+pub fn sobel_in(planes: &Planes, width: usize, height: usize, threshold: f64) -> Vec<u8> {
     let t2 = squared(threshold);
     // No hysteresis: with the edge level just below the candidate level every survivor is an edge.
-    suppress(gray, width, height, t2, t2.saturating_sub(1))
+    suppress(planes, width, height, t2, t2.saturating_sub(1))
 }
 
 pub use log::{gaussian_blur, log};

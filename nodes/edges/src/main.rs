@@ -17,9 +17,10 @@ fn run(ctx: NodeContext) -> Result<()> {
     let input = ctx.input::<kinds::Image>("images")?;
     let output = ctx.output::<kinds::EdgeMap>("edges")?;
     ctx.connect()?;
-    let mut gray = Vec::new();
+    let colour = params.color.unwrap_or_default();
+    let mut buffers = lineflow_imaging::PlaneBuffers::default();
     ctx.run(|| {
-        lineflow_imaging::for_each_gray(&input, &mut gray, |h, gray| {
+        lineflow_imaging::for_each_planes(&input, colour, &mut buffers, |h, planes| {
             let (w, ht) = (h.width as usize, h.height as usize);
             if w > u16::MAX as usize || ht > u16::MAX as usize {
                 bail!("frame {}: {w}x{ht} exceeds the 65535-pixel edge map limit", h.stamp.frame);
@@ -31,7 +32,7 @@ fn run(ctx: NodeContext) -> Result<()> {
                 detector: fixed_str(&impl_),
                 name: h.name,
             };
-            output.publish(header, &detector.detect(gray, w, ht))
+            output.publish(header, &detector.detect_in(planes, w, ht))
         })?;
         Ok(if input.is_ended() { Flow::Stop } else { Flow::Continue })
     })?;

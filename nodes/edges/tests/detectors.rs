@@ -63,3 +63,39 @@ fn empty_tiny_constant_and_noise_images_never_panic() {
     let _ = pixels(&noise, w, h, &canny(&noise, w, h, 40.0, 100.0));
     let _ = pixels(&noise, w, h, &log(&noise, w, h, 1.5, 40.0));
 }
+
+/// Glass against red brick (the synthetic façades' colours): a step of 60 levels in red but 12 in grey.
+#[test]
+fn colour_edges_are_found_in_the_strongest_channel() {
+    let (w, h) = (40, 30);
+    let (glass, brick) = ([47u8, 57, 68], [106u8, 53, 37]);
+    let rgb: Vec<u8> = (0..w * h).flat_map(|i| if i % w < 20 { glass } else { brick }).collect();
+    let mut gray = vec![0u8; w * h];
+    lineflow_imaging::gray_into(lineflow_messages::Encoding::Rgb8, w, h, w * 3, &rgb, &mut gray).unwrap();
+    let detector = lineflow_edges::Detector::Canny { low: 40.0, high: 100.0 };
+    assert!(detector.detect(&gray, w, h).is_empty(), "the grey step is below the thresholds");
+    let [r, g, b] = lineflow_imaging::rgb_planes(&rgb, w, h, w * 3);
+    for plumb_only in [false, true] {
+        let found = detector.detect_in(&lineflow_imaging::Planes::colour(&gray, &r, &g, &b, plumb_only), w, h);
+        assert_eq!(found.len(), h, "one edge pixel per row");
+        assert!(found.iter().all(|p| p.col == 19 || p.col == 20));
+        // The red channel's gradient: 4 × 59 levels, pointing right.
+        assert!(found
+            .iter()
+            .all(|p| (p.magnitude - 236.0).abs() < 1e-3 && p.direction_rad.abs() < 1e-6));
+    }
+    // The same step lying level (a roof's tile course): found with every channel, not with plumb edges only.
+    let level: Vec<u8> = (0..w * h).flat_map(|i| if i / w < 15 { glass } else { brick }).collect();
+    let mut level_gray = vec![0u8; w * h];
+    lineflow_imaging::gray_into(lineflow_messages::Encoding::Rgb8, w, h, w * 3, &level, &mut level_gray).unwrap();
+    let [r, g, b] = lineflow_imaging::rgb_planes(&level, w, h, w * 3);
+    let all = detector.detect_in(&lineflow_imaging::Planes::colour(&level_gray, &r, &g, &b, false), w, h);
+    assert_eq!(all.len(), w);
+    let plumb = detector.detect_in(&lineflow_imaging::Planes::colour(&level_gray, &r, &g, &b, true), w, h);
+    assert!(plumb.is_empty());
+    // Grey planes give what the grey functions give.
+    assert_eq!(
+        detector.detect_in(&lineflow_imaging::Planes::gray(&gray), w, h),
+        detector.detect(&gray, w, h)
+    );
+}

@@ -79,11 +79,13 @@ fn run_trace(ctx: NodeContext) -> Result<()> {
     let output = ctx.output::<kinds::Lines2D>("lines2d")?;
     ctx.connect()?;
     let mut stage = TraceStage::new(params, images.is_some());
-    let (mut buffer, mut rows) = (Vec::new(), Vec::new());
+    let (mut buffers, mut rows) = (lineflow_imaging::PlaneBuffers::default(), Vec::new());
     ctx.run(|| {
         if let Some(i) = &images {
-            lineflow_imaging::for_each_gray(i, &mut buffer, |h, g| {
-                stage.on_gray(h.stamp.frame, g);
+            // Sub-pixel positions on the gradient the edges stage found the edges on with its default `color`:
+            // colour images give their channels' where they are stronger across plumb edges.
+            lineflow_imaging::for_each_planes(i, lineflow_imaging::ColourEdges::default(), &mut buffers, |h, planes| {
+                stage.on_image(h.stamp.frame, planes);
                 Ok(())
             })?;
         }

@@ -5,6 +5,7 @@
 use std::collections::{BTreeMap, VecDeque};
 
 use lineflow_formats::Line2Row;
+use lineflow_imaging::Planes;
 use lineflow_messages::{EdgeMapHeader, EdgePixel, Segment2, Stamp};
 use lineflow_photogrammetry::Camera;
 
@@ -87,10 +88,12 @@ pub enum TraceError {
 pub struct TraceStage {
     params: TraceParams,
     camera: Option<Camera>,
-    /// Whether grey images are wired: then each edge map waits for its frame's image (sub-pixel positions).
+    /// Whether images are wired: then each edge map waits for its frame's image (sub-pixel positions).
     images_wired: bool,
     waiting: VecDeque<(EdgeMapHeader, Vec<EdgePixel>)>,
-    grays: BTreeMap<u64, Vec<u8>>,
+    /// Each frame's image as the planes its gradient is taken over (one grey plane, or grey and three colour
+    /// channels) and whether the channels count across plumb edges only.
+    images: BTreeMap<u64, (Vec<Vec<u8>>, bool)>,
 }
 
 impl TraceStage {
@@ -102,7 +105,7 @@ impl TraceStage {
             camera: None,
             images_wired,
             waiting: VecDeque::new(),
-            grays: BTreeMap::new(),
+            images: BTreeMap::new(),
         }
     }
 
@@ -113,7 +116,14 @@ impl TraceStage {
 
     /// A frame's grey image.
     pub fn on_gray(&mut self, frame: u64, gray: &[u8]) {
-        self.grays.insert(frame, gray.to_vec());
+        self.on_image(frame, &Planes::gray(gray));
+    }
+
+    /// A frame's image as the planes of its gradient: sub-pixel positions then follow the gradient the edges
+    /// stage's `color` finds the edges on.
+    pub fn on_image(&mut self, frame: u64, planes: &Planes) {
+        self.images
+            .insert(frame, (planes.iter().map(<[u8]>::to_vec).collect(), planes.plumb_only()));
     }
 
     /// A frame's edge map.
@@ -135,13 +145,17 @@ impl TraceStage {
     pub fn next_frame(&mut self, images_ended: bool) -> Option<Result<FrameLines, TraceError>> {
         let c = self.camera.as_ref()?;
         let frame = self.waiting.front()?.0.stamp.frame;
-        if !self.grays.contains_key(&frame) && self.images_wired && !images_ended {
+        if !self.images.contains_key(&frame) && self.images_wired && !images_ended {
             return None;
         }
         let (h, px) = self.waiting.pop_front()?;
-        let lines = trace_frame(c, &h, &px, self.grays.get(&frame).map(Vec::as_slice), &self.params);
+        let planes = self.images.get(&frame).map(|(p, plumb_only)| match p.as_slice() {
+            [gray, r, g, b] => Planes::colour(gray, r, g, b, *plumb_only),
+            planes => Planes::gray(planes.first().map_or(&[][..], Vec::as_slice)),
+        });
+        let lines = trace_frame(c, &h, &px, planes.as_ref(), &self.params);
         // Images of frames without an edge map are not kept either.
-        self.grays.retain(|&f, _| f > frame);
+        self.images.retain(|&f, _| f > frame);
         Some(lines)
     }
 
@@ -157,8 +171,8 @@ impl TraceStage {
     }
 }
 
-/// The segments of one edge map; with the frame's grey image the lines are fitted to the edges' sub-pixel
-/// positions.
+/// The segments of one edge map; with the frame's image (its grey plane or colour channels) the lines are fitted to
+/// the edges' sub-pixel positions.
 ///
 /// # Errors
 /// An edge map of another size than the camera's.
@@ -166,7 +180,7 @@ pub fn trace_frame(
     cam: &Camera,
     h: &EdgeMapHeader,
     px: &[EdgePixel],
-    gray: Option<&[u8]>,
+    image: Option<&Planes>,
     p: &TraceParams,
 ) -> Result<FrameLines, TraceError> {
     if (h.width, h.height) != (cam.width, cam.height) {
@@ -180,9 +194,10 @@ pub fn trace_frame(
         });
     }
     let pixels: Vec<[u16; 2]> = px.iter().map(|e| [e.col, e.row]).collect();
-    let traced = match gray {
-        Some(g) if g.len() == cam.width as usize * cam.height as usize => {
-            let positions = lineflow_imaging::subpixel_positions(g, cam.width as usize, cam.height as usize, px);
+    let (w, ht) = (cam.width as usize, cam.height as usize);
+    let traced = match image {
+        Some(planes) if planes.iter().all(|g| g.len() == w * ht) => {
+            let positions = lineflow_imaging::subpixel_positions_in(planes, w, ht, px);
             crate::trace_measured_at(cam, &pixels, &positions, p)
         }
         _ => crate::trace_measured(cam, &pixels, p),
