@@ -15,6 +15,9 @@ use lineflow_synthetic::Synthetic;
 
 use crate::util::median_time;
 
+/// A frame number with its grey image.
+type Gray = (u64, Vec<u8>);
+
 /// The target: one 12 MP master against six slaves in at most this many seconds on two cores.
 const TARGET_S: f64 = 2.0;
 
@@ -57,28 +60,27 @@ pub fn bench_linematch(preset: &str, scale: f64, reps: usize, points_csv: Option
         (w * h) as f64 / 1e6
     );
     let lut = DistortionLut::new(&cam);
-    let grays: Vec<(u64, Vec<u8>)> = std::iter::once(master as u64)
+    // Every image rendered once: its grey values for the matching and its lines as the shipped graph has them (the
+    // edges stage's default, the colour channels' gradient across plumb edges): the master's to match, the others'
+    // to refine depths.
+    let rendered: Vec<(Gray, Vec<MeasuredSegment>)> = std::iter::once(master as u64)
         .chain(slaves.iter().copied())
         .chain(more.iter().copied())
         .map(|f| {
+            let rgb = syn.render(f as usize);
             let mut g = vec![0u8; w * h];
-            lineflow_imaging::gray_into(Encoding::Rgb8, w, h, w * 3, &syn.render(f as usize), &mut g).map(|_| (f, g))
-        })
-        .collect::<Result<_, lineflow_imaging::GrayError>>()?;
-    // Every image's lines, as the shipped graph has them: the master's to match, the slaves' to refine depths.
-    let traced: Vec<Vec<MeasuredSegment>> = grays
-        .iter()
-        .map(|(f, g)| {
-            // The edges stage's default: the colour channels' gradient across plumb edges.
-            let [r, gc, b] = lineflow_imaging::rgb_planes(&syn.render(*f as usize), w, h, w * 3);
-            let planes = lineflow_imaging::Planes::colour(g, &r, &gc, &b, true);
+            lineflow_imaging::gray_into(Encoding::Rgb8, w, h, w * 3, &rgb, &mut g)?;
+            let [r, gc, b] = lineflow_imaging::rgb_planes(&rgb, w, h, w * 3);
+            let planes = lineflow_imaging::Planes::colour(&g, &r, &gc, &b, lineflow_imaging::ColourEdges::default());
             let edges = lineflow_edges::canny_in(&planes, w, h, 0.4 * 100.0, 100.0);
             let found = lineflow_edges::pixels_in(&planes, w, h, &edges);
             let pixels: Vec<[u16; 2]> = found.iter().map(|e| [e.col, e.row]).collect();
             let positions = lineflow_imaging::subpixel_positions_in(&planes, w, h, &found);
-            trace_measured_at(&cam, &pixels, &positions, &TraceParams::default())
+            let lines = trace_measured_at(&cam, &pixels, &positions, &TraceParams::default());
+            Ok(((f, g), lines))
         })
-        .collect();
+        .collect::<Result<_, lineflow_imaging::GrayError>>()?;
+    let (grays, traced): (Vec<Gray>, Vec<Vec<MeasuredSegment>>) = rendered.into_iter().unzip();
     let frame_segments: Vec<Option<FrameSegments>> = traced
         .iter()
         .enumerate()

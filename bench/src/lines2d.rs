@@ -127,8 +127,11 @@ pub fn bench_lines2d(preset: &str, reps: usize, high: f64) -> Result<ExitCode> {
         let pixels: Vec<[u16; 2]> = found.iter().map(|e| [e.col, e.row]).collect();
         lineflow_lines2d::trace_measured_at(&cam, &pixels, &positions, &params)
     };
-    for (name, plumb_only) in [("ours: colour (plumb) + trace", true), ("ours: colour (all) + trace", false)] {
-        let planes = lineflow_imaging::Planes::colour(&gray, r, g, b, plumb_only);
+    for (name, mode) in [
+        ("ours: colour (plumb) + trace", lineflow_imaging::ColourEdges::Plumb),
+        ("ours: colour (all) + trace", lineflow_imaging::ColourEdges::All),
+    ] {
+        let planes = lineflow_imaging::Planes::colour(&gray, r, g, b, mode);
         let t = median_time(reps, || drop(color(&planes)));
         let scores = score_image(&truth, frame, &rows(&image, color(&planes).iter().map(|t| (t.0, t.1)), 0.0));
         score(name, &scores, t);

@@ -92,7 +92,23 @@ pub fn gradient(gray: &[u8], width: usize, height: usize) -> Gradient {
 pub struct Planes<'a> {
     planes: [&'a [u8]; 4],
     count: usize,
-    plumb_only: bool,
+    mode: ColourEdges,
+}
+
+/// How an RGB image's channels take part in the gradient: not at all (the grey image's), across plumb edges only,
+/// or wherever they are stronger than the grey image's.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum ColourEdges {
+    /// The grey image alone.
+    Off,
+    /// A channel's gradient where it is stronger, across edges near the image's columns (the plumb edges of a
+    /// façade photographed upright), so that level textures that show only in colour (a red roof's tile courses)
+    /// stay out.
+    #[default]
+    Plumb,
+    /// A channel's gradient wherever it is stronger.
+    All,
 }
 
 /// A colour channel's gradient counts across plumb edges only when it points within this angle's tangent of the
@@ -105,24 +121,26 @@ impl<'a> Planes<'a> {
         Planes {
             planes: [gray; 4],
             count: 1,
-            plumb_only: false,
+            mode: ColourEdges::Off,
         }
     }
 
-    /// A grey plane and three channel planes of one size. With `plumb_only` a channel's gradient replaces the grey
-    /// one only across edges near the image's columns (the plumb edges of a façade photographed upright), so that
-    /// level textures that show only in colour (a red roof's tile courses) stay out.
-    pub fn colour(gray: &'a [u8], r: &'a [u8], g: &'a [u8], b: &'a [u8], plumb_only: bool) -> Self {
+    /// A grey plane and three channel planes of one size, the channels taking part as `mode` says (`Off`: the grey
+    /// plane alone).
+    pub fn colour(gray: &'a [u8], r: &'a [u8], g: &'a [u8], b: &'a [u8], mode: ColourEdges) -> Self {
+        if mode == ColourEdges::Off {
+            return Self::gray(gray);
+        }
         Planes {
             planes: [gray, r, g, b],
             count: 4,
-            plumb_only,
+            mode,
         }
     }
 
-    /// Whether the colour channels count across plumb edges only.
-    pub fn plumb_only(&self) -> bool {
-        self.plumb_only
+    /// How the colour channels take part.
+    pub fn mode(&self) -> ColourEdges {
+        self.mode
     }
 
     /// The planes.
@@ -133,7 +151,7 @@ impl<'a> Planes<'a> {
     /// Whether a further plane's gradient (`gx`, `gy`, squared magnitude `m2`) replaces one of squared magnitude
     /// `best2`.
     fn stronger(&self, gx: i32, gy: i32, m2: i32, best2: i32) -> bool {
-        m2 > best2 && (!self.plumb_only || gy.abs() * PLUMB_GRADIENT_RATIO <= gx.abs())
+        m2 > best2 && (self.mode != ColourEdges::Plumb || gy.abs() * PLUMB_GRADIENT_RATIO <= gx.abs())
     }
 
     /// [`gradient_row`] of the strongest plane at each pixel into `out`; `scratch` holds a row's room for the
@@ -194,8 +212,17 @@ impl RowScratch {
 
 /// The three channel planes of an interleaved RGB8 image whose rows are `step` bytes.
 pub fn rgb_planes(src: &[u8], width: usize, height: usize, step: usize) -> [Vec<u8>; 3] {
-    let mut out = [vec![0u8; width * height], vec![0u8; width * height], vec![0u8; width * height]];
-    let [r, g, b] = &mut out;
+    let mut out = Default::default();
+    rgb_planes_into(src, width, height, step, &mut out);
+    out
+}
+
+/// [`rgb_planes`] into `out`, whose buffers are reused from frame to frame.
+pub fn rgb_planes_into(src: &[u8], width: usize, height: usize, step: usize, out: &mut [Vec<u8>; 3]) {
+    for plane in out.iter_mut() {
+        plane.resize(width * height, 0);
+    }
+    let [r, g, b] = out;
     for row in 0..height {
         let px = &src[row * step..row * step + width * 3];
         let span = row * width..(row + 1) * width;
@@ -208,5 +235,4 @@ pub fn rgb_planes(src: &[u8], width: usize, height: usize, step: usize) -> [Vec<
             (*r, *g, *b) = (c[0], c[1], c[2]);
         }
     }
-    out
 }

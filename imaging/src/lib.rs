@@ -9,8 +9,10 @@ pub mod receive;
 pub mod sample;
 pub mod subpixel;
 
-pub use gradient::{gradient, gradient_at, gradient_row, rgb_planes, Gradient, GradientRow, Planes, RowScratch};
+pub use gradient::{
+    gradient, gradient_at, gradient_row, rgb_planes, rgb_planes_into, ColourEdges, Gradient, GradientRow, Planes, RowScratch,
+};
 pub use gray::{gray_into, gray_of_image, GrayError};
-pub use receive::{for_each_gray, for_each_gray_up_to, for_each_planes, ColourEdges, PlaneBuffers};
+pub use receive::{for_each_gray, for_each_gray_up_to, for_each_planes, PlaneBuffers};
 pub use sample::bilinear;
 pub use subpixel::{subpixel_positions, subpixel_positions_in};

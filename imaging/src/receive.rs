@@ -4,7 +4,7 @@ use lineflow_messages::ImageHeader;
 
 use lineflow_runtime::Input;
 
-use crate::gradient::{rgb_planes, Planes};
+use crate::gradient::{rgb_planes_into, ColourEdges, Planes};
 use crate::gray::gray_of_image;
 
 /// Takes every image waiting on `input`, converts it to 8-bit grey in `buffer` (reused from frame to frame) and
@@ -49,20 +49,6 @@ pub struct PlaneBuffers {
     channels: [Vec<u8>; 3],
 }
 
-/// How an RGB image's channels take part in the gradient: not at all (the grey image's), across plumb edges only,
-/// or wherever they are stronger than the grey image's.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum ColourEdges {
-    /// The grey image alone.
-    Off,
-    /// A channel's gradient where it is stronger, across edges near the image's columns.
-    #[default]
-    Plumb,
-    /// A channel's gradient wherever it is stronger.
-    All,
-}
-
 /// Like [`for_each_gray`], but an RGB8 image is handed on as its grey plane and channel planes ([`Planes`]) unless
 /// `colour` is off; every other encoding as one grey plane.
 ///
@@ -82,10 +68,10 @@ pub fn for_each_planes(
         let rgb = h.encoding() == Some(lineflow_messages::Encoding::Rgb8);
         if colour != ColourEdges::Off && rgb {
             // The grey conversion checked the payload's size against the header.
-            buffers.channels = rgb_planes(msg.payload(), w, ht, step);
+            rgb_planes_into(msg.payload(), w, ht, step, &mut buffers.channels);
             drop(msg);
             let [r, g, b] = &buffers.channels;
-            f(&h, &Planes::colour(&buffers.gray, r, g, b, colour == ColourEdges::Plumb))?;
+            f(&h, &Planes::colour(&buffers.gray, r, g, b, colour))?;
         } else {
             drop(msg);
             f(&h, &Planes::gray(&buffers.gray))?;

@@ -1,5 +1,6 @@
 //! Edge detectors on images whose edges are known, and on bad input.
 use lineflow_edges::{canny, log, pixels, sobel};
+use lineflow_imaging::ColourEdges;
 
 fn step(w: usize, h: usize, at: usize) -> Vec<u8> {
     (0..w * h).map(|i| if i % w < at { 40 } else { 200 }).collect()
@@ -75,8 +76,8 @@ fn colour_edges_are_found_in_the_strongest_channel() {
     let detector = lineflow_edges::Detector::Canny { low: 40.0, high: 100.0 };
     assert!(detector.detect(&gray, w, h).is_empty(), "the grey step is below the thresholds");
     let [r, g, b] = lineflow_imaging::rgb_planes(&rgb, w, h, w * 3);
-    for plumb_only in [false, true] {
-        let found = detector.detect_in(&lineflow_imaging::Planes::colour(&gray, &r, &g, &b, plumb_only), w, h);
+    for mode in [ColourEdges::All, ColourEdges::Plumb] {
+        let found = detector.detect_in(&lineflow_imaging::Planes::colour(&gray, &r, &g, &b, mode), w, h);
         assert_eq!(found.len(), h, "one edge pixel per row");
         assert!(found.iter().all(|p| p.col == 19 || p.col == 20));
         // The red channel's gradient: 4 × 59 levels, pointing right.
@@ -89,10 +90,12 @@ fn colour_edges_are_found_in_the_strongest_channel() {
     let mut level_gray = vec![0u8; w * h];
     lineflow_imaging::gray_into(lineflow_messages::Encoding::Rgb8, w, h, w * 3, &level, &mut level_gray).unwrap();
     let [r, g, b] = lineflow_imaging::rgb_planes(&level, w, h, w * 3);
-    let all = detector.detect_in(&lineflow_imaging::Planes::colour(&level_gray, &r, &g, &b, false), w, h);
+    let all = detector.detect_in(&lineflow_imaging::Planes::colour(&level_gray, &r, &g, &b, ColourEdges::All), w, h);
     assert_eq!(all.len(), w);
-    let plumb = detector.detect_in(&lineflow_imaging::Planes::colour(&level_gray, &r, &g, &b, true), w, h);
+    let plumb = detector.detect_in(&lineflow_imaging::Planes::colour(&level_gray, &r, &g, &b, ColourEdges::Plumb), w, h);
     assert!(plumb.is_empty());
+    let off = detector.detect_in(&lineflow_imaging::Planes::colour(&level_gray, &r, &g, &b, ColourEdges::Off), w, h);
+    assert!(off.is_empty());
     // Grey planes give what the grey functions give.
     assert_eq!(
         detector.detect_in(&lineflow_imaging::Planes::gray(&gray), w, h),

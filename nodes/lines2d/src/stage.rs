@@ -5,7 +5,7 @@
 use std::collections::{BTreeMap, VecDeque};
 
 use lineflow_formats::Line2Row;
-use lineflow_imaging::Planes;
+use lineflow_imaging::{ColourEdges, Planes};
 use lineflow_messages::{EdgeMapHeader, EdgePixel, Segment2, Stamp};
 use lineflow_photogrammetry::Camera;
 
@@ -92,8 +92,8 @@ pub struct TraceStage {
     images_wired: bool,
     waiting: VecDeque<(EdgeMapHeader, Vec<EdgePixel>)>,
     /// Each frame's image as the planes its gradient is taken over (one grey plane, or grey and three colour
-    /// channels) and whether the channels count across plumb edges only.
-    images: BTreeMap<u64, (Vec<Vec<u8>>, bool)>,
+    /// channels) and how the channels take part.
+    images: BTreeMap<u64, (Vec<Vec<u8>>, ColourEdges)>,
 }
 
 impl TraceStage {
@@ -123,7 +123,7 @@ impl TraceStage {
     /// stage's `color` finds the edges on.
     pub fn on_image(&mut self, frame: u64, planes: &Planes) {
         self.images
-            .insert(frame, (planes.iter().map(<[u8]>::to_vec).collect(), planes.plumb_only()));
+            .insert(frame, (planes.iter().map(<[u8]>::to_vec).collect(), planes.mode()));
     }
 
     /// A frame's edge map.
@@ -149,8 +149,8 @@ impl TraceStage {
             return None;
         }
         let (h, px) = self.waiting.pop_front()?;
-        let planes = self.images.get(&frame).map(|(p, plumb_only)| match p.as_slice() {
-            [gray, r, g, b] => Planes::colour(gray, r, g, b, *plumb_only),
+        let planes = self.images.get(&frame).map(|(p, mode)| match p.as_slice() {
+            [gray, r, g, b] => Planes::colour(gray, r, g, b, *mode),
             planes => Planes::gray(planes.first().map_or(&[][..], Vec::as_slice)),
         });
         let lines = trace_frame(c, &h, &px, planes.as_ref(), &self.params);
@@ -295,6 +295,53 @@ mod tests {
         let without = drain(&mut s, true);
         assert_eq!(without.len(), 1, "traced on its pixels once no image can come");
         assert_eq!(without[0].segments[0].start_px[1], 30.0);
+    }
+
+    #[test]
+    fn on_colour_images_sub_pixel_positions_follow_the_colour_channels() {
+        // A plumb step between columns 39 and 40 in red and green that keeps the grey value (BT.601 luma 111 on
+        // both sides): no grey gradient at all, a strong one in the channels.
+        let rgb: Vec<u8> = (0..W * H)
+            .flat_map(|i| if i % W < 40 { [40, 150, 100] } else { [200, 68, 100] })
+            .collect();
+        let mut gray = vec![0u8; (W * H) as usize];
+        lineflow_imaging::gray_into(
+            lineflow_messages::Encoding::Rgb8,
+            W as usize,
+            H as usize,
+            W as usize * 3,
+            &rgb,
+            &mut gray,
+        )
+        .unwrap();
+        assert!(gray.iter().all(|&g| g == gray[0]), "the step is invisible in grey");
+        let [r, g, b] = lineflow_imaging::rgb_planes(&rgb, W as usize, H as usize, W as usize * 3);
+        let header = EdgeMapHeader {
+            stamp: Stamp::default(),
+            width: W,
+            height: H,
+            detector: fixed_str("canny"),
+            name: fixed_str("IMG_0.png"),
+        };
+        let plumb: Vec<EdgePixel> = (10..50)
+            .map(|row| EdgePixel {
+                col: 40,
+                row,
+                magnitude: 200.0,
+                direction_rad: 0.0,
+            })
+            .collect();
+        let column = |planes: &Planes| {
+            let mut s = TraceStage::new(TraceParams::default(), true);
+            s.on_camera(camera());
+            s.on_edges(header, &plumb);
+            s.on_image(0, planes);
+            drain(&mut s, false)[0].segments[0].start_px[0]
+        };
+        // The grey image leaves the pixel grid's column; the channels put the line between the two columns.
+        assert_eq!(column(&Planes::gray(&gray)), 40.0);
+        let x = column(&Planes::colour(&gray, &r, &g, &b, ColourEdges::Plumb));
+        assert!((x - 39.5).abs() < 0.05, "sub-pixel column {x}");
     }
 
     #[test]

@@ -279,6 +279,13 @@ struct Frame {
     image: Option<Gray>,
 }
 
+impl Frame {
+    /// The keypoints' rays on the image plane at unit distance (normalised image coordinates).
+    fn image_plane(&self) -> Vec<[f64; 2]> {
+        self.rays.iter().map(|r| [r.x / r.z, r.y / r.z]).collect()
+    }
+}
+
 /// The streaming matcher: frames in, tie-point observations out.
 pub struct Matcher {
     params: MatcherParams,
@@ -540,7 +547,7 @@ impl Matcher {
             return hypotheses;
         }
         let other = &self.frames[p];
-        let at: Vec<[f64; 2]> = other.rays.iter().map(|r| [r.x / r.z, r.y / r.z]).collect();
+        let at = other.image_plane();
         let px = self.camera.pixel_size_mm / self.camera.focal_mm;
         let steps = lattice_steps(&repetition_periods(
             &other.features,
@@ -599,7 +606,7 @@ impl Matcher {
         tolerance_px: f64,
     ) -> Option<Hypothesis> {
         let tolerance = tolerance_px * self.camera.pixel_size_mm / self.camera.focal_mm;
-        let at: Vec<[f64; 2]> = other.rays.iter().map(|r| [r.x / r.z, r.y / r.z]).collect();
+        let at = other.image_plane();
         let predicted: Vec<Option<[f64; 2]>> = rays.iter().map(|r| transfer_point(h, r)).collect();
         let guided = guided_match(
             features,
