@@ -351,7 +351,7 @@ enum Cmd {
         /// The camera (camera.toml) of those images.
         #[arg(long, requires = "poses")]
         camera: Option<PathBuf>,
-        /// A setting of the classing: PARAM=VALUE (neighbours, reach_m, band_m, corner_m, parallel_deg, min_support, behind_m).
+        /// A setting of the classing: PARAM=VALUE (neighbours, reach_m, band_m, corner_m, overshoot_m, parallel_deg, min_support, behind_m).
         #[arg(long = "set", value_name = "PARAM=VALUE")]
         set: Vec<String>,
     },

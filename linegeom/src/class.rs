@@ -51,6 +51,9 @@ pub struct ClassRule {
     /// `band_m` and at most this far behind it) is texture, metres; 0, the default, turns the test off (it costs
     /// the model openings, docs/lines3d.md "Behind a field"; 0.6 is the measured setting).
     pub behind_m: f64,
+    /// A line across reaching past another's line by more than this meets it at its side, not at a corner,
+    /// metres: less than half a brick course (7.5 cm), more than the placing error of a level edge's height.
+    pub overshoot_m: f64,
 }
 
 impl Default for ClassRule {
@@ -63,6 +66,7 @@ impl Default for ClassRule {
             parallel_deg: 8.0,
             min_support: 0.67,
             behind_m: 0.0,
+            overshoot_m: 0.03,
         }
     }
 }
@@ -92,7 +96,12 @@ impl ClassRule {
         if !(self.behind_m.is_finite() && self.behind_m >= 0.0) {
             return bad("behind_m", ">= 0", self.behind_m.to_string());
         }
-        for (name, v) in [("reach_m", self.reach_m), ("band_m", self.band_m), ("corner_m", self.corner_m)] {
+        for (name, v) in [
+            ("reach_m", self.reach_m),
+            ("band_m", self.band_m),
+            ("corner_m", self.corner_m),
+            ("overshoot_m", self.overshoot_m),
+        ] {
             if !(v.is_finite() && v > 0.0) {
                 return bad(name, "> 0", v.to_string());
             }
@@ -166,7 +175,7 @@ fn by_field(lines: &[[Vec3; 2]], rule: &ClassRule) -> (Vec<LineClass>, Grid) {
             };
             near.clear();
             grid.near(&lines[k], k, &mut seen, &mut near);
-            let texture = in_a_field(lines, k, &u, &near, rule) && !turns_a_corner(lines, k, &u, &near, rule);
+            let texture = in_a_field(lines, k, &u, &near, rule) && !turns_a_corner(lines, k, &u, &near, &near, rule);
             if texture {
                 LineClass::Texture
             } else {
@@ -202,7 +211,9 @@ pub fn classify_supported(lines: &[[Vec3; 2]], shown: &[u32], sight: Option<Sigh
         near.clear();
         grid.near(&lines[k], k, &mut seen, &mut near);
         near.retain(|&j| class[j] == LineClass::Structure && !weak[j]);
-        if !turns_a_corner(lines, k, &u, &near, rule) {
+        // Any meeting will do here: a line deep in a reveal, hidden from the oblique images, takes its class from
+        // the frame or head it meets, a T as much as an L.
+        if !meets_an_end_across(lines, k, &u, &near, rule, |_, _| true) {
             class[k] = LineClass::Texture;
         }
     }
@@ -366,11 +377,67 @@ fn across_basis(u: &Vec3) -> (Vec3, Vec3) {
     (e1, u.cross(&e1))
 }
 
-/// Whether an end of line `k` is a corner: an end of a line across it lies within `corner_m`.
-fn turns_a_corner(lines: &[[Vec3; 2]], k: usize, u: &Vec3, near: &[usize], rule: &ClassRule) -> bool {
-    near.iter().any(|&j| {
+/// Whether an end of line `k` is a corner: an end of a line across it (among `across`) lies within `corner_m`,
+/// that line reaches no more than `overshoot_m` past `k`'s own line (a course meeting a jamb a course below its
+/// top ends on the jamb's side, not at its corner), and its end is where its edge ends, not a break in it (no
+/// line among `near` continues it past the corner).
+fn turns_a_corner(lines: &[[Vec3; 2]], k: usize, u: &Vec3, across: &[usize], near: &[usize], rule: &ClassRule) -> bool {
+    meets_an_end_across(lines, k, u, across, rule, |j, end| {
+        overshoot(&lines[k], u, &lines[j], end) <= rule.overshoot_m && !continued(lines, j, end, near, rule)
+    })
+}
+
+/// Whether an end of line `k` lies within `corner_m` of an end `end` of a line `j` across it (among `across`)
+/// for which `also(j, end)` holds.
+fn meets_an_end_across(
+    lines: &[[Vec3; 2]],
+    k: usize,
+    u: &Vec3,
+    across: &[usize],
+    rule: &ClassRule,
+    also: impl Fn(usize, usize) -> bool,
+) -> bool {
+    across.iter().any(|&j| {
         direction(&lines[j]).is_some_and(|v| v.dot(u).abs() < CORNER_COS)
-            && lines[k].iter().any(|e| lines[j].iter().any(|f| (e - f).norm() <= rule.corner_m))
+            && lines[k]
+                .iter()
+                .any(|e| (0..2).any(|end| (e - lines[j][end]).norm() <= rule.corner_m && also(j, end)))
+    })
+}
+
+/// How far end `end` of `across` lies past the line through `line` (direction `u`), measured outward along
+/// `across`: negative where it stops short of it.
+fn overshoot(line: &[Vec3; 2], u: &Vec3, across: &[Vec3; 2], end: usize) -> f64 {
+    let (f, g) = (across[end], across[1 - end]);
+    let Some(out) = direction(&[g, f]) else { return 0.0 };
+    let w = f - line[0];
+    // The across line's end relative to `line`, in the plane of `out` and `u`.
+    let from_line = w - u * w.dot(u);
+    from_line.dot(&out)
+}
+
+/// A break in an edge, not its end, is within this distance across of a line continuing it, metres. The line
+/// stages break a long edge where images lose it (at full size a jamb comes in pieces of a few brick courses);
+/// the next edge parallel to it, a reveal's other corner, lies 10 cm or more away.
+const CONTINUES_M: f64 = 0.05;
+
+/// Whether end `end` of line `j` is continued by another line of `near`: parallel to it, within [`CONTINUES_M`]
+/// of that end across, starting within `overshoot_m` of it and reaching more than `corner_m` beyond it (the
+/// next pane's edge across a glazing bar, 6 cm on, is another edge with corners of its own). A course of a
+/// pier between windows ends on the window's jamb, whose pieces end anywhere along it: without this, every course
+/// ending near the end of a piece would turn a corner.
+fn continued(lines: &[[Vec3; 2]], j: usize, end: usize, near: &[usize], rule: &ClassRule) -> bool {
+    let (f, g) = (lines[j][end], lines[j][1 - end]);
+    let Some(out) = direction(&[g, f]) else { return false };
+    let cos = rule.parallel_deg.to_radians().cos();
+    near.iter().any(|&m| {
+        if m == j || !direction(&lines[m]).is_some_and(|v| v.dot(&out).abs() >= cos) {
+            return false;
+        }
+        let (p, q) = (lines[m][0] - f, lines[m][1] - f);
+        let (tp, tq) = (p.dot(&out), q.dot(&out));
+        let across = |w: &Vec3, t: f64| (w - out * t).norm();
+        tp.min(tq) <= rule.overshoot_m && tp.max(tq) > rule.corner_m && across(&p, tp).max(across(&q, tq)) <= CONTINUES_M
     })
 }
 
@@ -527,6 +594,40 @@ mod tests {
         let class = classify(&lines, &ClassRule::default());
         assert_eq!(class[20], LineClass::Structure);
         assert_eq!(class[10], LineClass::Texture);
+    }
+
+    #[test]
+    fn courses_ending_on_a_jamb_in_pieces_or_below_its_top_turn_no_corner_and_the_head_does() {
+        // A pier's courses (x 0 to 2 m, up to the head at 2.46 m) end on the window's jamb at x = 2, which the
+        // line stages found in pieces of 0.41 m; the courses above the head run on over the opening.
+        let head_z = 2.46;
+        let mut lines: Vec<[Vec3; 2]> = (0..=40)
+            .map(|i| 0.075 * i as f64)
+            .map(|z| {
+                if z < head_z {
+                    level(0.0, 2.0, 0.0, z)
+                } else {
+                    level(0.0, 3.4, 0.0, z)
+                }
+            })
+            .collect();
+        let pieces: Vec<[Vec3; 2]> = (0..6).map(|i| plumb(2.0, 0.0, 0.41 * i as f64, 0.41 * (i + 1) as f64)).collect();
+        lines.extend(pieces);
+        let head = lines.len();
+        lines.push(level(2.0, 3.4, 0.0, head_z));
+        let class = classify(&lines, &ClassRule::default());
+        // 0.375 m ends 3.5 cm from a piece's end; 2.4 m is the last course below the jamb's top.
+        for (course, z) in [(5, 0.375), (11, 0.825), (32, 2.4)] {
+            assert!((lines[course][0].z - z).abs() < 1e-9);
+            assert_eq!(class[course], LineClass::Texture, "course at {z} m");
+        }
+        assert_eq!(class[head], LineClass::Structure);
+        // The same pier with the jamb in one piece: its ends are corners, the courses' ends along it are not.
+        let mut whole = lines[..=40].to_vec();
+        whole.push(plumb(2.0, 0.0, 0.0, head_z));
+        let class = classify(&whole, &ClassRule::default());
+        assert_eq!(class[5], LineClass::Texture);
+        assert_eq!(class[32], LineClass::Texture);
     }
 
     /// Nine cameras 20 m in front of the wall y = 0, one every metre along it, looking at it.
