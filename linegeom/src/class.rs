@@ -379,12 +379,27 @@ fn across_basis(u: &Vec3) -> (Vec3, Vec3) {
 
 /// Whether an end of line `k` is a corner: an end of a line across it (among `across`) lies within `corner_m`,
 /// that line reaches no more than `overshoot_m` past `k`'s own line (a course meeting a jamb a course below its
-/// top ends on the jamb's side, not at its corner), and its end is where its edge ends, not a break in it (no
-/// line among `near` continues it past the corner).
+/// top ends on the jamb's side, not at its corner), passes within `band_m` of it ([`apart`]), and its end is
+/// where its edge ends, not a break in it (no line among `near` continues it past the corner).
 fn turns_a_corner(lines: &[[Vec3; 2]], k: usize, u: &Vec3, across: &[usize], near: &[usize], rule: &ClassRule) -> bool {
     meets_an_end_across(lines, k, u, across, rule, |j, end| {
-        overshoot(&lines[k], u, &lines[j], end) <= rule.overshoot_m && !continued(lines, j, end, near, rule)
+        overshoot(&lines[k], u, &lines[j], end) <= rule.overshoot_m
+            && apart(&lines[k], u, &lines[j]) <= rule.band_m
+            && !continued(lines, j, end, near, rule)
     })
+}
+
+/// How far apart two lines across each other pass (the distance of their infinite lines): a pier's course and
+/// the frame's corner 12 cm behind it in the reveal end near each other, but do not meet; a sill's nose 6 cm
+/// proud of the wall meets its jamb within the field's `band_m`.
+fn apart(line: &[Vec3; 2], u: &Vec3, across: &[Vec3; 2]) -> f64 {
+    let Some(v) = direction(across) else { return f64::INFINITY };
+    let normal = u.cross(&v);
+    let n = normal.norm();
+    if n < 1e-9 {
+        return f64::INFINITY;
+    }
+    ((across[0] - line[0]).dot(&normal) / n).abs()
 }
 
 /// Whether an end of line `k` lies within `corner_m` of an end `end` of a line `j` across it (among `across`)
@@ -628,6 +643,12 @@ mod tests {
         let class = classify(&whole, &ClassRule::default());
         assert_eq!(class[5], LineClass::Texture);
         assert_eq!(class[32], LineClass::Texture);
+        // A frame's corner 12 cm back in the reveal, starting at the 16th course's end: near, but they never meet.
+        let mut framed = lines[..=40].to_vec();
+        framed.push(plumb(2.0, 0.12, 1.2, 2.0));
+        assert_eq!(classify(&framed, &ClassRule::default())[16], LineClass::Texture);
+        framed.push(plumb(2.0, 0.0, 1.2, 2.0));
+        assert_eq!(classify(&framed, &ClassRule::default())[16], LineClass::Structure);
     }
 
     /// Nine cameras 20 m in front of the wall y = 0, one every metre along it, looking at it.
