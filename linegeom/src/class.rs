@@ -612,7 +612,7 @@ mod tests {
     }
 
     #[test]
-    fn courses_ending_on_a_jamb_in_pieces_or_below_its_top_turn_no_corner_and_the_head_does() {
+    fn courses_ending_on_a_jamb_in_pieces_below_its_top_or_beside_a_frame_turn_no_corner() {
         // A pier's courses (x 0 to 2 m, up to the head at 2.46 m) end on the window's jamb at x = 2, which the
         // line stages found in pieces of 0.41 m; the courses above the head run on over the opening.
         let head_z = 2.46;
@@ -637,13 +637,14 @@ mod tests {
             assert_eq!(class[course], LineClass::Texture, "course at {z} m");
         }
         assert_eq!(class[head], LineClass::Structure);
-        // The same pier with the jamb in one piece: its ends are corners, the courses' ends along it are not.
+        // The same pier with the jamb in one piece: the courses' ends along it are no corners either.
         let mut whole = lines[..=40].to_vec();
         whole.push(plumb(2.0, 0.0, 0.0, head_z));
         let class = classify(&whole, &ClassRule::default());
         assert_eq!(class[5], LineClass::Texture);
         assert_eq!(class[32], LineClass::Texture);
-        // A frame's corner 12 cm back in the reveal, starting at the 16th course's end: near, but they never meet.
+        // A frame's corner 12 cm back in the reveal, starting at the 16th course's end: near, but they never meet;
+        // a jamb at the wall's face starting there is the course's corner.
         let mut framed = lines[..=40].to_vec();
         framed.push(plumb(2.0, 0.12, 1.2, 2.0));
         assert_eq!(classify(&framed, &ClassRule::default())[16], LineClass::Texture);
