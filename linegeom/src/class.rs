@@ -213,7 +213,7 @@ pub fn classify_supported(lines: &[[Vec3; 2]], shown: &[u32], sight: Option<Sigh
         near.retain(|&j| class[j] == LineClass::Structure && !weak[j]);
         // Any meeting will do here: a line deep in a reveal, hidden from the oblique images, takes its class from
         // the frame or head it meets, a T as much as an L.
-        if !meets_an_end_across(lines, k, &u, &near, rule, |_, _| true) {
+        if !meets_an_end_across(lines, k, &u, &near, rule, |_, _, _| true) {
             class[k] = LineClass::Texture;
         }
     }
@@ -382,10 +382,10 @@ fn across_basis(u: &Vec3) -> (Vec3, Vec3) {
 /// top ends on the jamb's side, not at its corner), passes within `band_m` of it ([`apart`]), and its end is
 /// where its edge ends, not a break in it (no line among `near` continues it past the corner).
 fn turns_a_corner(lines: &[[Vec3; 2]], k: usize, u: &Vec3, across: &[usize], near: &[usize], rule: &ClassRule) -> bool {
-    meets_an_end_across(lines, k, u, across, rule, |j, end| {
+    meets_an_end_across(lines, k, u, across, rule, |e, j, end| {
         overshoot(&lines[k], u, &lines[j], end) <= rule.overshoot_m
             && apart(&lines[k], u, &lines[j]) <= rule.band_m
-            && !continued(lines, j, end, near, rule)
+            && !continued(lines, j, end, e, near, rule)
     })
 }
 
@@ -402,21 +402,21 @@ fn apart(line: &[Vec3; 2], u: &Vec3, across: &[Vec3; 2]) -> f64 {
     ((across[0] - line[0]).dot(&normal) / n).abs()
 }
 
-/// Whether an end of line `k` lies within `corner_m` of an end `end` of a line `j` across it (among `across`)
-/// for which `also(j, end)` holds.
+/// Whether an end `e` of line `k` lies within `corner_m` of an end `end` of a line `j` across it (among
+/// `across`) for which `also(e, j, end)` holds.
 fn meets_an_end_across(
     lines: &[[Vec3; 2]],
     k: usize,
     u: &Vec3,
     across: &[usize],
     rule: &ClassRule,
-    also: impl Fn(usize, usize) -> bool,
+    also: impl Fn(&Vec3, usize, usize) -> bool,
 ) -> bool {
     across.iter().any(|&j| {
         direction(&lines[j]).is_some_and(|v| v.dot(u).abs() < CORNER_COS)
             && lines[k]
                 .iter()
-                .any(|e| (0..2).any(|end| (e - lines[j][end]).norm() <= rule.corner_m && also(j, end)))
+                .any(|e| (0..2).any(|end| (e - lines[j][end]).norm() <= rule.corner_m && also(e, j, end)))
     })
 }
 
@@ -436,12 +436,14 @@ fn overshoot(line: &[Vec3; 2], u: &Vec3, across: &[Vec3; 2], end: usize) -> f64 
 /// the next edge parallel to it, a reveal's other corner, lies 10 cm or more away.
 const CONTINUES_M: f64 = 0.05;
 
-/// Whether end `end` of line `j` is continued by another line of `near`: parallel to it, within [`CONTINUES_M`]
-/// of that end across, starting within `overshoot_m` of it and reaching more than `corner_m` beyond it (the
-/// next pane's edge across a glazing bar, 6 cm on, is another edge with corners of its own). A course of a
-/// pier between windows ends on the window's jamb, whose pieces end anywhere along it: without this, every course
-/// ending near the end of a piece would turn a corner.
-fn continued(lines: &[[Vec3; 2]], j: usize, end: usize, near: &[usize], rule: &ClassRule) -> bool {
+/// Whether end `end` of line `j` is continued, for the line ending at `e`, by another line of `near`: parallel to
+/// it, within [`CONTINUES_M`] of that end across, and either starting within `overshoot_m` of it and reaching
+/// more than `corner_m` beyond it, or passing `e` by more than `overshoot_m` on both sides (a gap in the edge
+/// beside which the line ends on the next piece's side). The next pane's edge across a glazing bar, 6 cm on,
+/// passes no pane edge ending at the bar: it is another edge with corners of its own. A course of a pier between
+/// windows ends on the window's jamb, whose pieces end anywhere along it: without this, every course ending near
+/// the end of a piece would turn a corner.
+fn continued(lines: &[[Vec3; 2]], j: usize, end: usize, e: &Vec3, near: &[usize], rule: &ClassRule) -> bool {
     let (f, g) = (lines[j][end], lines[j][1 - end]);
     let Some(out) = direction(&[g, f]) else { return false };
     let cos = rule.parallel_deg.to_radians().cos();
@@ -452,7 +454,11 @@ fn continued(lines: &[[Vec3; 2]], j: usize, end: usize, near: &[usize], rule: &C
         let (p, q) = (lines[m][0] - f, lines[m][1] - f);
         let (tp, tq) = (p.dot(&out), q.dot(&out));
         let across = |w: &Vec3, t: f64| (w - out * t).norm();
-        tp.min(tq) <= rule.overshoot_m && tp.max(tq) > rule.corner_m && across(&p, tp).max(across(&q, tq)) <= CONTINUES_M
+        let (from, to) = (tp.min(tq), tp.max(tq));
+        let at = (e - f).dot(&out);
+        let runs_on = from <= rule.overshoot_m && to > rule.corner_m;
+        let passes_e = from <= at - rule.overshoot_m && to >= at + rule.overshoot_m;
+        (runs_on || passes_e) && across(&p, tp).max(across(&q, tq)) <= CONTINUES_M
     })
 }
 
@@ -643,6 +649,11 @@ mod tests {
         let class = classify(&whole, &ClassRule::default());
         assert_eq!(class[5], LineClass::Texture);
         assert_eq!(class[32], LineClass::Texture);
+        // The jamb in pieces with gaps of 6 cm between them: the course at 0.525 m ends on the second piece's side,
+        // 14.5 cm above the first piece's top.
+        let mut gapped = lines[..=40].to_vec();
+        gapped.extend((0..6).map(|i| plumb(2.0, 0.0, 0.44 * i as f64, 0.44 * i as f64 + 0.38)));
+        assert_eq!(classify(&gapped, &ClassRule::default())[7], LineClass::Texture);
         // A frame's corner 12 cm back in the reveal, starting at the 16th course's end: near, but they never meet;
         // a jamb at the wall's face starting there is the course's corner.
         let mut framed = lines[..=40].to_vec();
