@@ -423,12 +423,19 @@ fn meets_an_end_across(
 /// How far end `end` of `across` lies past the line through `line` (direction `u`), measured outward along
 /// `across`: negative where it stops short of it.
 fn overshoot(line: &[Vec3; 2], u: &Vec3, across: &[Vec3; 2], end: usize) -> f64 {
-    let (f, g) = (across[end], across[1 - end]);
-    let Some(out) = direction(&[g, f]) else { return 0.0 };
-    let w = f - line[0];
+    let Some(out) = outward(across, end) else { return 0.0 };
     // The across line's end relative to `line`, in the plane of `out` and `u`.
-    let from_line = w - u * w.dot(u);
-    from_line.dot(&out)
+    off_line(&(across[end] - line[0]), u).dot(&out)
+}
+
+/// The direction of `line` out of its end `end` (from its other end towards it).
+fn outward(line: &[Vec3; 2], end: usize) -> Option<Vec3> {
+    direction(&[line[1 - end], line[end]])
+}
+
+/// The part of `w` across the direction `u`.
+fn off_line(w: &Vec3, u: &Vec3) -> Vec3 {
+    w - u * w.dot(u)
 }
 
 /// A break in an edge, not its end, is within this distance across of a line continuing it, metres. The line
@@ -444,21 +451,20 @@ const CONTINUES_M: f64 = 0.05;
 /// windows ends on the window's jamb, whose pieces end anywhere along it: without this, every course ending near
 /// the end of a piece would turn a corner.
 fn continued(lines: &[[Vec3; 2]], j: usize, end: usize, e: &Vec3, near: &[usize], rule: &ClassRule) -> bool {
-    let (f, g) = (lines[j][end], lines[j][1 - end]);
-    let Some(out) = direction(&[g, f]) else { return false };
+    let f = lines[j][end];
+    let Some(out) = outward(&lines[j], end) else { return false };
     let cos = rule.parallel_deg.to_radians().cos();
+    let at = (e - f).dot(&out);
     near.iter().any(|&m| {
         if m == j || !direction(&lines[m]).is_some_and(|v| v.dot(&out).abs() >= cos) {
             return false;
         }
         let (p, q) = (lines[m][0] - f, lines[m][1] - f);
         let (tp, tq) = (p.dot(&out), q.dot(&out));
-        let across = |w: &Vec3, t: f64| (w - out * t).norm();
         let (from, to) = (tp.min(tq), tp.max(tq));
-        let at = (e - f).dot(&out);
         let runs_on = from <= rule.overshoot_m && to > rule.corner_m;
         let passes_e = from <= at - rule.overshoot_m && to >= at + rule.overshoot_m;
-        (runs_on || passes_e) && across(&p, tp).max(across(&q, tq)) <= CONTINUES_M
+        (runs_on || passes_e) && off_line(&p, &out).norm().max(off_line(&q, &out).norm()) <= CONTINUES_M
     })
 }
 
