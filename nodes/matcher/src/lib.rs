@@ -75,6 +75,11 @@ pub struct MatcherParams {
     pub refine_min_correlation: f64,
     /// Grey images kept for refinement (the most recent frames); older anchors are not refined against.
     pub refine_keep_frames: usize,
+    /// Frames whose keypoints are kept to match against (the most recent): older frames are let go, their
+    /// keypoints, descriptors and track links with them, so that a stream of any length holds bounded state
+    /// (about 1.5 MB a frame at 4 MP). A session that comes back to a place photographed more than this many frames
+    /// earlier needs it raised.
+    pub keep_frames: usize,
 }
 
 impl lineflow_runtime::StageParams for MatcherParams {
@@ -82,6 +87,7 @@ impl lineflow_runtime::StageParams for MatcherParams {
         params::check(self.ratio > 0.0 && self.ratio <= 1.0, "ratio", "in (0, 1]", self.ratio)?;
         params::positive("threshold_px", self.threshold_px)?;
         params::at_least("iterations", self.iterations, 1)?;
+        params::at_least("keep_frames", self.keep_frames, self.window.max(1))?;
         params::check(
             self.min_inliers >= 8,
             "min_inliers",
@@ -115,6 +121,7 @@ impl Default for MatcherParams {
             refine_half_window: 8,
             refine_min_correlation: 0.8,
             refine_keep_frames: 60,
+            keep_frames: 200,
         }
     }
 }
@@ -332,7 +339,7 @@ impl Matcher {
     fn partners(&self, sample: &FrameFeatures) -> Vec<usize> {
         let k = self.frames.len();
         let mut chosen: Vec<usize> = (k.saturating_sub(self.params.window)..k).rev().collect();
-        let mut ranked: Vec<(usize, usize)> = (0..k.saturating_sub(self.params.window))
+        let mut ranked: Vec<(usize, usize)> = (k.saturating_sub(self.params.keep_frames)..k.saturating_sub(self.params.window))
             .map(|i| (match_features(sample, &self.frames[i].sample, self.params.ratio).len(), i))
             .filter(|&(n, _)| n >= self.params.retrieval_min_matches)
             .collect();
@@ -406,6 +413,9 @@ impl Matcher {
             self.frames[old].image = None;
         }
         self.refine_observations(&mut linked, &mut result);
+        if let Some(old) = self.frames.len().checked_sub(self.params.keep_frames + 1) {
+            self.forget(old);
+        }
         result.observations = linked.into_iter().map(|(o, _)| o).collect();
         result
     }
@@ -702,6 +712,33 @@ impl Matcher {
             return Vec::new();
         }
         kept
+    }
+
+    /// Lets frame index `old` go: it is no partner any more ([`Matcher::partners`] looks `keep_frames` back), so
+    /// its keypoints, their track links, the anchors it holds and its plane transfers are dropped. Tracks it shares
+    /// with later frames go on there. Its number stays, as the frames' indices are positions.
+    fn forget(&mut self, old: usize) {
+        let frame = &mut self.frames[old];
+        let keypoints = frame.features.px.len();
+        frame.features = FrameFeatures::default();
+        frame.sample = FrameFeatures::default();
+        frame.rays = Vec::new();
+        frame.image = None;
+        for kp in 0..keypoints {
+            let Some(track) = self.track_of.remove(&(old, kp)) else {
+                continue;
+            };
+            if let Some(frames) = self.frames_of.get_mut(&track) {
+                frames.retain(|&f| f != old);
+                if frames.is_empty() {
+                    self.frames_of.remove(&track);
+                }
+            }
+            if self.anchors.get(&track).is_some_and(|a| a.0 == old) {
+                self.anchors.remove(&track);
+            }
+        }
+        self.planes.retain(|&(a, b), _| a != old && b != old);
     }
 
     fn observe(&mut self, track: u64, at: (usize, usize)) {

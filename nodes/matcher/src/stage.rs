@@ -346,6 +346,36 @@ mod tests {
     }
 
     #[test]
+    fn frames_older_than_keep_frames_are_let_go_and_their_tracks_go_on_in_later_frames() {
+        let params = MatcherParams {
+            keep_frames: 3,
+            ..params(false)
+        };
+        let mut s = MatcherStage::new(params, false);
+        s.on_camera(camera());
+        for f in 0..8u64 {
+            let (h, b) = keypoints(f, 4.0 * f as f32, KeypointsHeader::FLOAT);
+            s.on_keypoints(h, &b);
+        }
+        let out = run(&mut s, true);
+        assert!(out[1..].iter().all(|f| !f.ties.is_empty()), "every frame is tied to the one before");
+        // A track started by frames 0 and 1 is still extended by the last frame.
+        let first = out[1].ties.iter().find(|t| t.frame == 0).unwrap().track;
+        assert!(out[7].ties.iter().any(|t| t.track == first && t.frame == 7));
+        let m = s.matcher.as_ref().unwrap();
+        for (k, frame) in m.frames.iter().enumerate() {
+            assert_eq!(frame.features.px.is_empty(), k < 5, "frame {k}");
+            assert_eq!(frame.rays.is_empty(), k < 5, "frame {k}");
+        }
+        assert!(m.track_of.keys().all(|&(f, _)| f >= 5));
+        assert!(m.planes.keys().all(|&(a, b)| a >= 5 && b >= 5));
+        assert!(m.frames_of.values().flatten().all(|&f| f >= 5));
+        let (h, b) = keypoints(8, 32.0, KeypointsHeader::FLOAT);
+        let sample = features(&h, &b).unwrap().strongest(300);
+        assert_eq!(m.partners(&sample).iter().min(), Some(&5), "only the last three are partners");
+    }
+
+    #[test]
     fn bad_messages_are_named_with_their_frame_and_values() {
         let mut s = MatcherStage::new(params(true), true);
         s.on_camera(camera());
