@@ -291,21 +291,67 @@ pub fn read_checkpoints(path: &Path) -> Result<Vec<CheckRow>, FormatError> {
 
 /// Writes `lines2d.csv`.
 pub fn write_lines2d(path: &Path, rows: &[Line2Row]) -> Result<(), FormatError> {
-    write_rows(
-        path,
-        &LINES2D_HEADER,
-        rows.iter().map(|r| {
-            vec![
-                r.image.clone(),
-                r.id.to_string(),
-                format!("{:.3}", r.start_px[0]),
-                format!("{:.3}", r.start_px[1]),
-                format!("{:.3}", r.end_px[0]),
-                format!("{:.3}", r.end_px[1]),
-                opt(r.n_pixels),
-            ]
-        }),
-    )
+    write_rows(path, &LINES2D_HEADER, rows.iter().map(line2_fields))
+}
+
+fn line2_fields(r: &Line2Row) -> Vec<String> {
+    vec![
+        r.image.clone(),
+        r.id.to_string(),
+        format!("{:.3}", r.start_px[0]),
+        format!("{:.3}", r.start_px[1]),
+        format!("{:.3}", r.end_px[0]),
+        format!("{:.3}", r.end_px[1]),
+        opt(r.n_pixels),
+    ]
+}
+
+/// `lines2d.csv` written as the frames come, each frame's rows flushed at once: a stream of any length holds
+/// none of them in memory, and a run that stops early keeps every frame written. The same bytes as
+/// [`write_lines2d`] of all the rows.
+pub struct Lines2dWriter {
+    out: std::io::BufWriter<std::fs::File>,
+    path: std::path::PathBuf,
+    rows: usize,
+}
+
+impl Lines2dWriter {
+    /// Creates `path` (and its folder) with the header.
+    ///
+    /// # Errors
+    /// When the file cannot be created or written.
+    pub fn create(path: &Path) -> Result<Self, FormatError> {
+        let mut out = create(path)?;
+        writeln!(out, "{}", LINES2D_HEADER.join(",")).map_err(|e| err(path, 0, format!("cannot write: {e}")))?;
+        Ok(Self {
+            out,
+            path: path.to_owned(),
+            rows: 0,
+        })
+    }
+
+    /// Appends `rows` and flushes them to the file.
+    ///
+    /// # Errors
+    /// When the file cannot be written.
+    pub fn append(&mut self, rows: &[Line2Row]) -> Result<(), FormatError> {
+        let io = |e: std::io::Error| err(&self.path, 0, format!("cannot write: {e}"));
+        for r in rows {
+            writeln!(self.out, "{}", line2_fields(r).join(",")).map_err(io)?;
+        }
+        self.rows += rows.len();
+        self.out.flush().map_err(io)
+    }
+
+    /// The rows written so far.
+    pub fn rows(&self) -> usize {
+        self.rows
+    }
+
+    /// The file's path.
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
 }
 
 /// Reads `lines2d.csv`.
@@ -518,6 +564,35 @@ mod tests {
         std::fs::write(&path, "v 0 0 0\nv 1 0 0\nf 1 2\n").unwrap();
         let e = read_obj(&path).unwrap_err().to_string();
         assert!(e.contains(":3") && e.contains("three vertices"), "{e}");
+    }
+
+    #[test]
+    fn lines2d_written_frame_by_frame_is_the_file_written_at_once_and_each_frame_is_on_disk_when_appended() {
+        let dir = tempfile::tempdir().unwrap();
+        let row = |image: &str, id: u64, n_pixels: Option<u32>| Line2Row {
+            image: image.into(),
+            id,
+            start_px: [1.0 + id as f64, 2.5],
+            end_px: [30.125, 40.0],
+            n_pixels,
+        };
+        let frames = [
+            vec![row("a.png", 0, Some(31)), row("a.png", 1, None)],
+            vec![],
+            vec![row("b.png", 0, Some(7))],
+        ];
+        let (whole, streamed) = (dir.path().join("whole.csv"), dir.path().join("streamed.csv"));
+        write_lines2d(&whole, &frames.concat()).unwrap();
+        let mut w = Lines2dWriter::create(&streamed).unwrap();
+        w.append(&frames[0]).unwrap();
+        // Flushed: readable while the writer is still open.
+        assert_eq!(read_lines2d(&streamed).unwrap().len(), 2);
+        for f in &frames[1..] {
+            w.append(f).unwrap();
+        }
+        assert_eq!(w.rows(), 3);
+        drop(w);
+        assert_eq!(std::fs::read(&streamed).unwrap(), std::fs::read(&whole).unwrap());
     }
 
     #[test]

@@ -3,7 +3,7 @@
 //! "lsd"` detects segments on the grey images. Both publish segments with their pixel chains and write
 //! `lines2d.csv` into the run's output folder.
 use anyhow::{Context, Result};
-use lineflow_formats::{write_lines2d, Line2Row};
+use lineflow_formats::Lines2dWriter;
 use lineflow_lines2d::stage::{FrameLines, TraceStage};
 use lineflow_lines2d::{LsdParams, TraceParams};
 use lineflow_messages::{kinds, Lines2DHeader};
@@ -13,8 +13,8 @@ fn main() -> std::process::ExitCode {
     lineflow_runtime::run_stage("lines2d", "trace", &[("trace", run_trace), ("lsd", run_lsd)])
 }
 
-/// Publishes one frame's segments and keeps its rows for `lines2d.csv`.
-fn publish(output: &Output<kinds::Lines2D>, lines: FrameLines, rows: &mut Vec<Line2Row>) -> Result<()> {
+/// Publishes one frame's segments and appends its rows to `lines2d.csv`.
+fn publish(output: &Output<kinds::Lines2D>, lines: FrameLines, rows: &mut Lines2dWriter) -> Result<()> {
     let header = Lines2DHeader {
         stamp: lines.stamp,
         n_segments: lines.segments.len() as u32,
@@ -22,15 +22,18 @@ fn publish(output: &Output<kinds::Lines2D>, lines: FrameLines, rows: &mut Vec<Li
         name: lines.name,
     };
     output.publish_parts(header, &lines.segments, &lines.chain)?;
-    rows.extend(lines.rows);
-    Ok(())
+    rows.append(&lines.rows)
+        .with_context(|| format!("writing {}", rows.path().display()))
 }
 
-fn write_rows(ctx: &NodeContext, rows: &[Line2Row], what: &str) -> Result<()> {
+/// `lines2d.csv` in the run's output folder, written as the frames come.
+fn rows_file(ctx: &NodeContext) -> Result<Lines2dWriter> {
     let path = ctx.out_dir().join("lines2d.csv");
-    write_lines2d(&path, rows).with_context(|| format!("writing {}", path.display()))?;
-    tracing::info!("{} segments{what} -> {}", rows.len(), path.display());
-    Ok(())
+    Lines2dWriter::create(&path).with_context(|| format!("creating {}", path.display()))
+}
+
+fn report_rows(rows: &Lines2dWriter, what: &str) {
+    tracing::info!("{} segments{what} -> {}", rows.rows(), rows.path().display());
 }
 
 /// `impl = "lsd"`: segments straight from the grey images (input `images`; `edges` is ignored when wired).
@@ -41,7 +44,7 @@ fn run_lsd(ctx: NodeContext) -> Result<()> {
     let unused_camera = ctx.optional_input::<kinds::CameraModel>("camera")?;
     let output = ctx.output::<kinds::Lines2D>("lines2d")?;
     ctx.connect()?;
-    let (mut gray, mut rows) = (Vec::new(), Vec::new());
+    let (mut gray, mut rows) = (Vec::new(), rows_file(&ctx)?);
     ctx.run(|| {
         drain(&unused_edges)?;
         drain(&unused_camera)?;
@@ -55,7 +58,7 @@ fn run_lsd(ctx: NodeContext) -> Result<()> {
         Ok(if images.is_ended() { Flow::Stop } else { Flow::Continue })
     })?;
     output.end_of_stream()?;
-    write_rows(&ctx, &rows, " (lsd)")?;
+    report_rows(&rows, " (lsd)");
     ctx.finish();
     Ok(())
 }
@@ -79,7 +82,7 @@ fn run_trace(ctx: NodeContext) -> Result<()> {
     let output = ctx.output::<kinds::Lines2D>("lines2d")?;
     ctx.connect()?;
     let mut stage = TraceStage::new(params, images.is_some());
-    let (mut buffers, mut rows) = (lineflow_imaging::PlaneBuffers::default(), Vec::new());
+    let (mut buffers, mut rows) = (lineflow_imaging::PlaneBuffers::default(), rows_file(&ctx)?);
     ctx.run(|| {
         if let Some(i) = &images {
             // Sub-pixel positions on the gradient the edges stage found the edges on with its default `color`:
@@ -108,7 +111,7 @@ fn run_trace(ctx: NodeContext) -> Result<()> {
         })
     })?;
     output.end_of_stream()?;
-    write_rows(&ctx, &rows, "")?;
+    report_rows(&rows, "");
     ctx.finish();
     Ok(())
 }
