@@ -9,7 +9,7 @@ use lineflow_formats::project::{self, Project};
 use lineflow_messages::{fixed_str, kinds, CameraModelHeader, ImageHeader};
 use lineflow_runtime::NodeContext;
 
-use crate::source::Survey;
+use crate::source::{sent, Survey};
 
 pub fn run(ctx: NodeContext) -> Result<()> {
     let mut p: FolderParams = ctx.stage_params()?;
@@ -30,7 +30,8 @@ pub fn run(ctx: NodeContext) -> Result<()> {
     )?;
 
     let mut frame = 0u64;
-    let mut publish = |path: &std::path::Path| -> Result<()> {
+    // Whether the frame went out (not when the run is stopped while it waits for a subscriber).
+    let mut publish = |path: &std::path::Path| -> Result<bool> {
         let img = decode_file_for(path, (project.camera.width, project.camera.height))?;
         if (img.width, img.height) != (project.camera.width, project.camera.height) {
             bail!(
@@ -51,19 +52,21 @@ pub fn run(ctx: NodeContext) -> Result<()> {
             encoding: img.encoding as u32,
             name: fixed_str(&project::file_name(path)),
         };
-        images
+        let result = images
             .publish(header, &img.bytes)
-            .with_context(|| format!("{}: cannot publish", path.display()))?;
+            .with_context(|| format!("{}: cannot publish", path.display()));
+        if !sent(&ctx, frame, result)? {
+            return Ok(false);
+        }
         tracing::debug!(frame, "published {}", path.display());
         frame += 1;
-        Ok(())
+        Ok(true)
     };
 
     for path in &project.images {
-        if ctx.should_stop() {
+        if ctx.should_stop() || !publish(path)? {
             break;
         }
-        publish(path)?;
     }
     if p.watch {
         let stop_file = p.folder.join(&p.stop_file);
@@ -79,7 +82,9 @@ pub fn run(ctx: NodeContext) -> Result<()> {
         while !ctx.should_stop() && !stop_file.exists() && (p.idle_timeout_s == 0.0 || last_new.elapsed().as_secs_f64() < p.idle_timeout_s)
         {
             for path in watcher.poll() {
-                publish(&path)?;
+                if !publish(&path)? {
+                    break;
+                }
                 last_new = Instant::now();
             }
             std::thread::sleep(Duration::from_millis(50));

@@ -48,3 +48,17 @@ impl Survey {
         Ok(())
     }
 }
+
+/// Whether a frame went out. A send that fails once the run is being stopped is the end of the stream, not an
+/// error: SIGINT or SIGTERM while the frame waited for a subscriber on a full lossless edge makes iceoryx2's send
+/// give up (`InternalError`), and the frames already sent are all there.
+pub fn sent(ctx: &NodeContext, frame: u64, result: Result<()>) -> Result<bool> {
+    match result {
+        Ok(()) => Ok(true),
+        Err(e) if ctx.should_stop() => {
+            tracing::info!("stopped while frame {frame} waited for a subscriber: not sent ({e:#})");
+            Ok(false)
+        }
+        Err(e) => Err(e),
+    }
+}

@@ -6,7 +6,7 @@ use lineflow_capture::synthetic_source::{SyntheticParams, SyntheticSource};
 use lineflow_messages::{kinds, CameraModelHeader, Lines3DHeader, PosesHeader, StampFlags};
 use lineflow_runtime::NodeContext;
 
-use crate::source::Survey;
+use crate::source::{sent, Survey};
 
 pub fn run(ctx: NodeContext) -> Result<()> {
     let p: SyntheticParams = ctx.stage_params()?;
@@ -62,7 +62,9 @@ pub fn run(ctx: NodeContext) -> Result<()> {
             break;
         }
         let (header, rgb) = source.frame(frame, pacer.frame(frame))?;
-        images.publish(header, &rgb)?;
+        if !sent(&ctx, frame, images.publish(header, &rgb))? {
+            break;
+        }
         published += 1;
         tracing::debug!(frame, "rendered and published");
     }

@@ -420,6 +420,10 @@ fn bench_soak_samples_every_node_of_a_repeated_stream_and_reports_the_targets() 
         assert!(stdout.contains(&format!("| {node} |")), "no row for {node}");
     }
     assert!(stdout.contains("drops on the edges: 0 (target 0)"));
+    assert!(
+        stdout.contains("| private memory (MB) | private growth |"),
+        "the nodes' own memory beside RSS"
+    );
     assert!(stdout.contains("frame latency"));
     let svg = std::fs::read_to_string(out.join("soak.svg")).unwrap();
     assert!(svg.starts_with("<svg") && svg.trim_end().ends_with("</svg>") && svg.matches("<polyline").count() > 10);
