@@ -76,9 +76,9 @@ pub struct MatcherParams {
     /// Grey images kept for refinement (the most recent frames); older anchors are not refined against.
     pub refine_keep_frames: usize,
     /// Frames whose keypoints are kept to match against (the most recent): older frames are let go, their
-    /// keypoints, descriptors and track links with them, so that a stream of any length holds bounded state
-    /// (about 1.5 MB a frame at 4 MP). A session that comes back to a place photographed more than this many frames
-    /// earlier needs it raised.
+    /// keypoints, descriptors and track links with them, so that a stream of any length holds bounded state (about
+    /// 0.7 MB a frame at 1.4 MP, besides the grey images of the last `refine_keep_frames`). A session that comes
+    /// back to a place photographed more than this many frames earlier needs it raised.
     pub keep_frames: usize,
 }
 
