@@ -175,7 +175,7 @@ fn by_field(lines: &[[Vec3; 2]], rule: &ClassRule) -> (Vec<LineClass>, Grid) {
             };
             near.clear();
             grid.near(&lines[k], k, &mut seen, &mut near);
-            let texture = in_a_field(lines, k, &u, &near, rule) && !turns_a_corner(lines, k, &u, &near, &near, rule);
+            let texture = in_a_field(lines, k, &u, &near, rule) && !turns_a_corner(lines, k, &u, &near, rule);
             if texture {
                 LineClass::Texture
             } else {
@@ -377,12 +377,12 @@ fn across_basis(u: &Vec3) -> (Vec3, Vec3) {
     (e1, u.cross(&e1))
 }
 
-/// Whether an end of line `k` is a corner: an end of a line across it (among `across`) lies within `corner_m`,
+/// Whether an end of line `k` is a corner: an end of a line across it (among `near`) lies within `corner_m`,
 /// that line reaches no more than `overshoot_m` past `k`'s own line (a course meeting a jamb a course below its
 /// top ends on the jamb's side, not at its corner), passes within `band_m` of it ([`apart`]), and its end is
-/// where its edge ends, not a break in it (no line among `near` continues it past the corner).
-fn turns_a_corner(lines: &[[Vec3; 2]], k: usize, u: &Vec3, across: &[usize], near: &[usize], rule: &ClassRule) -> bool {
-    meets_an_end_across(lines, k, u, across, rule, |e, j, end| {
+/// where its edge ends, not a break in it (no other line among `near` continues it past the corner).
+fn turns_a_corner(lines: &[[Vec3; 2]], k: usize, u: &Vec3, near: &[usize], rule: &ClassRule) -> bool {
+    meets_an_end_across(lines, k, u, near, rule, |e, j, end| {
         overshoot(&lines[k], u, &lines[j], end) <= rule.overshoot_m
             && apart(&lines[k], u, &lines[j]) <= rule.band_m
             && !continued(lines, j, end, e, near, rule)
