@@ -143,6 +143,9 @@ pub struct ModelParams {
     /// Look in the images' 2-D lines, when the node has them, for the sides of the openings a façade's rows and
     /// columns predict where the 3-D lines missed them ([`openings`], "Openings confirmed in the images").
     pub verify_openings: bool,
+    /// Move each new opening's standing sides to where the images' 2-D lines show them, when the node has them
+    /// ([`openings`], "Standing sides settled in the images").
+    pub settle_openings: bool,
     /// Refine's thresholds, in standard deviations (the seed: two or three).
     pub refine_k: f64,
     /// Standard deviation of an image line's endpoints across it, pixels.
@@ -220,6 +223,7 @@ impl Default for ModelParams {
             // Off by default: on the pipeline's own lines it changes nothing measurable (docs/model.md, Refine).
             refine: false,
             verify_openings: true,
+            settle_openings: true,
             refine_k: refine::RefineParams::default().k,
             refine_image_sigma_px: refine::RefineParams::default().image_sigma_px,
             refine_min_image_line_px: refine::RefineParams::default().min_image_line_px,
@@ -744,10 +748,12 @@ pub fn build_with_images(lines: &[ModelLine], params: &ModelParams, cameras: &Ca
         .filter(|l| drop_texture && l.texture)
         .map(|l| [l.start, l.end])
         .collect();
-    let evidence = images.filter(|_| params.verify_openings).map(|i| openings::Evidence {
-        camera: i.camera,
-        images: i.lines,
-    });
+    let evidence = images
+        .filter(|_| params.verify_openings || params.settle_openings)
+        .map(|i| openings::Evidence {
+            camera: i.camera,
+            images: i.lines,
+        });
     let (mut faces, walls) = faces::find_with_walls(&mut vertices, &mut edges, params, cameras, &surface, evidence.as_ref());
     if !params.loose_lines {
         let mut loose = vec![false; lines.len()];

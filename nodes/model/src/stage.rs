@@ -68,7 +68,7 @@ impl ModelStage {
     /// A stage with `params`; `images_wired`: the lines2d, camera and poses inputs are all connected.
     pub fn new(params: ModelParams, images_wired: bool) -> ModelStage {
         ModelStage {
-            using_images: (params.refine || params.verify_openings) && images_wired,
+            using_images: (params.refine || params.verify_openings || params.settle_openings) && images_wired,
             params,
             cameras: Cameras::default(),
             camera: None,

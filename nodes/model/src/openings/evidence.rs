@@ -78,11 +78,7 @@ impl Evidence<'_> {
     /// behind the wall (a frame, a reveal) is seen at positions that differ with the viewpoint and gathers fewer
     /// images.
     pub(crate) fn measure(&self, a: &Vec3, b: &Vec3, across: &Vec3, reach_m: f64) -> Measured {
-        let views: Vec<View> = self
-            .images
-            .iter()
-            .filter_map(|image| self.view(image, a, b, across, reach_m))
-            .collect();
+        let views = self.views(a, b, across, reach_m);
         let showing_at = |offset_m: f64| views.iter().filter(|v| v.shows(offset_m, self.camera.pixel_size_mm)).count();
         let mut candidates: Vec<f64> = views.iter().flat_map(|v| v.lines.iter().map(|l| l.0)).collect();
         candidates.sort_by(|x, y| x.abs().total_cmp(&y.abs()).then(x.total_cmp(y)));
@@ -99,6 +95,46 @@ impl Evidence<'_> {
             }
         }
         best
+    }
+
+    /// Every position within `reach_m` of the side `a`–`b` along `across` where the images show it
+    /// ([`Measured::seen`]), one per position (within the lines' noise of each other, the one most images show),
+    /// in order along `across`.
+    pub(crate) fn positions(&self, a: &Vec3, b: &Vec3, across: &Vec3, reach_m: f64) -> Vec<Measured> {
+        let views = self.views(a, b, across, reach_m);
+        let pixel_mm = self.camera.pixel_size_mm;
+        let mut candidates: Vec<f64> = views.iter().flat_map(|v| v.lines.iter().map(|l| l.0)).collect();
+        candidates.sort_by(f64::total_cmp);
+        let mut out: Vec<Measured> = Vec::new();
+        for c in candidates {
+            let m = Measured {
+                offset_m: c,
+                showing: views.iter().filter(|v| v.shows(c, pixel_mm)).count(),
+                looking: views.len(),
+            };
+            if !m.seen() {
+                continue;
+            }
+            // One position per edge: candidates closer than the lines' noise at the side belong to one.
+            let noise_m = views.iter().map(|v| ON_SIDE_PX * pixel_mm / v.units_per_m).fold(0.0, f64::max);
+            match out.last_mut() {
+                Some(last) if c - last.offset_m <= noise_m => {
+                    if m.showing > last.showing {
+                        *last = m;
+                    }
+                }
+                _ => out.push(m),
+            }
+        }
+        out
+    }
+
+    /// The views of the side `a`–`b` of every oriented image that sees it whole.
+    fn views(&self, a: &Vec3, b: &Vec3, across: &Vec3, reach_m: f64) -> Vec<View> {
+        self.images
+            .iter()
+            .filter_map(|image| self.view(image, a, b, across, reach_m))
+            .collect()
     }
 
     /// `image`'s view of the side `a`–`b`; none where the image does not see it whole.

@@ -78,6 +78,7 @@ mod flush_tests;
 mod grid;
 mod recesses;
 mod rectangles;
+mod settle;
 mod sides;
 mod wall;
 pub(crate) use evidence::Evidence;
@@ -87,6 +88,7 @@ mod wall_from_edges;
 use grid::*;
 use recesses::*;
 use rectangles::*;
+use settle::settle_standing_sides;
 use sides::*;
 use wall::*;
 use wall_from_edges::*;
@@ -140,6 +142,11 @@ pub(crate) fn infer(
         .filter(|(f, _)| matches!(f.kind, SurfaceKind::Window | SurfaceKind::Door))
         .map(|(_, o)| o.clone())
         .collect();
+    // Each new opening's standing sides settled in the images, where they are given.
+    let settle = |wall: &Wall, rect: Rect| match evidence.filter(|_| params.settle_openings) {
+        Some(e) => settle_standing_sides(wall, rect, &viewpoint, e),
+        None => rect,
+    };
     let mut out = Vec::new();
     for p in proposals {
         let wall = &walls[p.wall].wall;
@@ -168,7 +175,8 @@ pub(crate) fn infer(
             }
             Some(_) => {}
             None => {
-                let corners = opening_corners(wall, p.rect, p.depth, centres, p.sigma, &centre);
+                let rect = settle(wall, p.rect);
+                let corners = opening_corners(wall, rect, p.depth, centres, p.sigma, &centre);
                 found.push(Outline::of(&corners.iter().map(|v| v.point).collect::<Vec<_>>(), wall.out));
                 out.push(Inferred::New(corners, wall.out));
             }
@@ -179,9 +187,10 @@ pub(crate) fn infer(
         let wall = &view.wall;
         let on_this_wall = |o: &&Outline| o.normal.dot(&wall.out).abs() > cos_par && wall.depth(&o.centroid).abs() < sizes.recess_m.0;
         let taken: Vec<[f64; 4]> = found.iter().filter(on_this_wall).map(|o| o.bounds_in(wall)).collect();
-        for rect in from_grid(view, &taken, &viewpoint, evidence) {
+        for rect in from_grid(view, &taken, &viewpoint, evidence.filter(|_| params.verify_openings)) {
             let [x0, x1, z0, z1] = rect.bounds;
             let centre = wall.point((x0 + x1) / 2.0, (z0 + z1) / 2.0, &viewpoint);
+            let rect = settle(wall, rect);
             let corners = opening_corners(wall, rect, 0.0, centres, None, &centre);
             found.push(Outline::of(&corners.iter().map(|v| v.point).collect::<Vec<_>>(), wall.out));
             out.push(Inferred::New(corners, wall.out));
