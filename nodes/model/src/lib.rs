@@ -143,8 +143,8 @@ pub struct ModelParams {
     /// Look in the images' 2-D lines, when the node has them, for the sides of the openings a façade's rows and
     /// columns predict where the 3-D lines missed them ([`openings`], "Openings confirmed in the images").
     pub verify_openings: bool,
-    /// Move each new opening's standing sides to where the images' 2-D lines show them, when the node has them
-    /// ([`openings`], "Standing sides settled in the images").
+    /// Move each new opening's sides to where the images' 2-D lines place them, when the node has them
+    /// ([`openings`], "Openings settled in the images").
     pub settle_openings: bool,
     /// Refine's thresholds, in standard deviations (the seed: two or three).
     pub refine_k: f64,

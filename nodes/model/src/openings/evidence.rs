@@ -22,7 +22,7 @@ const MIN_IMAGE_COVER: f64 = 0.4;
 /// A side counts as seen in the images where at least this share of the images that look at it show it…
 const MIN_IMAGE_SHARE: f64 = 0.5;
 /// …and at least this many.
-const MIN_IMAGES: usize = 2;
+pub(super) const MIN_IMAGES: usize = 2;
 
 /// The oriented images' 2-D lines and their camera.
 #[derive(Clone, Copy)]
@@ -127,6 +127,29 @@ impl Evidence<'_> {
             }
         }
         out
+    }
+
+    /// Where the images' lines along the side `a`–`b` start and end, for every image that shows the side
+    /// ([`Measured::seen`]'s per-image test): as shares of the way from `a` to `b` (below 0 and above 1 where they run
+    /// on past the ends), the union of the lines on the side.
+    pub(crate) fn extents(&self, a: &Vec3, b: &Vec3, across: &Vec3) -> Vec<(f64, f64)> {
+        let pixel_mm = self.camera.pixel_size_mm;
+        self.views(a, b, across, 0.0)
+            .iter()
+            .filter(|v| v.shows(0.0, pixel_mm))
+            .filter_map(|v| {
+                let tol = ON_SIDE_PX * pixel_mm / v.units_per_m;
+                let on: Vec<(f64, f64)> = v
+                    .lines
+                    .iter()
+                    .filter(|l| l.0.abs() <= tol && l.1 .1 > 0.0 && l.1 .0 < v.len)
+                    .map(|l| l.1)
+                    .collect();
+                let lo = on.iter().map(|s| s.0).fold(f64::INFINITY, f64::min);
+                let hi = on.iter().map(|s| s.1).fold(f64::NEG_INFINITY, f64::max);
+                (lo < hi).then(|| (lo / v.len, hi / v.len))
+            })
+            .collect()
     }
 
     /// The views of the side `a`–`b` of every oriented image that sees it whole.

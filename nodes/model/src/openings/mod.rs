@@ -88,7 +88,7 @@ mod wall_from_edges;
 use grid::*;
 use recesses::*;
 use rectangles::*;
-use settle::settle_standing_sides;
+use settle::settle;
 use sides::*;
 use wall::*;
 use wall_from_edges::*;
@@ -142,9 +142,9 @@ pub(crate) fn infer(
         .filter(|(f, _)| matches!(f.kind, SurfaceKind::Window | SurfaceKind::Door))
         .map(|(_, o)| o.clone())
         .collect();
-    // Each new opening's standing sides settled in the images, where they are given.
+    // Each new opening's sides settled in the images, where they are given.
     let settle = |wall: &Wall, rect: Rect| match evidence.filter(|_| params.settle_openings) {
-        Some(e) => settle_standing_sides(wall, rect, &viewpoint, e),
+        Some(e) => settle(wall, rect, &viewpoint, e),
         None => rect,
     };
     let mut out = Vec::new();
