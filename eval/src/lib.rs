@@ -88,7 +88,7 @@ impl Truth {
 pub struct Results {
     pub poses: Option<Vec<PoseRow>>,
     pub checkpoints: Option<Vec<CheckRow>>,
-    pub lines2d: Option<Vec<Line2Row>>,
+    pub lines2d: Option<Lines2d>,
     pub lines3d: Option<Vec<Line3Row>>,
     pub model: Option<Wireframe>,
     /// The wire-frame fitted to the images (`model_fitted.obj`).
@@ -99,6 +99,14 @@ pub struct Results {
     pub model_hidden_edges: Option<usize>,
     /// Lines of `model.obj` set aside as lying inside a surface (vertex pairs into the model's vertices).
     pub model_surface_lines: Option<Vec<[usize; 2]>>,
+}
+
+/// A run's 2-D lines: as read from `lines2d.csv`, or scored frame by frame as a live sink received them (it keeps
+/// the scores, not the segments, so its memory does not grow with the stream).
+pub enum Lines2d {
+    Rows(Vec<Line2Row>),
+    /// Scores by frame of the truth.
+    Scored(std::collections::BTreeMap<usize, lines2d::ImageScores>),
 }
 
 /// The window and door faces (groups `Window` and `Door`) of an OBJ model.
@@ -132,7 +140,7 @@ impl Results {
         Ok(Results {
             poses: optional(dir.join("poses.csv"), read_poses)?,
             checkpoints: optional(dir.join("checkpoints.csv"), read_checkpoints)?,
-            lines2d: optional(dir.join("lines2d.csv"), read_lines2d)?,
+            lines2d: optional(dir.join("lines2d.csv"), read_lines2d)?.map(Lines2d::Rows),
             lines3d: optional(dir.join("lines3d.csv"), read_lines3d)?,
             model_openings: obj.as_ref().map(openings_of_obj),
             model_hidden_edges: obj.as_ref().map(|o| o.hidden_edges.len()),
@@ -164,7 +172,10 @@ pub fn evaluate(truth: &Truth, results: &Results) -> Evaluation {
             .poses
             .as_ref()
             .map(|p| orientation::evaluate(truth, p, results.checkpoints.as_deref())),
-        lines2d: results.lines2d.as_ref().map(|l| lines2d::evaluate(truth, l)),
+        lines2d: results.lines2d.as_ref().map(|l| match l {
+            Lines2d::Rows(rows) => lines2d::evaluate(truth, rows),
+            Lines2d::Scored(scored) => lines2d::evaluate_scored(truth, scored.clone()),
+        }),
         lines3d: results.lines3d.as_ref().map(|l| lines3d::evaluate(truth, l)),
         model: results
             .model

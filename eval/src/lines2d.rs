@@ -145,7 +145,25 @@ pub fn score_image(truth: &Truth, frame: usize, rows: &[Line2Row]) -> ImageScore
 }
 
 pub fn evaluate(truth: &Truth, rows: &[Line2Row]) -> Lines2dReport {
-    let images: Vec<ImageScores> = (0..truth.poses.len()).map(|frame| score_image(truth, frame, rows)).collect();
+    report((0..truth.poses.len()).map(|frame| score_image(truth, frame, rows)).collect())
+}
+
+/// The report of the frames scored one by one as their lines came (`scored`, by frame), the frames of the truth
+/// that none came for scored with none (recall 0).
+pub fn evaluate_scored(truth: &Truth, mut scored: std::collections::BTreeMap<usize, ImageScores>) -> Lines2dReport {
+    report(
+        (0..truth.poses.len())
+            .map(|frame| scored.remove(&frame).unwrap_or_else(|| score_image(truth, frame, &[])))
+            .collect(),
+    )
+}
+
+/// The frame of `truth` named `image`.
+pub fn frame_of(truth: &Truth, image: &str) -> Option<usize> {
+    truth.poses.iter().position(|p| p.image == image)
+}
+
+fn report(images: Vec<ImageScores>) -> Lines2dReport {
     let sum = |k: usize| images.iter().map(|i| i.lengths[k]).sum::<f64>();
     Lines2dReport {
         recall: sum(1) / sum(0).max(1e-12),

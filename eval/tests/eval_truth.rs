@@ -1,6 +1,6 @@
 //! `eval` gives perfect scores for the ground truth itself and the analytically expected scores for known
 //! perturbations.
-use lineflow_eval::{evaluate, lines2d, Results, Truth};
+use lineflow_eval::{evaluate, lines2d, Lines2d, Results, Truth};
 use lineflow_formats::{read_lines3d, read_poses, Line2Row, Line3Row};
 use lineflow_photogrammetry::Vec3;
 use lineflow_synthetic::{write_project, Synthetic};
@@ -48,7 +48,7 @@ fn the_truth_scores_perfectly_and_known_shifts_score_as_expected() {
         &Results {
             poses: Some(poses.clone()),
             checkpoints: None,
-            lines2d: Some(true_lines2d(&truth, 0.0)),
+            lines2d: Some(Lines2d::Rows(true_lines2d(&truth, 0.0))),
             lines3d: Some(lines.clone()),
             model: Some(lineflow_eval::model::true_wireframe(&lines)),
             model_fitted: Some(lineflow_eval::model::true_wireframe(&lines)),
@@ -160,7 +160,7 @@ fn the_truth_scores_perfectly_and_known_shifts_score_as_expected() {
         &truth,
         &Results {
             lines3d: Some(moved),
-            lines2d: Some(true_lines2d(&truth, 3.0)),
+            lines2d: Some(Lines2d::Rows(true_lines2d(&truth, 3.0))),
             ..Default::default()
         },
     );
@@ -194,7 +194,7 @@ fn the_truth_scores_perfectly_and_known_shifts_score_as_expected() {
     let near = evaluate(
         &truth,
         &Results {
-            lines2d: Some(true_lines2d(&truth, 1.0)),
+            lines2d: Some(Lines2d::Rows(true_lines2d(&truth, 1.0))),
             ..Default::default()
         },
     );
@@ -212,4 +212,28 @@ fn a_folder_without_ground_truth_is_named() {
     let dir = tempfile::tempdir().unwrap();
     let e = Truth::load(dir.path()).err().unwrap().to_string();
     assert!(e.contains("scene.json") && e.contains("lineflow synth"), "{e}");
+}
+
+#[test]
+fn frames_scored_one_by_one_report_as_the_rows_scored_at_once() {
+    let (_dir, truth) = scene();
+    let rows = true_lines2d(&truth, 1.0);
+    let at_once = lines2d::evaluate(&truth, &rows);
+    // Every frame but the last scored as its lines came; the last never came.
+    let last = truth.poses.len() - 1;
+    let scored: std::collections::BTreeMap<usize, lines2d::ImageScores> = (0..last)
+        .map(|frame| {
+            let name = &truth.poses[frame].image;
+            let own: Vec<Line2Row> = rows.iter().filter(|r| &r.image == name).cloned().collect();
+            (frame, lines2d::score_image(&truth, frame, &own))
+        })
+        .collect();
+    let one_by_one = lines2d::evaluate_scored(&truth, scored);
+    assert_eq!(one_by_one.images.len(), at_once.images.len());
+    for (a, b) in one_by_one.images.iter().zip(&at_once.images).take(last) {
+        assert_eq!((a.lengths, a.n_estimated), (b.lengths, b.n_estimated));
+    }
+    assert_eq!(one_by_one.images[last].n_estimated, 0, "a frame whose lines never came has none");
+    assert!(at_once.images[last].n_estimated > 0);
+    assert!(one_by_one.recall < at_once.recall);
 }

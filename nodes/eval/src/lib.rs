@@ -1,16 +1,28 @@
 //! The live `eval` sink without its process: [`Collector`] keeps the newest message of every truth and result topic
-//! and turns them into the rows [`lineflow_eval::evaluate`] scores.
+//! and turns them into the rows [`lineflow_eval::evaluate`] scores. The 2-D lines, one message per frame, are
+//! scored as they come once the truth is in, so the sink keeps each frame's scores, not its segments.
 #![warn(missing_docs)]
 
+use std::collections::BTreeMap;
+
+use lineflow_eval::lines2d::{frame_of, score_image, ImageScores};
 use lineflow_eval::model::ModelOpening;
-use lineflow_eval::{Results, Wireframe};
+use lineflow_eval::{Lines2d, Results, Truth, Wireframe};
 use lineflow_formats::{CheckRow, Line2Row, Line3Row, PoseRow};
 use lineflow_messages::{FaceVertex, Line3, Lines2DHeader, Pose, Segment2, WireEdge};
 use lineflow_photogrammetry::Vec3;
 use lineflow_synthetic::Synthetic;
 
+/// The 2-D lines received: each frame's scores, and the segments of frames that came before the truth.
+#[derive(Debug, Default)]
+struct Segments {
+    scored: BTreeMap<usize, ImageScores>,
+    waiting: Vec<Line2Row>,
+}
+
 /// What the sink has received. The newest message of each topic is the one that counts (a later revision
-/// supersedes an earlier one); 2-D segments accumulate, one message per frame.
+/// supersedes an earlier one); 2-D segments come one message per frame and are scored as they come
+/// ([`Collector::score_segments`]).
 #[derive(Debug, Default)]
 pub struct Collector {
     /// `gt/poses`.
@@ -19,7 +31,7 @@ pub struct Collector {
     pub truth_lines: Vec<Line3>,
     poses: Option<Vec<Pose>>,
     lines: Option<Vec<Line3>>,
-    segments: Option<Vec<Line2Row>>,
+    segments: Option<Segments>,
     model: Option<Wireframe>,
     model_hidden: usize,
     fitted: Option<Wireframe>,
@@ -30,7 +42,7 @@ impl Collector {
     /// A collector; `segments_wired`: the `lines2d` input is connected (its absence is reported as "none").
     pub fn new(segments_wired: bool) -> Collector {
         Collector {
-            segments: segments_wired.then(Vec::new),
+            segments: segments_wired.then(Segments::default),
             ..Collector::default()
         }
     }
@@ -45,10 +57,10 @@ impl Collector {
         self.lines = Some(lines.to_vec());
     }
 
-    /// One frame's `lines2d` message.
+    /// One frame's `lines2d` message, waiting for [`Collector::score_segments`].
     pub fn on_segments(&mut self, header: &Lines2DHeader, segments: &[Segment2]) {
-        if let Some(rows) = &mut self.segments {
-            rows.extend(segments.iter().map(|s| Line2Row {
+        if let Some(received) = &mut self.segments {
+            received.waiting.extend(segments.iter().map(|s| Line2Row {
                 image: header.name().to_string(),
                 id: s.id as u64,
                 start_px: s.start_px,
@@ -56,6 +68,26 @@ impl Collector {
                 n_pixels: Some(s.chain_len),
             }));
         }
+    }
+
+    /// Scores the frames whose 2-D lines are waiting against `truth` and lets their segments go; frames the truth
+    /// does not hold are left out, as the scoring of a whole run leaves them out.
+    pub fn score_segments(&mut self, truth: &Truth) {
+        let Some(received) = &mut self.segments else { return };
+        let mut waiting = std::mem::take(&mut received.waiting);
+        while let Some(first) = waiting.first() {
+            let image = first.image.clone();
+            let n = waiting.iter().take_while(|r| r.image == image).count();
+            let frame: Vec<Line2Row> = waiting.drain(..n).collect();
+            if let Some(k) = frame_of(truth, &image) {
+                received.scored.insert(k, score_image(truth, k, &frame));
+            }
+        }
+    }
+
+    /// Whether both truth topics have arrived.
+    pub fn has_truth(&self) -> bool {
+        !self.truth_poses.is_empty() && !self.truth_lines.is_empty()
     }
 
     /// A `wireframe` (`fitted` false) or `wireframe_fitted` message's parts. Edges completed behind an occluder
@@ -82,12 +114,24 @@ impl Collector {
         self.faces = Some(faces.to_vec());
     }
 
-    /// The results to score against `scene`, with the orientation's check points when it wrote them.
-    pub fn results(self, scene: &Synthetic, checkpoints: Option<Vec<CheckRow>>) -> Results {
+    /// The truth of `scene` as the truth topics gave it, to score against; `dir` is where the report goes.
+    pub fn truth(&self, scene: Synthetic, dir: std::path::PathBuf) -> Truth {
+        Truth {
+            dir,
+            poses: pose_rows(&scene, &self.truth_poses),
+            lines: line_rows(&self.truth_lines),
+            scene,
+        }
+    }
+
+    /// The results to score against `truth`, with the orientation's check points when it wrote them.
+    pub fn results(mut self, truth: &Truth, checkpoints: Option<Vec<CheckRow>>) -> Results {
+        self.score_segments(truth);
+        let scene = &truth.scene;
         Results {
             poses: self.poses.map(|p| pose_rows(scene, &p)),
             lines3d: self.lines.map(|l| line_rows(&l)),
-            lines2d: self.segments,
+            lines2d: self.segments.map(|s| Lines2d::Scored(s.scored)),
             checkpoints,
             model_openings: self.model.as_ref().zip(self.faces.as_ref()).map(|((v, _), f)| openings(v, f)),
             model_hidden_edges: self.model.as_ref().map(|_| self.model_hidden),
@@ -160,11 +204,12 @@ mod tests {
     fn the_newest_wireframe_counts_and_hidden_edges_are_counted_not_scored() {
         let scene = Synthetic::new("d2x-strip", 0.05, 1).unwrap();
         let mut c = Collector::new(false);
+        let truth = c.truth(scene, Default::default());
         let v = [[0.0; 3], [1.0, 0.0, 0.0], [1.0, 0.0, 1.0]];
         c.on_wireframe(false, &v[..2], &[edge(0, 1, 0)]);
         c.on_wireframe(false, &v, &[edge(0, 1, 0), edge(1, 2, 1)]);
         c.on_wireframe(true, &v[..2], &[edge(0, 1, 0)]);
-        let r = c.results(&scene, None);
+        let r = c.results(&truth, None);
         let (vertices, edges) = r.model.unwrap();
         assert_eq!((vertices.len(), edges), (3, vec![[0, 1]]));
         assert_eq!(r.model_hidden_edges, Some(1));

@@ -3,7 +3,7 @@
 //! output folder. The scene is regenerated from the parameters of the graph's `synthetic` capture node.
 use anyhow::{bail, Context, Result};
 use lineflow_eval::{evaluate, report, Truth};
-use lineflow_eval_node::{line_rows, pose_rows, Collector};
+use lineflow_eval_node::Collector;
 use lineflow_messages::{kinds, parts, WireEdge};
 use lineflow_runtime::{Flow, NodeContext};
 use lineflow_synthetic::Synthetic;
@@ -46,10 +46,13 @@ fn run(ctx: NodeContext) -> Result<()> {
     let wireframe = ctx.optional_input::<kinds::Wireframe>("wireframe")?;
     let fitted = ctx.optional_input::<kinds::Wireframe>("wireframe_fitted")?;
     let faces = ctx.optional_input::<kinds::ModelFaces>("faces")?;
-    let syn = scene_of_graph(&ctx)?;
+    let mut syn = Some(scene_of_graph(&ctx)?);
     ctx.connect()?;
 
+    let out = ctx.out_dir();
     let mut collected = Collector::new(segments.is_some());
+    // Built once both truth topics are in (the capture node sends them before its first frame).
+    let mut truth: Option<Truth> = None;
     ctx.run(|| {
         while let Some(m) = gt_poses.receive()? {
             collected.truth_poses = m.payload().to_vec();
@@ -72,6 +75,14 @@ fn run(ctx: NodeContext) -> Result<()> {
                 collected.on_segments(h, segs);
                 Ok(())
             })?;
+        }
+        if truth.is_none() && collected.has_truth() {
+            if let Some(scene) = syn.take() {
+                truth = Some(collected.truth(scene, out.clone()));
+            }
+        }
+        if let Some(t) = &truth {
+            collected.score_segments(t);
         }
         for (input, is_fitted) in [(&wireframe, false), (&fitted, true)] {
             if let Some(i) = input {
@@ -99,19 +110,16 @@ fn run(ctx: NodeContext) -> Result<()> {
         Ok(if done { Flow::Stop } else { Flow::Continue })
     })?;
 
-    let out = ctx.out_dir();
     // Written by the orientation stage before it ended its `poses`, so complete by now.
     let checkpoints = match out.join("checkpoints.csv") {
         p if p.exists() => Some(lineflow_formats::read_checkpoints(&p).context("reading checkpoints.csv")?),
         _ => None,
     };
-    let truth = Truth {
-        dir: out.clone(),
-        poses: pose_rows(&syn, &collected.truth_poses),
-        lines: line_rows(&collected.truth_lines),
-        scene: syn,
+    let truth = match truth {
+        Some(truth) => truth,
+        None => collected.truth(syn.take().context("the scene went into a truth that was not kept")?, out.clone()),
     };
-    let results = collected.results(&truth.scene, checkpoints);
+    let results = collected.results(&truth, checkpoints);
     let evaluation = evaluate(&truth, &results);
     let path = report::write(&truth, &out, &evaluation, &out.join("eval")).context("writing the evaluation report")?;
     tracing::info!(
