@@ -25,8 +25,9 @@ struct ImageLineStore {
 }
 
 impl ImageLineStore {
-    /// Every frame's lines, at its newest pose (none while not oriented); how many are oriented.
-    fn update(&mut self, camera: &Camera, min_px: f64) -> (&[ImageLines], usize) {
+    /// The lines of the newest `keep` frames (every frame for 0), at their newest pose (none while not oriented);
+    /// how many are oriented.
+    fn update(&mut self, camera: &Camera, min_px: f64, keep: usize) -> (&[ImageLines], usize) {
         for (frame, segments) in std::mem::take(&mut self.pending) {
             let at = self.frames.partition_point(|&f| f < frame);
             let lines = ImageLines::new(camera, None, &segments, min_px);
@@ -36,6 +37,11 @@ impl ImageLineStore {
                 self.frames.insert(at, frame);
                 self.lines.insert(at, lines);
             }
+        }
+        if keep > 0 && self.frames.len() > keep {
+            let old = self.frames.len() - keep;
+            self.frames.drain(..old);
+            self.lines.drain(..old);
         }
         let mut oriented = 0;
         for (frame, lines) in self.frames.iter().zip(&mut self.lines) {
@@ -120,7 +126,10 @@ impl ModelStage {
         let received = std::mem::take(&mut self.received);
         let lines = lines_from_rows(&rows, &self.params);
         let images = match (&self.camera, self.using_images) {
-            (Some(camera), true) => match self.image_lines.update(camera, self.params.refine_min_image_line_px) {
+            (Some(camera), true) => match self
+                .image_lines
+                .update(camera, self.params.refine_min_image_line_px, self.params.keep_frames)
+            {
                 (lines, oriented) if oriented >= 2 => Some(Images {
                     camera,
                     lines,
@@ -193,6 +202,23 @@ pub fn face_vertices(model: &Model) -> Vec<FaceVertex> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_image_lines_of_the_newest_keep_frames_are_kept() {
+        let camera = Camera::pinhole(2000, 1500, 0.005, 8.0);
+        let mut store = ImageLineStore::default();
+        let segment = vec![([10.0, 10.0], [500.0, 10.0])];
+        for frame in [3, 1, 2] {
+            store.pending.insert(frame, segment.clone());
+            store.update(&camera, 20.0, 2);
+        }
+        assert_eq!(store.frames, [2, 3]);
+        assert_eq!(store.lines.len(), 2);
+        // 0 keeps every frame.
+        store.pending.insert(0, segment.clone());
+        store.update(&camera, 20.0, 0);
+        assert_eq!(store.frames, [0, 2, 3]);
+    }
 
     /// A flat roof outline over [0, 10] × [0, 6] at 5 m, as Lines3D elements.
     fn roof() -> Vec<Line3> {
