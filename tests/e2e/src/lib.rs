@@ -64,6 +64,13 @@ impl Sandbox {
         eprintln!("--- lineflow {}\n{}", args.join(" "), String::from_utf8_lossy(&out.stderr));
         out
     }
+    /// `lineflow synth --preset PRESET --scale SCALE` into `NAME` in the sandbox: a scene with its ground truth.
+    pub fn synth(&self, name: &str, preset: &str, scale: &str) -> PathBuf {
+        let scene = self.path().join(name);
+        let r = self.run(&["synth", "--preset", preset, "--scale", scale, "--out", scene.to_str().unwrap()]);
+        assert!(r.status.success(), "synth {preset} at {scale} failed");
+        scene
+    }
     /// A project folder with `n` images of `w`x`h` pixels: PNG (8-bit RGB and 16-bit grey), JPEG and TIFF, names in
     /// an order that only natural sorting gets right.
     pub fn project(&self, n: usize, w: u32, h: u32) -> PathBuf {

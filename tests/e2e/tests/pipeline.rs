@@ -554,17 +554,7 @@ fn the_demo_graph_runs_the_synthetic_camera_and_gives_the_same_bytes_twice() {
             // The live sink scores each frame's 2-D lines as they come; the whole run's file, scored at once,
             // gives the same figures.
             let live: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(out.join("eval/metrics.json")).unwrap()).unwrap();
-            let scene = sb.path().join("scene");
-            let r = sb.run(&[
-                "synth",
-                "--preset",
-                "a55-two-strips",
-                "--scale",
-                "0.06",
-                "--out",
-                scene.to_str().unwrap(),
-            ]);
-            assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+            let scene = sb.synth("scene", "a55-two-strips", "0.06");
             let r = sb.run(&["eval", out.to_str().unwrap(), "--gt", scene.to_str().unwrap(), "--json"]);
             let offline: serde_json::Value = serde_json::from_slice(&r.stdout).unwrap();
             assert!(live["lines2d"]["recall"].as_f64().unwrap() > 0.0, "{live}");
@@ -1379,9 +1369,7 @@ fn doctor_finds_what_a_killed_run_left_and_fix_removes_it() {
 #[test]
 fn without_a_site_model_the_walls_are_fitted_to_the_tie_points_in_the_surveys_frame() {
     let sb = Sandbox::new();
-    let scene = sb.path().join("scene");
-    let r = sb.run(&["synth", "--preset", "d2x-strip", "--scale", "0.3", "--out", scene.to_str().unwrap()]);
-    assert!(r.status.success(), "synth failed");
+    let scene = sb.synth("scene", "d2x-strip", "0.3");
     std::fs::remove_file(scene.join("site.toml")).unwrap();
     let r = sb.run(&["process", scene.to_str().unwrap()]);
     let log = String::from_utf8_lossy(&r.stderr);

@@ -128,17 +128,7 @@ fn a_demo_recording_replays_byte_for_byte_swaps_a_stage_and_decodes_in_python() 
 
     // An independent reader: Python's mcap decodes every channel from the embedded schemas and checks the
     // messages against the run's CSV files and the PNG files of the same scene.
-    let scene = sb.path().join("scene");
-    let r = sb.run(&[
-        "synth",
-        "--preset",
-        "a55-two-strips",
-        "--scale",
-        "0.06",
-        "--out",
-        scene.to_str().unwrap(),
-    ]);
-    assert!(r.status.success());
+    let scene = sb.synth("scene", "a55-two-strips", "0.06");
     // The same for the re-run that recorded its images as PNG files.
     for (recording, out) in [(&rec, sb.path().join("live")), (&png_rec, again.clone())] {
         let py = std::process::Command::new(lineflow_e2e::python())
