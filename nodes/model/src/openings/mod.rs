@@ -143,7 +143,7 @@ pub(crate) fn infer(
         .map(|(_, o)| o.clone())
         .collect();
     // Each new opening's sides settled in the images, where they are given.
-    let settle = |wall: &Wall, rect: Rect| match evidence.filter(|_| params.settle_openings) {
+    let settled_in_images = |wall: &Wall, rect: Rect| match evidence.filter(|_| params.settle_openings) {
         Some(e) => settle(wall, rect, &viewpoint, e),
         None => rect,
     };
@@ -175,7 +175,7 @@ pub(crate) fn infer(
             }
             Some(_) => {}
             None => {
-                let rect = settle(wall, p.rect);
+                let rect = settled_in_images(wall, p.rect);
                 let corners = opening_corners(wall, rect, p.depth, centres, p.sigma, &centre);
                 found.push(Outline::of(&corners.iter().map(|v| v.point).collect::<Vec<_>>(), wall.out));
                 out.push(Inferred::New(corners, wall.out));
@@ -190,7 +190,7 @@ pub(crate) fn infer(
         for rect in from_grid(view, &taken, &viewpoint, evidence.filter(|_| params.verify_openings)) {
             let [x0, x1, z0, z1] = rect.bounds;
             let centre = wall.point((x0 + x1) / 2.0, (z0 + z1) / 2.0, &viewpoint);
-            let rect = settle(wall, rect);
+            let rect = settled_in_images(wall, rect);
             let corners = opening_corners(wall, rect, 0.0, centres, None, &centre);
             found.push(Outline::of(&corners.iter().map(|v| v.point).collect::<Vec<_>>(), wall.out));
             out.push(Inferred::New(corners, wall.out));
