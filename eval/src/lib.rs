@@ -174,7 +174,7 @@ pub fn evaluate(truth: &Truth, results: &Results) -> Evaluation {
             .map(|p| orientation::evaluate(truth, p, results.checkpoints.as_deref())),
         lines2d: results.lines2d.as_ref().map(|l| match l {
             Lines2d::Rows(rows) => lines2d::evaluate(truth, rows),
-            Lines2d::Scored(scored) => lines2d::evaluate_scored(truth, scored.clone()),
+            Lines2d::Scored(scored) => lines2d::evaluate_scored(truth, scored),
         }),
         lines3d: results.lines3d.as_ref().map(|l| lines3d::evaluate(truth, l)),
         model: results

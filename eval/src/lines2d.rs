@@ -150,10 +150,10 @@ pub fn evaluate(truth: &Truth, rows: &[Line2Row]) -> Lines2dReport {
 
 /// The report of the frames scored one by one as their lines came (`scored`, by frame), the frames of the truth
 /// that none came for scored with none (recall 0).
-pub fn evaluate_scored(truth: &Truth, mut scored: std::collections::BTreeMap<usize, ImageScores>) -> Lines2dReport {
+pub fn evaluate_scored(truth: &Truth, scored: &std::collections::BTreeMap<usize, ImageScores>) -> Lines2dReport {
     report(
         (0..truth.poses.len())
-            .map(|frame| scored.remove(&frame).unwrap_or_else(|| score_image(truth, frame, &[])))
+            .map(|frame| scored.get(&frame).cloned().unwrap_or_else(|| score_image(truth, frame, &[])))
             .collect(),
     )
 }

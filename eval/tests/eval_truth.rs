@@ -228,7 +228,7 @@ fn frames_scored_one_by_one_report_as_the_rows_scored_at_once() {
             (frame, lines2d::score_image(&truth, frame, &own))
         })
         .collect();
-    let one_by_one = lines2d::evaluate_scored(&truth, scored);
+    let one_by_one = lines2d::evaluate_scored(&truth, &scored);
     assert_eq!(one_by_one.images.len(), at_once.images.len());
     for (a, b) in one_by_one.images.iter().zip(&at_once.images).take(last) {
         assert_eq!((a.lengths, a.n_estimated), (b.lengths, b.n_estimated));

@@ -152,12 +152,12 @@ pub struct ModelParams {
     pub refine_image_sigma_px: f64,
     /// Shortest image line used, pixels.
     pub refine_min_image_line_px: f64,
+    /// Interpretation planes closer than this angle are not intersected, degrees.
+    pub refine_min_plane_angle_deg: f64,
     /// The live stage keeps the 2-D lines of the newest this many frames for the openings' evidence and Refine
     /// and lets older ones go, so that its memory does not grow with the stream (0 keeps every frame). On a long
     /// pass along a street the openings of buildings left behind are then built from the 3-D lines alone.
     pub keep_frames: usize,
-    /// Interpretation planes closer than this angle are not intersected, degrees.
-    pub refine_min_plane_angle_deg: f64,
     /// Occluded-edge completion: how far a free end of an open face boundary may lie from the outline of the
     /// structure in front of it that hides the rest, metres; 0 turns the completion off.
     pub occlusion_reach_m: f64,
@@ -231,8 +231,8 @@ impl Default for ModelParams {
             refine_k: refine::RefineParams::default().k,
             refine_image_sigma_px: refine::RefineParams::default().image_sigma_px,
             refine_min_image_line_px: refine::RefineParams::default().min_image_line_px,
-            keep_frames: 200,
             refine_min_plane_angle_deg: refine::RefineParams::default().min_plane_angle_deg,
+            keep_frames: 200,
             occlusion_reach_m: 0.5,
             occlusion_min_depth_m: 0.5,
             regularise: true,

@@ -61,12 +61,22 @@ impl View {
     /// Whether the lines `offset_m` across show the side: they cover at least [`MIN_IMAGE_COVER`] of it, and none
     /// that reaches it runs on more than [`MAX_SIDE_GAP_M`] past its ends.
     fn shows(&self, offset_m: f64, pixel_mm: f64) -> bool {
-        let tol = ON_SIDE_PX * pixel_mm / self.units_per_m;
+        let tol = self.on_side_m(pixel_mm);
         let spans: Vec<(f64, f64)> = self.lines.iter().filter(|l| (l.0 - offset_m).abs() <= tol).map(|l| l.1).collect();
         let (lo, hi) = (-self.run_on, self.len + self.run_on);
         let runs_on = spans.iter().any(|&(a, b)| b > lo && a < hi && (a < lo || b > hi));
         !runs_on && covered_share(&spans, 0.0, self.len) >= MIN_IMAGE_COVER
     }
+
+    /// [`ON_SIDE_PX`] at the side, metres across it: the lines' own noise.
+    fn on_side_m(&self, pixel_mm: f64) -> f64 {
+        ON_SIDE_PX * pixel_mm / self.units_per_m
+    }
+}
+
+/// The positions across the side, metres, of every line any of `views` has along it.
+fn offsets(views: &[View]) -> Vec<f64> {
+    views.iter().flat_map(|v| v.lines.iter().map(|l| l.0)).collect()
 }
 
 impl Evidence<'_> {
@@ -79,8 +89,7 @@ impl Evidence<'_> {
     /// images.
     pub(crate) fn measure(&self, a: &Vec3, b: &Vec3, across: &Vec3, reach_m: f64) -> Measured {
         let views = self.views(a, b, across, reach_m);
-        let showing_at = |offset_m: f64| views.iter().filter(|v| v.shows(offset_m, self.camera.pixel_size_mm)).count();
-        let mut candidates: Vec<f64> = views.iter().flat_map(|v| v.lines.iter().map(|l| l.0)).collect();
+        let mut candidates = offsets(&views);
         candidates.sort_by(|x, y| x.abs().total_cmp(&y.abs()).then(x.total_cmp(y)));
         let mut best = Measured {
             offset_m: 0.0,
@@ -88,13 +97,21 @@ impl Evidence<'_> {
             looking: views.len(),
         };
         for c in candidates {
-            let showing = showing_at(c);
-            if showing > best.showing {
-                best.offset_m = c;
-                best.showing = showing;
+            let m = self.measured_at(&views, c);
+            if m.showing > best.showing {
+                best = m;
             }
         }
         best
+    }
+
+    /// How many of `views` show the side at `offset_m`.
+    fn measured_at(&self, views: &[View], offset_m: f64) -> Measured {
+        Measured {
+            offset_m,
+            showing: views.iter().filter(|v| v.shows(offset_m, self.camera.pixel_size_mm)).count(),
+            looking: views.len(),
+        }
     }
 
     /// Every position within `reach_m` of the side `a`–`b` along `across` where the images show it
@@ -102,21 +119,16 @@ impl Evidence<'_> {
     /// in order along `across`.
     pub(crate) fn positions(&self, a: &Vec3, b: &Vec3, across: &Vec3, reach_m: f64) -> Vec<Measured> {
         let views = self.views(a, b, across, reach_m);
-        let pixel_mm = self.camera.pixel_size_mm;
-        let mut candidates: Vec<f64> = views.iter().flat_map(|v| v.lines.iter().map(|l| l.0)).collect();
+        let mut candidates = offsets(&views);
         candidates.sort_by(f64::total_cmp);
+        // One position per edge: candidates closer than the lines' noise at the side belong to one.
+        let noise_m = views.iter().map(|v| v.on_side_m(self.camera.pixel_size_mm)).fold(0.0, f64::max);
         let mut out: Vec<Measured> = Vec::new();
         for c in candidates {
-            let m = Measured {
-                offset_m: c,
-                showing: views.iter().filter(|v| v.shows(c, pixel_mm)).count(),
-                looking: views.len(),
-            };
+            let m = self.measured_at(&views, c);
             if !m.seen() {
                 continue;
             }
-            // One position per edge: candidates closer than the lines' noise at the side belong to one.
-            let noise_m = views.iter().map(|v| ON_SIDE_PX * pixel_mm / v.units_per_m).fold(0.0, f64::max);
             match out.last_mut() {
                 Some(last) if c - last.offset_m <= noise_m => {
                     if m.showing > last.showing {
@@ -138,7 +150,7 @@ impl Evidence<'_> {
             .iter()
             .filter(|v| v.shows(0.0, pixel_mm))
             .filter_map(|v| {
-                let tol = ON_SIDE_PX * pixel_mm / v.units_per_m;
+                let tol = v.on_side_m(pixel_mm);
                 let on: Vec<(f64, f64)> = v
                     .lines
                     .iter()
