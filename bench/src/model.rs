@@ -69,8 +69,8 @@ pub fn bench_model(preset: &str, sigmas_gsd: &[f64], reps: usize, set: &[String]
         gsd * 1000.0,
         reps.max(1)
     );
-    println!("| noise σ (GSD) | vertex RMSE (mm) | (GSD) | vertices matched | edge precision | edge recall | openings found (right kind) | corner RMSE (mm) | window/door faces (with frames, glass) | hidden edges completed | build (ms) | all-pairs junctions alone (ms) | ratio to the 1 s target |");
-    println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|");
+    println!("| noise σ (GSD) | vertex RMSE (mm) | (GSD) | vertices matched | edge precision | edge recall | openings found (right kind) | corner RMSE (mm) | reveals right / measured (depth RMSE, mm) | window/door faces (with frames, glass) | hidden edges completed | build (ms) | all-pairs junctions alone (ms) | ratio to the 1 s target |");
+    println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|");
     for &k in sigmas_gsd {
         let sigma = k * gsd;
         let NoisyInput {
@@ -90,7 +90,7 @@ pub fn bench_model(preset: &str, sigmas_gsd: &[f64], reps: usize, set: &[String]
         let found: Vec<_> = model.openings().into_iter().map(lineflow_eval::model::ModelOpening::from).collect();
         let o = lineflow_eval::model::evaluate_openings(&truth.scene.building.openings, &found, gsd);
         println!(
-            "| {k} | {:.1} | {:.2} | {}/{} | {:.1} % | {:.1} % | {}/{} ({}) | {:.1} | {} | {} | {:.0} | {:.0} | {:.2} |",
+            "| {k} | {:.1} | {:.2} | {}/{} | {:.1} % | {:.1} % | {}/{} ({}) | {:.1} | {}/{} ({:.1}) | {} | {} | {:.0} | {:.0} | {:.2} |",
             r.vertex_rmse_m * 1000.0,
             r.vertex_rmse_m / gsd,
             r.matched_vertices,
@@ -101,6 +101,9 @@ pub fn bench_model(preset: &str, sigmas_gsd: &[f64], reps: usize, set: &[String]
             o.true_openings,
             o.kind_right,
             o.corner_rmse_m * 1000.0,
+            o.reveals_right,
+            o.reveals_measured,
+            o.reveal_rmse_m * 1000.0,
             model.count(&[SurfaceKind::Window, SurfaceKind::Door]),
             model.edges.len() - edges.len(),
             t_build * 1000.0,

@@ -189,6 +189,42 @@ pub struct OpeningReport {
     /// RMSE of the found openings' corners (each to its nearest vertex of the matching face), metres.
     pub corner_rmse_m: f64,
     pub reach_m: f64,
+    /// Found openings whose reveal the model gives: an opening face behind the matching one (the frame or the door
+    /// leaf) whose centre lies inside the true outline ([`reveal_depth`]).
+    pub reveals_measured: usize,
+    /// Of those, the ones whose depth lies within `reveal_tolerance_m` of the truth.
+    pub reveals_right: usize,
+    /// RMSE of the measured reveals' depths, metres.
+    pub reveal_rmse_m: f64,
+    /// 1.5 GSD (#29's target).
+    pub reveal_tolerance_m: f64,
+}
+
+/// Reveals deeper than this are no reveal of the opening: a frame lies 3–50 cm behind the wall's face.
+const REVEAL_MAX_M: f64 = 0.6;
+/// A face this close behind the opening's own face is the same face, split.
+const REVEAL_MIN_M: f64 = 0.01;
+
+/// The reveal the model gives true opening `t`, whose outline `ring` matched: the depth behind `ring`, along the
+/// wall's inward normal, of the nearest other opening face (the frame or door leaf; the panes lie further back)
+/// whose centre lies inside the true outline, 1 cm to 0.6 m behind.
+pub fn reveal_depth(t: &lineflow_synthetic::scene::Opening, ring: &[Vec3], model: &[ModelOpening]) -> Option<f64> {
+    let c: Vec<Vec3> = t.corners.iter().map(|&c| Vec3::from(c)).collect();
+    let (u, v) = (c[1] - c[0], c[3] - c[0]);
+    // The corners run counter-clockwise seen from outside.
+    let outward = u.cross(&v).try_normalize(1e-12)?;
+    let centre = |r: &[Vec3]| r.iter().sum::<Vec3>() / r.len().max(1) as f64;
+    let front = centre(ring).dot(&outward);
+    model
+        .iter()
+        .filter(|m| !m.ring.is_empty() && m.ring.as_slice() != ring)
+        .filter_map(|m| {
+            let p = centre(&m.ring);
+            let (a, b) = ((p - c[0]).dot(&u) / u.norm_squared(), (p - c[0]).dot(&v) / v.norm_squared());
+            let depth = front - p.dot(&outward);
+            ((0.0..=1.0).contains(&a) && (0.0..=1.0).contains(&b) && (REVEAL_MIN_M..=REVEAL_MAX_M).contains(&depth)).then_some(depth)
+        })
+        .min_by(f64::total_cmp)
 }
 
 /// Scores the model's opening faces against the true openings (outlines in the wall plane) at `gsd_m`: an opening
@@ -196,22 +232,23 @@ pub struct OpeningReport {
 /// smallest corner RMS is its match).
 pub fn evaluate_openings(truth: &[lineflow_synthetic::scene::Opening], model: &[ModelOpening], gsd_m: f64) -> OpeningReport {
     let reach = 5.0 * gsd_m;
+    let reveal_tolerance = 1.5 * gsd_m;
     let (mut found, mut kind_right, mut sq) = (0, 0, 0.0);
+    let mut reveals: Vec<f64> = Vec::new();
     for t in truth {
         let corners: Vec<Vec3> = t.corners.iter().map(|&c| Vec3::from(c)).collect();
         let best = model
             .iter()
             .filter_map(|m| {
                 let d: Vec<f64> = corners.iter().map(|c| nearest(&m.ring, c).map_or(f64::INFINITY, |n| n.1)).collect();
-                d.iter()
-                    .all(|&x| x <= reach)
-                    .then(|| (d.iter().map(|x| x * x).sum::<f64>(), m.door))
+                d.iter().all(|&x| x <= reach).then(|| (d.iter().map(|x| x * x).sum::<f64>(), m))
             })
             .min_by(|a, b| a.0.total_cmp(&b.0));
-        if let Some((s, door)) = best {
+        if let Some((s, m)) = best {
             found += 1;
-            kind_right += usize::from(door == t.door);
+            kind_right += usize::from(m.door == t.door);
             sq += s;
+            reveals.extend(reveal_depth(t, &m.ring, model).map(|d| d - t.reveal_m));
         }
     }
     OpeningReport {
@@ -221,6 +258,14 @@ pub fn evaluate_openings(truth: &[lineflow_synthetic::scene::Opening], model: &[
         kind_right,
         corner_rmse_m: if found == 0 { f64::NAN } else { (sq / (4 * found) as f64).sqrt() },
         reach_m: reach,
+        reveals_measured: reveals.len(),
+        reveals_right: reveals.iter().filter(|e| e.abs() <= reveal_tolerance).count(),
+        reveal_rmse_m: if reveals.is_empty() {
+            f64::NAN
+        } else {
+            (reveals.iter().map(|e| e * e).sum::<f64>() / reveals.len() as f64).sqrt()
+        },
+        reveal_tolerance_m: reveal_tolerance,
     }
 }
 
@@ -235,10 +280,12 @@ mod tests {
             lineflow_synthetic::scene::Opening {
                 door: false,
                 corners: rect(0.0, 0.0),
+                reveal_m: 0.095,
             },
             lineflow_synthetic::scene::Opening {
                 door: true,
                 corners: rect(3.0, 0.0),
+                reveal_m: 0.2,
             },
         ];
         let ring = |c: [[f64; 3]; 4], dy: f64| c.iter().map(|&p| Vec3::from(p) + Vec3::new(0.0, dy, 0.0)).collect();
@@ -260,6 +307,31 @@ mod tests {
         let r = evaluate_openings(&truth, &model, 0.005);
         assert_eq!((r.true_openings, r.model_openings, r.found, r.kind_right), (2, 3, 1, 1));
         assert!((r.corner_rmse_m - 0.01).abs() < 1e-12);
+        // The frame gives the found opening's reveal: 9 cm behind its outline, 5 mm short of the truth.
+        assert_eq!((r.reveals_measured, r.reveals_right), (1, 1));
+        assert!((r.reveal_rmse_m - 0.005).abs() < 1e-12, "{r:?}");
+    }
+
+    #[test]
+    fn a_reveal_is_the_nearest_face_behind_inside_the_outline() {
+        let rect = |x0: f64, y: f64| [[x0, y, 1.0], [x0 + 1.0, y, 1.0], [x0 + 1.0, y, 2.0], [x0, y, 2.0]];
+        let truth = lineflow_synthetic::scene::Opening {
+            door: false,
+            corners: rect(0.0, 0.0),
+            reveal_m: 0.2,
+        };
+        let face = |x0: f64, y: f64| ModelOpening {
+            door: false,
+            ring: rect(x0, y).iter().map(|&p| Vec3::from(p)).collect(),
+        };
+        let outline = face(0.0, 0.0);
+        // In front (a sill's face), beside the outline (the next window's frame), the panes and the frame behind.
+        let model = [face(0.0, -0.05), face(0.8, 0.1), face(0.0, 0.3), face(0.0, 0.18), outline.clone()];
+        let depth = reveal_depth(&truth, &outline.ring, &model).unwrap();
+        assert!((depth - 0.18).abs() < 1e-12, "{depth}");
+        assert_eq!(reveal_depth(&truth, &outline.ring, &model[..2]), None);
+        let r = evaluate_openings(&[truth], &model, 0.01);
+        assert_eq!((r.found, r.reveals_measured, r.reveals_right), (1, 1, 0));
     }
 
     fn row(a: [f64; 3], b: [f64; 3]) -> Line3Row {

@@ -81,6 +81,10 @@ pub fn summary(eval: &Evaluation) -> Value {
             "kind_right": o.kind_right,
             "corner_rmse_m": o.corner_rmse_m,
             "reach_m": o.reach_m,
+            "reveals_measured": o.reveals_measured,
+            "reveals_right": o.reveals_right,
+            "reveal_rmse_m": o.reveal_rmse_m,
+            "reveal_tolerance_m": o.reveal_tolerance_m,
         })
     });
     json!({

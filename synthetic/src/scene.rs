@@ -140,6 +140,8 @@ pub struct Opening {
     pub door: bool,
     /// Object coordinates, metres.
     pub corners: [[f64; 3]; 4],
+    /// Depth of the reveal: from the wall's face back to the face of the window's frame or the door leaf, metres.
+    pub reveal_m: f64,
 }
 
 /// A wall's own frame: `point(x, z, d) = origin + x·ex + z·ez − d·n` with n the outward normal.
@@ -436,6 +438,7 @@ pub fn build(spec: &BuildingSpec, seed: u64) -> Building {
             Opening {
                 door: door_rect == Some(*r),
                 corners: [corner(r.x0, r.z0), corner(r.x1, r.z0), corner(r.x1, r.z1), corner(r.x0, r.z1)],
+                reveal_m: h.depth,
             }
         })
         .collect();

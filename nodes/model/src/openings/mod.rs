@@ -69,7 +69,13 @@ pub(crate) enum Inferred {
     /// A face in the wall plane is the opening.
     Mark(usize),
     /// A new opening face on these new corners, with this outward normal.
-    New(Vec<Vertex>, Vec3),
+    New {
+        corners: Vec<Vertex>,
+        normal: Vec3,
+        /// Where the model has no face for the frame behind (a rectangle of recessed edges), its depth: the
+        /// opening gets its frame face and reveals.
+        reveal_m: Option<f64>,
+    },
 }
 
 mod evidence;
@@ -99,6 +105,8 @@ struct Proposal {
     rect: Rect,
     depth: f64,
     sigma: Option<Vec3>,
+    /// Made of edges, not of a face of the model: the frame face behind is still to be built.
+    of_edges: bool,
 }
 
 /// Openings inferred from recessed faces and from rectangles of recessed edges, for a model seen from `cameras`.
@@ -134,6 +142,7 @@ pub(crate) fn infer(
             rect,
             depth,
             sigma,
+            of_edges: true,
         }));
     }
     let mut found: Vec<Outline> = faces
@@ -178,7 +187,22 @@ pub(crate) fn infer(
                 let rect = settled_in_images(wall, p.rect);
                 let corners = opening_corners(wall, rect, p.depth, centres, p.sigma, &centre);
                 found.push(Outline::of(&corners.iter().map(|v| v.point).collect::<Vec<_>>(), wall.out));
-                out.push(Inferred::New(corners, wall.out));
+                // A face of the model behind the opening (a frame that closed but was no rectangle, or its panes)
+                // gives its depth already.
+                let [x0, x1, z0, z1] = rect.bounds;
+                let behind_here = |o: &Outline| {
+                    let [a0, a1, b0, b1] = o.bounds_in(wall);
+                    o.normal.dot(&wall.out).abs() > cos_par
+                        && (sizes.recess_m.0..=sizes.recess_m.1).contains(&wall.depth(&o.centroid))
+                        && (x0..=x1).contains(&((a0 + a1) / 2.0))
+                        && (z0..=z1).contains(&((b0 + b1) / 2.0))
+                };
+                out.push(Inferred::New {
+                    corners,
+                    normal: wall.out,
+                    // A nearly flush opening's frame is on the wall (`recess_m`).
+                    reveal_m: (p.of_edges && p.depth >= sizes.recess_m.0 && !outlines.iter().any(behind_here)).then_some(p.depth),
+                });
             }
         }
     }
@@ -193,7 +217,11 @@ pub(crate) fn infer(
             let rect = settled_in_images(wall, rect);
             let corners = opening_corners(wall, rect, 0.0, centres, None, &centre);
             found.push(Outline::of(&corners.iter().map(|v| v.point).collect::<Vec<_>>(), wall.out));
-            out.push(Inferred::New(corners, wall.out));
+            out.push(Inferred::New {
+                corners,
+                normal: wall.out,
+                reveal_m: None,
+            });
         }
     }
     (out, walls.iter().map(|v| v.wall).collect())
@@ -201,29 +229,58 @@ pub(crate) fn infer(
 
 /// Adds the inferred openings to the model: marked faces become windows, new ones get their corners, their
 /// outline as completed edges and a window face (`nest_openings` then cuts them into their walls and tells doors).
+/// An opening found from a rectangle of recessed edges also gets the frame face at their depth, and its reveals
+/// (square to the wall) from the outline's corners to the frame's, as completed edges: an LOD-3 opening has its
+/// depth.
 pub(crate) fn add(inferred: Vec<Inferred>, vertices: &mut Vec<Vertex>, edges: &mut Vec<Edge>, faces: &mut Vec<Face>) {
     for opening in inferred {
         match opening {
             Inferred::Mark(j) => faces[j].kind = SurfaceKind::Window,
-            Inferred::New(corners, normal) => {
-                let first = vertices.len();
-                vertices.extend(corners);
-                let ring: Vec<usize> = (first..vertices.len()).collect();
-                edges.extend(ring.iter().enumerate().map(|(k, &a)| Edge {
-                    a,
-                    b: ring[(k + 1) % ring.len()],
-                    line: usize::MAX,
-                    completed: true,
-                }));
-                faces.push(Face {
-                    ring,
-                    holes: Vec::new(),
-                    normal,
-                    kind: SurfaceKind::Window,
-                });
+            Inferred::New { corners, normal, reveal_m } => {
+                let frame: Vec<Vertex> = reveal_m
+                    .map(|d| {
+                        corners
+                            .iter()
+                            .map(|v| Vertex {
+                                point: v.point - d * normal,
+                                sigma: v.sigma,
+                            })
+                            .collect()
+                    })
+                    .unwrap_or_default();
+                let outline = add_face(corners, normal, vertices, edges, faces);
+                if !frame.is_empty() {
+                    let back = add_face(frame, normal, vertices, edges, faces);
+                    edges.extend(outline.iter().zip(&back).map(|(&a, &b)| Edge {
+                        a,
+                        b,
+                        line: usize::MAX,
+                        completed: true,
+                    }));
+                }
             }
         }
     }
+}
+
+/// A new window face on new `corners`, its outline as completed edges; the corners' indices.
+fn add_face(corners: Vec<Vertex>, normal: Vec3, vertices: &mut Vec<Vertex>, edges: &mut Vec<Edge>, faces: &mut Vec<Face>) -> Vec<usize> {
+    let first = vertices.len();
+    vertices.extend(corners);
+    let ring: Vec<usize> = (first..vertices.len()).collect();
+    edges.extend(ring.iter().enumerate().map(|(k, &a)| Edge {
+        a,
+        b: ring[(k + 1) % ring.len()],
+        line: usize::MAX,
+        completed: true,
+    }));
+    faces.push(Face {
+        ring: ring.clone(),
+        holes: Vec::new(),
+        normal,
+        kind: SurfaceKind::Window,
+    });
+    ring
 }
 
 /// The walls, most edges first: vertical planes whose edges (at least [`MIN_WALL_EDGES`]) spread
@@ -397,17 +454,29 @@ pub(super) mod tests {
 
     #[test]
     fn a_frame_behind_a_wall_whose_outline_did_not_close_makes_the_opening_in_it() {
-        // Closed, the frame is a recessed face; open at its corners, a rectangle of edges.
-        for overshoot in [0.0, 0.03] {
+        // Closed, the frame is a recessed face; open at its corners, a rectangle of edges, and then the model has
+        // no face for the frame: the opening gets one, 20 cm behind its outline, and its four reveals.
+        for (overshoot, frame) in [(0.0, false), (0.03, true)] {
             let (mut vertices, mut edges, viewpoint) = scene(overshoot, false);
             let n = vertices.len();
             let faces = find(&mut vertices, &mut edges, &ModelParams::default(), &viewpoint.into());
-            assert_eq!(vertices.len(), n + 4, "overshoot {overshoot}: {faces:?}");
+            let new_corners = if frame { 8 } else { 4 };
+            assert_eq!(vertices.len(), n + new_corners, "overshoot {overshoot}: {faces:?}");
             assert_true_opening(&vertices, &faces, n, &format!("overshoot {overshoot}"));
-            // Its outline is completed (not observed) and cut into the wall.
-            assert_eq!(edges.iter().filter(|e| e.completed).count(), 4);
+            // Its outline (and the frame's, and the reveals) are completed, not observed; the outline is cut into
+            // the wall.
+            assert_eq!(edges.iter().filter(|e| e.completed).count(), if frame { 12 } else { 4 });
             let wall = faces.iter().find(|f| f.ring.contains(&0)).expect("wall");
             assert_eq!((wall.kind, wall.holes.len()), (SurfaceKind::Wall, 1));
+            if frame {
+                let back = faces.iter().find(|f| f.ring.iter().all(|&k| k >= n + 4)).expect("the frame's face");
+                assert_eq!(back.kind, SurfaceKind::Window);
+                for (k, &v) in back.ring.iter().enumerate() {
+                    let front = vertices[n + k].point;
+                    assert!((vertices[v].point - front - Vec3::new(0.0, 0.2, 0.0)).norm() < 1e-9, "{back:?}");
+                    assert!(edges.iter().any(|e| e.completed && (e.a, e.b) == (n + k, v)));
+                }
+            }
         }
     }
 
