@@ -190,11 +190,12 @@ pub struct OpeningReport {
     pub corner_rmse_m: f64,
     pub reach_m: f64,
     /// Found openings whose reveal the model gives: an opening face behind the matching one (the frame or the door
-    /// leaf) whose centre lies inside the true outline ([`reveal_depth`]).
+    /// leaf) whose centre lies inside the true outline ([`reveal_depth`]). Without one the model's opening is flush.
     pub reveals_measured: usize,
-    /// Of those, the ones whose depth lies within `reveal_tolerance_m` of the truth.
+    /// Found openings whose reveal depth (0 where the model gives none) lies within `reveal_tolerance_m` of the
+    /// truth.
     pub reveals_right: usize,
-    /// RMSE of the measured reveals' depths, metres.
+    /// RMSE of the found openings' reveal depths (0 where the model gives none), metres.
     pub reveal_rmse_m: f64,
     /// 1.5 GSD (#29's target).
     pub reveal_tolerance_m: f64,
@@ -234,7 +235,7 @@ pub fn evaluate_openings(truth: &[lineflow_synthetic::scene::Opening], model: &[
     let reach = 5.0 * gsd_m;
     let reveal_tolerance = 1.5 * gsd_m;
     let (mut found, mut kind_right, mut sq) = (0, 0, 0.0);
-    let mut reveals: Vec<f64> = Vec::new();
+    let (mut reveals, mut reveals_measured) = (Vec::new(), 0);
     for t in truth {
         let corners: Vec<Vec3> = t.corners.iter().map(|&c| Vec3::from(c)).collect();
         let best = model
@@ -248,7 +249,9 @@ pub fn evaluate_openings(truth: &[lineflow_synthetic::scene::Opening], model: &[
             found += 1;
             kind_right += usize::from(m.door == t.door);
             sq += s;
-            reveals.extend(reveal_depth(t, &m.ring, model).map(|d| d - t.reveal_m));
+            let depth = reveal_depth(t, &m.ring, model);
+            reveals_measured += usize::from(depth.is_some());
+            reveals.push(depth.unwrap_or(0.0) - t.reveal_m);
         }
     }
     OpeningReport {
@@ -258,7 +261,7 @@ pub fn evaluate_openings(truth: &[lineflow_synthetic::scene::Opening], model: &[
         kind_right,
         corner_rmse_m: if found == 0 { f64::NAN } else { (sq / (4 * found) as f64).sqrt() },
         reach_m: reach,
-        reveals_measured: reveals.len(),
+        reveals_measured,
         reveals_right: reveals.iter().filter(|e| e.abs() <= reveal_tolerance).count(),
         reveal_rmse_m: if reveals.is_empty() {
             f64::NAN
@@ -310,6 +313,10 @@ mod tests {
         // The frame gives the found opening's reveal: 9 cm behind its outline, 5 mm short of the truth.
         assert_eq!((r.reveals_measured, r.reveals_right), (1, 1));
         assert!((r.reveal_rmse_m - 0.005).abs() < 1e-12, "{r:?}");
+        // Without the frame the opening is flush: 9.5 cm short.
+        let r = evaluate_openings(&truth, &[model[0].clone()], 0.005);
+        assert_eq!((r.found, r.reveals_measured, r.reveals_right), (1, 0, 0));
+        assert!((r.reveal_rmse_m - 0.095).abs() < 1e-12, "{r:?}");
     }
 
     #[test]

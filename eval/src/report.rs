@@ -304,7 +304,7 @@ fn model_section(md: &mut String, truth: &Truth, eval: &Evaluation, out: &Path) 
     if let Some(o) = &eval.openings {
         let _ = writeln!(
             md,
-            "Openings of the CSR model: {} of {} true windows and doors found (a model window or door face with a vertex within {} mm of each of the four corners of the opening's outline), {} of them of the right kind, corner RMSE {} mm; {} window and door faces in the model (frames and panes behind an opening included). Reveals: {} of the found openings have a frame or door face behind their outline, {} of them at the true depth within {} mm, depth RMSE {} mm.\n",
+            "Openings of the CSR model: {} of {} true windows and doors found (a model window or door face with a vertex within {} mm of each of the four corners of the opening's outline), {} of them of the right kind, corner RMSE {} mm; {} window and door faces in the model (frames and panes behind an opening included). Reveals: {} of the found openings have a frame or door face behind their outline (without one the model's opening is flush); {} of the found openings have their reveal depth within {} mm of the truth, depth RMSE {} mm.\n",
             o.found,
             o.true_openings,
             mm(o.reach_m),

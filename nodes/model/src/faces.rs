@@ -98,7 +98,8 @@ pub(crate) fn find_with_walls(
         crate::openings::add(inferred, vertices, edges_out, &mut faces);
     }
     nest_openings(vertices, &mut faces, params);
-    (faces, walls)
+    crate::openings::add_frames(&walls, params, vertices, edges_out, &mut faces);
+    (faces, walls.into_iter().map(|v| v.wall).collect())
 }
 
 /// The edges with every vertex replaced by the first of the vertices within twice the plane tolerance `tol` of it

@@ -72,8 +72,8 @@ pub(crate) enum Inferred {
     New {
         corners: Vec<Vertex>,
         normal: Vec3,
-        /// Where the model has no face for the frame behind (a rectangle of recessed edges), its depth: the
-        /// opening gets its frame face and reveals.
+        /// Where the model has no face for the frame behind, the depth its proposal found: the opening gets its
+        /// frame face and reveals (the other openings get theirs from [`add_frames`]).
         reveal_m: Option<f64>,
     },
 }
@@ -81,6 +81,7 @@ pub(crate) enum Inferred {
 mod evidence;
 #[cfg(test)]
 mod flush_tests;
+mod frames;
 mod grid;
 mod recesses;
 mod rectangles;
@@ -91,6 +92,7 @@ pub(crate) use evidence::Evidence;
 pub(crate) use wall::{Outline, Wall};
 mod wall_from_edges;
 
+use frames::*;
 use grid::*;
 use recesses::*;
 use rectangles::*;
@@ -105,11 +107,10 @@ struct Proposal {
     rect: Rect,
     depth: f64,
     sigma: Option<Vec3>,
-    /// Made of edges, not of a face of the model: the frame face behind is still to be built.
-    of_edges: bool,
 }
 
-/// Openings inferred from recessed faces and from rectangles of recessed edges, for a model seen from `cameras`.
+/// Openings inferred from recessed faces and from rectangles of recessed edges, for a model seen from `cameras`,
+/// and the walls they were looked for on.
 /// `edges` are the observed edges, before nearby vertices were merged for tracing the faces (noisy vertices
 /// merged in chains take whole frames with them); `plane_edges` are the traced edges lying in each plane.
 #[allow(clippy::too_many_arguments)]
@@ -124,7 +125,7 @@ pub(crate) fn infer(
     cameras: &Cameras,
     surface: &[[Vec3; 2]],
     evidence: Option<&Evidence>,
-) -> (Vec<Inferred>, Vec<Wall>) {
+) -> (Vec<Inferred>, Vec<WallView>) {
     let Some(viewpoint) = cameras.mean() else {
         return (Vec::new(), Vec::new());
     };
@@ -142,7 +143,6 @@ pub(crate) fn infer(
             rect,
             depth,
             sigma,
-            of_edges: true,
         }));
     }
     let mut found: Vec<Outline> = faces
@@ -156,6 +156,7 @@ pub(crate) fn infer(
         Some(e) => settle(wall, rect, &viewpoint, e),
         None => rect,
     };
+
     let mut out = Vec::new();
     for p in proposals {
         let wall = &walls[p.wall].wall;
@@ -187,21 +188,12 @@ pub(crate) fn infer(
                 let rect = settled_in_images(wall, p.rect);
                 let corners = opening_corners(wall, rect, p.depth, centres, p.sigma, &centre);
                 found.push(Outline::of(&corners.iter().map(|v| v.point).collect::<Vec<_>>(), wall.out));
-                // A face of the model behind the opening (a frame that closed but was no rectangle, or its panes)
-                // gives its depth already.
-                let [x0, x1, z0, z1] = rect.bounds;
-                let behind_here = |o: &Outline| {
-                    let [a0, a1, b0, b1] = o.bounds_in(wall);
-                    o.normal.dot(&wall.out).abs() > cos_par
-                        && (sizes.recess_m.0..=sizes.recess_m.1).contains(&wall.depth(&o.centroid))
-                        && (x0..=x1).contains(&((a0 + a1) / 2.0))
-                        && (z0..=z1).contains(&((b0 + b1) / 2.0))
-                };
                 out.push(Inferred::New {
                     corners,
                     normal: wall.out,
-                    // A nearly flush opening's frame is on the wall (`recess_m`).
-                    reveal_m: (p.of_edges && p.depth >= sizes.recess_m.0 && !outlines.iter().any(behind_here)).then_some(p.depth),
+                    // None where the model has a face behind already, or the frame is nearly flush (on the wall).
+                    reveal_m: Some(p.depth)
+                        .filter(|&d| d >= sizes.recess_m.0 && !face_behind(&outlines, wall, rect.bounds, sizes, cos_par)),
                 });
             }
         }
@@ -224,47 +216,64 @@ pub(crate) fn infer(
             });
         }
     }
-    (out, walls.iter().map(|v| v.wall).collect())
+    (out, walls)
 }
 
 /// Adds the inferred openings to the model: marked faces become windows, new ones get their corners, their
 /// outline as completed edges and a window face (`nest_openings` then cuts them into their walls and tells doors).
-/// An opening found from a rectangle of recessed edges also gets the frame face at their depth, and its reveals
-/// (square to the wall) from the outline's corners to the frame's, as completed edges: an LOD-3 opening has its
-/// depth.
+/// An opening whose proposal found its frame's depth also gets the frame face there and its reveals
+/// ([`add_frame`]).
 pub(crate) fn add(inferred: Vec<Inferred>, vertices: &mut Vec<Vertex>, edges: &mut Vec<Edge>, faces: &mut Vec<Face>) {
     for opening in inferred {
         match opening {
             Inferred::Mark(j) => faces[j].kind = SurfaceKind::Window,
             Inferred::New { corners, normal, reveal_m } => {
-                let frame: Vec<Vertex> = reveal_m
-                    .map(|d| {
-                        corners
-                            .iter()
-                            .map(|v| Vertex {
-                                point: v.point - d * normal,
-                                sigma: v.sigma,
-                            })
-                            .collect()
-                    })
-                    .unwrap_or_default();
-                let outline = add_face(corners, normal, vertices, edges, faces);
-                if !frame.is_empty() {
-                    let back = add_face(frame, normal, vertices, edges, faces);
-                    edges.extend(outline.iter().zip(&back).map(|(&a, &b)| Edge {
-                        a,
-                        b,
-                        line: usize::MAX,
-                        completed: true,
-                    }));
+                let outline = add_face(corners, normal, SurfaceKind::Window, vertices, edges, faces);
+                if let Some(depth) = reveal_m {
+                    add_frame(&outline, normal, depth, SurfaceKind::Window, vertices, edges, faces);
                 }
             }
         }
     }
 }
 
-/// A new window face on new `corners`, its outline as completed edges; the corners' indices.
-fn add_face(corners: Vec<Vertex>, normal: Vec3, vertices: &mut Vec<Vertex>, edges: &mut Vec<Edge>, faces: &mut Vec<Face>) -> Vec<usize> {
+/// The frame face `depth` behind the opening `outline` (its corners moved back along `normal`) and its reveals,
+/// square to the wall, from the outline's corners to the frame's, as completed edges: an LOD-3 opening has its
+/// depth.
+fn add_frame(
+    outline: &[usize],
+    normal: Vec3,
+    depth: f64,
+    kind: SurfaceKind,
+    vertices: &mut Vec<Vertex>,
+    edges: &mut Vec<Edge>,
+    faces: &mut Vec<Face>,
+) {
+    let frame = outline
+        .iter()
+        .map(|&k| Vertex {
+            point: vertices[k].point - depth * normal,
+            sigma: vertices[k].sigma,
+        })
+        .collect();
+    let back = add_face(frame, normal, kind, vertices, edges, faces);
+    edges.extend(outline.iter().zip(&back).map(|(&a, &b)| Edge {
+        a,
+        b,
+        line: usize::MAX,
+        completed: true,
+    }));
+}
+
+/// A new face of `kind` on new `corners`, its outline as completed edges; the corners' indices.
+fn add_face(
+    corners: Vec<Vertex>,
+    normal: Vec3,
+    kind: SurfaceKind,
+    vertices: &mut Vec<Vertex>,
+    edges: &mut Vec<Edge>,
+    faces: &mut Vec<Face>,
+) -> Vec<usize> {
     let first = vertices.len();
     vertices.extend(corners);
     let ring: Vec<usize> = (first..vertices.len()).collect();
@@ -278,9 +287,48 @@ fn add_face(corners: Vec<Vertex>, normal: Vec3, vertices: &mut Vec<Vertex>, edge
         ring: ring.clone(),
         holes: Vec::new(),
         normal,
-        kind: SurfaceKind::Window,
+        kind,
     });
     ring
+}
+
+/// Gives every window and door of the model in a wall's plane with no face behind it (its outline closed on the
+/// wall, or its row and column predicted it) the frame its 3-D lines show ([`frame_depth`]), with its reveals.
+/// After the openings are nested, so that the frame takes its opening's kind.
+pub(crate) fn add_frames(
+    walls: &[WallView],
+    params: &ModelParams,
+    vertices: &mut Vec<Vertex>,
+    edges: &mut Vec<Edge>,
+    faces: &mut Vec<Face>,
+) {
+    let cos_par = params.plane_angle_deg.to_radians().cos();
+    let sizes = params.opening_sizes();
+    let outlines: Vec<Outline> = faces
+        .iter()
+        .map(|f| Outline::of(&f.ring.iter().map(|&k| vertices[k].point).collect::<Vec<_>>(), f.normal))
+        .collect();
+    let mut frames = Vec::new();
+    for (j, (f, o)) in faces.iter().zip(&outlines).enumerate() {
+        if !matches!(f.kind, SurfaceKind::Window | SurfaceKind::Door) {
+            continue;
+        }
+        let on_its_wall = |v: &&WallView| o.normal.dot(&v.wall.out) > cos_par && v.wall.depth(&o.centroid).abs() < sizes.recess_m.0;
+        let Some(view) = walls.iter().find(on_its_wall) else {
+            continue;
+        };
+        let bounds = o.bounds_in(&view.wall);
+        if face_behind(&outlines, &view.wall, bounds, sizes, cos_par) {
+            continue;
+        }
+        if let Some(depth) = frame_depth(view, bounds).filter(|&d| d >= sizes.recess_m.0) {
+            frames.push((j, depth));
+        }
+    }
+    for (j, depth) in frames {
+        let (ring, normal, kind) = (faces[j].ring.clone(), faces[j].normal, faces[j].kind);
+        add_frame(&ring, normal, depth, kind, vertices, edges, faces);
+    }
 }
 
 /// The walls, most edges first: vertical planes whose edges (at least [`MIN_WALL_EDGES`]) spread
@@ -596,17 +644,47 @@ pub(super) mod tests {
     }
 
     #[test]
-    fn a_frame_behind_an_outline_that_closed_adds_nothing() {
-        for overshoot in [0.0, 0.03] {
+    fn a_frame_behind_an_outline_that_closed_adds_no_opening_and_its_sides_give_the_reveals() {
+        // Closed, the frame is a face of the model already; as four lines, it gives the frame's depth: a face 20 cm
+        // behind the outline, on its corners, with the four reveals.
+        for (overshoot, frame) in [(0.0, false), (0.03, true)] {
             let (mut vertices, mut edges, viewpoint) = scene(overshoot, true);
             let n = vertices.len();
             let faces = find(&mut vertices, &mut edges, &ModelParams::default(), &viewpoint.into());
-            assert_eq!(vertices.len(), n, "overshoot {overshoot}");
+            assert_eq!(vertices.len(), if frame { n + 4 } else { n }, "overshoot {overshoot}");
             let outline = faces
                 .iter()
-                .find(|f| f.ring.iter().all(|&k| k >= FRAME + 8))
+                .find(|f| f.ring.iter().all(|&k| (FRAME + 8..n).contains(&k)))
                 .expect("the outline's face");
             assert_eq!(outline.kind, SurfaceKind::Window);
+            if frame {
+                let back = faces.iter().find(|f| f.ring.iter().all(|&k| k >= n)).expect("the frame's face");
+                assert_eq!(back.kind, SurfaceKind::Window);
+                for (&a, &b) in outline.ring.iter().zip(&back.ring) {
+                    assert!((vertices[b].point - vertices[a].point - Vec3::new(0.0, 0.2, 0.0)).norm() < 1e-9);
+                    assert!(edges.iter().any(|e| e.completed && (e.a, e.b) == (a, b)));
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn one_side_of_a_frame_gives_the_reveals_and_two_that_disagree_give_none() {
+        // The frame's right side (its points FRAME + 2 and + 3) hidden from the cameras, as a deep reveal hides
+        // one side from most of a strip; or 10 cm deeper than the left one.
+        for (case, expected) in [("hidden", Some(0.2)), ("deeper", None)] {
+            let (mut vertices, mut edges, viewpoint) = scene(0.03, true);
+            if case == "hidden" {
+                edges.retain(|e| (e.a, e.b) != (FRAME + 2, FRAME + 3));
+            } else {
+                vertices[FRAME + 2].point.y = 0.3;
+                vertices[FRAME + 3].point.y = 0.3;
+            }
+            let n = vertices.len();
+            let faces = find(&mut vertices, &mut edges, &ModelParams::default(), &viewpoint.into());
+            let back = faces.iter().find(|f| f.ring.iter().all(|&k| k >= n));
+            let depth = back.map(|f| vertices[f.ring[0]].point.y);
+            assert_eq!(depth.map(|d| (d * 1e6).round() / 1e6), expected, "{case}");
         }
     }
 

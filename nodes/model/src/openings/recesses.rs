@@ -44,7 +44,6 @@ pub(super) fn from_recesses(
                 rect: widened_to_frame(rect, depth, &walls[k], centres).unwrap_or(rect),
                 depth,
                 sigma: f.ring.iter().find_map(|&w| vertices[w].sigma),
-                of_edges: false,
             })
         })
         .collect()

@@ -60,8 +60,8 @@ impl Wall {
 }
 
 /// A wall with the observed edges behind it and on it gathered into sides.
-pub(super) struct WallView {
-    pub(super) wall: Wall,
+pub(crate) struct WallView {
+    pub(crate) wall: Wall,
     pub(super) standing: Vec<Side>,
     pub(super) lying: Vec<Side>,
     /// The standing and lying sides on the wall itself: an opening's own edges.

@@ -1,0 +1,43 @@
+//! The frame behind an opening, for its reveals. An opening found from its frame (a recessed face, a rectangle of
+//! recessed edges) knows its depth; one whose outline closed on the wall, or which its row and column predicted,
+//! does not, though the 3-D lines often hold pieces of its frame's standing sides behind it: too few to close a
+//! rectangle, enough to tell the depth.
+use super::*;
+
+/// A frame side's edges cover at least this share of the opening's height.
+const MIN_FRAME_COVER: f64 = 0.3;
+/// How far outside the opening's side a frame side may lie, metres (the opening's own edge is a noisy line too).
+const OUTSIDE_M: f64 = 0.03;
+
+/// The depth of the frame behind the opening `[x0, x1, z0, z1]` of `view`'s wall, from the standing sides behind
+/// the wall at its two sides: on each side, the front-most one within the frame's width inside it (the glazing lies
+/// further back) covering [`MIN_FRAME_COVER`] of its height. Where both sides show one, they must agree
+/// ([`DEPTH_TOLERANCE_M`]) and their mean is the depth; one side alone will do, since a deep reveal hides the
+/// frame's side nearer the cameras from most of them (a strip sees the left sides of the windows at its left end,
+/// the right sides at its right end).
+pub(super) fn frame_depth(view: &WallView, [x0, x1, z0, z1]: [f64; 4]) -> Option<f64> {
+    let reach = view.sizes.frame_m.1;
+    let front_most = |lo: f64, hi: f64| {
+        view.standing
+            .iter()
+            .filter(|s| (lo..=hi).contains(&s.at) && s.cover(z0, z1) >= MIN_FRAME_COVER)
+            .map(|s| s.depth)
+            .min_by(f64::total_cmp)
+    };
+    match (front_most(x0 - OUTSIDE_M, x0 + reach), front_most(x1 - reach, x1 + OUTSIDE_M)) {
+        (Some(left), Some(right)) => ((left - right).abs() <= DEPTH_TOLERANCE_M).then_some((left + right) / 2.0),
+        (one, other) => one.or(other),
+    }
+}
+
+/// Whether a face of the model (a frame that closed but made no rectangle, or its panes) lies behind the opening
+/// `[x0, x1, z0, z1]` of `wall`, within the recesses `sizes` allow: it gives the reveal already.
+pub(super) fn face_behind(outlines: &[Outline], wall: &Wall, [x0, x1, z0, z1]: [f64; 4], sizes: OpeningSizes, cos_par: f64) -> bool {
+    outlines.iter().any(|o| {
+        let [a0, a1, b0, b1] = o.bounds_in(wall);
+        o.normal.dot(&wall.out).abs() > cos_par
+            && (sizes.recess_m.0..=sizes.recess_m.1).contains(&wall.depth(&o.centroid))
+            && (x0..=x1).contains(&((a0 + a1) / 2.0))
+            && (z0..=z1).contains(&((b0 + b1) / 2.0))
+    })
+}
