@@ -24,10 +24,43 @@ pub(super) fn frame_depth(view: &WallView, [x0, x1, z0, z1]: [f64; 4]) -> Option
             .map(|s| s.depth)
             .min_by(f64::total_cmp)
     };
-    match (front_most(x0 - OUTSIDE_M, x0 + reach), front_most(x1 - reach, x1 + OUTSIDE_M)) {
+    agreed(front_most(x0 - OUTSIDE_M, x0 + reach), front_most(x1 - reach, x1 + OUTSIDE_M))
+}
+
+/// The depth two sides of an opening give its frame: their mean where they agree ([`DEPTH_TOLERANCE_M`]), none
+/// where they do not, the one where only one shows it.
+fn agreed(left: Option<f64>, right: Option<f64>) -> Option<f64> {
+    match (left, right) {
         (Some(left), Some(right)) => ((left - right).abs() <= DEPTH_TOLERANCE_M).then_some((left + right) / 2.0),
         (one, other) => one.or(other),
     }
+}
+
+/// Standing edges this far from an opening's side, metres, are its reveal's corners.
+const AT_SIDE_M: f64 = 2.0 * SIDE_TOLERANCE_M;
+/// A nearly flush frame lies at least this far behind the wall's face, metres, and this many σ of its edges…
+const FLUSH_MIN_M: f64 = 0.015;
+const FLUSH_MIN_SIGMAS: f64 = 3.0;
+
+/// The depth of a nearly flush frame (less than `recess_min_m` back, among the wall's own edges) behind the opening
+/// `[x0, x1, z0, z1]`: at each side of the opening the standing edges on the wall at its position fall at two
+/// depths, the reveal's outer corner on the wall's face and its inner corner on the frame. The frame's depth is the
+/// length-weighted mean of those behind the face by [`FLUSH_MIN_M`] and [`FLUSH_MIN_SIGMAS`] of their σ, where
+/// they cover [`MIN_FRAME_COVER`] of the height; both sides must agree ([`DEPTH_TOLERANCE_M`]) where both show
+/// one.
+pub(super) fn flush_frame_depth(view: &WallView, [x0, x1, z0, z1]: [f64; 4]) -> Option<f64> {
+    let behind_at = |x: f64| {
+        let back: Vec<&Piece> = view
+            .standing_pieces_on_wall
+            .iter()
+            .filter(|p| (p.0 - x).abs() <= AT_SIDE_M && p.3 > z0 && p.2 < z1)
+            .filter(|p| p.1 >= FLUSH_MIN_M.max(FLUSH_MIN_SIGMAS * p.4.map_or(0.0, |s| s.norm())))
+            .collect();
+        let spans: Vec<(f64, f64)> = back.iter().map(|p| (p.2, p.3)).collect();
+        let length: f64 = back.iter().map(|p| p.3 - p.2).sum();
+        (covered_share(&spans, z0, z1) >= MIN_FRAME_COVER).then(|| back.iter().map(|p| p.1 * (p.3 - p.2)).sum::<f64>() / length)
+    };
+    agreed(behind_at(x0), behind_at(x1))
 }
 
 /// Whether a face of the model (a frame that closed but made no rectangle, or its panes) lies behind the opening

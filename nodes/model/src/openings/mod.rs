@@ -321,7 +321,10 @@ pub(crate) fn add_frames(
         if face_behind(&outlines, &view.wall, bounds, sizes, cos_par) {
             continue;
         }
-        if let Some(depth) = frame_depth(view, bounds).filter(|&d| d >= sizes.recess_m.0) {
+        if let Some(depth) = frame_depth(view, bounds)
+            .filter(|&d| d >= sizes.recess_m.0)
+            .or_else(|| flush_frame_depth(view, bounds))
+        {
             frames.push((j, depth));
         }
     }
@@ -405,6 +408,7 @@ fn walls(
             courses.sort_by(|x, y| x.0.total_cmp(&y.0).then(x.1.total_cmp(&y.1)).then(x.2.total_cmp(&y.2)));
             Some(WallView {
                 lying_pieces_on_wall: courses,
+                standing_pieces_on_wall: pieces(&wall, vertices, edges, true, on_wall),
                 standing: sides(&wall, vertices, edges, true, sizes.recess_m),
                 lying: sides(&wall, vertices, edges, false, sizes.recess_m),
                 standing_on_wall: sides(&wall, vertices, edges, true, on_wall),
@@ -685,6 +689,23 @@ pub(super) mod tests {
             let back = faces.iter().find(|f| f.ring.iter().all(|&k| k >= n));
             let depth = back.map(|f| vertices[f.ring[0]].point.y);
             assert_eq!(depth.map(|d| (d * 1e6).round() / 1e6), expected, "{case}");
+        }
+    }
+
+    #[test]
+    fn a_nearly_flush_frame_gives_the_reveals_from_the_corners_behind_the_wall_at_its_sides() {
+        // The frame 4 cm behind the wall, among the wall's own edges: its standing sides are the reveals' inner
+        // corners, beside the outline's own sides on the face. 1 cm back, it is the wall.
+        for (back, expected) in [(0.04, Some(0.04)), (0.01, None)] {
+            let (mut vertices, mut edges, viewpoint) = scene(0.03, true);
+            for v in &mut vertices[FRAME..FRAME + 8] {
+                v.point.y = back;
+            }
+            let n = vertices.len();
+            let faces = find(&mut vertices, &mut edges, &ModelParams::default(), &viewpoint.into());
+            let frame = faces.iter().find(|f| f.ring.iter().all(|&k| k >= n));
+            let depth = frame.map(|f| (vertices[f.ring[0]].point.y * 1e6).round() / 1e6);
+            assert_eq!(depth, expected, "{back}");
         }
     }
 

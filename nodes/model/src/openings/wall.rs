@@ -70,6 +70,9 @@ pub(crate) struct WallView {
     /// The lying edges on the wall one by one: courses of brick or tiles run across the wall and stop at its
     /// openings ([`WallView::courses_within`]).
     pub(super) lying_pieces_on_wall: Vec<Piece>,
+    /// The standing edges on the wall one by one: at a nearly flush opening's side, the reveal's two corners, on
+    /// the wall's face and on the frame ([`super::frames::flush_frame_depth`]).
+    pub(super) standing_pieces_on_wall: Vec<Piece>,
     pub(super) sizes: OpeningSizes,
 }
 
