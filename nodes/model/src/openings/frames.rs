@@ -1,7 +1,8 @@
 //! The frame behind an opening, for its reveals. An opening found from its frame (a recessed face, a rectangle of
 //! recessed edges) knows its depth; one whose outline closed on the wall, or which its row and column predicted,
 //! does not, though the 3-D lines often hold pieces of its frame's standing sides behind it: too few to close a
-//! rectangle, enough to tell the depth.
+//! rectangle, enough to tell the depth. Each frame is built on its opening's outline moved straight back, with its
+//! four reveals as completed edges ([`add_frames`], [`add_frame`]).
 use super::*;
 
 /// A frame side's edges cover at least this share of the opening's height.
@@ -73,4 +74,74 @@ pub(super) fn face_behind(outlines: &[Outline], wall: &Wall, [x0, x1, z0, z1]: [
             && (x0..=x1).contains(&((a0 + a1) / 2.0))
             && (z0..=z1).contains(&((b0 + b1) / 2.0))
     })
+}
+
+/// Gives every window and door of the model in a wall's plane with no face behind it (its outline closed on the
+/// wall, or its row and column predicted it) the frame its 3-D lines show ([`frame_depth`]), with its reveals.
+/// After the openings are nested, so that the frame takes its opening's kind.
+pub(crate) fn add_frames(
+    walls: &[WallView],
+    params: &ModelParams,
+    vertices: &mut Vec<Vertex>,
+    edges: &mut Vec<Edge>,
+    faces: &mut Vec<Face>,
+) {
+    let cos_par = params.plane_angle_deg.to_radians().cos();
+    let sizes = params.opening_sizes();
+    let outlines: Vec<Outline> = faces
+        .iter()
+        .map(|f| Outline::of(&f.ring.iter().map(|&k| vertices[k].point).collect::<Vec<_>>(), f.normal))
+        .collect();
+    let mut frames = Vec::new();
+    for (j, (f, o)) in faces.iter().zip(&outlines).enumerate() {
+        if !matches!(f.kind, SurfaceKind::Window | SurfaceKind::Door) {
+            continue;
+        }
+        let on_its_wall = |v: &&WallView| o.normal.dot(&v.wall.out) > cos_par && v.wall.depth(&o.centroid).abs() < sizes.recess_m.0;
+        let Some(view) = walls.iter().find(on_its_wall) else {
+            continue;
+        };
+        let bounds = o.bounds_in(&view.wall);
+        if face_behind(&outlines, &view.wall, bounds, sizes, cos_par) {
+            continue;
+        }
+        if let Some(depth) = frame_depth(view, bounds)
+            .filter(|&d| d >= sizes.recess_m.0)
+            .or_else(|| flush_frame_depth(view, bounds))
+        {
+            frames.push((j, depth));
+        }
+    }
+    for (j, depth) in frames {
+        let (ring, normal, kind) = (faces[j].ring.clone(), faces[j].normal, faces[j].kind);
+        add_frame(&ring, normal, depth, kind, vertices, edges, faces);
+    }
+}
+
+/// The frame face `depth` behind the opening `outline` (its corners moved back along `normal`) and its reveals,
+/// square to the wall, from the outline's corners to the frame's, as completed edges: an LOD-3 opening has its
+/// depth.
+pub(super) fn add_frame(
+    outline: &[usize],
+    normal: Vec3,
+    depth: f64,
+    kind: SurfaceKind,
+    vertices: &mut Vec<Vertex>,
+    edges: &mut Vec<Edge>,
+    faces: &mut Vec<Face>,
+) {
+    let frame = outline
+        .iter()
+        .map(|&k| Vertex {
+            point: vertices[k].point - depth * normal,
+            sigma: vertices[k].sigma,
+        })
+        .collect();
+    let back = add_face(frame, normal, kind, vertices, edges, faces);
+    edges.extend(outline.iter().zip(&back).map(|(&a, &b)| Edge {
+        a,
+        b,
+        line: usize::MAX,
+        completed: true,
+    }));
 }

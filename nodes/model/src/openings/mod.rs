@@ -89,6 +89,7 @@ mod settle;
 mod sides;
 mod wall;
 pub(crate) use evidence::Evidence;
+pub(crate) use frames::add_frames;
 pub(crate) use wall::{Outline, Wall};
 mod wall_from_edges;
 
@@ -156,7 +157,6 @@ pub(crate) fn infer(
         Some(e) => settle(wall, rect, &viewpoint, e),
         None => rect,
     };
-
     let mut out = Vec::new();
     for p in proposals {
         let wall = &walls[p.wall].wall;
@@ -237,36 +237,8 @@ pub(crate) fn add(inferred: Vec<Inferred>, vertices: &mut Vec<Vertex>, edges: &m
     }
 }
 
-/// The frame face `depth` behind the opening `outline` (its corners moved back along `normal`) and its reveals,
-/// square to the wall, from the outline's corners to the frame's, as completed edges: an LOD-3 opening has its
-/// depth.
-fn add_frame(
-    outline: &[usize],
-    normal: Vec3,
-    depth: f64,
-    kind: SurfaceKind,
-    vertices: &mut Vec<Vertex>,
-    edges: &mut Vec<Edge>,
-    faces: &mut Vec<Face>,
-) {
-    let frame = outline
-        .iter()
-        .map(|&k| Vertex {
-            point: vertices[k].point - depth * normal,
-            sigma: vertices[k].sigma,
-        })
-        .collect();
-    let back = add_face(frame, normal, kind, vertices, edges, faces);
-    edges.extend(outline.iter().zip(&back).map(|(&a, &b)| Edge {
-        a,
-        b,
-        line: usize::MAX,
-        completed: true,
-    }));
-}
-
 /// A new face of `kind` on new `corners`, its outline as completed edges; the corners' indices.
-fn add_face(
+pub(super) fn add_face(
     corners: Vec<Vertex>,
     normal: Vec3,
     kind: SurfaceKind,
@@ -290,48 +262,6 @@ fn add_face(
         kind,
     });
     ring
-}
-
-/// Gives every window and door of the model in a wall's plane with no face behind it (its outline closed on the
-/// wall, or its row and column predicted it) the frame its 3-D lines show ([`frame_depth`]), with its reveals.
-/// After the openings are nested, so that the frame takes its opening's kind.
-pub(crate) fn add_frames(
-    walls: &[WallView],
-    params: &ModelParams,
-    vertices: &mut Vec<Vertex>,
-    edges: &mut Vec<Edge>,
-    faces: &mut Vec<Face>,
-) {
-    let cos_par = params.plane_angle_deg.to_radians().cos();
-    let sizes = params.opening_sizes();
-    let outlines: Vec<Outline> = faces
-        .iter()
-        .map(|f| Outline::of(&f.ring.iter().map(|&k| vertices[k].point).collect::<Vec<_>>(), f.normal))
-        .collect();
-    let mut frames = Vec::new();
-    for (j, (f, o)) in faces.iter().zip(&outlines).enumerate() {
-        if !matches!(f.kind, SurfaceKind::Window | SurfaceKind::Door) {
-            continue;
-        }
-        let on_its_wall = |v: &&WallView| o.normal.dot(&v.wall.out) > cos_par && v.wall.depth(&o.centroid).abs() < sizes.recess_m.0;
-        let Some(view) = walls.iter().find(on_its_wall) else {
-            continue;
-        };
-        let bounds = o.bounds_in(&view.wall);
-        if face_behind(&outlines, &view.wall, bounds, sizes, cos_par) {
-            continue;
-        }
-        if let Some(depth) = frame_depth(view, bounds)
-            .filter(|&d| d >= sizes.recess_m.0)
-            .or_else(|| flush_frame_depth(view, bounds))
-        {
-            frames.push((j, depth));
-        }
-    }
-    for (j, depth) in frames {
-        let (ring, normal, kind) = (faces[j].ring.clone(), faces[j].normal, faces[j].kind);
-        add_frame(&ring, normal, depth, kind, vertices, edges, faces);
-    }
 }
 
 /// The walls, most edges first: vertical planes whose edges (at least [`MIN_WALL_EDGES`]) spread
