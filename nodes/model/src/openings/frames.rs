@@ -65,12 +65,13 @@ pub(super) fn flush_frame_depth(view: &WallView, [x0, x1, z0, z1]: [f64; 4]) -> 
 }
 
 /// Whether a face of the model (a frame that closed but made no rectangle, or its panes) lies behind the opening
-/// `[x0, x1, z0, z1]` of `wall`, within the recesses `sizes` allow: it gives the reveal already.
+/// `[x0, x1, z0, z1]` of `wall`, from [`FLUSH_MIN_M`] (a nearly flush frame) to the deepest recess `sizes`
+/// allow: it gives the reveal already.
 pub(super) fn face_behind(outlines: &[Outline], wall: &Wall, [x0, x1, z0, z1]: [f64; 4], sizes: OpeningSizes, cos_par: f64) -> bool {
     outlines.iter().any(|o| {
         let [a0, a1, b0, b1] = o.bounds_in(wall);
         o.normal.dot(&wall.out).abs() > cos_par
-            && (sizes.recess_m.0..=sizes.recess_m.1).contains(&wall.depth(&o.centroid))
+            && (FLUSH_MIN_M..=sizes.recess_m.1).contains(&wall.depth(&o.centroid))
             && (x0..=x1).contains(&((a0 + a1) / 2.0))
             && (z0..=z1).contains(&((b0 + b1) / 2.0))
     })
@@ -97,7 +98,8 @@ pub(crate) fn add_frames(
         if !matches!(f.kind, SurfaceKind::Window | SurfaceKind::Door) {
             continue;
         }
-        let on_its_wall = |v: &&WallView| o.normal.dot(&v.wall.out) > cos_par && v.wall.depth(&o.centroid).abs() < sizes.recess_m.0;
+        // In the wall's plane: a nearly flush frame's own face, FLUSH_MIN_M or more behind, is no opening of it.
+        let on_its_wall = |v: &&WallView| o.normal.dot(&v.wall.out) > cos_par && v.wall.depth(&o.centroid).abs() < FLUSH_MIN_M;
         let Some(view) = walls.iter().find(on_its_wall) else {
             continue;
         };
@@ -105,10 +107,8 @@ pub(crate) fn add_frames(
         if face_behind(&outlines, &view.wall, bounds, sizes, cos_par) {
             continue;
         }
-        if let Some(depth) = frame_depth(view, bounds)
-            .filter(|&d| d >= sizes.recess_m.0)
-            .or_else(|| flush_frame_depth(view, bounds))
-        {
+        // The standing sides behind the wall start at `recess_min_m`; nearer frames are among the wall's own edges.
+        if let Some(depth) = frame_depth(view, bounds).or_else(|| flush_frame_depth(view, bounds)) {
             frames.push((j, depth));
         }
     }
