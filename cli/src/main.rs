@@ -91,6 +91,10 @@ enum Cmd {
         /// Inject a fault: SIGKILL NODE once it has received FRAME, or SIGSTOP it for S s (docs/launch.md). Repeatable.
         #[arg(long, value_name = "NODE@FRAME[:stop=S]")]
         chaos: Vec<lineflow_runtime::chaos::Fault>,
+        /// Run this host's part of a graph on several machines (`[hosts]`, docs/hosts.md); nodes that name no host
+        /// are on `main`.
+        #[arg(long, value_name = "NAME", default_value = lineflow_runtime::hosts::DEFAULT_HOST)]
+        host: String,
         #[command(flatten)]
         view: ViewArgs,
         #[command(flatten)]
@@ -394,9 +398,10 @@ fn main() -> ExitCode {
             set,
             out,
             chaos,
+            host,
             view,
             verbosity,
-        } => run::run(&graph, &view.with_sets(&set), &out, verbosity.into(), &chaos),
+        } => run::run(&graph, &view.with_sets(&set), &host, &out, verbosity.into(), &chaos),
         Cmd::Process {
             folder,
             out,

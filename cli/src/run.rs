@@ -7,9 +7,12 @@ use lineflow_runtime::chaos::Fault;
 use lineflow_runtime::launch::{self, Resolver};
 use lineflow_runtime::run::{launch_dir, run_graph, run_graph_with_faults, Verbosity};
 
-/// Runs a launch graph with `chaos`'s faults injected; prints the per-node summary and writes it to `out/summary.txt`.
-pub fn run(graph: &Path, set: &[String], out: &Path, verbosity: Verbosity, chaos: &[Fault]) -> Result<ExitCode> {
-    let g = launch::load(graph, set, &Resolver::beside_current_exe())?;
+/// Runs `host`'s part of a launch graph with `chaos`'s faults injected; prints the per-node summary and writes it to
+/// `out/summary.txt`.
+pub fn run(graph: &Path, set: &[String], host: &str, out: &Path, verbosity: Verbosity, chaos: &[Fault]) -> Result<ExitCode> {
+    let resolver = Resolver::beside_current_exe();
+    let whole = launch::load(graph, set, &resolver)?;
+    let g = lineflow_runtime::hosts::part(&whole, host, &resolver)?;
     run_graph_with_faults(&g, out, None, verbosity, chaos)
 }
 

@@ -10,6 +10,7 @@
 #![warn(missing_docs)]
 
 pub mod camera;
+pub mod checksum;
 pub mod control;
 pub mod features;
 pub mod image;

@@ -63,6 +63,7 @@ fn player(name: &str, rec: &Recording, resolver: &Resolver, pace: Pace) -> Resul
         max_restarts: 0,
         backoff_ms: 0,
         remap: BTreeMap::new(),
+        host: lineflow_runtime::hosts::DEFAULT_HOST.into(),
     })
 }
 
@@ -107,6 +108,10 @@ pub fn playback_graph(rec: &Recording, topics: &[String], resolver: &Resolver, p
         edges,
         connect_timeout_s: None,
         replaced: Vec::new(),
+        hosts: Vec::new(),
+        host: lineflow_runtime::hosts::DEFAULT_HOST.into(),
+        bridge: Default::default(),
+        hash: String::new(),
     })
 }
 

@@ -10,6 +10,8 @@ use std::path::{Path, PathBuf};
 use lineflow_messages::MessageKind;
 use serde::{Deserialize, Serialize};
 
+use crate::hosts::{check_hosts, graph_hash, BridgeSettings, HostSpec, BRIDGE, DEFAULT_HOST};
+
 /// How long a lossless publisher waits for a full subscriber before dropping the sample, by default. Generous:
 /// stages working on 12-MP frames take seconds each and back-pressure adds up along a chain, while a crashed
 /// subscriber does not need it (the supervisor reaps dead nodes before restarting one, which frees the publisher).
@@ -83,6 +85,21 @@ struct LaunchFile {
     /// Settings of the live viewer; `enabled = true` adds it, the other keys are its parameters.
     #[serde(default)]
     view: toml::Table,
+    /// The hosts of a graph on several machines and their Zenoh endpoints (`docs/hosts.md`).
+    #[serde(default)]
+    hosts: BTreeMap<String, HostEntry>,
+    /// Settings of the bridges between hosts.
+    #[serde(default)]
+    bridge: BridgeSettings,
+}
+
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct HostEntry {
+    #[serde(default)]
+    listen: Vec<String>,
+    #[serde(default)]
+    connect: Vec<String>,
 }
 
 /// Name of the recorder node the supervisor adds to every graph (unless `[record] enabled = false`).
@@ -131,6 +148,8 @@ struct NodeEntry {
     backoff_ms: u64,
     #[serde(default)]
     remap: BTreeMap<String, String>,
+    /// The host the node runs on (`[hosts]`); [`DEFAULT_HOST`] when not given.
+    host: Option<String>,
 }
 
 fn default_max_restarts() -> u32 {
@@ -179,6 +198,13 @@ pub struct NodeSpec {
     pub backoff_ms: u64,
     /// Port name to topic name.
     pub remap: BTreeMap<String, String>,
+    /// The host it runs on.
+    #[serde(default = "default_host")]
+    pub host: String,
+}
+
+fn default_host() -> String {
+    DEFAULT_HOST.into()
 }
 
 impl NodeSpec {
@@ -248,6 +274,18 @@ pub struct Graph {
     /// a source's parameters (eval regenerating the synthetic scene) find them here.
     #[serde(default)]
     pub replaced: Vec<NodeSpec>,
+    /// The hosts of a graph on several machines (`[hosts]`); empty on one.
+    #[serde(default)]
+    pub hosts: Vec<HostSpec>,
+    /// The host whose part of the graph this is ([`hosts::part`](crate::hosts::part)).
+    #[serde(default = "default_host")]
+    pub host: String,
+    /// Settings of the bridges between hosts (`[bridge]`).
+    #[serde(default)]
+    pub bridge: BridgeSettings,
+    /// Hash of the whole graph on every host ([`graph_hash`]): hosts of different graphs refuse each other.
+    #[serde(default)]
+    pub hash: String,
 }
 
 impl Graph {
@@ -370,18 +408,36 @@ pub fn parse(path: &Path, text: &str, overrides: &[String], resolver: &Resolver)
         edges.push(edge_spec(e, &names, &nodes, record.is_some(), &camera_bytes).map_err(invalid)?);
     }
     for (name, stage, table, params) in [(RECORDER, RECORDER_STAGE, "record", record), (VIEWER, VIEWER_STAGE, "view", view)] {
-        let Some(params) = params else { continue };
+        let Some(mut params) = params else { continue };
+        let host = match params.remove("host") {
+            None => DEFAULT_HOST.to_owned(),
+            Some(toml::Value::String(h)) => h,
+            Some(v) => return Err(invalid((format!("[{table}]"), format!("`host` must be a host name, got {v}")))),
+        };
         if names.contains(name) {
             return Err(invalid((
                 format!("node '{name}'"),
                 format!("the name '{name}' is reserved; rename the node or set [{table}] enabled = false"),
             )));
         }
-        nodes.push(observer_spec(name, stage, params, nodes.len(), resolver).map_err(|(_, m)| invalid((format!("[{table}]"), m)))?);
+        let mut spec = observer_spec(name, stage, params, nodes.len(), resolver).map_err(|(_, m)| invalid((format!("[{table}]"), m)))?;
+        spec.host = host;
+        nodes.push(spec);
         for e in &mut edges {
             e.to.push(name.into());
         }
     }
+    let hosts: Vec<HostSpec> = file
+        .hosts
+        .iter()
+        .map(|(name, h)| HostSpec {
+            name: name.clone(),
+            listen: h.listen.clone(),
+            connect: h.connect.clone(),
+        })
+        .collect();
+    check_hosts(&hosts, &nodes.iter().map(|n| n.host.clone()).collect()).map_err(invalid)?;
+    let hash = graph_hash(&nodes, &edges, &hosts);
     Ok(Graph {
         name: file
             .graph
@@ -395,6 +451,10 @@ pub fn parse(path: &Path, text: &str, overrides: &[String], resolver: &Resolver)
         nodes,
         edges,
         replaced: Vec::new(),
+        hosts,
+        host: DEFAULT_HOST.into(),
+        bridge: file.bridge,
+        hash,
     })
 }
 
@@ -411,6 +471,12 @@ fn node_names(file: &LaunchFile) -> Result<BTreeSet<String>, Invalid> {
         }
         if !names.insert(n.name.clone()) {
             return Err((entry, "duplicate node name".into()));
+        }
+        if n.name == BRIDGE {
+            return Err((
+                entry,
+                format!("the name '{BRIDGE}' is reserved for the bridge between hosts; rename the node"),
+            ));
         }
     }
     if file.node.is_empty() {
@@ -459,6 +525,7 @@ fn node_spec(index: usize, n: &NodeEntry, base: &Path, resolver: &Resolver) -> R
         max_restarts: n.max_restarts,
         backoff_ms: n.backoff_ms,
         remap: n.remap.clone(),
+        host: n.host.clone().unwrap_or_else(default_host),
     })
 }
 
@@ -558,6 +625,7 @@ fn observer_spec(name: &str, stage: &str, table: toml::Table, index: usize, reso
         max_restarts: 0,
         backoff_ms: 0,
         remap: BTreeMap::new(),
+        host: default_host(),
     })
 }
 
@@ -780,6 +848,8 @@ fn apply_override(file: &mut LaunchFile, item: &str) -> Result<(), String> {
     } else if param == "stage" {
         n.stage = Some(text());
         n.executable = None;
+    } else if param == "host" {
+        n.host = Some(text());
     } else {
         n.params.insert(param.to_owned(), parsed);
     }

@@ -366,7 +366,16 @@ impl NodeContext {
     ///
     /// # Errors
     /// The first error `on_wake` returns, or a WaitSet failure.
-    pub fn run(&self, mut on_wake: impl FnMut() -> Result<Flow>) -> Result<RunEnd> {
+    pub fn run(&self, on_wake: impl FnMut() -> Result<Flow>) -> Result<RunEnd> {
+        self.run_every(RUN_TICK, on_wake)
+    }
+
+    /// [`run`](Self::run), woken at least every `tick` besides on input: for a node whose work also comes from
+    /// outside iceoryx2 (the bridge's messages from other hosts), which no event service announces.
+    ///
+    /// # Errors
+    /// As [`run`](Self::run).
+    pub fn run_every(&self, tick: Duration, mut on_wake: impl FnMut() -> Result<Flow>) -> Result<RunEnd> {
         let first = on_wake()?;
         self.reporter.commit();
         if first == Flow::Stop {
@@ -385,7 +394,7 @@ impl NodeContext {
             );
         }
         let _tick = waitset
-            .attach_interval(RUN_TICK)
+            .attach_interval(tick)
             .map_err(|e| anyhow::anyhow!("cannot attach interval: {e:?}"))?;
         let mut result = Ok(Flow::Continue);
         let mut orphaned = false;

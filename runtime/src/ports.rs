@@ -344,13 +344,28 @@ impl<M: Message> Output<M> {
     ///
     /// # Errors
     /// When no sample can be loaned (the payload exceeds what shared memory can grow to) or sending fails.
-    pub fn publish_with(&self, mut header: M::Header, len: usize, fill: impl FnOnce(&mut [M::Element])) -> Result<()> {
+    pub fn publish_with(&self, header: M::Header, len: usize, fill: impl FnOnce(&mut [M::Element])) -> Result<()> {
+        self.send(header, len, fill, false)
+    }
+
+    /// Publishes a message another host's node published (the bridge between hosts), as it was sent there: its
+    /// stamp's `seq` is kept, and this output counts on from it, so that sequence numbers hold end to end.
+    ///
+    /// # Errors
+    /// As [`publish_with`](Self::publish_with).
+    pub fn forward_with(&self, header: M::Header, len: usize, fill: impl FnOnce(&mut [M::Element])) -> Result<()> {
+        self.send(header, len, fill, true)
+    }
+
+    fn send(&self, mut header: M::Header, len: usize, fill: impl FnOnce(&mut [M::Element]), keep_seq: bool) -> Result<()> {
         let inner = self.inner.as_deref().ok_or_else(describe_only)?;
         let mut sample = inner
             .publisher
             .loan_slice(len)
             .map_err(|e| anyhow::anyhow!("topic '{}': cannot loan {len} elements: {e:?}", inner.topic))?;
-        M::stamp_mut(&mut header).seq = inner.seq.get();
+        if !keep_seq {
+            M::stamp_mut(&mut header).seq = inner.seq.get();
+        }
         *sample.user_header_mut() = header;
         fill(sample.payload_mut());
         let delivered = sample
@@ -360,7 +375,7 @@ impl<M: Message> Output<M> {
             .notifier
             .notify()
             .map_err(|e| anyhow::anyhow!("topic '{}': notify failed: {e:?}", inner.topic))?;
-        inner.seq.set(inner.seq.get() + 1);
+        inner.seq.set(M::stamp(&header).seq + 1);
         *inner.last_stamp.borrow_mut() = *M::stamp(&header);
         inner.reporter.sent(inner.expected.saturating_sub(delivered) as u64);
         Ok(())

@@ -1,9 +1,11 @@
 //! Every topic of a graph as one list, whatever its message type: what the nodes that watch a whole run (the
-//! recorder, the live viewer) subscribe to.
-use anyhow::Result;
+//! recorder, the live viewer, the bridge to other hosts) subscribe to, and what the nodes that stand in for others
+//! (the player, the bridge from other hosts) publish on.
+use anyhow::{bail, Result};
+use lineflow_messages::schema::read_pod;
 use lineflow_messages::{with_kind, Message, MessageKind, NodeStatus};
 
-use crate::ports::Input;
+use crate::ports::{Input, Output};
 use crate::{NodeContext, StatusWatch};
 
 /// A received message as its parts: capture time (ns), header bytes, payload bytes. The slices borrow the
@@ -16,7 +18,14 @@ pub trait Tap {
     ///
     /// # Errors
     /// A transport error, or the first error of `each`.
-    fn drain(&self, each: &mut Visit) -> Result<usize>;
+    fn drain(&self, each: &mut Visit) -> Result<usize> {
+        self.drain_some(usize::MAX, each)
+    }
+    /// [`drain`](Self::drain), taking at most `max` messages: the rest wait, and hold their publisher back.
+    ///
+    /// # Errors
+    /// As [`drain`](Self::drain).
+    fn drain_some(&self, max: usize, each: &mut Visit) -> Result<usize>;
     /// Whether the publisher sent end-of-stream.
     fn is_ended(&self) -> bool;
 }
@@ -24,9 +33,10 @@ pub trait Tap {
 struct TypedTap<M: Message>(Input<M>);
 
 impl<M: Message> Tap for TypedTap<M> {
-    fn drain(&self, each: &mut Visit) -> Result<usize> {
+    fn drain_some(&self, max: usize, each: &mut Visit) -> Result<usize> {
         let mut n = 0;
-        while let Some(msg) = self.0.receive()? {
+        while n < max {
+            let Some(msg) = self.0.receive()? else { break };
             let header = lineflow_messages::schema::bytes_of(msg.user_header());
             each(
                 M::stamp(msg.user_header()).capture_time_ns,
@@ -95,4 +105,59 @@ pub fn update_ended(topics: &mut [Topic], status: Option<&mut StatusWatch>) {
 /// Whether every topic has ended.
 pub fn all_ended(topics: &[Topic]) -> bool {
     topics.iter().all(|t| t.ended || t.tap.is_ended())
+}
+
+/// A published topic of any message type.
+pub trait Emit {
+    /// Publishes a message from its header and payload bytes (as `schema::decode_view` gives them).
+    ///
+    /// # Errors
+    /// A header or payload that is not of this topic's type, or a transport error.
+    fn emit(&self, header: &[u8], payload: &[u8]) -> Result<()>;
+    /// Publishes end-of-stream.
+    ///
+    /// # Errors
+    /// A transport error.
+    fn end(&self) -> Result<()>;
+}
+
+struct TypedEmit<M: Message> {
+    output: Output<M>,
+    /// Keep the stamps' sequence numbers (messages of another host) instead of numbering them here.
+    forward: bool,
+}
+
+impl<M: Message> Emit for TypedEmit<M> {
+    fn emit(&self, header: &[u8], payload: &[u8]) -> Result<()> {
+        if header.len() != size_of::<M::Header>() {
+            bail!("{}: decoded header of {} bytes", M::KIND.name(), header.len());
+        }
+        let header: M::Header = read_pod(header);
+        let size = size_of::<M::Element>().max(1);
+        if !payload.len().is_multiple_of(size) {
+            bail!("{}: payload of {} bytes is not whole elements", M::KIND.name(), payload.len());
+        }
+        let fill = |out: &mut [M::Element]| {
+            // SAFETY: `out` holds exactly payload.len() bytes of plain-old-data elements.
+            let bytes = unsafe { std::slice::from_raw_parts_mut(out.as_mut_ptr().cast::<u8>(), payload.len()) };
+            bytes.copy_from_slice(payload);
+        };
+        if self.forward {
+            self.output.forward_with(header, payload.len() / size, fill)
+        } else {
+            self.output.publish_with(header, payload.len() / size, fill)
+        }
+    }
+    fn end(&self) -> Result<()> {
+        self.output.end_of_stream()
+    }
+}
+
+/// An output of any message type on `topic`. With `forward`, the messages keep the sequence numbers their stamps
+/// carry (a bridge passing on another host's messages); without, this node numbers them (the player).
+///
+/// # Errors
+/// When the node cannot publish on the topic.
+pub fn emitter(ctx: &NodeContext, topic: &str, kind: MessageKind, forward: bool) -> Result<Box<dyn Emit>> {
+    Ok(with_kind!(kind, M => Box::new(TypedEmit { output: ctx.output::<M>(topic)?, forward })))
 }

@@ -5,10 +5,11 @@ use std::collections::HashMap;
 use std::time::{Duration, Instant};
 
 use anyhow::{bail, Context, Result};
-use lineflow_messages::schema::{decode_view, read_pod, Decoded};
-use lineflow_messages::{with_kind, Message, MessageKind};
+use lineflow_messages::schema::{decode_view, Decoded};
+use lineflow_messages::MessageKind;
 use lineflow_recordings::Recording;
-use lineflow_runtime::{NodeContext, Output};
+use lineflow_runtime::tap::{emitter, Emit};
+use lineflow_runtime::NodeContext;
 
 #[derive(serde::Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -21,36 +22,6 @@ struct Params {
     /// Play the recording again and again (for viewers; frames repeat).
     #[serde(default, rename = "loop")]
     repeat: bool,
-}
-
-/// An output of any message type.
-trait Emit {
-    /// Publishes a message from its header and payload bytes.
-    fn emit(&self, header: &[u8], payload: &[u8]) -> Result<()>;
-    fn end(&self) -> Result<()>;
-}
-
-struct TypedEmit<M: Message>(Output<M>);
-
-impl<M: Message> Emit for TypedEmit<M> {
-    fn emit(&self, header: &[u8], payload: &[u8]) -> Result<()> {
-        if header.len() != size_of::<M::Header>() {
-            bail!("{}: decoded header of {} bytes", M::KIND.name(), header.len());
-        }
-        let header: M::Header = read_pod(header);
-        let size = size_of::<M::Element>().max(1);
-        if !payload.len().is_multiple_of(size) {
-            bail!("{}: payload of {} bytes is not whole elements", M::KIND.name(), payload.len());
-        }
-        self.0.publish_with(header, payload.len() / size, |out| {
-            // SAFETY: `out` holds exactly payload.len() bytes of plain-old-data elements.
-            let bytes = unsafe { std::slice::from_raw_parts_mut(out.as_mut_ptr().cast::<u8>(), payload.len()) };
-            bytes.copy_from_slice(payload);
-        })
-    }
-    fn end(&self) -> Result<()> {
-        self.0.end_of_stream()
-    }
 }
 
 fn main() -> std::process::ExitCode {
@@ -70,8 +41,7 @@ fn body() -> Result<()> {
     let mut outputs: HashMap<String, (MessageKind, Box<dyn Emit>)> = HashMap::new();
     for e in ctx.graph().edges.iter().filter(|e| e.from == ctx.name()) {
         let kind = e.kind();
-        let emit: Box<dyn Emit> = with_kind!(kind, M => Box::new(TypedEmit(ctx.output::<M>(&e.topic)?)));
-        outputs.insert(e.topic.clone(), (kind, emit));
+        outputs.insert(e.topic.clone(), (kind, emitter(&ctx, &e.topic, kind, false)?));
     }
     // Fail before the graph starts when the recording cannot feed the topics.
     let recording = (!lineflow_runtime::env::RunEnv::describe_requested())

@@ -3,18 +3,7 @@
 
 use lineflow_messages::{str_from_fixed, EdgeMapHeader, EdgePixel, Encoding, ImageHeader, Lines2DHeader};
 
-/// FNV-1a offset basis: the checksum of no bytes.
-pub const FNV1A64_START: u64 = 0xcbf2_9ce4_8422_2325;
-
-/// 64-bit FNV-1a of `bytes`: a cheap, stable checksum for comparing frames across runs and tools.
-pub fn fnv1a64(bytes: &[u8]) -> u64 {
-    fnv1a64_extend(FNV1A64_START, bytes)
-}
-
-/// Continues a checksum `h` over more bytes, so that data in pieces is hashed without gathering it first.
-pub fn fnv1a64_extend(h: u64, bytes: &[u8]) -> u64 {
-    bytes.iter().fold(h, |h, &b| (h ^ b as u64).wrapping_mul(0x0100_0000_01b3))
-}
+pub use lineflow_messages::checksum::{fnv1a64, fnv1a64_extend, FNV1A64_START};
 
 /// The header line of `frames.csv`.
 pub const FRAMES_CSV_HEADER: &str = "frame,image,width,height,encoding,capture_time_ns,fnv1a64";
@@ -84,13 +73,6 @@ pub fn segments_row(h: &Lines2DHeader, payload: &[u8]) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn fnv_matches_the_reference_vectors() {
-        assert_eq!(super::fnv1a64(b""), 0xcbf29ce484222325);
-        assert_eq!(super::fnv1a64(b"a"), 0xaf63dc4c8601ec8c);
-        assert_eq!(super::fnv1a64_extend(super::fnv1a64(b"ab"), b"c"), super::fnv1a64(b"abc"));
-    }
 
     #[test]
     fn rows_hold_the_frame_the_counts_and_a_checksum_of_the_content() {

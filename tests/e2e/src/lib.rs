@@ -168,3 +168,36 @@ to = ["stats"]
 pub fn repo_file(rel: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../..").join(rel)
 }
+
+/// The run id a finished run wrote at the head of `OUT/summary.txt`.
+pub fn run_id(out: &Path) -> String {
+    let s = std::fs::read_to_string(out.join("summary.txt")).unwrap();
+    s.split_whitespace().nth(1).unwrap().to_owned()
+}
+
+/// The files of run `id` in `/dev/shm`.
+pub fn shm_files(id: &str) -> Vec<std::fs::DirEntry> {
+    std::fs::read_dir("/dev/shm")
+        .unwrap()
+        .flatten()
+        .filter(|e| e.file_name().to_string_lossy().contains(&format!("lf{id}_")))
+        .collect()
+}
+
+/// Asserts that the run whose output folder is `out` left no shared memory and no run folder behind.
+pub fn assert_nothing_left(sandbox: &Sandbox, out: &Path) {
+    assert_nothing_left_in(&sandbox.path().join("state"), out);
+}
+
+/// [`assert_nothing_left`] for a run whose supervisor had the state folder `state` (`LINEFLOW_STATE_DIR`).
+pub fn assert_nothing_left_in(state: &Path, out: &Path) {
+    let id = run_id(out);
+    let left = shm_files(&id);
+    assert!(left.is_empty(), "run {id} left {left:?} in /dev/shm");
+    let runs = state.join("runs");
+    assert!(
+        !runs.exists() || std::fs::read_dir(&runs).unwrap().next().is_none(),
+        "run folder left in {}",
+        runs.display()
+    );
+}

@@ -85,32 +85,6 @@ fn frames(out: &Path) -> Vec<(u64, String, String)> {
         .collect()
 }
 
-fn run_id(out: &Path) -> String {
-    let s = std::fs::read_to_string(out.join("summary.txt")).unwrap();
-    s.split_whitespace().nth(1).unwrap().to_owned()
-}
-
-/// The files of run `id` in `/dev/shm`.
-fn shm_files(id: &str) -> Vec<std::fs::DirEntry> {
-    std::fs::read_dir("/dev/shm")
-        .unwrap()
-        .flatten()
-        .filter(|e| e.file_name().to_string_lossy().contains(&format!("lf{id}_")))
-        .collect()
-}
-
-fn assert_nothing_left(sandbox: &Sandbox, out: &Path) {
-    let id = run_id(out);
-    let left = shm_files(&id);
-    assert!(left.is_empty(), "run {id} left {left:?} in /dev/shm");
-    let runs = sandbox.path().join("state/runs");
-    assert!(
-        !runs.exists() || std::fs::read_dir(&runs).unwrap().next().is_none(),
-        "run folder left in {}",
-        runs.display()
-    );
-}
-
 fn summary_row(out: &Path, node: &str) -> Vec<String> {
     let s = std::fs::read_to_string(out.join("summary.txt")).unwrap();
     s.lines()

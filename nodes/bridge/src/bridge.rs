@@ -1,0 +1,507 @@
+//! A host's bridge at work: the topics it sends and receives, its peers, and the exchange that ends a run on every
+//! host at once.
+//!
+//! A sending host puts a topic's messages as they come (at most a window ahead of each receiving host), then an
+//! `end` tag once the topic has ended here; each receiving host publishes what arrives into its own graph, returns
+//! credit, and on the `end` publishes the topic's end-of-stream and replies that it took it. A sender is done when
+//! every receiver took the end of every topic; a receiver when every topic it receives has ended.
+use std::collections::{BTreeMap, BTreeSet, VecDeque};
+use std::time::{Duration, Instant};
+
+use anyhow::{anyhow, bail, Context, Result};
+use crossbeam::channel::{Receiver, Sender};
+use lineflow_messages::schema::{decode_view, encode, Decoded};
+use lineflow_messages::MessageKind;
+use lineflow_runtime::hosts::{BridgePlan, Crossing, BRIDGE};
+use lineflow_runtime::launch::{EdgePolicy, Graph};
+use lineflow_runtime::tap::{update_ended, Emit, Topic};
+use lineflow_runtime::{NodeContext, StatusWatch};
+use zenoh::qos::CongestionControl;
+use zenoh::sample::{Sample, SampleKind};
+use zenoh::Wait;
+
+use crate::credit::Window;
+use crate::session;
+use crate::wire::{check_topic, Keys, Reply, Tag};
+
+/// How long a host that left is given before the run ends: what it sent before leaving may still be on its way.
+const GONE_GRACE: Duration = Duration::from_secs(1);
+/// How long a host waits, once its own work is done, for the hosts that send to it to leave first: they wait for
+/// its last replies, which closing its session at once could lose.
+const PARTING: Duration = Duration::from_secs(5);
+
+/// What the Zenoh callbacks hand to the bridge's thread.
+enum Event {
+    /// A put on a data key: the index of the incoming topic, its CDR, its attachment read.
+    Data {
+        topic: usize,
+        cdr: Vec<u8>,
+        tag: Result<Tag, String>,
+    },
+    /// A receiving host's reply.
+    Reply(Result<Reply, String>),
+    /// A host was interrupted.
+    Stop(String),
+    /// A liveliness token appeared (`alive`) or went.
+    Peer { key: String, alive: bool },
+}
+
+/// A topic published on this host and read on others.
+struct Outgoing {
+    hosts: Vec<String>,
+    publisher: zenoh::pubsub::Publisher<'static>,
+    window: Window,
+    end_sent: bool,
+    /// Hosts that took the end.
+    taken: BTreeSet<String>,
+}
+
+/// A topic published on another host and read here.
+pub struct Incoming {
+    topic: String,
+    kind: MessageKind,
+    from: String,
+    emit: Box<dyn Emit>,
+    ended: bool,
+    /// Published since the last reply: the credit owed to the sending host.
+    owed: u64,
+}
+
+impl Incoming {
+    /// The topic `crossing` names, of `kind`, published here through `emit`.
+    pub fn new(crossing: &Crossing, kind: MessageKind, emit: Box<dyn Emit>) -> Self {
+        Self {
+            topic: crossing.topic.clone(),
+            kind,
+            from: crossing.hosts.first().cloned().unwrap_or_default(),
+            emit,
+            ended: false,
+            owed: 0,
+        }
+    }
+}
+
+/// A host's bridge.
+pub struct Bridge {
+    plan: BridgePlan,
+    keys: Keys,
+    session: zenoh::Session,
+    topics: Vec<Topic>,
+    outgoing: Vec<Outgoing>,
+    incoming: Vec<Incoming>,
+    /// Peers whose token is up.
+    seen: BTreeSet<String>,
+    /// Peers whose token went, and when.
+    gone: BTreeMap<String, Instant>,
+    events: Receiver<Event>,
+    /// Events taken while waiting for the peers, handled once the graph here is connected.
+    early: VecDeque<Event>,
+    scratch: Decoded,
+    /// Kept for their lifetime: dropping them undeclares them.
+    _subscribers: Vec<zenoh::pubsub::Subscriber<()>>,
+    _token: zenoh::liveliness::LivelinessToken,
+}
+
+fn zenoh_error(what: &'static str) -> impl Fn(zenoh::Error) -> anyhow::Error {
+    move |e| anyhow!("{what}: {e}")
+}
+
+impl Bridge {
+    /// Opens the Zenoh session and declares everything the bridge exchanges: a publisher per topic sent (`topics`,
+    /// the bridge's subscriptions), a subscriber per topic received, the replies, the stops, the hosts' tokens and
+    /// its own.
+    ///
+    /// # Errors
+    /// A topic that cannot be a key, an endpoint that cannot be used, or a declaration Zenoh refuses.
+    pub fn open(plan: BridgePlan, graph: &Graph, topics: Vec<Topic>, incoming: Vec<Incoming>) -> Result<Self> {
+        for c in plan.send.iter().chain(&plan.receive) {
+            check_topic(&c.topic).map_err(anyhow::Error::msg)?;
+        }
+        let keys = Keys::new(&plan.graph, &plan.hash);
+        let where_ = if plan.listen.is_empty() {
+            format!("connecting to {}", plan.connect.join(", "))
+        } else {
+            format!("listening on {}", plan.listen.join(", "))
+        };
+        let session = zenoh::open(session::config(&plan)?)
+            .wait()
+            .map_err(|e| anyhow!("host '{}': cannot open the Zenoh session {where_}: {e}", plan.host))?;
+        let mut outgoing = Vec::new();
+        for t in &topics {
+            let crossing = plan
+                .send
+                .iter()
+                .find(|c| c.topic == t.name)
+                .with_context(|| format!("the bridge subscribes to '{}', which its plan does not send", t.name))?;
+            let edge = graph.input_edge(BRIDGE, &t.name).context("the bridge's input edge")?;
+            let latest = edge.policy == EdgePolicy::Latest;
+            let publisher = session
+                .declare_publisher(keys.data(&t.name))
+                .congestion_control(if latest {
+                    CongestionControl::Drop
+                } else {
+                    CongestionControl::Block
+                })
+                .wait()
+                .map_err(zenoh_error("cannot declare a Zenoh publisher"))?;
+            outgoing.push(Outgoing {
+                hosts: crossing.hosts.clone(),
+                publisher,
+                window: Window::new(&crossing.hosts, edge.depth.max(4) as u64),
+                end_sent: false,
+                taken: BTreeSet::new(),
+            });
+        }
+        let (tx, events) = crossbeam::channel::unbounded();
+        let subscribers = declare_subscribers(&session, &keys, &plan, &incoming, &tx)?;
+        let token = session
+            .liveliness()
+            .declare_token(keys.token(&plan.host))
+            .wait()
+            .map_err(zenoh_error("cannot declare the host's liveliness token"))?;
+        Ok(Self {
+            plan,
+            keys,
+            session,
+            topics,
+            outgoing,
+            incoming,
+            seen: BTreeSet::new(),
+            gone: BTreeMap::new(),
+            events,
+            early: VecDeque::new(),
+            scratch: Decoded::default(),
+            _subscribers: subscribers,
+            _token: token,
+        })
+    }
+
+    /// One line on what this bridge carries.
+    pub fn describe(&self) -> String {
+        format!(
+            "host '{}': {} topics out, {} in, with {}",
+            self.plan.host,
+            self.outgoing.len(),
+            self.incoming.len(),
+            self.plan.peers.join(", ")
+        )
+    }
+
+    /// Waits until every peer's token is up, within `timeout`; what else arrives meanwhile is kept for later.
+    ///
+    /// # Errors
+    /// A peer of another graph, peers missing after `timeout` (named, with this host's endpoints), or an interrupt.
+    pub fn wait_for_peers(&mut self, ctx: &NodeContext, timeout: Duration) -> Result<()> {
+        let deadline = Instant::now() + timeout;
+        loop {
+            let missing: Vec<&str> = self
+                .plan
+                .peers
+                .iter()
+                .filter(|p| !self.seen.contains(*p))
+                .map(String::as_str)
+                .collect();
+            if missing.is_empty() {
+                return Ok(());
+            }
+            if ctx.should_stop() {
+                bail!("interrupted while waiting for host {}", missing.join(", "));
+            }
+            if Instant::now() > deadline {
+                bail!(
+                    "host {} did not appear within {timeout:?} (this host '{}' is {}): is `lineflow run GRAPH --host NAME` running there, with the same launch file?",
+                    missing.join(", "),
+                    self.plan.host,
+                    if self.plan.listen.is_empty() {
+                        format!("connecting to {}", self.plan.connect.join(", "))
+                    } else {
+                        format!("listening on {}", self.plan.listen.join(", "))
+                    }
+                );
+            }
+            match self.events.recv_timeout(Duration::from_millis(50)) {
+                Ok(Event::Peer { key, alive }) => self.on_peer(&key, alive)?,
+                Ok(other) => self.early.push_back(other),
+                Err(_) => {}
+            }
+        }
+    }
+
+    fn on_peer(&mut self, key: &str, alive: bool) -> Result<()> {
+        let Some((host, hash)) = self.keys.parse_token(key) else {
+            return Ok(());
+        };
+        if host == self.plan.host {
+            return Ok(());
+        }
+        if hash != self.plan.hash {
+            if alive {
+                bail!(
+                    "host '{host}' runs another version of graph '{}' (hash {hash}, here {}): start every host from the same launch file with the same --set options",
+                    self.plan.graph,
+                    self.plan.hash
+                );
+            }
+            return Ok(());
+        }
+        if !self.plan.peers.iter().any(|p| p == host) {
+            return Ok(());
+        }
+        if alive {
+            self.seen.insert(host.to_owned());
+            self.gone.remove(host);
+        } else {
+            self.gone.entry(host.to_owned()).or_insert_with(Instant::now);
+        }
+        Ok(())
+    }
+
+    /// Publishes what arrived from other hosts into this host's graph and returns them their credit.
+    ///
+    /// # Errors
+    /// A message of another type or version, one that does not decode, a stop from another host, or a transport
+    /// error.
+    pub fn receive(&mut self) -> Result<()> {
+        while let Some(event) = self.early.pop_front().or_else(|| self.events.try_recv().ok()) {
+            match event {
+                Event::Data { topic, cdr, tag } => self.on_data(topic, &cdr, tag)?,
+                Event::Reply(reply) => {
+                    let r = reply.map_err(|e| anyhow!("a reply from another host: {e}"))?;
+                    if let Some(i) = self.topics.iter().position(|t| t.name == r.topic) {
+                        let out = &mut self.outgoing[i];
+                        out.window.grant(&r.from, r.credit);
+                        if r.ended {
+                            out.taken.insert(r.from);
+                        }
+                    }
+                }
+                Event::Stop(host) => bail!("host '{host}' was interrupted; its part of the graph and this one stop"),
+                Event::Peer { key, alive } => self.on_peer(&key, alive)?,
+            }
+        }
+        for i in 0..self.incoming.len() {
+            if self.incoming[i].owed > 0 {
+                self.reply(i, false)?;
+            }
+        }
+        Ok(())
+    }
+
+    fn on_data(&mut self, i: usize, cdr: &[u8], tag: Result<Tag, String>) -> Result<()> {
+        let inc = &mut self.incoming[i];
+        let sender = inc.from.clone();
+        let from = |e: String| anyhow!("from host '{sender}': {e}");
+        let tag = tag.map_err(|e| from(format!("topic '{}': {e}", inc.topic)))?;
+        tag.check(inc.kind, &inc.topic).map_err(from)?;
+        if inc.ended {
+            tracing::warn!("'{}': a message after its end from host '{}'; dropped", inc.topic, inc.from);
+            return Ok(());
+        }
+        match tag {
+            Tag::End => {
+                // A latched topic has no end-of-stream (a late subscriber still gets its message): it ends for
+                // this host's nodes when the bridge finishes.
+                if !inc.kind.latched() {
+                    inc.emit.end()?;
+                }
+                inc.ended = true;
+                self.reply(i, true)
+            }
+            Tag::Message { .. } => {
+                let (header, payload) = decode_view(inc.kind, cdr, &mut self.scratch)
+                    .with_context(|| format!("topic '{}' from host '{}'", inc.topic, inc.from))?;
+                inc.emit.emit(header, payload)?;
+                inc.owed += 1;
+                Ok(())
+            }
+        }
+    }
+
+    fn reply(&mut self, i: usize, ended: bool) -> Result<()> {
+        let inc = &mut self.incoming[i];
+        let reply = Reply {
+            from: self.plan.host.clone(),
+            topic: inc.topic.clone(),
+            credit: std::mem::take(&mut inc.owed),
+            ended,
+        };
+        self.session
+            .put(self.keys.back(&inc.from), serde_json::to_vec(&reply)?)
+            .congestion_control(CongestionControl::Block)
+            .wait()
+            .map_err(zenoh_error("cannot reply to the sending host"))
+    }
+
+    /// Puts what this host's graph published for other hosts, as far as their windows allow, and each topic's end
+    /// once it has ended here.
+    ///
+    /// # Errors
+    /// A transport error.
+    pub fn send(&mut self, status: Option<&mut StatusWatch>) -> Result<()> {
+        // Status first: what a finished publisher sent is already waiting, and the drain below takes it.
+        update_ended(&mut self.topics, status);
+        for (t, out) in self.topics.iter_mut().zip(&mut self.outgoing) {
+            let room = out.window.room() as usize;
+            let kind = t.kind;
+            let publisher = &out.publisher;
+            let tag = Tag::of(kind).to_bytes();
+            let mut put = 0;
+            t.messages += t.tap.drain_some(room, &mut |_, header, payload| {
+                let mut cdr = Vec::new();
+                encode(kind, header, payload, &mut cdr);
+                publisher
+                    .put(cdr)
+                    .attachment(tag.clone())
+                    .wait()
+                    .map_err(zenoh_error("cannot put a message"))?;
+                put += 1;
+                Ok(())
+            })? as u64;
+            for _ in 0..put {
+                out.window.sent();
+            }
+            if t.ended && put == 0 && room > 0 && !out.end_sent {
+                out.publisher
+                    .put(Vec::<u8>::new())
+                    .attachment(Tag::End.to_bytes())
+                    .wait()
+                    .map_err(zenoh_error("cannot put a topic's end"))?;
+                out.end_sent = true;
+                tracing::debug!("'{}' ended after {} messages", t.name, t.messages);
+            }
+        }
+        Ok(())
+    }
+
+    fn done_with(&self, host: &str) -> bool {
+        let received = self.incoming.iter().filter(|i| i.from == host).all(|i| i.ended);
+        let sent = self
+            .outgoing
+            .iter()
+            .filter(|o| o.hosts.iter().any(|h| h == host))
+            .all(|o| o.taken.contains(host));
+        received && sent
+    }
+
+    /// Ends the run when a peer left before it was done with this host.
+    ///
+    /// # Errors
+    /// The host that left and the topics it leaves unfinished.
+    pub fn check_peers(&self) -> Result<()> {
+        for (host, since) in &self.gone {
+            if since.elapsed() < GONE_GRACE || self.done_with(host) {
+                continue;
+            }
+            let open: Vec<&str> = self
+                .incoming
+                .iter()
+                .filter(|i| &i.from == host && !i.ended)
+                .map(|i| i.topic.as_str())
+                .chain(
+                    self.topics
+                        .iter()
+                        .zip(&self.outgoing)
+                        .filter(|(_, o)| o.hosts.contains(host) && !o.taken.contains(host))
+                        .map(|(t, _)| t.name.as_str()),
+                )
+                .collect();
+            bail!(
+                "host '{host}' is gone (its bridge left the Zenoh session) before these topics ended: {}",
+                open.join(", ")
+            );
+        }
+        Ok(())
+    }
+
+    /// Whether every topic has ended here and been taken by every host it goes to.
+    pub fn done(&self) -> bool {
+        self.plan.peers.iter().all(|p| self.done_with(p))
+    }
+
+    /// Tells the other hosts this one was interrupted.
+    pub fn say_stopped(&self) {
+        let _ = self.session.put(self.keys.stop(), self.plan.host.clone()).wait();
+    }
+
+    /// Closes the session; after a finished run, first waits (at most [`PARTING`]) for the hosts that send here
+    /// to leave, as they wait for this host's last replies.
+    pub fn close(mut self, finished: bool) {
+        if finished {
+            let senders: BTreeSet<String> = self.incoming.iter().map(|i| i.from.clone()).collect();
+            let deadline = Instant::now() + PARTING;
+            while senders.iter().any(|h| !self.gone.contains_key(h)) && Instant::now() < deadline {
+                if let Ok(Event::Peer { key, alive }) = self.events.recv_timeout(Duration::from_millis(20)) {
+                    let _ = self.on_peer(&key, alive);
+                }
+            }
+        }
+        let _ = self.session.close().wait();
+    }
+}
+
+fn declare_subscribers(
+    session: &zenoh::Session,
+    keys: &Keys,
+    plan: &BridgePlan,
+    incoming: &[Incoming],
+    tx: &Sender<Event>,
+) -> Result<Vec<zenoh::pubsub::Subscriber<()>>> {
+    let mut subscribers = Vec::new();
+    for (i, inc) in incoming.iter().enumerate() {
+        let tx = tx.clone();
+        let sub = session
+            .declare_subscriber(keys.data(&inc.topic))
+            .callback(move |s: Sample| {
+                let tag = s
+                    .attachment()
+                    .map(|a| Tag::parse(&a.to_bytes()))
+                    .unwrap_or_else(|| Err("a put without the bridge's attachment".into()));
+                let _ = tx.send(Event::Data {
+                    topic: i,
+                    cdr: s.payload().to_bytes().into_owned(),
+                    tag,
+                });
+            })
+            .wait()
+            .map_err(zenoh_error("cannot declare a Zenoh subscriber"))?;
+        subscribers.push(sub);
+    }
+    let replies = tx.clone();
+    subscribers.push(
+        session
+            .declare_subscriber(keys.back(&plan.host))
+            .callback(move |s: Sample| {
+                let reply = serde_json::from_slice::<Reply>(&s.payload().to_bytes()).map_err(|e| e.to_string());
+                let _ = replies.send(Event::Reply(reply));
+            })
+            .wait()
+            .map_err(zenoh_error("cannot declare the replies' subscriber"))?,
+    );
+    let stops = tx.clone();
+    subscribers.push(
+        session
+            .declare_subscriber(keys.stop())
+            .callback(move |s: Sample| {
+                let host = String::from_utf8_lossy(&s.payload().to_bytes()).into_owned();
+                let _ = stops.send(Event::Stop(host));
+            })
+            .wait()
+            .map_err(zenoh_error("cannot declare the stops' subscriber"))?,
+    );
+    let peers = tx.clone();
+    subscribers.push(
+        session
+            .liveliness()
+            .declare_subscriber(keys.tokens())
+            .history(true)
+            .callback(move |s: Sample| {
+                let _ = peers.send(Event::Peer {
+                    key: s.key_expr().as_str().to_owned(),
+                    alive: s.kind() == SampleKind::Put,
+                });
+            })
+            .wait()
+            .map_err(zenoh_error("cannot declare the hosts' liveliness subscriber"))?,
+    );
+    Ok(subscribers)
+}

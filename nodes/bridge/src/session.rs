@@ -1,0 +1,72 @@
+//! The Zenoh session of a host's bridge, configured from its plan.
+use anyhow::{Context, Result};
+use lineflow_runtime::hosts::BridgePlan;
+
+/// The Zenoh configuration of a bridge: a peer that listens only where the launch file says (Zenoh's own default
+/// would listen on every interface, on a random port), connects to the other hosts' endpoints (retried in the
+/// background until they are up), and scouts by multicast only when asked.
+///
+/// # Errors
+/// An endpoint Zenoh does not accept.
+pub fn config(plan: &BridgePlan) -> Result<zenoh::Config> {
+    let mut c = zenoh::Config::default();
+    let set = |c: &mut zenoh::Config, key: &str, value: String| {
+        c.insert_json5(key, &value)
+            .map_err(|e| anyhow::anyhow!("{e}"))
+            .with_context(|| format!("Zenoh setting {key} = {value}"))
+    };
+    set(&mut c, "mode", json("peer"))?;
+    set(&mut c, "listen/endpoints", json(&plan.listen))?;
+    set(&mut c, "connect/endpoints", json(&plan.connect))?;
+    set(&mut c, "scouting/multicast/enabled", json(&plan.scouting))?;
+    // The bridges' own window (credit.rs) keeps puts from waiting on a busy host; a put may still wait while a
+    // large image crosses a slow link, which Zenoh's default (5 s) would take for a dead session.
+    set(
+        &mut c,
+        "transport/link/tx/queue/congestion_control/block/wait_before_close",
+        json(&60_000_000u64),
+    )?;
+    Ok(c)
+}
+
+/// A setting's value as JSON5 (JSON is JSON5).
+fn json<T: serde::Serialize + ?Sized>(value: &T) -> String {
+    serde_json::to_string(value).expect("plain data serializes")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn plan(listen: &[&str], connect: &[&str]) -> BridgePlan {
+        BridgePlan {
+            graph: "g".into(),
+            hash: "0".into(),
+            host: "main".into(),
+            listen: listen.iter().map(|s| s.to_string()).collect(),
+            connect: connect.iter().map(|s| s.to_string()).collect(),
+            peers: vec!["camera".into()],
+            send: Vec::new(),
+            receive: Vec::new(),
+            scouting: false,
+        }
+    }
+
+    #[test]
+    fn the_session_listens_only_where_the_launch_file_says() {
+        let c = config(&plan(&["tcp/127.0.0.1:7447"], &[])).unwrap();
+        let listen = c.get_json("listen/endpoints").unwrap();
+        assert!(listen.contains("tcp/127.0.0.1:7447"), "{listen}");
+        let none = config(&plan(&[], &["tcp/127.0.0.1:7447"])).unwrap();
+        let listen = none.get_json("listen/endpoints").unwrap();
+        assert!(!listen.contains("tcp/"), "a host without `listen` listens nowhere: {listen}");
+        assert!(none.get_json("connect/endpoints").unwrap().contains("tcp/127.0.0.1:7447"));
+        assert_eq!(none.get_json("scouting/multicast/enabled").unwrap(), "false");
+    }
+
+    #[test]
+    fn an_endpoint_zenoh_refuses_is_named() {
+        let e = format!("{:#}", config(&plan(&["nonsense"], &[])).unwrap_err());
+        assert!(e.contains("listen/endpoints") && e.contains("nonsense"), "{e}");
+    }
+}

@@ -1,0 +1,214 @@
+//! What crosses between hosts (`docs/hosts.md`): the Zenoh key expressions of a graph, the attachment that names
+//! each message's type and version, and what a receiving bridge sends back to the sending one.
+use lineflow_messages::checksum::fnv1a64;
+use lineflow_messages::MessageKind;
+use serde::{Deserialize, Serialize};
+
+/// The key expressions of one graph. Data and replies carry the graph's hash, so that two runs of different
+/// graphs (or of one graph with other settings) never exchange a message; the hosts' liveliness tokens do not,
+/// so that such a peer is seen and refused by name.
+#[derive(Debug, Clone)]
+pub struct Keys {
+    graph: String,
+    hash: String,
+}
+
+impl Keys {
+    /// The keys of the graph `name` with hash `hash`.
+    pub fn new(name: &str, hash: &str) -> Self {
+        Self {
+            graph: key_level(name),
+            hash: key_level(hash),
+        }
+    }
+    /// Where a topic's messages are put.
+    pub fn data(&self, topic: &str) -> String {
+        format!("lineflow/{}/{}/data/{topic}", self.graph, self.hash)
+    }
+    /// Where the hosts that receive from `host` answer it (credits, ends taken).
+    pub fn back(&self, host: &str) -> String {
+        format!("lineflow/{}/{}/back/{}", self.graph, self.hash, key_level(host))
+    }
+    /// Where a host that was interrupted says so.
+    pub fn stop(&self) -> String {
+        format!("lineflow/{}/{}/stop", self.graph, self.hash)
+    }
+    /// The liveliness token of `host`.
+    pub fn token(&self, host: &str) -> String {
+        format!("lineflow/{}/host/{}/{}", self.graph, key_level(host), self.hash)
+    }
+    /// Every host's token.
+    pub fn tokens(&self) -> String {
+        format!("lineflow/{}/host/**", self.graph)
+    }
+    /// The host and graph hash of a token's key.
+    pub fn parse_token<'a>(&self, key: &'a str) -> Option<(&'a str, &'a str)> {
+        let rest = key
+            .strip_prefix("lineflow/")?
+            .strip_prefix(self.graph.as_str())?
+            .strip_prefix("/host/")?;
+        rest.split_once('/')
+    }
+}
+
+/// A name as one level of a key expression: letters, digits, `_` and `-` kept, anything else `_`.
+fn key_level(name: &str) -> String {
+    let level: String = name
+        .chars()
+        .map(|c| {
+            if c.is_ascii_alphanumeric() || c == '_' || c == '-' {
+                c
+            } else {
+                '_'
+            }
+        })
+        .collect();
+    if level.is_empty() {
+        "_".into()
+    } else {
+        level
+    }
+}
+
+/// Whether a topic can be the tail of a key expression: Zenoh reserves `*`, `$`, `?` and `#`, and a key has no
+/// empty level.
+///
+/// # Errors
+/// What is wrong, naming the topic.
+pub fn check_topic(topic: &str) -> Result<(), String> {
+    if topic.contains(['*', '$', '?', '#']) || topic.split('/').any(str::is_empty) {
+        return Err(format!(
+            "topic '{topic}' cannot cross between hosts: a Zenoh key holds no '*', '$', '?' or '#' and no empty level ('//', a leading or trailing '/')"
+        ));
+    }
+    Ok(())
+}
+
+/// The version of a message type as it crosses: a hash of its recorded definition (every field, nested types
+/// included), so that two builds whose messages differ refuse each other's instead of misreading them.
+pub fn version(kind: MessageKind) -> String {
+    format!("{:016x}", fnv1a64(kind.schema().ros2msg().as_bytes()))
+}
+
+/// The attachment of a put on a data key.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Tag {
+    /// A message: its type (MCAP schema name) and [`version`].
+    Message {
+        /// The schema name, e.g. `lineflow_msgs/msg/Image`.
+        schema: String,
+        /// Its [`version`].
+        version: String,
+    },
+    /// The topic has ended on the sending host: no message follows.
+    End,
+}
+
+impl Tag {
+    /// The tag of a message of `kind`.
+    pub fn of(kind: MessageKind) -> Self {
+        Tag::Message {
+            schema: kind.schema().name(),
+            version: version(kind),
+        }
+    }
+    /// The attachment's bytes.
+    pub fn to_bytes(&self) -> Vec<u8> {
+        match self {
+            Tag::Message { schema, version } => format!("msg {schema} {version}").into_bytes(),
+            Tag::End => b"end".to_vec(),
+        }
+    }
+    /// Reads an attachment.
+    ///
+    /// # Errors
+    /// An attachment that is not a bridge's.
+    pub fn parse(bytes: &[u8]) -> Result<Self, String> {
+        let text = std::str::from_utf8(bytes).map_err(|_| "attachment is not UTF-8".to_owned())?;
+        let mut words = text.split(' ');
+        match (words.next(), words.next(), words.next(), words.next()) {
+            (Some("end"), None, None, None) => Ok(Tag::End),
+            (Some("msg"), Some(schema), Some(version), None) => Ok(Tag::Message {
+                schema: schema.into(),
+                version: version.into(),
+            }),
+            _ => Err(format!(
+                "attachment '{}' is not a lineflow bridge's",
+                text.chars().take(80).collect::<String>()
+            )),
+        }
+    }
+    /// Checks that a message tagged so can be read as `kind` on `topic`.
+    ///
+    /// # Errors
+    /// The type or version that differs, naming both.
+    pub fn check(&self, kind: MessageKind, topic: &str) -> Result<(), String> {
+        let want = Tag::of(kind);
+        match (self, &want) {
+            (Tag::End, _) => Ok(()),
+            (Tag::Message { schema, .. }, Tag::Message { schema: s, .. }) if schema != s => Err(format!(
+                "topic '{topic}': a message of type {schema} arrived where this graph carries {s}"
+            )),
+            (Tag::Message { version, .. }, Tag::Message { version: v, .. }) if version != v => Err(format!(
+                "topic '{topic}': the sending host's {} is version {version}, this host's {v}: run the same lineflow on every host",
+                kind.name()
+            )),
+            _ => Ok(()),
+        }
+    }
+}
+
+/// What a receiving host tells the sending one about a topic.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Reply {
+    /// The receiving host.
+    pub from: String,
+    /// The topic.
+    pub topic: String,
+    /// Messages it has published into its own graph since its last reply: room for as many more.
+    pub credit: u64,
+    /// It has taken the topic's end: nothing more is owed to it.
+    pub ended: bool,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn keys_keep_graphs_apart_and_tokens_name_their_host() {
+        let k = Keys::new("demo two hosts", "00ff");
+        assert_eq!(k.data("gt/poses"), "lineflow/demo_two_hosts/00ff/data/gt/poses");
+        assert_ne!(Keys::new("demo", "01").data("images"), Keys::new("demo", "02").data("images"));
+        assert_eq!(k.parse_token(&k.token("camera")), Some(("camera", "00ff")));
+        assert_eq!(k.parse_token("lineflow/other/host/camera/00ff"), None);
+    }
+
+    #[test]
+    fn topics_that_are_no_key_are_refused_by_name() {
+        assert!(check_topic("gt/lines3d").is_ok());
+        for bad in ["a*", "a//b", "/a", "a/", "x$y"] {
+            let e = check_topic(bad).unwrap_err();
+            assert!(e.contains(&format!("'{bad}'")), "{e}");
+        }
+    }
+
+    #[test]
+    fn tags_round_trip_and_a_type_or_version_mismatch_is_named() {
+        let tag = Tag::of(MessageKind::Image);
+        assert_eq!(Tag::parse(&tag.to_bytes()).unwrap(), tag);
+        assert_eq!(Tag::parse(b"end").unwrap(), Tag::End);
+        assert!(Tag::parse(b"hello").is_err());
+        assert!(tag.check(MessageKind::Image, "images").is_ok());
+        let e = tag.check(MessageKind::Lines2D, "lines2d").unwrap_err();
+        assert!(e.contains("lineflow_msgs/msg/Image") && e.contains("lines2d"), "{e}");
+        let old = Tag::Message {
+            schema: MessageKind::Image.schema().name(),
+            version: "0000000000000000".into(),
+        };
+        let e = old.check(MessageKind::Image, "images").unwrap_err();
+        assert!(e.contains("version 0000000000000000"), "{e}");
+        assert_ne!(version(MessageKind::Image), version(MessageKind::Lines2D));
+    }
+}

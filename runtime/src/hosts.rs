@@ -1,0 +1,384 @@
+//! Graphs across machines (`docs/hosts.md`): the `[hosts]` of a launch file, the part of a graph each host runs,
+//! and the bridge the loader adds to a host's part where an edge has its publisher on one host and subscribers on
+//! another. Inside a host the edges stay iceoryx2 shared memory; between hosts the bridges carry them over Zenoh.
+//!
+//! Every host loads the whole launch file and checks the whole graph (types, the `gt/*` rule, every edge with a
+//! publisher); [`part`] then keeps its own nodes. A graph's [`hash`](crate::launch::Graph::hash) covers every node
+//! and edge of every host, so that two hosts running different launch files, or the same one with other `--set`s,
+//! refuse each other instead of exchanging messages of another graph.
+use std::collections::{BTreeMap, BTreeSet};
+
+use lineflow_messages::checksum::fnv1a64;
+use serde::{Deserialize, Serialize};
+
+use crate::launch::{EdgeSpec, Graph, LaunchError, NodeSpec, Resolver, RestartPolicy};
+
+/// The host of nodes that name none, and the one `lineflow run` runs without `--host`.
+pub const DEFAULT_HOST: &str = "main";
+/// Name of the bridge node the loader adds to a host's part of a graph on several hosts.
+pub const BRIDGE: &str = "bridge";
+/// Stage of the bridge node.
+pub const BRIDGE_STAGE: &str = "bridge";
+
+/// A host of a graph and its Zenoh endpoints (`[hosts.NAME]`).
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+pub struct HostSpec {
+    /// Host name, as nodes name it in `host`.
+    pub name: String,
+    /// Endpoints this host's bridge listens on (`tcp/ADDRESS:PORT`).
+    pub listen: Vec<String>,
+    /// Endpoints it connects to; empty: every other host's `listen`.
+    pub connect: Vec<String>,
+}
+
+/// One edge that crosses between hosts, as one host's bridge sees it.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Crossing {
+    /// The topic.
+    pub topic: String,
+    /// Sending: the hosts that subscribe. Receiving: the host that publishes.
+    pub hosts: Vec<String>,
+}
+
+/// What a host's bridge carries: its parameters, written by [`part`].
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct BridgePlan {
+    /// The graph's name: the first level of every key expression.
+    pub graph: String,
+    /// The graph's hash: a peer with another one is refused.
+    pub hash: String,
+    /// The host this bridge runs on.
+    pub host: String,
+    /// Endpoints to listen on.
+    pub listen: Vec<String>,
+    /// Endpoints to connect to.
+    pub connect: Vec<String>,
+    /// The hosts this one exchanges topics with.
+    pub peers: Vec<String>,
+    /// Topics published here and read on other hosts.
+    pub send: Vec<Crossing>,
+    /// Topics published on another host and read here.
+    pub receive: Vec<Crossing>,
+    /// Zenoh multicast scouting, besides the explicit endpoints (`[bridge] scouting = true`).
+    #[serde(default)]
+    pub scouting: bool,
+}
+
+/// The `[bridge]` table: settings of every host's bridge.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct BridgeSettings {
+    /// Find the other hosts by Zenoh's multicast scouting besides the explicit endpoints.
+    #[serde(default)]
+    pub scouting: bool,
+}
+
+/// The `[hosts]` table checked: names well-formed, endpoints well-formed, somebody listening when there are
+/// several hosts. `used` are the hosts the nodes name.
+///
+/// # Errors
+/// The entry at fault and what is wrong, as the loader reports it.
+pub fn check_hosts(hosts: &[HostSpec], used: &BTreeSet<String>) -> Result<(), (String, String)> {
+    for h in hosts {
+        let entry = format!("[hosts.{}]", h.name);
+        if h.name.is_empty() || !h.name.chars().all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-') {
+            return Err((entry, "a host name is non-empty ASCII letters, digits, '_' or '-'".into()));
+        }
+        for e in h.listen.iter().chain(&h.connect) {
+            check_endpoint(e).map_err(|m| (entry.clone(), m))?;
+        }
+    }
+    for name in used {
+        if name != DEFAULT_HOST && !hosts.iter().any(|h| &h.name == name) {
+            let known: Vec<&str> = hosts.iter().map(|h| h.name.as_str()).collect();
+            return Err((
+                format!("host '{name}'"),
+                format!(
+                    "not declared: add [hosts.{name}] with its `listen` or `connect` endpoints (declared: {})",
+                    if known.is_empty() { "none".into() } else { known.join(", ") }
+                ),
+            ));
+        }
+    }
+    let several = used.len() > 1 || used.iter().any(|h| h != DEFAULT_HOST);
+    if several && !hosts.iter().any(|h| !h.listen.is_empty()) {
+        return Err((
+            "[hosts]".into(),
+            "a graph on several hosts needs `listen` on at least one host, e.g. listen = [\"tcp/127.0.0.1:7447\"]".into(),
+        ));
+    }
+    Ok(())
+}
+
+/// A Zenoh endpoint the bridges can use: `tcp/ADDRESS:PORT`.
+fn check_endpoint(e: &str) -> Result<(), String> {
+    let bad = || format!("endpoint '{e}': expected tcp/ADDRESS:PORT, e.g. tcp/127.0.0.1:7447");
+    let rest = e.strip_prefix("tcp/").ok_or_else(bad)?;
+    let (address, port) = rest.rsplit_once(':').ok_or_else(bad)?;
+    if address.is_empty() || port.parse::<u16>().is_err() {
+        return Err(bad());
+    }
+    Ok(())
+}
+
+/// The hash of a whole graph: every node's name, host, stage, implementation, parameters and wiring, every
+/// edge's topic, type, ends and policy, and the hosts. Not the executables' paths, which differ between machines.
+pub fn graph_hash(nodes: &[NodeSpec], edges: &[EdgeSpec], hosts: &[HostSpec]) -> String {
+    let nodes: Vec<_> = nodes
+        .iter()
+        .map(|n| (&n.name, &n.host, &n.stage, &n.implementation, &n.params, &n.remap))
+        .collect();
+    let edges: Vec<_> = edges
+        .iter()
+        .map(|e| (&e.topic, &e.message, &e.from, &e.to, e.policy, e.depth, e.history))
+        .collect();
+    let text = serde_json::to_string(&(nodes, edges, hosts)).expect("plain data serializes");
+    format!("{:016x}", fnv1a64(text.as_bytes()))
+}
+
+/// The part of `graph` that `host` runs: its own nodes, the edges with an end on it, and a bridge node for the
+/// edges that cross to or from other hosts. The other hosts' nodes are kept in `replaced`, where a stage that needs
+/// a source's parameters (eval regenerating the synthetic scene) finds them. A graph on one host is returned as it
+/// is.
+///
+/// # Errors
+/// A host the graph does not declare, or a missing bridge binary.
+pub fn part(graph: &Graph, host: &str, resolver: &Resolver) -> Result<Graph, LaunchError> {
+    let invalid = |entry: String, message: String| LaunchError::Invalid {
+        path: graph.source.clone(),
+        entry,
+        message,
+    };
+    let mut names: BTreeSet<&str> = graph.nodes.iter().map(|n| n.host.as_str()).collect();
+    names.extend(graph.hosts.iter().map(|h| h.name.as_str()));
+    if !names.contains(host) {
+        let known: Vec<&str> = names.into_iter().collect();
+        return Err(invalid(
+            format!("--host {host}"),
+            format!("the graph has no host '{host}' (its hosts: {})", known.join(", ")),
+        ));
+    }
+    if names.len() == 1 {
+        return Ok(graph.clone());
+    }
+    let host_of: BTreeMap<&str, &str> = graph.nodes.iter().map(|n| (n.name.as_str(), n.host.as_str())).collect();
+    let here = |node: &str| host_of.get(node).copied() == Some(host);
+    let mut part = graph.clone();
+    part.host = host.to_owned();
+    let (mine, others): (Vec<NodeSpec>, Vec<NodeSpec>) = graph.nodes.iter().cloned().partition(|n| n.host == host);
+    part.nodes = mine;
+    part.replaced.extend(others);
+    let (mut send, mut receive) = (Vec::new(), Vec::new());
+    part.edges = graph
+        .edges
+        .iter()
+        .filter_map(|e| {
+            let local: Vec<String> = e.to.iter().filter(|t| here(t)).cloned().collect();
+            let remote: BTreeSet<String> = e.to.iter().filter(|t| !here(t)).map(|t| host_of[t.as_str()].to_owned()).collect();
+            let mut e = e.clone();
+            if here(&e.from) {
+                if !remote.is_empty() {
+                    send.push(Crossing {
+                        topic: e.topic.clone(),
+                        hosts: remote.into_iter().collect(),
+                    });
+                    e.to = local.into_iter().chain([BRIDGE.to_owned()]).collect();
+                }
+                Some(e)
+            } else if !local.is_empty() {
+                receive.push(Crossing {
+                    topic: e.topic.clone(),
+                    hosts: vec![host_of[e.from.as_str()].to_owned()],
+                });
+                e.from = BRIDGE.to_owned();
+                e.to = local;
+                Some(e)
+            } else {
+                None
+            }
+        })
+        .collect();
+    for (i, n) in part.nodes.iter_mut().enumerate() {
+        n.index = i as u32;
+    }
+    if send.is_empty() && receive.is_empty() {
+        return Ok(part);
+    }
+    let me = graph.hosts.iter().find(|h| h.name == host);
+    let listen = me.map(|h| h.listen.clone()).unwrap_or_default();
+    let connect = match me.map(|h| h.connect.clone()).unwrap_or_default() {
+        c if !c.is_empty() => c,
+        _ => graph
+            .hosts
+            .iter()
+            .filter(|h| h.name != host)
+            .flat_map(|h| h.listen.iter().cloned())
+            .collect(),
+    };
+    let peers: BTreeSet<String> = send.iter().chain(&receive).flat_map(|c| c.hosts.iter().cloned()).collect();
+    let plan = BridgePlan {
+        graph: graph.name.clone(),
+        hash: graph.hash.clone(),
+        host: host.to_owned(),
+        listen,
+        connect,
+        peers: peers.into_iter().collect(),
+        send,
+        receive,
+        scouting: graph.bridge.scouting,
+    };
+    let serde_json::Value::Object(params) = serde_json::to_value(&plan).expect("plain data serializes") else {
+        unreachable!("a struct serializes to an object")
+    };
+    let command = vec![resolver.stage(BRIDGE_STAGE).map_err(|m| invalid(format!("node '{BRIDGE}'"), m))?];
+    part.nodes.push(NodeSpec {
+        name: BRIDGE.into(),
+        index: part.nodes.len() as u32,
+        host: host.to_owned(),
+        stage: Some(BRIDGE_STAGE.into()),
+        implementation: None,
+        command,
+        params,
+        restart: RestartPolicy::Never,
+        max_restarts: 0,
+        backoff_ms: 0,
+        remap: BTreeMap::new(),
+    });
+    Ok(part)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::launch::parse;
+    use std::path::Path;
+
+    fn resolver(dir: &Path) -> Resolver {
+        for s in ["capture", "stats", "record", "view", "bridge"] {
+            std::fs::write(dir.join(format!("lineflow-{s}")), "").unwrap();
+        }
+        Resolver { bin_dir: dir.to_owned() }
+    }
+
+    /// A camera host with the source and a filter, the main host with the sink and the recorder.
+    const TWO_HOSTS: &str = r#"
+        [hosts.main]
+        listen = ["tcp/127.0.0.1:7447"]
+        [hosts.camera]
+        [[node]]
+        name = "cap"
+        stage = "capture"
+        host = "camera"
+        [[node]]
+        name = "filter"
+        stage = "stats"
+        host = "camera"
+        [[node]]
+        name = "sink"
+        stage = "stats"
+        [[edge]]
+        topic = "images"
+        type = "Image"
+        from = "cap"
+        to = ["filter", "sink"]
+        max_payload_bytes = 1000
+        [[edge]]
+        topic = "camera"
+        type = "CameraModel"
+        from = "cap"
+        to = ["filter"]
+    "#;
+
+    fn plan(g: &Graph) -> BridgePlan {
+        let bridge = g.node(BRIDGE).expect("a bridge");
+        serde_json::from_value(serde_json::Value::Object(bridge.params.clone())).unwrap()
+    }
+
+    #[test]
+    fn each_host_runs_its_nodes_and_a_bridge_carries_the_edges_that_cross() {
+        let dir = tempfile::tempdir().unwrap();
+        let r = resolver(dir.path());
+        let whole = parse(&dir.path().join("g.toml"), TWO_HOSTS, &[], &r).unwrap();
+        let camera = part(&whole, "camera", &r).unwrap();
+        let names: Vec<&str> = camera.nodes.iter().map(|n| n.name.as_str()).collect();
+        assert_eq!(names, ["cap", "filter", BRIDGE]);
+        assert_eq!(
+            camera.nodes.iter().map(|n| n.index).collect::<Vec<_>>(),
+            [0, 1, 2],
+            "indices within the part"
+        );
+        let images = camera.edges.iter().find(|e| e.topic == "images").unwrap();
+        assert_eq!(images.to, ["filter", BRIDGE], "the sink and the recorder are on main");
+        let cam = camera.edges.iter().find(|e| e.topic == "camera").unwrap();
+        assert_eq!(cam.to, ["filter", BRIDGE], "the recorder on main records it");
+        let p = plan(&camera);
+        assert_eq!(
+            p.connect,
+            ["tcp/127.0.0.1:7447"],
+            "a host without endpoints connects to the listeners"
+        );
+        assert!(p.listen.is_empty());
+        assert_eq!(p.peers, ["main"]);
+        assert_eq!(p.send.iter().map(|c| c.topic.as_str()).collect::<Vec<_>>(), ["images", "camera"]);
+        assert!(p.receive.is_empty());
+
+        let main = part(&whole, DEFAULT_HOST, &r).unwrap();
+        let names: Vec<&str> = main.nodes.iter().map(|n| n.name.as_str()).collect();
+        assert_eq!(names, ["sink", crate::launch::RECORDER, BRIDGE]);
+        let images = main.edges.iter().find(|e| e.topic == "images").unwrap();
+        assert_eq!(
+            (images.from.as_str(), images.to.clone()),
+            (BRIDGE, vec!["sink".into(), crate::launch::RECORDER.into()])
+        );
+        assert!(main.replaced.iter().any(|n| n.name == "cap"), "eval finds the source's parameters");
+        let p = plan(&main);
+        assert_eq!(p.receive.len(), 2);
+        assert_eq!(p.receive[0].hosts, ["camera"]);
+        assert_eq!(p.hash, whole.hash);
+        assert_eq!(p.listen, ["tcp/127.0.0.1:7447"]);
+    }
+
+    #[test]
+    fn the_hash_covers_every_host_and_setting() {
+        let dir = tempfile::tempdir().unwrap();
+        let r = resolver(dir.path());
+        let p = dir.path().join("g.toml");
+        let a = parse(&p, TWO_HOSTS, &[], &r).unwrap();
+        assert_eq!(a.hash, parse(&p, TWO_HOSTS, &[], &r).unwrap().hash, "stable");
+        assert_ne!(a.hash, parse(&p, TWO_HOSTS, &["cap.fps=3".into()], &r).unwrap().hash);
+        assert_ne!(a.hash, parse(&p, TWO_HOSTS, &["filter.host=main".into()], &r).unwrap().hash);
+    }
+
+    #[test]
+    fn a_graph_on_one_host_is_unchanged_and_unknown_hosts_are_named() {
+        let dir = tempfile::tempdir().unwrap();
+        let r = resolver(dir.path());
+        let p = dir.path().join("g.toml");
+        let one = TWO_HOSTS.replace("host = \"camera\"", "");
+        let g = parse(&p, &one, &[], &r).unwrap();
+        let same = part(&g, DEFAULT_HOST, &r).unwrap();
+        assert_eq!(same.nodes.len(), g.nodes.len());
+        assert!(same.node(BRIDGE).is_none());
+        let e = part(&g, "nowhere", &r).unwrap_err().to_string();
+        assert!(e.contains("no host 'nowhere'") && e.contains("camera"), "{e}");
+
+        let cases = [
+            (TWO_HOSTS.replace("[hosts.camera]", ""), "host 'camera': not declared"),
+            (
+                TWO_HOSTS.replace("listen = [\"tcp/127.0.0.1:7447\"]", ""),
+                "needs `listen` on at least one host",
+            ),
+            (TWO_HOSTS.replace("tcp/127.0.0.1:7447", "udp/127.0.0.1"), "endpoint 'udp/127.0.0.1'"),
+            (
+                TWO_HOSTS
+                    .replace("name = \"sink\"", "name = \"bridge\"")
+                    .replace("\"sink\"]", "\"bridge\"]"),
+                "'bridge' is reserved",
+            ),
+        ];
+        for (text, expected) in cases {
+            let e = parse(&p, &text, &[], &r).unwrap_err().to_string();
+            assert!(e.contains(expected), "{e}");
+        }
+    }
+}

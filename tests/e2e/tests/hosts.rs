@@ -1,0 +1,211 @@
+//! End-to-end tests of one graph on two hosts (`docs/hosts.md`), on one machine: two supervisors with their own
+//! iceoryx2 roots, their bridges talking Zenoh over 127.0.0.1. The demo graph split in two gives the bytes of a
+//! run on one host, its recording replays on one host, and a host whose supervisor dies ends the other's run with
+//! an error naming it.
+use std::collections::BTreeSet;
+use std::path::{Path, PathBuf};
+use std::process::{Child, Stdio};
+use std::time::{Duration, Instant};
+
+use lineflow_e2e::*;
+
+const SCALE: &str = "capture.scale=0.06";
+/// The capture and the 2-D stages run on the camera's host; orientation, the 3-D stages, eval and the recorder on
+/// the main one.
+const ON_CAMERA: [&str; 5] = ["capture", "gray", "stats", "edges", "lines2d"];
+
+/// A port nobody listens on now.
+fn free_port() -> u16 {
+    std::net::TcpListener::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port()
+}
+
+/// The demo graph with two hosts: `main` listening on `port`, `camera` connecting to it.
+fn two_host_demo(sb: &Sandbox, port: u16) -> PathBuf {
+    let demo = std::fs::read_to_string(repo_file("launch/demo.toml")).unwrap();
+    let hosts = format!("\n[hosts.main]\nlisten = [\"tcp/127.0.0.1:{port}\"]\n\n[hosts.camera]\n");
+    sb.graph("demo-two-hosts.toml", &(demo + &hosts))
+}
+
+/// `lineflow run GRAPH --host HOST` with the split's `--set`s and `extra`, into `out`.
+fn start_host(sb: &Sandbox, graph: &Path, host: &str, out: &Path, extra: &[&str]) -> Child {
+    let mut args = vec![
+        "run",
+        graph.to_str().unwrap(),
+        "--host",
+        host,
+        "--out",
+        out.to_str().unwrap(),
+        "--set",
+        SCALE,
+    ];
+    let sets: Vec<String> = ON_CAMERA.iter().map(|n| format!("{n}.host=camera")).collect();
+    for s in sets.iter().map(String::as_str).chain(extra.iter().copied()) {
+        args.extend(["--set", s]);
+    }
+    // To a file, not a pipe: a pipe nobody reads while the other host runs would fill and stall this one.
+    let log = std::fs::File::create(log_of(out)).unwrap();
+    sb.lineflow(&args)
+        .env("LINEFLOW_STATE_DIR", state_of(sb, host))
+        .stdout(Stdio::null())
+        .stderr(log)
+        .spawn()
+        .unwrap()
+}
+
+/// Each host's supervisor keeps its runs in a state folder of its own, as on two machines.
+fn state_of(sb: &Sandbox, host: &str) -> PathBuf {
+    sb.path().join(format!("state-{host}"))
+}
+
+/// Where a host's terminal output goes.
+fn log_of(out: &Path) -> PathBuf {
+    out.with_extension("stderr")
+}
+
+/// Waits for a host's supervisor: whether it succeeded, and what it printed.
+fn finish(mut child: Child, out: &Path) -> (bool, String) {
+    let ok = child.wait().unwrap().success();
+    let err = std::fs::read_to_string(log_of(out)).unwrap_or_default();
+    eprintln!("--- {}\n{err}", out.display());
+    (ok, err)
+}
+
+#[test]
+fn the_demo_split_over_two_hosts_gives_the_bytes_of_one_host_and_its_recording_replays_on_one() {
+    let sb = Sandbox::new();
+    let graph = two_host_demo(&sb, free_port());
+    let (main_out, camera_out) = (sb.path().join("main"), sb.path().join("camera"));
+    // The camera's host first: its bridge waits for the main host to appear.
+    let camera = start_host(&sb, &graph, "camera", &camera_out, &[]);
+    std::thread::sleep(Duration::from_millis(500));
+    let main = start_host(&sb, &graph, "main", &main_out, &[]);
+    let (main_ok, main_err) = finish(main, &main_out);
+    let (camera_ok, camera_err) = finish(camera, &camera_out);
+    assert!(main_ok && camera_ok, "a host failed:\n{main_err}\n{camera_err}");
+    for (host, out) in [("main", &main_out), ("camera", &camera_out)] {
+        assert_nothing_left_in(&state_of(&sb, host), out);
+    }
+    // Each host ran its own part, with a bridge.
+    let summary = |out: &Path| std::fs::read_to_string(out.join("summary.txt")).unwrap();
+    let (m, c) = (summary(&main_out), summary(&camera_out));
+    assert!(c.contains("capture") && c.contains("bridge") && !c.contains("orientation"), "{c}");
+    assert!(
+        m.contains("orientation") && m.contains("recorder") && !m.contains("capture "),
+        "{m}"
+    );
+    for (text, host) in [(&m, "main"), (&c, "camera")] {
+        for row in text
+            .lines()
+            .skip_while(|l| !l.starts_with("node "))
+            .skip(1)
+            .take_while(|l| !l.trim().is_empty())
+        {
+            let cols: Vec<&str> = row.split_whitespace().collect();
+            assert_eq!((cols[4], cols[6]), ("0", "0"), "a drop or a missed frame on host {host}: {row}");
+        }
+    }
+
+    // The same graph on one host.
+    let one = sb.path().join("one");
+    let r = sb.run(&[
+        "run",
+        repo_file("launch/demo.toml").to_str().unwrap(),
+        "--set",
+        SCALE,
+        "--out",
+        one.to_str().unwrap(),
+    ]);
+    assert!(r.status.success(), "the one-host run failed");
+    let (rec_one, rec_two) = (one.join("recording.mcap"), main_out.join("recording.mcap"));
+    let d = sb.run(&["diff", rec_one.to_str().unwrap(), rec_two.to_str().unwrap()]);
+    assert!(
+        d.status.success(),
+        "two hosts differ from one:\n{}",
+        String::from_utf8_lossy(&d.stdout)
+    );
+    // The stage outputs written on each host are those of the one-host run.
+    for (file, out) in [
+        ("lines3d.csv", &main_out),
+        ("poses.csv", &main_out),
+        ("frames.csv", &camera_out),
+        ("lines2d.csv", &camera_out),
+    ] {
+        let a = std::fs::read(one.join(file)).unwrap_or_else(|e| panic!("{file}: {e}"));
+        let b = std::fs::read(out.join(file)).unwrap_or_else(|e| panic!("{file} on the split: {e}"));
+        assert!(a == b, "{file} differs between one host and two");
+    }
+
+    // The two-host recording replays on one machine with the same bytes out.
+    let again = sb.path().join("again");
+    let r = sb.run(&[
+        "replay",
+        rec_two.to_str().unwrap(),
+        "--rerun",
+        "--set",
+        SCALE,
+        "--out",
+        again.to_str().unwrap(),
+    ]);
+    assert!(r.status.success(), "the replay on one host failed");
+    let d = sb.run(&["diff", rec_two.to_str().unwrap(), again.join("recording.mcap").to_str().unwrap()]);
+    assert!(d.status.success(), "the replay differs:\n{}", String::from_utf8_lossy(&d.stdout));
+}
+
+#[test]
+fn a_host_whose_supervisor_dies_ends_the_other_hosts_run_with_an_error_naming_it() {
+    let sb = Sandbox::new();
+    let graph = two_host_demo(&sb, free_port());
+    let (main_out, camera_out) = (sb.path().join("main"), sb.path().join("camera"));
+    // One frame a second: the run is mid-stream when the camera's supervisor is killed.
+    let slow = ["capture.fps=1"];
+    let main = start_host(&sb, &graph, "main", &main_out, &slow);
+    let mut camera = start_host(&sb, &graph, "camera", &camera_out, &slow);
+    let start = Instant::now();
+    // lines2d.csv grows as the frames come (a row per segment, the image first): wait for the fourth image.
+    let images = |f: String| {
+        f.lines()
+            .skip(1)
+            .filter_map(|l| l.split(',').next().map(str::to_owned))
+            .collect::<BTreeSet<_>>()
+            .len()
+    };
+    while std::fs::read_to_string(camera_out.join("lines2d.csv")).map_or(0, images) < 4 {
+        assert!(start.elapsed() < Duration::from_secs(120), "the two hosts never got going");
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    // SAFETY: signalling a process this test started.
+    unsafe { libc::kill(camera.id() as i32, libc::SIGKILL) };
+    let _ = camera.wait();
+    let killed = Instant::now();
+    let (ok, err) = finish(main, &main_out);
+    let took = killed.elapsed();
+    assert!(!ok, "the main host's run must fail when the camera's host dies:\n{err}");
+    assert!(err.contains("host 'camera'"), "the error names the host:\n{err}");
+    assert!(took < Duration::from_secs(20), "the main host took {took:?} to end");
+    assert_nothing_left_in(&state_of(&sb, "main"), &main_out);
+    // The recorder kept what it had received, readable to its end.
+    let info = sb.run(&["info", main_out.join("recording.mcap").to_str().unwrap()]);
+    assert!(info.status.success(), "{}", String::from_utf8_lossy(&info.stdout));
+    // The killed supervisor's leftovers are for `doctor` on its host.
+    let fix = sb
+        .lineflow(&["doctor", "--fix"])
+        .env("LINEFLOW_STATE_DIR", state_of(&sb, "camera"))
+        .output()
+        .unwrap();
+    assert!(fix.status.success(), "{}", String::from_utf8_lossy(&fix.stderr));
+}
+
+#[test]
+fn a_host_with_other_settings_is_refused_by_name() {
+    let sb = Sandbox::new();
+    let graph = two_host_demo(&sb, free_port());
+    let (main_out, camera_out) = (sb.path().join("main"), sb.path().join("camera"));
+    let main = start_host(&sb, &graph, "main", &main_out, &[]);
+    let camera = start_host(&sb, &graph, "camera", &camera_out, &["capture.seed=2"]);
+    let (main_ok, main_err) = finish(main, &main_out);
+    let (camera_ok, camera_err) = finish(camera, &camera_out);
+    assert!(!main_ok && !camera_ok, "hosts of different graphs must not run together");
+    let both = format!("{main_err}{camera_err}");
+    assert!(both.contains("runs another version of graph 'demo'"), "{both}");
+    assert!(both.contains("same launch file with the same --set options"), "{both}");
+}
