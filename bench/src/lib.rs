@@ -1,5 +1,6 @@
 //! `lineflow bench` and `lineflow experiment`: every benchmark and seed experiment, each printing its figures
 //! beside a reference measured in the same run. The `lineflow` command parses [`BenchCmd`] and calls [`bench`].
+mod bridge;
 mod buildings;
 mod bundle;
 mod chaos;
@@ -39,6 +40,16 @@ pub enum BenchCmd {
         /// Scale the flat-out message counts (1.0 = 20000 x 64 B ... 60 x 48 MB).
         #[arg(long, default_value_t = 1.0)]
         flat_scale: f64,
+        /// Between hosts instead: Zenoh against a TCP copy at 48 MB, and 12 MP frames at 5 frames/s across a
+        /// loopback bridge (docs/hosts.md).
+        #[arg(long)]
+        zenoh: bool,
+        /// With --zenoh: 48 MB messages per copy.
+        #[arg(long, default_value_t = 20)]
+        messages: usize,
+        /// With --zenoh: 12 MP frames streamed.
+        #[arg(long, default_value_t = 30)]
+        frames: usize,
     },
     /// Synthetic renderer: seconds per full-size frame against the 12 MP / 1 s target.
     Render {
@@ -324,7 +335,13 @@ pub fn bench(cmd: BenchCmd) -> Result<ExitCode> {
     match cmd {
         BenchCmd::IoxSub { prefix, root, size, count } => transport::iox_sub(&prefix, &root, size, count).map(|_| ExitCode::SUCCESS),
         BenchCmd::UdsSub { path, size, count } => transport::uds_sub(&path, size, count).map(|_| ExitCode::SUCCESS),
-        BenchCmd::Transport { paced, flat_scale } => transport::transport_bench(paced, flat_scale),
+        BenchCmd::Transport {
+            zenoh: true,
+            messages,
+            frames,
+            ..
+        } => bridge::bridge_bench(messages, frames),
+        BenchCmd::Transport { paced, flat_scale, .. } => transport::transport_bench(paced, flat_scale),
         BenchCmd::Render { preset, frames, scale } => render::bench_render(&preset, frames, scale),
         BenchCmd::Edges { preset, reps, high } => edges::bench_edges(&preset, reps, high),
         BenchCmd::Lines2d { preset, reps, high } => lines2d::bench_lines2d(&preset, reps, high),

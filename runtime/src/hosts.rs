@@ -8,28 +8,13 @@
 //! refuse each other instead of exchanging messages of another graph.
 use std::collections::{BTreeMap, BTreeSet};
 
-use lineflow_messages::checksum::fnv1a64;
 use serde::{Deserialize, Serialize};
 
-use crate::launch::{EdgeSpec, Graph, LaunchError, NodeSpec, Resolver, RestartPolicy};
+pub use crate::launch::{BridgeSettings, HostSpec, BRIDGE, DEFAULT_HOST};
+use crate::launch::{Graph, LaunchError, NodeSpec, Resolver, RestartPolicy};
 
-/// The host of nodes that name none, and the one `lineflow run` runs without `--host`.
-pub const DEFAULT_HOST: &str = "main";
-/// Name of the bridge node the loader adds to a host's part of a graph on several hosts.
-pub const BRIDGE: &str = "bridge";
 /// Stage of the bridge node.
 pub const BRIDGE_STAGE: &str = "bridge";
-
-/// A host of a graph and its Zenoh endpoints (`[hosts.NAME]`).
-#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
-pub struct HostSpec {
-    /// Host name, as nodes name it in `host`.
-    pub name: String,
-    /// Endpoints this host's bridge listens on (`tcp/ADDRESS:PORT`).
-    pub listen: Vec<String>,
-    /// Endpoints it connects to; empty: every other host's `listen`.
-    pub connect: Vec<String>,
-}
 
 /// One edge that crosses between hosts, as one host's bridge sees it.
 #[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
@@ -62,78 +47,6 @@ pub struct BridgePlan {
     /// Zenoh multicast scouting, besides the explicit endpoints (`[bridge] scouting = true`).
     #[serde(default)]
     pub scouting: bool,
-}
-
-/// The `[bridge]` table: settings of every host's bridge.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct BridgeSettings {
-    /// Find the other hosts by Zenoh's multicast scouting besides the explicit endpoints.
-    #[serde(default)]
-    pub scouting: bool,
-}
-
-/// The `[hosts]` table checked: names well-formed, endpoints well-formed, somebody listening when there are
-/// several hosts. `used` are the hosts the nodes name.
-///
-/// # Errors
-/// The entry at fault and what is wrong, as the loader reports it.
-pub fn check_hosts(hosts: &[HostSpec], used: &BTreeSet<String>) -> Result<(), (String, String)> {
-    for h in hosts {
-        let entry = format!("[hosts.{}]", h.name);
-        if h.name.is_empty() || !h.name.chars().all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-') {
-            return Err((entry, "a host name is non-empty ASCII letters, digits, '_' or '-'".into()));
-        }
-        for e in h.listen.iter().chain(&h.connect) {
-            check_endpoint(e).map_err(|m| (entry.clone(), m))?;
-        }
-    }
-    for name in used {
-        if name != DEFAULT_HOST && !hosts.iter().any(|h| &h.name == name) {
-            let known: Vec<&str> = hosts.iter().map(|h| h.name.as_str()).collect();
-            return Err((
-                format!("host '{name}'"),
-                format!(
-                    "not declared: add [hosts.{name}] with its `listen` or `connect` endpoints (declared: {})",
-                    if known.is_empty() { "none".into() } else { known.join(", ") }
-                ),
-            ));
-        }
-    }
-    let several = used.len() > 1 || used.iter().any(|h| h != DEFAULT_HOST);
-    if several && !hosts.iter().any(|h| !h.listen.is_empty()) {
-        return Err((
-            "[hosts]".into(),
-            "a graph on several hosts needs `listen` on at least one host, e.g. listen = [\"tcp/127.0.0.1:7447\"]".into(),
-        ));
-    }
-    Ok(())
-}
-
-/// A Zenoh endpoint the bridges can use: `tcp/ADDRESS:PORT`.
-fn check_endpoint(e: &str) -> Result<(), String> {
-    let bad = || format!("endpoint '{e}': expected tcp/ADDRESS:PORT, e.g. tcp/127.0.0.1:7447");
-    let rest = e.strip_prefix("tcp/").ok_or_else(bad)?;
-    let (address, port) = rest.rsplit_once(':').ok_or_else(bad)?;
-    if address.is_empty() || port.parse::<u16>().is_err() {
-        return Err(bad());
-    }
-    Ok(())
-}
-
-/// The hash of a whole graph: every node's name, host, stage, implementation, parameters and wiring, every
-/// edge's topic, type, ends and policy, and the hosts. Not the executables' paths, which differ between machines.
-pub fn graph_hash(nodes: &[NodeSpec], edges: &[EdgeSpec], hosts: &[HostSpec]) -> String {
-    let nodes: Vec<_> = nodes
-        .iter()
-        .map(|n| (&n.name, &n.host, &n.stage, &n.implementation, &n.params, &n.remap))
-        .collect();
-    let edges: Vec<_> = edges
-        .iter()
-        .map(|e| (&e.topic, &e.message, &e.from, &e.to, e.policy, e.depth, e.history))
-        .collect();
-    let text = serde_json::to_string(&(nodes, edges, hosts)).expect("plain data serializes");
-    format!("{:016x}", fnv1a64(text.as_bytes()))
 }
 
 /// The part of `graph` that `host` runs: its own nodes, the edges with an end on it, and a bridge node for the
@@ -336,6 +249,13 @@ mod tests {
         assert_eq!(p.receive[0].hosts, ["camera"]);
         assert_eq!(p.hash, whole.hash);
         assert_eq!(p.listen, ["tcp/127.0.0.1:7447"]);
+
+        // The recorder may sit on any host: it records every topic there.
+        let elsewhere = parse(&dir.path().join("g.toml"), TWO_HOSTS, &["record.on_host=\"camera\"".into()], &r).unwrap();
+        let camera = part(&elsewhere, "camera", &r).unwrap();
+        let images = camera.edges.iter().find(|e| e.topic == "images").unwrap();
+        assert_eq!(images.to, ["filter", crate::launch::RECORDER, BRIDGE]);
+        assert!(part(&elsewhere, DEFAULT_HOST, &r).unwrap().node(crate::launch::RECORDER).is_none());
     }
 
     #[test]

@@ -10,7 +10,7 @@ use std::path::{Path, PathBuf};
 use lineflow_messages::MessageKind;
 use serde::{Deserialize, Serialize};
 
-use crate::hosts::{check_hosts, graph_hash, BridgeSettings, HostSpec, BRIDGE, DEFAULT_HOST};
+use lineflow_messages::checksum::fnv1a64;
 
 /// How long a lossless publisher waits for a full subscriber before dropping the sample, by default. Generous:
 /// stages working on 12-MP frames take seconds each and back-pressure adds up along a chain, while a crashed
@@ -315,6 +315,95 @@ impl Graph {
     }
 }
 
+// Graphs on several hosts (`docs/hosts.md`; each host's part: `crate::hosts`).
+
+/// The host of nodes that name none, and the one `lineflow run` runs without `--host`.
+pub const DEFAULT_HOST: &str = "main";
+/// Name of the bridge node the loader adds to a host's part of a graph on several hosts.
+pub const BRIDGE: &str = "bridge";
+/// A host of a graph and its Zenoh endpoints (`[hosts.NAME]`).
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+pub struct HostSpec {
+    /// Host name, as nodes name it in `host`.
+    pub name: String,
+    /// Endpoints this host's bridge listens on (`tcp/ADDRESS:PORT`).
+    pub listen: Vec<String>,
+    /// Endpoints it connects to; empty: every other host's `listen`.
+    pub connect: Vec<String>,
+}
+
+/// The `[bridge]` table: settings of every host's bridge.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct BridgeSettings {
+    /// Find the other hosts by Zenoh's multicast scouting besides the explicit endpoints.
+    #[serde(default)]
+    pub scouting: bool,
+}
+
+/// The `[hosts]` table checked: names well-formed, endpoints well-formed, somebody listening when there are
+/// several hosts. `used` are the hosts the nodes name.
+///
+/// # Errors
+/// The entry at fault and what is wrong, as the loader reports it.
+pub fn check_hosts(hosts: &[HostSpec], used: &BTreeSet<String>) -> Result<(), (String, String)> {
+    for h in hosts {
+        let entry = format!("[hosts.{}]", h.name);
+        if h.name.is_empty() || !h.name.chars().all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-') {
+            return Err((entry, "a host name is non-empty ASCII letters, digits, '_' or '-'".into()));
+        }
+        for e in h.listen.iter().chain(&h.connect) {
+            check_endpoint(e).map_err(|m| (entry.clone(), m))?;
+        }
+    }
+    for name in used {
+        if name != DEFAULT_HOST && !hosts.iter().any(|h| &h.name == name) {
+            let known: Vec<&str> = hosts.iter().map(|h| h.name.as_str()).collect();
+            return Err((
+                format!("host '{name}'"),
+                format!(
+                    "not declared: add [hosts.{name}] with its `listen` or `connect` endpoints (declared: {})",
+                    if known.is_empty() { "none".into() } else { known.join(", ") }
+                ),
+            ));
+        }
+    }
+    let several = used.len() > 1 || used.iter().any(|h| h != DEFAULT_HOST);
+    if several && !hosts.iter().any(|h| !h.listen.is_empty()) {
+        return Err((
+            "[hosts]".into(),
+            "a graph on several hosts needs `listen` on at least one host, e.g. listen = [\"tcp/127.0.0.1:7447\"]".into(),
+        ));
+    }
+    Ok(())
+}
+
+/// A Zenoh endpoint the bridges can use: `tcp/ADDRESS:PORT`.
+fn check_endpoint(e: &str) -> Result<(), String> {
+    let bad = || format!("endpoint '{e}': expected tcp/ADDRESS:PORT, e.g. tcp/127.0.0.1:7447");
+    let rest = e.strip_prefix("tcp/").ok_or_else(bad)?;
+    let (address, port) = rest.rsplit_once(':').ok_or_else(bad)?;
+    if address.is_empty() || port.parse::<u16>().is_err() {
+        return Err(bad());
+    }
+    Ok(())
+}
+
+/// The hash of a whole graph: every node's name, host, stage, implementation, parameters and wiring, every
+/// edge's topic, type, ends and policy, and the hosts. Not the executables' paths, which differ between machines.
+pub fn graph_hash(nodes: &[NodeSpec], edges: &[EdgeSpec], hosts: &[HostSpec]) -> String {
+    let nodes: Vec<_> = nodes
+        .iter()
+        .map(|n| (&n.name, &n.host, &n.stage, &n.implementation, &n.params, &n.remap))
+        .collect();
+    let edges: Vec<_> = edges
+        .iter()
+        .map(|e| (&e.topic, &e.message, &e.from, &e.to, e.policy, e.depth, e.history))
+        .collect();
+    let text = serde_json::to_string(&(nodes, edges, hosts)).expect("plain data serializes");
+    format!("{:016x}", fnv1a64(text.as_bytes()))
+}
+
 /// Where stage binaries (`lineflow-<stage>`) are looked up.
 #[derive(Debug, Clone)]
 pub struct Resolver {
@@ -409,10 +498,11 @@ pub fn parse(path: &Path, text: &str, overrides: &[String], resolver: &Resolver)
     }
     for (name, stage, table, params) in [(RECORDER, RECORDER_STAGE, "record", record), (VIEWER, VIEWER_STAGE, "view", view)] {
         let Some(mut params) = params else { continue };
-        let host = match params.remove("host") {
+        // Not `host`: the viewer's `host` is the address its server binds.
+        let host = match params.remove("on_host") {
             None => DEFAULT_HOST.to_owned(),
             Some(toml::Value::String(h)) => h,
-            Some(v) => return Err(invalid((format!("[{table}]"), format!("`host` must be a host name, got {v}")))),
+            Some(v) => return Err(invalid((format!("[{table}]"), format!("`on_host` must be a host name, got {v}")))),
         };
         if names.contains(name) {
             return Err(invalid((

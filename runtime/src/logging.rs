@@ -1,11 +1,15 @@
-//! Logging: `tracing` to stderr, the node name in every line, level from `LINEFLOW_LOG` (default `info`).
+//! Logging: `tracing` to stderr, the node name in every line, level from `LINEFLOW_LOG` (default `info`; Zenoh's
+//! at `warn`).
 use tracing_subscriber::EnvFilter;
 
 /// Installs the subscriber once; later calls do nothing. iceoryx2's own log is limited to errors (its warnings
 /// about missing config files are noise here: every run is configured programmatically).
 pub fn init(node: &str) {
     iceoryx2::prelude::set_log_level_from_env_or(iceoryx2::prelude::LogLevel::Error);
-    let filter = EnvFilter::try_from_env("LINEFLOW_LOG").unwrap_or_else(|_| EnvFilter::new("info"));
+    // Zenoh's own info lines (its session id, its endpoints, each session closed) are noise in a run's log; its
+    // warnings stay. An explicit `LINEFLOW_LOG` may still ask for them (`info,zenoh=info`).
+    let level = std::env::var("LINEFLOW_LOG").unwrap_or_else(|_| "info".into());
+    let filter = EnvFilter::try_new(format!("zenoh=warn,{level}")).unwrap_or_else(|_| EnvFilter::new("info,zenoh=warn"));
     let node = node.to_owned();
     let _ = tracing_subscriber::fmt()
         .with_env_filter(filter)
