@@ -10,8 +10,8 @@ use std::collections::{BTreeMap, BTreeSet};
 
 use serde::{Deserialize, Serialize};
 
+use crate::launch::{added_node, Graph, LaunchError, NodeSpec, Resolver};
 pub use crate::launch::{BridgeSettings, HostSpec, BRIDGE, DEFAULT_HOST};
-use crate::launch::{Graph, LaunchError, NodeSpec, Resolver, RestartPolicy};
 
 /// Stage of the bridge node.
 pub const BRIDGE_STAGE: &str = "bridge";
@@ -143,20 +143,10 @@ pub fn part(graph: &Graph, host: &str, resolver: &Resolver) -> Result<Graph, Lau
     let serde_json::Value::Object(params) = serde_json::to_value(&plan).expect("plain data serializes") else {
         unreachable!("a struct serializes to an object")
     };
-    let command = vec![resolver.stage(BRIDGE_STAGE).map_err(|m| invalid(format!("node '{BRIDGE}'"), m))?];
-    part.nodes.push(NodeSpec {
-        name: BRIDGE.into(),
-        index: part.nodes.len() as u32,
-        host: host.to_owned(),
-        stage: Some(BRIDGE_STAGE.into()),
-        implementation: None,
-        command,
-        params,
-        restart: RestartPolicy::Never,
-        max_restarts: 0,
-        backoff_ms: 0,
-        remap: BTreeMap::new(),
-    });
+    let mut bridge =
+        added_node(BRIDGE, BRIDGE_STAGE, params, part.nodes.len(), resolver).map_err(|m| invalid(format!("node '{BRIDGE}'"), m))?;
+    bridge.host = host.to_owned();
+    part.nodes.push(bridge);
     Ok(part)
 }
 

@@ -698,18 +698,32 @@ fn observer_table(table: &toml::Table, entry: &str, on_by_default: bool) -> Resu
 
 /// A node the loader adds to watch the whole run (the recorder, the viewer), with its table as its parameters.
 fn observer_spec(name: &str, stage: &str, table: toml::Table, index: usize, resolver: &Resolver) -> Result<NodeSpec, Invalid> {
-    let command = vec![resolver.stage(stage).map_err(|m| (String::new(), m))?];
     let mut params = serde_json::Map::new();
     for (k, v) in table {
         let value = serde_json::to_value(&v).map_err(|e| (String::new(), format!("{k}: {e}")))?;
         params.insert(k, value);
     }
+    added_node(name, stage, params, index, resolver).map_err(|m| (String::new(), m))
+}
+
+/// A node the loader adds to a graph (the recorder, the viewer, a host's bridge): a stage binary with `params`,
+/// never restarted, on the default host.
+///
+/// # Errors
+/// A missing stage binary.
+pub(crate) fn added_node(
+    name: &str,
+    stage: &str,
+    params: serde_json::Map<String, serde_json::Value>,
+    index: usize,
+    resolver: &Resolver,
+) -> Result<NodeSpec, String> {
     Ok(NodeSpec {
         name: name.into(),
         index: index as u32,
         stage: Some(stage.into()),
         implementation: None,
-        command,
+        command: vec![resolver.stage(stage)?],
         params,
         restart: RestartPolicy::Never,
         max_restarts: 0,

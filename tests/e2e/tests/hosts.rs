@@ -62,6 +62,22 @@ fn log_of(out: &Path) -> PathBuf {
     out.with_extension("stderr")
 }
 
+/// Waits until the camera's host has found the 2-D lines of `n` images: lines2d.csv grows as the frames come (a
+/// row per segment, the image first).
+fn wait_for_images(camera_out: &Path, n: usize, start: Instant) {
+    let images = |f: String| {
+        f.lines()
+            .skip(1)
+            .filter_map(|l| l.split(',').next().map(str::to_owned))
+            .collect::<BTreeSet<_>>()
+            .len()
+    };
+    while std::fs::read_to_string(camera_out.join("lines2d.csv")).map_or(0, images) < n {
+        assert!(start.elapsed() < Duration::from_secs(120), "the two hosts never got going");
+        std::thread::sleep(Duration::from_millis(100));
+    }
+}
+
 /// Waits for a host's supervisor: whether it succeeded, and what it printed.
 fn finish(mut child: Child, out: &Path) -> (bool, String) {
     let ok = child.wait().unwrap().success();
@@ -161,18 +177,7 @@ fn a_host_whose_supervisor_dies_ends_the_other_hosts_run_with_an_error_naming_it
     let main = start_host(&sb, &graph, "main", &main_out, &slow);
     let mut camera = start_host(&sb, &graph, "camera", &camera_out, &slow);
     let start = Instant::now();
-    // lines2d.csv grows as the frames come (a row per segment, the image first): wait for the fourth image.
-    let images = |f: String| {
-        f.lines()
-            .skip(1)
-            .filter_map(|l| l.split(',').next().map(str::to_owned))
-            .collect::<BTreeSet<_>>()
-            .len()
-    };
-    while std::fs::read_to_string(camera_out.join("lines2d.csv")).map_or(0, images) < 4 {
-        assert!(start.elapsed() < Duration::from_secs(120), "the two hosts never got going");
-        std::thread::sleep(Duration::from_millis(100));
-    }
+    wait_for_images(&camera_out, 4, start);
     // SAFETY: signalling a process this test started.
     unsafe { libc::kill(camera.id() as i32, libc::SIGKILL) };
     let _ = camera.wait();
@@ -208,4 +213,31 @@ fn a_host_with_other_settings_is_refused_by_name() {
     let both = format!("{main_err}{camera_err}");
     assert!(both.contains("runs another version of graph 'demo'"), "{both}");
     assert!(both.contains("same launch file with the same --set options"), "{both}");
+}
+
+#[test]
+fn ctrl_c_on_one_host_ends_the_others_with_the_reason() {
+    let sb = Sandbox::new();
+    let graph = two_host_demo(&sb, free_port());
+    let (main_out, camera_out) = (sb.path().join("main"), sb.path().join("camera"));
+    let slow = ["capture.fps=1"];
+    let main = start_host(&sb, &graph, "main", &main_out, &slow);
+    let camera = start_host(&sb, &graph, "camera", &camera_out, &slow);
+    let start = Instant::now();
+    wait_for_images(&camera_out, 3, start);
+    // SAFETY: signalling a process this test started.
+    unsafe { libc::kill(main.id() as i32, libc::SIGINT) };
+    let interrupted = Instant::now();
+    let (camera_ok, err) = finish(camera, &camera_out);
+    let took = interrupted.elapsed();
+    let (main_ok, _) = finish(main, &main_out);
+    assert!(!main_ok && !camera_ok, "an interrupted run is not a finished one");
+    assert!(
+        err.contains("host 'main' was interrupted"),
+        "the camera's host names the reason:\n{err}"
+    );
+    assert!(took < Duration::from_secs(20), "the camera's host took {took:?} to end");
+    for (host, out) in [("main", &main_out), ("camera", &camera_out)] {
+        assert_nothing_left_in(&state_of(&sb, host), out);
+    }
 }
