@@ -51,6 +51,8 @@ struct Outgoing {
     hosts: Vec<String>,
     publisher: zenoh::pubsub::Publisher<'static>,
     window: Window,
+    /// The attachment of its messages.
+    tag: Vec<u8>,
     end_sent: bool,
     /// Hosts that took the end.
     taken: BTreeSet<String>,
@@ -60,6 +62,8 @@ struct Outgoing {
 pub struct Incoming {
     topic: String,
     kind: MessageKind,
+    /// The tag its messages must carry.
+    want: Tag,
     from: String,
     emit: Box<dyn Emit>,
     ended: bool,
@@ -73,6 +77,7 @@ impl Incoming {
         Self {
             topic: crossing.topic.clone(),
             kind,
+            want: Tag::of(kind),
             from: crossing.hosts.first().cloned().unwrap_or_default(),
             emit,
             ended: false,
@@ -118,14 +123,9 @@ impl Bridge {
             check_topic(&c.topic).map_err(anyhow::Error::msg)?;
         }
         let keys = Keys::new(&plan.graph, &plan.hash);
-        let where_ = if plan.listen.is_empty() {
-            format!("connecting to {}", plan.connect.join(", "))
-        } else {
-            format!("listening on {}", plan.listen.join(", "))
-        };
         let session = zenoh::open(session::config(&plan)?)
             .wait()
-            .map_err(|e| anyhow!("host '{}': cannot open the Zenoh session {where_}: {e}", plan.host))?;
+            .map_err(|e| anyhow!("host '{}': cannot open the Zenoh session {}: {e}", plan.host, endpoints(&plan)))?;
         let mut outgoing = Vec::new();
         for t in &topics {
             let crossing = plan
@@ -148,6 +148,7 @@ impl Bridge {
                 hosts: crossing.hosts.clone(),
                 publisher,
                 window: Window::new(&crossing.hosts, edge.depth.max(4) as u64),
+                tag: Tag::of(t.kind).to_bytes(),
                 end_sent: false,
                 taken: BTreeSet::new(),
             });
@@ -212,11 +213,7 @@ impl Bridge {
                     "host {} did not appear within {timeout:?} (this host '{}' is {}): is `lineflow run GRAPH --host NAME` running there, with the same launch file?",
                     missing.join(", "),
                     self.plan.host,
-                    if self.plan.listen.is_empty() {
-                        format!("connecting to {}", self.plan.connect.join(", "))
-                    } else {
-                        format!("listening on {}", self.plan.listen.join(", "))
-                    }
+                    endpoints(&self.plan)
                 );
             }
             match self.events.recv_timeout(Duration::from_millis(50)) {
@@ -292,7 +289,7 @@ impl Bridge {
         let sender = inc.from.clone();
         let from = |e: String| anyhow!("from host '{sender}': {e}");
         let tag = tag.map_err(|e| from(format!("topic '{}': {e}", inc.topic)))?;
-        tag.check(inc.kind, &inc.topic).map_err(from)?;
+        tag.check(&inc.want, &inc.topic).map_err(from)?;
         if inc.ended {
             tracing::warn!("'{}': a message after its end from host '{}'; dropped", inc.topic, inc.from);
             return Ok(());
@@ -343,8 +340,7 @@ impl Bridge {
         for (t, out) in self.topics.iter_mut().zip(&mut self.outgoing) {
             let room = out.window.room() as usize;
             let kind = t.kind;
-            let publisher = &out.publisher;
-            let tag = Tag::of(kind).to_bytes();
+            let (publisher, tag) = (&out.publisher, &out.tag);
             let mut put = 0;
             t.messages += t.tap.drain_some(room, &mut |_, header, payload| {
                 let mut cdr = Vec::new();
@@ -436,6 +432,15 @@ impl Bridge {
             }
         }
         let _ = self.session.close().wait();
+    }
+}
+
+/// Where a host's bridge meets the others, for messages.
+fn endpoints(plan: &BridgePlan) -> String {
+    if plan.listen.is_empty() {
+        format!("connecting to {}", plan.connect.join(", "))
+    } else {
+        format!("listening on {}", plan.listen.join(", "))
     }
 }
 

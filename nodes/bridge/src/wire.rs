@@ -138,20 +138,19 @@ impl Tag {
             )),
         }
     }
-    /// Checks that a message tagged so can be read as `kind` on `topic`.
+    /// Checks that a message tagged so can be read on `topic`, whose messages this host tags `want`
+    /// ([`Tag::of`] its type, computed once: it hashes the type's definition).
     ///
     /// # Errors
     /// The type or version that differs, naming both.
-    pub fn check(&self, kind: MessageKind, topic: &str) -> Result<(), String> {
-        let want = Tag::of(kind);
-        match (self, &want) {
+    pub fn check(&self, want: &Tag, topic: &str) -> Result<(), String> {
+        match (self, want) {
             (Tag::End, _) => Ok(()),
             (Tag::Message { schema, .. }, Tag::Message { schema: s, .. }) if schema != s => Err(format!(
                 "topic '{topic}': a message of type {schema} arrived where this graph carries {s}"
             )),
-            (Tag::Message { version, .. }, Tag::Message { version: v, .. }) if version != v => Err(format!(
-                "topic '{topic}': the sending host's {} is version {version}, this host's {v}: run the same lineflow on every host",
-                kind.name()
+            (Tag::Message { version, .. }, Tag::Message { schema, version: v }) if version != v => Err(format!(
+                "topic '{topic}': the sending host's {schema} is version {version}, this host's {v}: run the same lineflow on every host"
             )),
             _ => Ok(()),
         }
@@ -200,14 +199,14 @@ mod tests {
         assert_eq!(Tag::parse(&tag.to_bytes()).unwrap(), tag);
         assert_eq!(Tag::parse(b"end").unwrap(), Tag::End);
         assert!(Tag::parse(b"hello").is_err());
-        assert!(tag.check(MessageKind::Image, "images").is_ok());
-        let e = tag.check(MessageKind::Lines2D, "lines2d").unwrap_err();
+        assert!(tag.check(&Tag::of(MessageKind::Image), "images").is_ok());
+        let e = tag.check(&Tag::of(MessageKind::Lines2D), "lines2d").unwrap_err();
         assert!(e.contains("lineflow_msgs/msg/Image") && e.contains("lines2d"), "{e}");
         let old = Tag::Message {
             schema: MessageKind::Image.schema().name(),
             version: "0000000000000000".into(),
         };
-        let e = old.check(MessageKind::Image, "images").unwrap_err();
+        let e = old.check(&tag, "images").unwrap_err();
         assert!(e.contains("version 0000000000000000"), "{e}");
         assert_ne!(version(MessageKind::Image), version(MessageKind::Lines2D));
     }

@@ -62,9 +62,16 @@ fn log_of(out: &Path) -> PathBuf {
     out.with_extension("stderr")
 }
 
-/// Waits until the camera's host has found the 2-D lines of `n` images: lines2d.csv grows as the frames come (a
-/// row per segment, the image first).
-fn wait_for_images(camera_out: &Path, n: usize, start: Instant) {
+/// The split demo at one frame a second, both hosts started and the camera's host past `n` images (lines2d.csv
+/// grows as the frames come, a row per segment, the image first): the run is mid-stream. The two supervisors and
+/// their output folders.
+fn both_hosts_mid_stream(sb: &Sandbox, n: usize) -> (Child, Child, PathBuf, PathBuf) {
+    let graph = two_host_demo(sb, free_port());
+    let (main_out, camera_out) = (sb.path().join("main"), sb.path().join("camera"));
+    let slow = ["capture.fps=1"];
+    let main = start_host(sb, &graph, "main", &main_out, &slow);
+    let camera = start_host(sb, &graph, "camera", &camera_out, &slow);
+    let start = Instant::now();
     let images = |f: String| {
         f.lines()
             .skip(1)
@@ -76,6 +83,7 @@ fn wait_for_images(camera_out: &Path, n: usize, start: Instant) {
         assert!(start.elapsed() < Duration::from_secs(120), "the two hosts never got going");
         std::thread::sleep(Duration::from_millis(100));
     }
+    (main, camera, main_out, camera_out)
 }
 
 /// Waits for a host's supervisor: whether it succeeded, and what it printed.
@@ -170,14 +178,7 @@ fn the_demo_split_over_two_hosts_gives_the_bytes_of_one_host_and_its_recording_r
 #[test]
 fn a_host_whose_supervisor_dies_ends_the_other_hosts_run_with_an_error_naming_it() {
     let sb = Sandbox::new();
-    let graph = two_host_demo(&sb, free_port());
-    let (main_out, camera_out) = (sb.path().join("main"), sb.path().join("camera"));
-    // One frame a second: the run is mid-stream when the camera's supervisor is killed.
-    let slow = ["capture.fps=1"];
-    let main = start_host(&sb, &graph, "main", &main_out, &slow);
-    let mut camera = start_host(&sb, &graph, "camera", &camera_out, &slow);
-    let start = Instant::now();
-    wait_for_images(&camera_out, 4, start);
+    let (main, mut camera, main_out, _) = both_hosts_mid_stream(&sb, 4);
     // SAFETY: signalling a process this test started.
     unsafe { libc::kill(camera.id() as i32, libc::SIGKILL) };
     let _ = camera.wait();
@@ -218,13 +219,7 @@ fn a_host_with_other_settings_is_refused_by_name() {
 #[test]
 fn ctrl_c_on_one_host_ends_the_others_with_the_reason() {
     let sb = Sandbox::new();
-    let graph = two_host_demo(&sb, free_port());
-    let (main_out, camera_out) = (sb.path().join("main"), sb.path().join("camera"));
-    let slow = ["capture.fps=1"];
-    let main = start_host(&sb, &graph, "main", &main_out, &slow);
-    let camera = start_host(&sb, &graph, "camera", &camera_out, &slow);
-    let start = Instant::now();
-    wait_for_images(&camera_out, 3, start);
+    let (main, camera, main_out, camera_out) = both_hosts_mid_stream(&sb, 3);
     // SAFETY: signalling a process this test started.
     unsafe { libc::kill(main.id() as i32, libc::SIGINT) };
     let interrupted = Instant::now();
