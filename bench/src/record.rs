@@ -87,7 +87,7 @@ pub enum FrameSource {
 }
 
 /// Frames of the source, as RGB pixels; a façade renders a few distinct frames, cycled.
-fn source_frames(source: FrameSource, width: u32, height: u32) -> Result<(u32, u32, Vec<Vec<u8>>)> {
+pub(crate) fn source_frames(source: FrameSource, width: u32, height: u32) -> Result<(u32, u32, Vec<Vec<u8>>)> {
     Ok(match source {
         FrameSource::Noise => (width, height, vec![frame(width, height, 1)]),
         FrameSource::Facade => {

@@ -86,7 +86,7 @@ pub fn record(run: Option<&str>, topics: &[String], out: &Path, images: ImageFor
     }
     let cfg = transport::config(&rec.prefix, &rec.root)?;
     let node = transport::create_node(&cfg, &format!("cli-record-{}", std::process::id()))?;
-    let mut writer = McapWriter::create(out, images.chunk_compression())?;
+    let mut writer = McapWriter::create(out, lineflow_recordings::image_codec::chunk_compression(images))?;
     let mut meta = run_metadata(&graph, &rec.id);
     meta.insert("attached".into(), "true".into());
     writer.metadata(META_RUN, meta)?;

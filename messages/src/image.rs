@@ -112,3 +112,42 @@ pub fn as_rgb8<'a>(header: &ImageHeader, payload: &'a [u8]) -> Option<::image::I
     }
     ::image::ImageBuffer::from_raw(header.width, header.height, &payload[..header.payload_len().min(payload.len())])
 }
+
+/// How images are packed where they are stored or sent (`[record] images`, `[bridge] images`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Deserialize, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum ImageFormat {
+    /// The pixels as the graph carries them (fastest, largest).
+    #[default]
+    Raw,
+    /// Lossless PNG: the pixels come back byte for byte.
+    Png,
+    /// JPEG at a quality: smallest, lossy (the pixels come back changed); 16-bit images go in as PNG.
+    Jpeg,
+}
+
+/// JPEG quality unless set.
+pub const DEFAULT_JPEG_QUALITY: u8 = 90;
+
+impl ImageFormat {
+    /// The format's name (`png`, `jpeg`); `None` for raw.
+    pub fn name(self) -> Option<&'static str> {
+        match self {
+            Self::Raw => None,
+            Self::Png => Some("png"),
+            Self::Jpeg => Some("jpeg"),
+        }
+    }
+}
+
+impl std::str::FromStr for ImageFormat {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        Ok(match s {
+            "raw" => Self::Raw,
+            "png" => Self::Png,
+            "jpeg" => Self::Jpeg,
+            _ => return Err(format!("unknown image format '{s}' (raw, png, jpeg)")),
+        })
+    }
+}

@@ -27,52 +27,15 @@ pub fn compressed_image_schema() -> String {
     )
 }
 
-/// How image topics are recorded.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Deserialize, serde::Serialize)]
-#[serde(rename_all = "lowercase")]
-pub enum ImageFormat {
-    /// The pixels as the graph carries them (fastest, largest).
-    #[default]
-    Raw,
-    /// Lossless PNG: replay stays byte-identical.
-    Png,
-    /// JPEG at `jpeg_quality`: smallest, lossy (a replay's images differ); 16-bit images go in as PNG.
-    Jpeg,
-}
+pub use lineflow_messages::image::{ImageFormat, DEFAULT_JPEG_QUALITY};
 
-/// JPEG quality of `images = "jpeg"` unless set.
-pub const DEFAULT_JPEG_QUALITY: u8 = 90;
-
-impl ImageFormat {
-    /// The chunk compression that suits a recording of images stored this way: none for raw images (they barely
-    /// compress and it would halve the recorder's throughput), zstd once they are compressed (the other topics then
-    /// make most of the file).
-    pub fn chunk_compression(self) -> crate::Compression {
-        match self {
-            Self::Raw => crate::Compression::None,
-            Self::Png | Self::Jpeg => crate::Compression::Zstd,
-        }
-    }
-
-    /// The channel metadata value (`png`, `jpeg`); `None` for raw.
-    pub fn name(self) -> Option<&'static str> {
-        match self {
-            Self::Raw => None,
-            Self::Png => Some("png"),
-            Self::Jpeg => Some("jpeg"),
-        }
-    }
-}
-
-impl std::str::FromStr for ImageFormat {
-    type Err = anyhow::Error;
-    fn from_str(s: &str) -> Result<Self> {
-        Ok(match s {
-            "raw" => Self::Raw,
-            "png" => Self::Png,
-            "jpeg" => Self::Jpeg,
-            _ => bail!("unknown image format '{s}' (raw, png, jpeg)"),
-        })
+/// The chunk compression that suits a recording of images stored as `format`: none for raw images (they barely
+/// compress and it would halve the recorder's throughput), zstd once they are compressed (the other topics then make
+/// most of the file).
+pub fn chunk_compression(format: ImageFormat) -> crate::Compression {
+    match format {
+        ImageFormat::Raw => crate::Compression::None,
+        ImageFormat::Png | ImageFormat::Jpeg => crate::Compression::Zstd,
     }
 }
 

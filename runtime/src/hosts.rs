@@ -12,6 +12,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::launch::{added_node, Graph, LaunchError, NodeSpec, Resolver};
 pub use crate::launch::{BridgeSettings, HostSpec, BRIDGE, DEFAULT_HOST};
+use lineflow_messages::image::{ImageFormat, DEFAULT_JPEG_QUALITY};
 
 /// Stage of the bridge node.
 pub const BRIDGE_STAGE: &str = "bridge";
@@ -26,7 +27,7 @@ pub struct Crossing {
 }
 
 /// What a host's bridge carries: its parameters, written by [`part`].
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 pub struct BridgePlan {
     /// The graph's name: the first level of every key expression.
     pub graph: String,
@@ -47,6 +48,16 @@ pub struct BridgePlan {
     /// Zenoh multicast scouting, besides the explicit endpoints (`[bridge] scouting = true`).
     #[serde(default)]
     pub scouting: bool,
+    /// How images cross (`[bridge] images`) and the JPEG quality.
+    #[serde(default)]
+    pub images: ImageFormat,
+    /// JPEG quality of `images = "jpeg"`.
+    #[serde(default = "default_jpeg_quality")]
+    pub jpeg_quality: u8,
+}
+
+fn default_jpeg_quality() -> u8 {
+    DEFAULT_JPEG_QUALITY
 }
 
 /// The part of `graph` that `host` runs: its own nodes, the edges with an end on it, and a bridge node for the
@@ -139,6 +150,8 @@ pub fn part(graph: &Graph, host: &str, resolver: &Resolver) -> Result<Graph, Lau
         send,
         receive,
         scouting: graph.bridge.scouting,
+        images: graph.bridge.images,
+        jpeg_quality: graph.bridge.jpeg_quality,
     };
     let serde_json::Value::Object(params) = serde_json::to_value(&plan).expect("plain data serializes") else {
         unreachable!("a struct serializes to an object")

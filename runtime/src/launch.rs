@@ -7,6 +7,7 @@
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
 
+use lineflow_messages::image::{ImageFormat, DEFAULT_JPEG_QUALITY};
 use lineflow_messages::MessageKind;
 use serde::{Deserialize, Serialize};
 
@@ -88,9 +89,9 @@ struct LaunchFile {
     /// The hosts of a graph on several machines and their Zenoh endpoints (`docs/hosts.md`).
     #[serde(default)]
     hosts: BTreeMap<String, HostEntry>,
-    /// Settings of the bridges between hosts.
+    /// Settings of the bridges between hosts ([`BridgeSettings`], read once the `--set`s are applied).
     #[serde(default)]
-    bridge: BridgeSettings,
+    bridge: toml::Table,
 }
 
 #[derive(Debug, Default, Deserialize)]
@@ -333,12 +334,26 @@ pub struct HostSpec {
 }
 
 /// The `[bridge]` table: settings of every host's bridge.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
 pub struct BridgeSettings {
     /// Find the other hosts by Zenoh's multicast scouting besides the explicit endpoints.
-    #[serde(default)]
     pub scouting: bool,
+    /// How images cross: `png` (lossless, the default: a run's bytes stay those of one host), `jpeg` (lossy,
+    /// smallest) or `raw` (the pixels as they are: no encoding cost, on a fast network).
+    pub images: ImageFormat,
+    /// JPEG quality (1-100) of `images = "jpeg"`.
+    pub jpeg_quality: u8,
+}
+
+impl Default for BridgeSettings {
+    fn default() -> Self {
+        Self {
+            scouting: false,
+            images: ImageFormat::Png,
+            jpeg_quality: DEFAULT_JPEG_QUALITY,
+        }
+    }
 }
 
 /// The `[hosts]` table checked: names well-formed, endpoints well-formed, somebody listening when there are
@@ -527,6 +542,7 @@ pub fn parse(path: &Path, text: &str, overrides: &[String], resolver: &Resolver)
         })
         .collect();
     check_hosts(&hosts, &nodes.iter().map(|n| n.host.clone()).collect()).map_err(invalid)?;
+    let bridge = bridge_settings(&file.bridge).map_err(invalid)?;
     let hash = graph_hash(&nodes, &edges, &hosts);
     Ok(Graph {
         name: file
@@ -543,13 +559,23 @@ pub fn parse(path: &Path, text: &str, overrides: &[String], resolver: &Resolver)
         replaced: Vec::new(),
         hosts,
         host: DEFAULT_HOST.into(),
-        bridge: file.bridge,
+        bridge,
         hash,
     })
 }
 
 /// An entry of the launch file (`node 'x'`, `edge 't'`, `[record]`) and what is wrong with it.
 type Invalid = (String, String);
+
+/// The `[bridge]` table read and checked.
+fn bridge_settings(table: &toml::Table) -> Result<BridgeSettings, Invalid> {
+    let entry = || "[bridge]".to_owned();
+    let s = BridgeSettings::deserialize(toml::Value::Table(table.clone())).map_err(|e| (entry(), e.message().to_owned()))?;
+    if !(1..=100).contains(&s.jpeg_quality) {
+        return Err((entry(), format!("`jpeg_quality` must be 1 to 100, got {}", s.jpeg_quality)));
+    }
+    Ok(s)
+}
 
 /// The node names, checked: well-formed, unique, at least one.
 fn node_names(file: &LaunchFile) -> Result<BTreeSet<String>, Invalid> {
@@ -929,6 +955,7 @@ fn apply_override(file: &mut LaunchFile, item: &str) -> Result<(), String> {
         let table = match node {
             RECORDER_STAGE => Some(&mut file.record),
             VIEWER_STAGE => Some(&mut file.view),
+            BRIDGE => Some(&mut file.bridge),
             _ => None,
         };
         if let Some(table) = table {
@@ -1020,6 +1047,29 @@ mod tests {
             .replace("to = [\"sink\"]", "to = [\"recorder\"]");
         let err = parse(&p, &clash, &[], &r).unwrap_err().to_string();
         assert!(err.contains("'recorder' is reserved"), "{err}");
+    }
+
+    #[test]
+    fn bridge_settings_default_to_png_and_take_set_and_refuse_nonsense() {
+        let dir = tempfile::tempdir().unwrap();
+        let r = resolver(dir.path());
+        let p = dir.path().join("g.toml");
+        let sut = parse(&p, GOOD, &[], &r).unwrap();
+        assert_eq!(sut.bridge, BridgeSettings::default());
+        assert_eq!(sut.bridge.images, ImageFormat::Png);
+        let sut = parse(&p, GOOD, &["bridge.images=jpeg".into(), "bridge.jpeg_quality=70".into()], &r).unwrap();
+        assert_eq!((sut.bridge.images, sut.bridge.jpeg_quality), (ImageFormat::Jpeg, 70));
+        let sut = parse(&p, &format!("[bridge]\nimages = \"raw\"\n{GOOD}"), &[], &r).unwrap();
+        assert_eq!(sut.bridge.images, ImageFormat::Raw);
+        for (table, want) in [
+            ("images = \"gif\"", "unknown variant `gif`"),
+            ("jpeg_quality = 0", "`jpeg_quality` must be 1 to 100"),
+            ("jpeg_quality = 300", "[bridge]"),
+            ("colour = true", "unknown field `colour`"),
+        ] {
+            let err = parse(&p, &format!("[bridge]\n{table}\n{GOOD}"), &[], &r).unwrap_err().to_string();
+            assert!(err.contains("[bridge]") && err.contains(want), "{table}: {err}");
+        }
     }
 
     #[test]

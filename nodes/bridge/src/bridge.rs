@@ -10,8 +10,10 @@ use std::time::{Duration, Instant};
 
 use anyhow::{anyhow, bail, Context, Result};
 use crossbeam::channel::{Receiver, Sender};
+use lineflow_messages::image::ImageFormat;
 use lineflow_messages::schema::{decode_view, encode, Decoded};
 use lineflow_messages::MessageKind;
+use lineflow_recordings::image_codec::{restore, ImageCompressor};
 use lineflow_runtime::hosts::{BridgePlan, Crossing, BRIDGE};
 use lineflow_runtime::launch::{EdgePolicy, Graph};
 use lineflow_runtime::tap::{update_ended, Emit, Topic};
@@ -51,6 +53,8 @@ struct Outgoing {
     hosts: Vec<String>,
     publisher: zenoh::pubsub::Publisher<'static>,
     window: Window,
+    /// How its images are packed (raw for every other kind).
+    packed: ImageFormat,
     /// The attachment of its messages.
     tag: Vec<u8>,
     end_sent: bool,
@@ -102,6 +106,9 @@ pub struct Bridge {
     /// Events taken while waiting for the peers, handled once the graph here is connected.
     early: VecDeque<Event>,
     scratch: Decoded,
+    /// Images packed and restored in these.
+    compressor: ImageCompressor,
+    restored: Vec<u8>,
     /// Kept for their lifetime: dropping them undeclares them.
     _subscribers: Vec<zenoh::pubsub::Subscriber<()>>,
     _token: zenoh::liveliness::LivelinessToken,
@@ -144,11 +151,16 @@ impl Bridge {
                 })
                 .wait()
                 .map_err(zenoh_error("cannot declare a Zenoh publisher"))?;
+            let tag = Tag::packed(t.kind, plan.images);
+            let Tag::Message { packed, .. } = tag else {
+                unreachable!("a message's tag")
+            };
             outgoing.push(Outgoing {
                 hosts: crossing.hosts.clone(),
                 publisher,
                 window: Window::new(&crossing.hosts, edge.depth.max(4) as u64),
-                tag: Tag::of(t.kind).to_bytes(),
+                packed,
+                tag: tag.to_bytes(),
                 end_sent: false,
                 taken: BTreeSet::new(),
             });
@@ -172,6 +184,8 @@ impl Bridge {
             events,
             early: VecDeque::new(),
             scratch: Decoded::default(),
+            compressor: ImageCompressor::default(),
+            restored: Vec::new(),
             _subscribers: subscribers,
             _token: token,
         })
@@ -179,10 +193,21 @@ impl Bridge {
 
     /// One line on what this bridge carries.
     pub fn describe(&self) -> String {
+        let packed: Vec<String> = self
+            .topics
+            .iter()
+            .zip(&self.outgoing)
+            .filter_map(|(t, o)| o.packed.name().map(|f| format!("{} as {f}", t.name)))
+            .collect();
         format!(
-            "host '{}': {} topics out, {} in, with {}",
+            "host '{}': {} topics out{}, {} in, with {}",
             self.plan.host,
             self.outgoing.len(),
+            if packed.is_empty() {
+                String::new()
+            } else {
+                format!(" ({})", packed.join(", "))
+            },
             self.incoming.len(),
             self.plan.peers.join(", ")
         )
@@ -304,9 +329,15 @@ impl Bridge {
                 inc.ended = true;
                 self.reply(i, true)
             }
-            Tag::Message { .. } => {
-                let (header, payload) = decode_view(inc.kind, cdr, &mut self.scratch)
-                    .with_context(|| format!("topic '{}' from host '{}'", inc.topic, inc.from))?;
+            Tag::Message { packed, .. } => {
+                let context = || format!("topic '{}' from host '{}'", inc.topic, inc.from);
+                let cdr = if packed == ImageFormat::Raw {
+                    cdr
+                } else {
+                    restore(cdr, &mut self.scratch, &mut self.restored).with_context(context)?;
+                    &self.restored
+                };
+                let (header, payload) = decode_view(inc.kind, cdr, &mut self.scratch).with_context(context)?;
                 inc.emit.emit(header, payload)?;
                 inc.owed += 1;
                 Ok(())
@@ -340,11 +371,19 @@ impl Bridge {
         for (t, out) in self.topics.iter_mut().zip(&mut self.outgoing) {
             let room = out.window.room() as usize;
             let kind = t.kind;
-            let (publisher, tag) = (&out.publisher, &out.tag);
+            let (publisher, tag, packed) = (&out.publisher, &out.tag, out.packed);
+            let compressor = &mut self.compressor;
             let mut put = 0;
             t.messages += t.tap.drain_some(room, &mut |_, header, payload| {
                 let mut cdr = Vec::new();
                 encode(kind, header, payload, &mut cdr);
+                if packed != ImageFormat::Raw {
+                    let mut file = Vec::new();
+                    compressor
+                        .compress(&cdr, packed, self.plan.jpeg_quality, &mut file)
+                        .with_context(|| format!("cannot pack an image of '{}' as {packed:?}", t.name))?;
+                    cdr = file;
+                }
                 publisher
                     .put(cdr)
                     .attachment(tag.clone())

@@ -50,9 +50,7 @@ mod tests {
             listen: listen.iter().map(|s| s.to_string()).collect(),
             connect: connect.iter().map(|s| s.to_string()).collect(),
             peers: vec!["camera".into()],
-            send: Vec::new(),
-            receive: Vec::new(),
-            scouting: false,
+            ..Default::default()
         }
     }
 

@@ -1,6 +1,7 @@
 //! What crosses between hosts (`docs/hosts.md`): the Zenoh key expressions of a graph, the attachment that names
 //! each message's type and version, and what a receiving bridge sends back to the sending one.
 use lineflow_messages::checksum::fnv1a64;
+use lineflow_messages::image::ImageFormat;
 use lineflow_messages::MessageKind;
 use serde::{Deserialize, Serialize};
 
@@ -99,23 +100,33 @@ pub enum Tag {
         schema: String,
         /// Its [`version`].
         version: String,
+        /// How an image's pixels are packed (`[bridge] images`): raw, or a PNG or JPEG file in their place.
+        packed: ImageFormat,
     },
     /// The topic has ended on the sending host: no message follows.
     End,
 }
 
 impl Tag {
-    /// The tag of a message of `kind`.
+    /// The tag of a message of `kind`, its pixels unpacked.
     pub fn of(kind: MessageKind) -> Self {
+        Self::packed(kind, ImageFormat::Raw)
+    }
+    /// The tag of a message of `kind` packed as `packed` (only images are: any other kind is tagged raw).
+    pub fn packed(kind: MessageKind, packed: ImageFormat) -> Self {
         Tag::Message {
             schema: kind.schema().name(),
             version: version(kind),
+            packed: if kind == MessageKind::Image { packed } else { ImageFormat::Raw },
         }
     }
     /// The attachment's bytes.
     pub fn to_bytes(&self) -> Vec<u8> {
         match self {
-            Tag::Message { schema, version } => format!("msg {schema} {version}").into_bytes(),
+            Tag::Message { schema, version, packed } => match packed.name() {
+                None => format!("msg {schema} {version}").into_bytes(),
+                Some(format) => format!("msg {schema} {version} {format}").into_bytes(),
+            },
             Tag::End => b"end".to_vec(),
         }
     }
@@ -125,33 +136,46 @@ impl Tag {
     /// An attachment that is not a bridge's.
     pub fn parse(bytes: &[u8]) -> Result<Self, String> {
         let text = std::str::from_utf8(bytes).map_err(|_| "attachment is not UTF-8".to_owned())?;
-        let mut words = text.split(' ');
-        match (words.next(), words.next(), words.next(), words.next()) {
-            (Some("end"), None, None, None) => Ok(Tag::End),
-            (Some("msg"), Some(schema), Some(version), None) => Ok(Tag::Message {
-                schema: schema.into(),
-                version: version.into(),
-            }),
-            _ => Err(format!(
+        let not_ours = || {
+            format!(
                 "attachment '{}' is not a lineflow bridge's",
                 text.chars().take(80).collect::<String>()
-            )),
+            )
+        };
+        let mut words = text.split(' ');
+        match (words.next(), words.next(), words.next(), words.next(), words.next()) {
+            (Some("end"), None, None, None, None) => Ok(Tag::End),
+            (Some("msg"), Some(schema), Some(version), packed, None) => Ok(Tag::Message {
+                schema: schema.into(),
+                version: version.into(),
+                packed: match packed {
+                    None => ImageFormat::Raw,
+                    Some("raw") => return Err(not_ours()),
+                    Some(p) => p.parse().map_err(|e| format!("{}: {e}", not_ours()))?,
+                },
+            }),
+            _ => Err(not_ours()),
         }
     }
     /// Checks that a message tagged so can be read on `topic`, whose messages this host tags `want`
     /// ([`Tag::of`] its type, computed once: it hashes the type's definition).
     ///
     /// # Errors
-    /// The type or version that differs, naming both.
+    /// The type or version that differs, naming both; pixels packed in a message that is no image.
     pub fn check(&self, want: &Tag, topic: &str) -> Result<(), String> {
         match (self, want) {
             (Tag::End, _) => Ok(()),
             (Tag::Message { schema, .. }, Tag::Message { schema: s, .. }) if schema != s => Err(format!(
                 "topic '{topic}': a message of type {schema} arrived where this graph carries {s}"
             )),
-            (Tag::Message { version, .. }, Tag::Message { schema, version: v }) if version != v => Err(format!(
+            (Tag::Message { version, .. }, Tag::Message { schema, version: v, .. }) if version != v => Err(format!(
                 "topic '{topic}': the sending host's {schema} is version {version}, this host's {v}: run the same lineflow on every host"
             )),
+            (Tag::Message { packed, schema, .. }, _) if *packed != ImageFormat::Raw && *schema != MessageKind::Image.schema().name() => {
+                Err(format!(
+                    "topic '{topic}': a {schema} arrived packed as {packed:?}, which only images are"
+                ))
+            }
             _ => Ok(()),
         }
     }
@@ -205,9 +229,36 @@ mod tests {
         let old = Tag::Message {
             schema: MessageKind::Image.schema().name(),
             version: "0000000000000000".into(),
+            packed: ImageFormat::Raw,
         };
         let e = old.check(&tag, "images").unwrap_err();
         assert!(e.contains("version 0000000000000000"), "{e}");
         assert_ne!(version(MessageKind::Image), version(MessageKind::Lines2D));
+    }
+
+    #[test]
+    fn packed_images_are_tagged_and_nothing_else_may_be() {
+        for format in [ImageFormat::Png, ImageFormat::Jpeg] {
+            let tag = Tag::packed(MessageKind::Image, format);
+            assert_eq!(Tag::parse(&tag.to_bytes()).unwrap(), tag);
+            assert!(tag.check(&Tag::of(MessageKind::Image), "images").is_ok());
+        }
+        assert_eq!(Tag::packed(MessageKind::Lines2D, ImageFormat::Png), Tag::of(MessageKind::Lines2D));
+        let forged = [
+            b"msg ".as_slice(),
+            MessageKind::Lines2D.schema().name().as_bytes(),
+            b" ",
+            version(MessageKind::Lines2D).as_bytes(),
+            b" png",
+        ]
+        .concat();
+        let e = Tag::parse(&forged)
+            .unwrap()
+            .check(&Tag::of(MessageKind::Lines2D), "lines2d")
+            .unwrap_err();
+        assert!(e.contains("only images"), "{e}");
+        for bad in ["msg a b raw", "msg a b gif", "msg a b png x"] {
+            assert!(Tag::parse(bad.as_bytes()).is_err(), "{bad}");
+        }
     }
 }

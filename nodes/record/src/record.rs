@@ -84,7 +84,9 @@ fn body() -> Result<()> {
     }
     // The file exists before the graph starts: an unwritable path fails the run before any frame is lost.
     let path = ctx.out_dir().join(&p.file);
-    let compression = p.compression.unwrap_or(p.images.chunk_compression());
+    let compression = p
+        .compression
+        .unwrap_or(lineflow_recordings::image_codec::chunk_compression(p.images));
     let mut writer = McapWriter::create(&path, compression)?;
     writer.split(SplitLimits {
         max_bytes: (p.max_file_mb * 1e6) as u64,

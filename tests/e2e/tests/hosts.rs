@@ -161,6 +161,9 @@ fn the_demo_split_over_two_hosts_gives_the_bytes_of_one_host_and_its_recording_r
 
     // The two-host recording replays on one machine with the same bytes out.
     let again = sb.path().join("again");
+    // Images crossed as PNG, the default: lossless, hence the bytes above.
+    let camera_log = std::fs::read_to_string(camera_out.join("logs/bridge.log")).unwrap_or_default();
+    assert!(camera_log.contains("images as png"), "{camera_log}");
     let r = sb.run(&[
         "replay",
         rec_two.to_str().unwrap(),
@@ -173,6 +176,26 @@ fn the_demo_split_over_two_hosts_gives_the_bytes_of_one_host_and_its_recording_r
     assert!(r.status.success(), "the replay on one host failed");
     let d = sb.run(&["diff", rec_two.to_str().unwrap(), again.join("recording.mcap").to_str().unwrap()]);
     assert!(d.status.success(), "the replay differs:\n{}", String::from_utf8_lossy(&d.stdout));
+
+    // As JPEG, when asked: the run goes through, and the images (with what the main host derives from them) are
+    // no longer those of one host.
+    let port = free_port();
+    let graph = two_host_demo(&sb, port);
+    let (main_out, camera_out) = (sb.path().join("main-jpeg"), sb.path().join("camera-jpeg"));
+    let jpeg = ["bridge.images=jpeg", "bridge.jpeg_quality=80"];
+    let camera = start_host(&sb, &graph, "camera", &camera_out, &jpeg);
+    let main = start_host(&sb, &graph, "main", &main_out, &jpeg);
+    let (main_ok, main_err) = finish(main, &main_out);
+    let (camera_ok, camera_err) = finish(camera, &camera_out);
+    assert!(main_ok && camera_ok, "a host failed with JPEG images:\n{main_err}\n{camera_err}");
+    let d = sb.run(&["diff", rec_one.to_str().unwrap(), main_out.join("recording.mcap").to_str().unwrap()]);
+    let text = String::from_utf8_lossy(&d.stdout);
+    assert!(!d.status.success() && text.contains("images"), "JPEG images must differ:\n{text}");
+    let a = std::fs::read(one.join("frames.csv")).unwrap();
+    assert!(
+        a == std::fs::read(camera_out.join("frames.csv")).unwrap(),
+        "the camera's own stages see its own images"
+    );
 }
 
 #[test]
