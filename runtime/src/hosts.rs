@@ -7,11 +7,12 @@
 //! and edge of every host, so that two hosts running different launch files, or the same one with other `--set`s,
 //! refuse each other instead of exchanging messages of another graph.
 use std::collections::{BTreeMap, BTreeSet};
+use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
 
 use crate::launch::{added_node, Graph, LaunchError, NodeSpec, Resolver};
-pub use crate::launch::{BridgeSettings, HostSpec, BRIDGE, DEFAULT_HOST};
+pub use crate::launch::{BridgeSettings, HostSpec, TlsSettings, BRIDGE, DEFAULT_HOST};
 use lineflow_messages::image::{ImageFormat, DEFAULT_JPEG_QUALITY};
 
 /// Stage of the bridge node.
@@ -54,6 +55,23 @@ pub struct BridgePlan {
     /// JPEG quality of `images = "jpeg"`.
     #[serde(default = "default_jpeg_quality")]
     pub jpeg_quality: u8,
+    /// Mutual TLS and access control (`[bridge.tls]`).
+    #[serde(default)]
+    pub tls: Option<TlsPlan>,
+}
+
+/// A bridge's TLS: the files of this host (absolute, checked to exist) and the certificates' common names that
+/// access control admits.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct TlsPlan {
+    /// The authority's certificate.
+    pub ca: PathBuf,
+    /// This host's certificate.
+    pub certificate: PathBuf,
+    /// Its private key.
+    pub key: PathBuf,
+    /// The common names of the graph's hosts, this one's included.
+    pub common_names: Vec<String>,
 }
 
 fn default_jpeg_quality() -> u8 {
@@ -140,6 +158,13 @@ pub fn part(graph: &Graph, host: &str, resolver: &Resolver) -> Result<Graph, Lau
             .collect(),
     };
     let peers: BTreeSet<String> = send.iter().chain(&receive).flat_map(|c| c.hosts.iter().cloned()).collect();
+    let tls = graph
+        .bridge
+        .tls
+        .as_ref()
+        .map(|t| tls_plan(graph, host, &t.ca))
+        .transpose()
+        .map_err(|(entry, message)| invalid(entry, message))?;
     let plan = BridgePlan {
         graph: graph.name.clone(),
         hash: graph.hash.clone(),
@@ -152,6 +177,7 @@ pub fn part(graph: &Graph, host: &str, resolver: &Resolver) -> Result<Graph, Lau
         scouting: graph.bridge.scouting,
         images: graph.bridge.images,
         jpeg_quality: graph.bridge.jpeg_quality,
+        tls,
     };
     let serde_json::Value::Object(params) = serde_json::to_value(&plan).expect("plain data serializes") else {
         unreachable!("a struct serializes to an object")
@@ -161,6 +187,32 @@ pub fn part(graph: &Graph, host: &str, resolver: &Resolver) -> Result<Graph, Lau
     bridge.host = host.to_owned();
     part.nodes.push(bridge);
     Ok(part)
+}
+
+/// This host's TLS files, relative to the launch file's folder, checked to exist.
+fn tls_plan(graph: &Graph, host: &str, ca: &str) -> Result<TlsPlan, (String, String)> {
+    let base = graph.source.parent().unwrap_or(Path::new("."));
+    let entry = format!("[hosts.{host}]");
+    let me = graph.hosts.iter().find(|h| h.name == host).ok_or_else(|| {
+        (
+            entry.clone(),
+            "with [bridge.tls] every host needs its `certificate` and `key`".to_owned(),
+        )
+    })?;
+    let file = |entry: &str, key: &str, name: Option<&String>| -> Result<PathBuf, (String, String)> {
+        let name = name.ok_or_else(|| (entry.to_owned(), format!("`{key}` is missing")))?;
+        let path = base.join(name);
+        if !path.is_file() {
+            return Err((entry.to_owned(), format!("`{key}`: no file {}", path.display())));
+        }
+        Ok(path)
+    };
+    Ok(TlsPlan {
+        ca: file("[bridge.tls]", "ca", Some(&ca.to_owned()))?,
+        certificate: file(&entry, "certificate", me.certificate.as_ref())?,
+        key: file(&entry, "key", me.key.as_ref())?,
+        common_names: graph.hosts.iter().map(|h| h.common_name.clone()).collect(),
+    })
 }
 
 #[cfg(test)]
@@ -302,6 +354,57 @@ mod tests {
         for (text, expected) in cases {
             let e = parse(&p, &text, &[], &r).unwrap_err().to_string();
             assert!(e.contains(expected), "{e}");
+        }
+    }
+
+    /// [`TWO_HOSTS`] over TLS, with certificates `main.pem`, `camera.pem` and their keys beside the launch file.
+    fn tls_hosts() -> String {
+        TWO_HOSTS
+            .replace("tcp/", "tls/")
+            .replace(
+                "[hosts.main]",
+                "[bridge.tls]\nca = \"ca.pem\"\n[hosts.main]\ncertificate = \"main.pem\"\nkey = \"main.key\"",
+            )
+            .replace(
+                "[hosts.camera]",
+                "[hosts.camera]\ncertificate = \"camera.pem\"\nkey = \"camera.key\"\ncommon_name = \"cam-7\"",
+            )
+    }
+
+    #[test]
+    fn tls_plans_carry_this_hosts_files_and_every_hosts_name_and_refuse_what_is_missing() {
+        let dir = tempfile::tempdir().unwrap();
+        let r = resolver(dir.path());
+        let p = dir.path().join("g.toml");
+        for f in ["ca.pem", "main.pem", "main.key", "camera.pem", "camera.key"] {
+            std::fs::write(dir.path().join(f), "").unwrap();
+        }
+        let g = parse(&p, &tls_hosts(), &[], &r).unwrap();
+        let tls = plan(&part(&g, "camera", &r).unwrap()).tls.expect("a TLS plan");
+        assert_eq!(tls.certificate, dir.path().join("camera.pem"));
+        assert_eq!(tls.ca, dir.path().join("ca.pem"));
+        assert_eq!(tls.common_names, ["cam-7", "main"]);
+        std::fs::remove_file(dir.path().join("camera.key")).unwrap();
+        let e = part(&g, "camera", &r).unwrap_err().to_string();
+        assert!(e.contains("[hosts.camera]") && e.contains("`key`: no file"), "{e}");
+        assert!(part(&g, DEFAULT_HOST, &r).is_ok(), "the main host has its files");
+
+        let cases = [
+            (tls_hosts().replace("tls/", "tcp/"), "with [bridge.tls] every endpoint is tls/"),
+            (TWO_HOSTS.replace("tcp/", "tls/"), "tls/ endpoints need [bridge.tls]"),
+            (
+                tls_hosts().replace("certificate = \"camera.pem\"", ""),
+                "every host needs `certificate` and `key`",
+            ),
+            (tls_hosts().replace("cam-7", "main"), "common name 'main' is another host's too"),
+            (
+                TWO_HOSTS.replace("[hosts.main]", "[hosts.main]\ncertificate = \"main.pem\""),
+                "need [bridge.tls]",
+            ),
+        ];
+        for (text, expected) in cases {
+            let e = parse(&p, &text, &[], &r).unwrap_err().to_string();
+            assert!(e.contains(expected), "{expected}: {e}");
         }
     }
 }

@@ -101,6 +101,9 @@ struct HostEntry {
     listen: Vec<String>,
     #[serde(default)]
     connect: Vec<String>,
+    certificate: Option<String>,
+    key: Option<String>,
+    common_name: Option<String>,
 }
 
 /// Name of the recorder node the supervisor adds to every graph (unless `[record] enabled = false`).
@@ -331,10 +334,28 @@ pub struct HostSpec {
     pub listen: Vec<String>,
     /// Endpoints it connects to; empty: every other host's `listen`.
     pub connect: Vec<String>,
+    /// Its TLS certificate (PEM) as the launch file names it, relative to the launch file's folder (`[bridge.tls]`).
+    #[serde(default)]
+    pub certificate: Option<String>,
+    /// The certificate's private key (PEM, PKCS#8).
+    #[serde(default)]
+    pub key: Option<String>,
+    /// The common name its certificate carries, which access control admits; default the host's name.
+    #[serde(default)]
+    pub common_name: String,
+}
+
+/// `[bridge.tls]`: the bridges talk TLS with certificates both ways (mutual TLS), and admit only the hosts of the graph.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TlsSettings {
+    /// The certificate (PEM) of the authority that signed every host's certificate, relative to the launch file's
+    /// folder.
+    pub ca: String,
 }
 
 /// The `[bridge]` table: settings of every host's bridge.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct BridgeSettings {
     /// Find the other hosts by Zenoh's multicast scouting besides the explicit endpoints.
@@ -344,6 +365,8 @@ pub struct BridgeSettings {
     pub images: ImageFormat,
     /// JPEG quality (1-100) of `images = "jpeg"`.
     pub jpeg_quality: u8,
+    /// TLS and access control (`[bridge.tls]`); without it the bridges talk plain TCP.
+    pub tls: Option<TlsSettings>,
 }
 
 impl Default for BridgeSettings {
@@ -352,6 +375,7 @@ impl Default for BridgeSettings {
             scouting: false,
             images: ImageFormat::Png,
             jpeg_quality: DEFAULT_JPEG_QUALITY,
+            tls: None,
         }
     }
 }
@@ -361,17 +385,39 @@ impl Default for BridgeSettings {
 ///
 /// # Errors
 /// The entry at fault and what is wrong, as the loader reports it.
-pub fn check_hosts(hosts: &[HostSpec], used: &BTreeSet<String>) -> Result<(), (String, String)> {
+pub fn check_hosts(hosts: &[HostSpec], used: &BTreeSet<String>, tls: bool) -> Result<(), (String, String)> {
+    let mut common_names = BTreeSet::new();
     for h in hosts {
         let entry = format!("[hosts.{}]", h.name);
         if h.name.is_empty() || !h.name.chars().all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-') {
             return Err((entry, "a host name is non-empty ASCII letters, digits, '_' or '-'".into()));
         }
         for e in h.listen.iter().chain(&h.connect) {
-            check_endpoint(e).map_err(|m| (entry.clone(), m))?;
+            check_endpoint(e, tls).map_err(|m| (entry.clone(), m))?;
+        }
+        if tls && (h.certificate.is_none() || h.key.is_none()) {
+            return Err((
+                entry,
+                "with [bridge.tls] every host needs `certificate` and `key` (PEM files, signed by the `ca`)".into(),
+            ));
+        }
+        if !tls && (h.certificate.is_some() || h.key.is_some()) {
+            return Err((
+                entry,
+                "`certificate` and `key` need [bridge.tls] with the `ca` that signed them".into(),
+            ));
+        }
+        if !common_names.insert(&h.common_name) {
+            return Err((entry, format!("common name '{}' is another host's too", h.common_name)));
         }
     }
     for name in used {
+        if tls && !hosts.iter().any(|h| &h.name == name) {
+            return Err((
+                format!("host '{name}'"),
+                format!("with [bridge.tls] every host needs its certificate: add [hosts.{name}] with `certificate` and `key`"),
+            ));
+        }
         if name != DEFAULT_HOST && !hosts.iter().any(|h| &h.name == name) {
             let known: Vec<&str> = hosts.iter().map(|h| h.name.as_str()).collect();
             return Err((
@@ -393,10 +439,21 @@ pub fn check_hosts(hosts: &[HostSpec], used: &BTreeSet<String>) -> Result<(), (S
     Ok(())
 }
 
-/// A Zenoh endpoint the bridges can use: `tcp/ADDRESS:PORT`.
-fn check_endpoint(e: &str) -> Result<(), String> {
-    let bad = || format!("endpoint '{e}': expected tcp/ADDRESS:PORT, e.g. tcp/127.0.0.1:7447");
-    let rest = e.strip_prefix("tcp/").ok_or_else(bad)?;
+/// A Zenoh endpoint the bridges can use: `tcp/ADDRESS:PORT`, or `tls/ADDRESS:PORT` with `[bridge.tls]` (and then only
+/// that: a plain endpoint would bypass it).
+fn check_endpoint(e: &str, tls: bool) -> Result<(), String> {
+    let scheme = if tls { "tls" } else { "tcp" };
+    let bad = || {
+        let hint = if e.starts_with("tls/") {
+            " (tls/ endpoints need [bridge.tls])"
+        } else if tls && e.starts_with("tcp/") {
+            " (with [bridge.tls] every endpoint is tls/)"
+        } else {
+            ""
+        };
+        format!("endpoint '{e}': expected {scheme}/ADDRESS:PORT, e.g. {scheme}/127.0.0.1:7447{hint}")
+    };
+    let rest = e.strip_prefix(&format!("{scheme}/")).ok_or_else(bad)?;
     let (address, port) = rest.rsplit_once(':').ok_or_else(bad)?;
     if address.is_empty() || port.parse::<u16>().is_err() {
         return Err(bad());
@@ -539,10 +596,13 @@ pub fn parse(path: &Path, text: &str, overrides: &[String], resolver: &Resolver)
             name: name.clone(),
             listen: h.listen.clone(),
             connect: h.connect.clone(),
+            certificate: h.certificate.clone(),
+            key: h.key.clone(),
+            common_name: h.common_name.clone().unwrap_or_else(|| name.clone()),
         })
         .collect();
-    check_hosts(&hosts, &nodes.iter().map(|n| n.host.clone()).collect()).map_err(invalid)?;
     let bridge = bridge_settings(&file.bridge).map_err(invalid)?;
+    check_hosts(&hosts, &nodes.iter().map(|n| n.host.clone()).collect(), bridge.tls.is_some()).map_err(invalid)?;
     let hash = graph_hash(&nodes, &edges, &hosts);
     Ok(Graph {
         name: file

@@ -234,8 +234,13 @@ impl Bridge {
                 bail!("interrupted while waiting for host {}", missing.join(", "));
             }
             if Instant::now() > deadline {
+                let tls = if self.plan.tls.is_some() {
+                    " With [bridge.tls] a host also stays unseen when its certificate is not signed by the `ca`, does not name the address it is reached at, or does not carry the common name of a host of the graph (Zenoh's log names the handshake that failed)."
+                } else {
+                    ""
+                };
                 bail!(
-                    "host {} did not appear within {timeout:?} (this host '{}' is {}): is `lineflow run GRAPH --host NAME` running there, with the same launch file?",
+                    "host {} did not appear within {timeout:?} (this host '{}' is {}): is `lineflow run GRAPH --host NAME` running there, with the same launch file?{tls}",
                     missing.join(", "),
                     self.plan.host,
                     endpoints(&self.plan)

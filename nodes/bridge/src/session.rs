@@ -1,6 +1,6 @@
 //! The Zenoh session of a host's bridge, configured from its plan.
 use anyhow::{Context, Result};
-use lineflow_runtime::hosts::BridgePlan;
+use lineflow_runtime::hosts::{BridgePlan, TlsPlan};
 
 /// The Zenoh configuration of a bridge: a peer that listens only where the launch file says (Zenoh's own default
 /// would listen on every interface, on a random port), connects to the other hosts' endpoints (retried in the
@@ -30,7 +30,45 @@ pub fn config(plan: &BridgePlan) -> Result<zenoh::Config> {
     // priority let the link stream them (measured: `lineflow bench transport --zenoh`, docs/hosts.md).
     set(&mut c, "transport/link/rx/buffer_size", json(&(16u64 << 20)))?;
     set(&mut c, "transport/link/tx/queue/size/data", json(&16u64))?;
+    if let Some(tls) = &plan.tls {
+        secure(&mut c, plan, tls, set)?;
+    }
     Ok(c)
+}
+
+/// Mutual TLS (each host shows its certificate, signed by the graph's authority, and checks the other's, names
+/// included) and access control: only certificates with the common name of one of the graph's hosts may put,
+/// subscribe or declare a token, and only on the graph's own keys; everything else is denied.
+fn secure(
+    c: &mut zenoh::Config,
+    plan: &BridgePlan,
+    tls: &TlsPlan,
+    set: impl Fn(&mut zenoh::Config, &str, String) -> Result<()>,
+) -> Result<()> {
+    let path = |p: &std::path::Path| json(&p.to_string_lossy());
+    set(c, "transport/link/tls/root_ca_certificate", path(&tls.ca))?;
+    for side in ["listen", "connect"] {
+        set(c, &format!("transport/link/tls/{side}_certificate"), path(&tls.certificate))?;
+        set(c, &format!("transport/link/tls/{side}_private_key"), path(&tls.key))?;
+    }
+    set(c, "transport/link/tls/enable_mtls", json(&true))?;
+    set(c, "transport/link/tls/verify_name_on_connect", json(&true))?;
+    let graph_keys = format!("{}/**", crate::wire::Keys::new(&plan.graph, &plan.hash).graph_prefix());
+    let acl = serde_json::json!({
+        "enabled": true,
+        "default_permission": "deny",
+        "rules": [{
+            "id": "graph",
+            "key_exprs": [graph_keys],
+            "messages": ["put", "delete", "declare_subscriber", "query", "declare_queryable", "reply",
+                         "liveliness_token", "declare_liveliness_subscriber", "liveliness_query"],
+            "flows": ["ingress", "egress"],
+            "permission": "allow",
+        }],
+        "subjects": [{ "id": "hosts", "cert_common_names": tls.common_names }],
+        "policies": [{ "rules": ["graph"], "subjects": ["hosts"] }],
+    });
+    set(c, "access_control", acl.to_string())
 }
 
 /// A setting's value as JSON5 (JSON is JSON5).

@@ -22,6 +22,10 @@ impl Keys {
             hash: key_level(hash),
         }
     }
+    /// The first level of every key of the graph, whatever its hash: `lineflow/GRAPH`.
+    pub fn graph_prefix(&self) -> String {
+        format!("lineflow/{}", self.graph)
+    }
     /// Where a topic's messages are put.
     pub fn data(&self, topic: &str) -> String {
         format!("lineflow/{}/{}/data/{topic}", self.graph, self.hash)

@@ -259,3 +259,71 @@ fn ctrl_c_on_one_host_ends_the_others_with_the_reason() {
         assert_nothing_left_in(&state_of(&sb, host), out);
     }
 }
+
+/// The demo graph on two hosts over mutual TLS, each host's certificate and key in `dir` as `HOST.pem` and
+/// `HOST.key` beside the authority's `ca.pem`, and the launch file there too (its paths are relative to it).
+fn two_host_demo_tls(dir: &Path, port: u16) -> PathBuf {
+    std::fs::create_dir_all(dir).unwrap();
+    let demo = std::fs::read_to_string(repo_file("launch/demo.toml")).unwrap();
+    let tls = format!(
+        "\n[bridge.tls]\nca = \"ca.pem\"\n\n[hosts.main]\nlisten = [\"tls/127.0.0.1:{port}\"]\ncertificate = \"main.pem\"\nkey = \"main.key\"\n\n[hosts.camera]\ncertificate = \"camera.pem\"\nkey = \"camera.key\"\n"
+    );
+    // A short wait for a host that never shows: the refusal below is then quick.
+    let text = demo.replacen("[graph]", "[graph]\nconnect_timeout_s = 8", 1) + &tls;
+    let graph = dir.join("demo-tls.toml");
+    std::fs::write(&graph, text).unwrap();
+    graph
+}
+
+/// Puts the test authority's certificate and `who`'s certificate and key into `dir`, named as host `host`'s.
+fn certificates(dir: &Path, host: &str, who: &str) {
+    let fixtures = repo_file("tests/e2e/fixtures/tls");
+    std::fs::copy(fixtures.join("ca.pem"), dir.join("ca.pem")).unwrap();
+    for ext in ["pem", "key"] {
+        std::fs::copy(fixtures.join(format!("{who}.{ext}")), dir.join(format!("{host}.{ext}"))).unwrap();
+    }
+}
+
+/// Both hosts of the TLS demo, each from its own folder as on two machines; the camera's host shows `camera_cert`.
+fn tls_run(sb: &Sandbox, camera_cert: &str) -> ((bool, String), (bool, String)) {
+    let port = free_port();
+    let (main_dir, camera_dir) = (sb.path().join("main-host"), sb.path().join("camera-host"));
+    let main_graph = two_host_demo_tls(&main_dir, port);
+    let camera_graph = two_host_demo_tls(&camera_dir, port);
+    certificates(&main_dir, "main", "main");
+    certificates(&camera_dir, "camera", camera_cert);
+    let (main_out, camera_out) = (sb.path().join("main"), sb.path().join("camera"));
+    let main = start_host(sb, &main_graph, "main", &main_out, &[]);
+    let camera = start_host(sb, &camera_graph, "camera", &camera_out, &[]);
+    (finish(main, &main_out), finish(camera, &camera_out))
+}
+
+#[test]
+fn over_mutual_tls_the_split_runs_and_a_certificate_of_another_name_is_refused() {
+    let sb = Sandbox::new();
+    let ((main_ok, main_err), (camera_ok, camera_err)) = tls_run(&sb, "camera");
+    assert!(main_ok && camera_ok, "a host failed over TLS:\n{main_err}\n{camera_err}");
+    // Every frame crossed: the main host's bridge published the camera's 10 topics, the images once a frame.
+    let summary = std::fs::read_to_string(sb.path().join("main/summary.txt")).unwrap();
+    let bridge: Vec<&str> = summary
+        .lines()
+        .find(|l| l.starts_with("bridge "))
+        .unwrap()
+        .split_whitespace()
+        .collect();
+    let frames = std::fs::read_to_string(sb.path().join("camera/frames.csv"))
+        .unwrap()
+        .lines()
+        .count()
+        - 1;
+    assert!(frames > 0 && bridge[3].parse::<usize>().unwrap() >= frames, "{summary}");
+
+    // A certificate the authority signed, but for a name that is no host of the graph: access control keeps it out.
+    let sb = Sandbox::new();
+    let ((main_ok, main_err), (camera_ok, _)) = tls_run(&sb, "intruder");
+    assert!(!main_ok && !camera_ok, "a host with another name's certificate must not join");
+    assert!(
+        main_err.contains("host camera did not appear") && main_err.contains("[bridge.tls]"),
+        "{main_err}"
+    );
+}
