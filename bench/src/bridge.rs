@@ -239,17 +239,19 @@ pub(crate) fn bridge_bench(count: usize, frames: usize) -> Result<std::process::
     for images in [ImageFormat::Raw, ImageFormat::Png, ImageFormat::Jpeg] {
         let (wall, got, lost) = stream_case(dir.path(), &project, 5.0, images)?;
         println!(
-            "12 MP frames at 5 frames/s across the bridges, images {}: {got} of {frames} arrived, {lost} dropped or missed, run {wall:.1} s for a stream of {paced:.1} s",
-            images.name().unwrap_or("raw")
+            "12 MP frames at 5 frames/s across the bridges, images {}: {got} of {frames} arrived, {lost} dropped or missed, run {wall:.1} s for a stream of {paced:.1} s ({:.1} frames/s over the whole run, start included)",
+            images.name().unwrap_or("raw"),
+            got as f64 / wall
         );
-        met &= got == frames && lost == 0;
+        // The target is the default's (raw); packed images are lossless too, at the rate their encoder allows.
+        met &= got == frames && lost == 0 && (images != ImageFormat::Raw || wall < paced + 3.0);
     }
     println!(
         "targets: zenoh within 1.5x of a TCP copy at 48 MB: {ratio:.2}x [{}]",
         if ratio <= 1.5 { "met" } else { "MISSED" }
     );
     println!(
-        "         12 MP at 5 frames/s with nothing dropped, images raw, png and jpeg: [{}]",
+        "         12 MP at 5 frames/s with nothing dropped (raw, the default, within 3 s of the paced stream; png and jpeg lose nothing): [{}]",
         if met { "met" } else { "MISSED" }
     );
     Ok(std::process::ExitCode::SUCCESS)

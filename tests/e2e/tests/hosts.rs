@@ -99,10 +99,11 @@ fn the_demo_split_over_two_hosts_gives_the_bytes_of_one_host_and_its_recording_r
     let sb = Sandbox::new();
     let graph = two_host_demo(&sb, free_port());
     let (main_out, camera_out) = (sb.path().join("main"), sb.path().join("camera"));
-    // The camera's host first: its bridge waits for the main host to appear.
-    let camera = start_host(&sb, &graph, "camera", &camera_out, &[]);
+    // The camera's host first: its bridge waits for the main host to appear. Images cross as PNG, lossless.
+    let png = ["bridge.images=png"];
+    let camera = start_host(&sb, &graph, "camera", &camera_out, &png);
     std::thread::sleep(Duration::from_millis(500));
-    let main = start_host(&sb, &graph, "main", &main_out, &[]);
+    let main = start_host(&sb, &graph, "main", &main_out, &png);
     let (main_ok, main_err) = finish(main, &main_out);
     let (camera_ok, camera_err) = finish(camera, &camera_out);
     assert!(main_ok && camera_ok, "a host failed:\n{main_err}\n{camera_err}");
@@ -161,7 +162,7 @@ fn the_demo_split_over_two_hosts_gives_the_bytes_of_one_host_and_its_recording_r
 
     // The two-host recording replays on one machine with the same bytes out.
     let again = sb.path().join("again");
-    // Images crossed as PNG, the default: lossless, hence the bytes above.
+    // Images crossed as PNG: lossless, hence the bytes above.
     let camera_log = std::fs::read_to_string(camera_out.join("logs/bridge.log")).unwrap_or_default();
     assert!(camera_log.contains("images as png"), "{camera_log}");
     let r = sb.run(&[
