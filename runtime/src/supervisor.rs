@@ -414,11 +414,6 @@ fn cleanup(run: &RunRecord) {
 }
 
 fn supervise(graph: &Graph, run: &RunRecord, ports: &BTreeMap<String, Ports>, opts: &RunOptions, started: Instant) -> Result<Outcome> {
-    // The nodes learn the launch file's timeout too (half of it: see `spawn`).
-    let opts = &RunOptions {
-        connect_timeout: Some(connect_timeout(graph, opts.connect_timeout)),
-        ..opts.clone()
-    };
     let cfg = transport::config(&run.prefix, &run.root)?;
     let node = transport::create_node(&cfg, "supervisor")?;
     let status_sub = transport::open_status(&node)?
@@ -740,10 +735,8 @@ fn spawn(c: &mut Child, run: &RunRecord, opts: &RunOptions, console: &Arc<Consol
     if let Some(level) = &opts.node_log_level {
         cmd.env("LINEFLOW_LOG", level);
     }
-    // Half the supervisor's: a node that waits in vain (for its peers, for another host) says so itself before the
-    // supervisor gives up on it with "not connected".
     if let Some(t) = opts.connect_timeout {
-        cmd.env(env::CONNECT_TIMEOUT_S, (t / 2).as_secs().max(1).to_string());
+        cmd.env(env::CONNECT_TIMEOUT_S, t.as_secs().max(1).to_string());
     }
     let mut child = cmd
         .spawn()

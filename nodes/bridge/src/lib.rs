@@ -52,7 +52,7 @@ pub fn run(ctx: NodeContext) -> Result<()> {
         return ctx.connect();
     }
     let mut bridge = Bridge::open(plan, &graph, topics, incoming)?;
-    bridge.wait_for_peers(&ctx, connect_timeout())?;
+    bridge.wait_for_peers(&ctx, connect_timeout(&graph))?;
     ctx.connect()?;
     tracing::info!("{}", bridge.describe());
     let ended = ctx.run_every(TICK, || {
@@ -80,8 +80,13 @@ pub fn run(ctx: NodeContext) -> Result<()> {
     }
 }
 
-/// The seconds the supervisor gives every node to connect: the other hosts get as long to appear.
-fn connect_timeout() -> Duration {
+/// How long the other hosts get to appear: half the launch file's `connect_timeout_s` (the supervisor's own deadline
+/// for every node to connect), so that the bridge names the hosts missing before the supervisor gives up on it with
+/// "not connected"; without it, the nodes' connect timeout (30 s).
+fn connect_timeout(graph: &lineflow_runtime::launch::Graph) -> Duration {
+    if let Some(half) = graph.connect_timeout_s.and_then(|s| Duration::try_from_secs_f64(s / 2.0).ok()) {
+        return half;
+    }
     let s = std::env::var(lineflow_runtime::env::CONNECT_TIMEOUT_S)
         .ok()
         .and_then(|v| v.parse().ok())
