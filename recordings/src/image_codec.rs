@@ -53,30 +53,51 @@ impl ImageCompressor {
     /// When `cdr` is not an `Image` message or the encoder fails.
     pub fn compress(&mut self, cdr: &[u8], format: ImageFormat, jpeg_quality: u8, out: &mut Vec<u8>) -> Result<()> {
         let (header, payload) = decode_view(MessageKind::Image, cdr, &mut self.scratch).context("not an Image message")?;
-        let h: ImageHeader = read_pod(header);
-        self.file.clear();
-        let natural = natural_color(&h, payload.len());
-        match (format, natural) {
-            (ImageFormat::Jpeg, Some(color @ (ExtendedColorType::L8 | ExtendedColorType::Rgb8))) => {
-                JpegEncoder::new_with_quality(&mut self.file, jpeg_quality.clamp(1, 100))
-                    .write_image(payload, h.width, h.height, color)
-                    .context("JPEG encoding")?;
-            }
-            (ImageFormat::Raw, _) => bail!("raw images are not compressed"),
-            _ => {
-                // Fast deflate with per-row adaptive filters: 2.5-3× smaller than raw on rendered façades at the
-                // recorder's speed (`lineflow bench record`); the default level is several times slower.
-                let encoder = PngEncoder::new_with_quality(&mut self.file, CompressionType::Fast, FilterType::Adaptive);
-                let (w, ht, color) = match natural {
-                    Some(color) => (h.width, h.height, color),
-                    None => grey_of(&h, payload.len()),
-                };
-                encoder.write_image(payload, w, ht, color).context("PNG encoding")?;
-            }
-        }
-        encode(MessageKind::Image, header, &self.file, out);
-        Ok(())
+        pack(header, payload, format, jpeg_quality, &mut self.file, out)
     }
+
+    /// [`compress`](Self::compress) of an `Image` message given as its header's bytes and its pixels, as a
+    /// subscriber holds it: no CDR of the raw image is made first.
+    ///
+    /// # Errors
+    /// When the encoder fails.
+    pub fn compress_parts(
+        &mut self,
+        header: &[u8],
+        payload: &[u8],
+        format: ImageFormat,
+        jpeg_quality: u8,
+        out: &mut Vec<u8>,
+    ) -> Result<()> {
+        pack(header, payload, format, jpeg_quality, &mut self.file, out)
+    }
+}
+
+/// An `Image` message with its pixels packed as `format`, into `out`; `file` holds the packed pixels on the way.
+fn pack(header: &[u8], payload: &[u8], format: ImageFormat, jpeg_quality: u8, file: &mut Vec<u8>, out: &mut Vec<u8>) -> Result<()> {
+    let h: ImageHeader = read_pod(header);
+    file.clear();
+    let natural = natural_color(&h, payload.len());
+    match (format, natural) {
+        (ImageFormat::Jpeg, Some(color @ (ExtendedColorType::L8 | ExtendedColorType::Rgb8))) => {
+            JpegEncoder::new_with_quality(&mut *file, jpeg_quality.clamp(1, 100))
+                .write_image(payload, h.width, h.height, color)
+                .context("JPEG encoding")?;
+        }
+        (ImageFormat::Raw, _) => bail!("raw images are not compressed"),
+        _ => {
+            // Fast deflate with per-row adaptive filters: 2.5-3× smaller than raw on rendered façades at the
+            // recorder's speed (`lineflow bench record`); the default level is several times slower.
+            let encoder = PngEncoder::new_with_quality(&mut *file, CompressionType::Fast, FilterType::Adaptive);
+            let (w, ht, color) = match natural {
+                Some(color) => (h.width, h.height, color),
+                None => grey_of(&h, payload.len()),
+            };
+            encoder.write_image(payload, w, ht, color).context("PNG encoding")?;
+        }
+    }
+    encode(MessageKind::Image, header, file, out);
+    Ok(())
 }
 
 /// The colour type that holds `payload` as an image of the header's size, when rows are unpadded.
@@ -109,6 +130,17 @@ fn grey_of(h: &ImageHeader, payload_len: usize) -> (u32, u32, ExtendedColorType)
 /// # Errors
 /// When the message or its file is damaged, or the file's size disagrees with the header.
 pub fn restore(cdr: &[u8], scratch: &mut Decoded, out: &mut Vec<u8>) -> Result<()> {
+    let (header, pixels) = restore_parts(cdr, scratch)?;
+    encode(MessageKind::Image, &header, &pixels, out);
+    Ok(())
+}
+
+/// [`restore`] as the `Image` message's header bytes and pixels, for a publisher that writes them into its own
+/// sample: no CDR of the restored image is made.
+///
+/// # Errors
+/// When the message or its file is damaged, or the file's size disagrees with the header.
+pub fn restore_parts(cdr: &[u8], scratch: &mut Decoded) -> Result<(Vec<u8>, Vec<u8>)> {
     let (header, file) = decode_view(MessageKind::Image, cdr, scratch).context("not a compressed Image message")?;
     let h: ImageHeader = read_pod(header);
     let decoded = image::load_from_memory(file).context("the image file inside the message is damaged")?;
@@ -130,9 +162,7 @@ pub fn restore(cdr: &[u8], scratch: &mut Decoded, out: &mut Vec<u8>) -> Result<(
             h.encoding
         ),
     };
-    let header = header.to_vec();
-    encode(MessageKind::Image, &header, &pixels, out);
-    Ok(())
+    Ok((header.to_vec(), pixels))
 }
 
 /// The restored message's size without restoring it: what a graph edge must carry.
@@ -192,6 +222,20 @@ mod tests {
             assert!(back == cdr, "{enc:?} step {step}");
             assert_eq!(restored_len(&packed), Some(cdr.len() as u64), "{enc:?} step {step}");
         }
+    }
+
+    #[test]
+    fn packing_the_parts_is_packing_the_message_and_restoring_the_parts_gives_them_back() {
+        let cdr = image(37, 21, 111, Encoding::Rgb8, 5);
+        let mut scratch = Decoded::default();
+        let (header, payload) = decode_view(MessageKind::Image, &cdr, &mut scratch).unwrap();
+        let (header, payload) = (header.to_vec(), payload.to_vec());
+        let mut c = ImageCompressor::default();
+        let (mut whole, mut parts) = (Vec::new(), Vec::new());
+        c.compress(&cdr, ImageFormat::Png, 90, &mut whole).unwrap();
+        c.compress_parts(&header, &payload, ImageFormat::Png, 90, &mut parts).unwrap();
+        assert!(whole == parts);
+        assert_eq!(restore_parts(&parts, &mut scratch).unwrap(), (header, payload));
     }
 
     #[test]

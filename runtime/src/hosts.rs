@@ -199,7 +199,7 @@ fn tls_plan(graph: &Graph, host: &str, ca: &str) -> Result<TlsPlan, (String, Str
             "with [bridge.tls] every host needs its `certificate` and `key`".to_owned(),
         )
     })?;
-    let file = |entry: &str, key: &str, name: Option<&String>| -> Result<PathBuf, (String, String)> {
+    let file = |entry: &str, key: &str, name: Option<&str>| -> Result<PathBuf, (String, String)> {
         let name = name.ok_or_else(|| (entry.to_owned(), format!("`{key}` is missing")))?;
         let path = base.join(name);
         if !path.is_file() {
@@ -208,9 +208,9 @@ fn tls_plan(graph: &Graph, host: &str, ca: &str) -> Result<TlsPlan, (String, Str
         Ok(path)
     };
     Ok(TlsPlan {
-        ca: file("[bridge.tls]", "ca", Some(&ca.to_owned()))?,
-        certificate: file(&entry, "certificate", me.certificate.as_ref())?,
-        key: file(&entry, "key", me.key.as_ref())?,
+        ca: file("[bridge.tls]", "ca", Some(ca))?,
+        certificate: file(&entry, "certificate", me.certificate.as_deref())?,
+        key: file(&entry, "key", me.key.as_deref())?,
         common_names: graph.hosts.iter().map(|h| h.common_name.clone()).collect(),
     })
 }

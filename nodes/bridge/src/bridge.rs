@@ -13,7 +13,7 @@ use crossbeam::channel::{Receiver, Sender};
 use lineflow_messages::image::ImageFormat;
 use lineflow_messages::schema::{decode_view, encode, Decoded};
 use lineflow_messages::MessageKind;
-use lineflow_recordings::image_codec::{restore, ImageCompressor};
+use lineflow_recordings::image_codec::{restore_parts, ImageCompressor};
 use lineflow_runtime::hosts::{BridgePlan, Crossing, BRIDGE};
 use lineflow_runtime::launch::{EdgePolicy, Graph};
 use lineflow_runtime::tap::{update_ended, Emit, Topic};
@@ -24,7 +24,7 @@ use zenoh::Wait;
 
 use crate::credit::Window;
 use crate::session;
-use crate::wire::{check_topic, Keys, Reply, Tag};
+use crate::wire::{check_topic, packing, Keys, Reply, Tag};
 
 /// How long a host that left is given before the run ends: what it sent before leaving may still be on its way.
 const GONE_GRACE: Duration = Duration::from_secs(1);
@@ -106,9 +106,8 @@ pub struct Bridge {
     /// Events taken while waiting for the peers, handled once the graph here is connected.
     early: VecDeque<Event>,
     scratch: Decoded,
-    /// Images packed and restored in these.
+    /// Packs the images this host sends.
     compressor: ImageCompressor,
-    restored: Vec<u8>,
     /// Kept for their lifetime: dropping them undeclares them.
     _subscribers: Vec<zenoh::pubsub::Subscriber<()>>,
     _token: zenoh::liveliness::LivelinessToken,
@@ -151,16 +150,12 @@ impl Bridge {
                 })
                 .wait()
                 .map_err(zenoh_error("cannot declare a Zenoh publisher"))?;
-            let tag = Tag::packed(t.kind, plan.images);
-            let Tag::Message { packed, .. } = tag else {
-                unreachable!("a message's tag")
-            };
             outgoing.push(Outgoing {
                 hosts: crossing.hosts.clone(),
                 publisher,
                 window: Window::new(&crossing.hosts, edge.depth.max(4) as u64),
-                packed,
-                tag: tag.to_bytes(),
+                packed: packing(t.kind, plan.images),
+                tag: Tag::packed(t.kind, plan.images).to_bytes(),
                 end_sent: false,
                 taken: BTreeSet::new(),
             });
@@ -185,7 +180,6 @@ impl Bridge {
             early: VecDeque::new(),
             scratch: Decoded::default(),
             compressor: ImageCompressor::default(),
-            restored: Vec::new(),
             _subscribers: subscribers,
             _token: token,
         })
@@ -336,14 +330,13 @@ impl Bridge {
             }
             Tag::Message { packed, .. } => {
                 let context = || format!("topic '{}' from host '{}'", inc.topic, inc.from);
-                let cdr = if packed == ImageFormat::Raw {
-                    cdr
+                if packed == ImageFormat::Raw {
+                    let (header, payload) = decode_view(inc.kind, cdr, &mut self.scratch).with_context(context)?;
+                    inc.emit.emit(header, payload)?;
                 } else {
-                    restore(cdr, &mut self.scratch, &mut self.restored).with_context(context)?;
-                    &self.restored
-                };
-                let (header, payload) = decode_view(inc.kind, cdr, &mut self.scratch).with_context(context)?;
-                inc.emit.emit(header, payload)?;
+                    let (header, pixels) = restore_parts(cdr, &mut self.scratch).with_context(context)?;
+                    inc.emit.emit(&header, &pixels)?;
+                }
                 inc.owed += 1;
                 Ok(())
             }
@@ -381,13 +374,12 @@ impl Bridge {
             let mut put = 0;
             t.messages += t.tap.drain_some(room, &mut |_, header, payload| {
                 let mut cdr = Vec::new();
-                encode(kind, header, payload, &mut cdr);
-                if packed != ImageFormat::Raw {
-                    let mut file = Vec::new();
+                if packed == ImageFormat::Raw {
+                    encode(kind, header, payload, &mut cdr);
+                } else {
                     compressor
-                        .compress(&cdr, packed, self.plan.jpeg_quality, &mut file)
+                        .compress_parts(header, payload, packed, self.plan.jpeg_quality, &mut cdr)
                         .with_context(|| format!("cannot pack an image of '{}' as {packed:?}", t.name))?;
-                    cdr = file;
                 }
                 publisher
                     .put(cdr)

@@ -95,6 +95,15 @@ pub fn version(kind: MessageKind) -> String {
     format!("{:016x}", fnv1a64(kind.schema().ros2msg().as_bytes()))
 }
 
+/// How a message of `kind` crosses when images go as `images`: only images are packed, every other kind raw.
+pub fn packing(kind: MessageKind, images: ImageFormat) -> ImageFormat {
+    if kind == MessageKind::Image {
+        images
+    } else {
+        ImageFormat::Raw
+    }
+}
+
 /// The attachment of a put on a data key.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub enum Tag {
@@ -116,12 +125,12 @@ impl Tag {
     pub fn of(kind: MessageKind) -> Self {
         Self::packed(kind, ImageFormat::Raw)
     }
-    /// The tag of a message of `kind` packed as `packed` (only images are: any other kind is tagged raw).
-    pub fn packed(kind: MessageKind, packed: ImageFormat) -> Self {
+    /// The tag of a message of `kind` whose images go as `images` ([`packing`]).
+    pub fn packed(kind: MessageKind, images: ImageFormat) -> Self {
         Tag::Message {
             schema: kind.schema().name(),
             version: version(kind),
-            packed: if kind == MessageKind::Image { packed } else { ImageFormat::Raw },
+            packed: packing(kind, images),
         }
     }
     /// The attachment's bytes.
