@@ -11,7 +11,7 @@ use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
 
-use crate::launch::{added_node, Graph, LaunchError, NodeSpec, Resolver};
+use crate::launch::{added_node, Graph, LaunchError, NodeSpec, Resolver, RestartPolicy};
 pub use crate::launch::{BridgeSettings, HostSpec, TlsSettings, BRIDGE, DEFAULT_HOST};
 use lineflow_messages::image::{ImageFormat, DEFAULT_JPEG_QUALITY};
 
@@ -25,6 +25,19 @@ pub struct Crossing {
     pub topic: String,
     /// Sending: the hosts that subscribe. Receiving: the host that publishes.
     pub hosts: Vec<String>,
+    /// Sending: how many messages may be put ahead of a receiving host's credit ([`window`]).
+    #[serde(default)]
+    pub window: u64,
+    /// Sending, when the bridges restart: how many of the last messages are kept to re-send to a restarted
+    /// receiving bridge (its window, and the receiving edge's buffer, which dies with the bridge's shared memory).
+    #[serde(default)]
+    pub keep: usize,
+}
+
+/// How many messages of an edge of buffer `depth` a sending bridge puts ahead of a receiving host's credit: the
+/// edge's depth, at least 4, so that a frame stream keeps moving over a link's latency.
+pub fn window(depth: usize) -> u64 {
+    depth.max(4) as u64
 }
 
 /// What a host's bridge carries: its parameters, written by [`part`].
@@ -58,6 +71,10 @@ pub struct BridgePlan {
     /// Mutual TLS and access control (`[bridge.tls]`).
     #[serde(default)]
     pub tls: Option<TlsPlan>,
+    /// With `[bridge] restart = "on-failure"`: the longest wait before a bridge is restarted (ms). A peer that
+    /// leaves is then given that long, and a start's, to come back before the run ends.
+    #[serde(default)]
+    pub restart_wait_ms: Option<u64>,
 }
 
 /// A bridge's TLS: the files of this host (absolute, checked to exist) and the certificates' common names that
@@ -111,6 +128,8 @@ pub fn part(graph: &Graph, host: &str, resolver: &Resolver) -> Result<Graph, Lau
     part.nodes = mine;
     part.replaced.extend(others);
     let (mut send, mut receive) = (Vec::new(), Vec::new());
+    let settings = &graph.bridge;
+    let restarts = settings.restart == RestartPolicy::OnFailure;
     part.edges = graph
         .edges
         .iter()
@@ -120,17 +139,27 @@ pub fn part(graph: &Graph, host: &str, resolver: &Resolver) -> Result<Graph, Lau
             let mut e = e.clone();
             if here(&e.from) {
                 if !remote.is_empty() {
+                    let window = window(e.depth);
                     send.push(Crossing {
                         topic: e.topic.clone(),
                         hosts: remote.into_iter().collect(),
+                        window,
+                        keep: if restarts { window as usize + e.depth + 2 } else { 0 },
                     });
                     e.to = local.into_iter().chain([BRIDGE.to_owned()]).collect();
+                    if restarts {
+                        // A restarted bridge re-reads what it had taken but not yet delivered: at most a window.
+                        e.history = e.history.max(window as usize + 2);
+                        e.depth = e.depth.max(e.history);
+                    }
                 }
                 Some(e)
             } else if !local.is_empty() {
                 receive.push(Crossing {
                     topic: e.topic.clone(),
                     hosts: vec![host_of[e.from.as_str()].to_owned()],
+                    window: 0,
+                    keep: 0,
                 });
                 e.from = BRIDGE.to_owned();
                 e.to = local;
@@ -178,6 +207,10 @@ pub fn part(graph: &Graph, host: &str, resolver: &Resolver) -> Result<Graph, Lau
         images: graph.bridge.images,
         jpeg_quality: graph.bridge.jpeg_quality,
         tls,
+        restart_wait_ms: restarts.then(|| {
+            let doublings = settings.max_restarts.saturating_sub(1).min(10);
+            settings.backoff_ms.saturating_mul(1 << doublings)
+        }),
     };
     let serde_json::Value::Object(params) = serde_json::to_value(&plan).expect("plain data serializes") else {
         unreachable!("a struct serializes to an object")
@@ -185,6 +218,11 @@ pub fn part(graph: &Graph, host: &str, resolver: &Resolver) -> Result<Graph, Lau
     let mut bridge =
         added_node(BRIDGE, BRIDGE_STAGE, params, part.nodes.len(), resolver).map_err(|m| invalid(format!("node '{BRIDGE}'"), m))?;
     bridge.host = host.to_owned();
+    if restarts {
+        bridge.restart = RestartPolicy::OnFailure;
+        bridge.max_restarts = settings.max_restarts;
+        bridge.backoff_ms = settings.backoff_ms;
+    }
     part.nodes.push(bridge);
     Ok(part)
 }
@@ -260,6 +298,35 @@ mod tests {
     fn plan(g: &Graph) -> BridgePlan {
         let bridge = g.node(BRIDGE).expect("a bridge");
         serde_json::from_value(serde_json::Value::Object(bridge.params.clone())).unwrap()
+    }
+
+    #[test]
+    fn restarting_bridges_keep_a_window_to_resend_and_the_edges_into_them_a_history() {
+        let dir = tempfile::tempdir().unwrap();
+        let r = resolver(dir.path());
+        let g = |sets: &[String]| {
+            let whole = parse(&dir.path().join("g.toml"), TWO_HOSTS, sets, &r).unwrap();
+            part(&whole, "camera", &r).unwrap()
+        };
+        let plain = g(&[]);
+        let p = plan(&plain);
+        assert_eq!(plain.node(BRIDGE).unwrap().restart, RestartPolicy::Never);
+        assert_eq!((p.send[0].window, p.send[0].keep, p.restart_wait_ms), (4, 0, None));
+        let images = plain.edges.iter().find(|e| e.topic == "images").unwrap();
+        assert_eq!(images.history, 0);
+
+        let sets = ["bridge.restart=on-failure".to_owned(), "bridge.backoff_ms=100".to_owned()];
+        let restarting = g(&sets);
+        let bridge = restarting.node(BRIDGE).unwrap();
+        assert_eq!(
+            (bridge.restart, bridge.max_restarts, bridge.backoff_ms),
+            (RestartPolicy::OnFailure, 3, 100)
+        );
+        let p = plan(&restarting);
+        assert_eq!(p.restart_wait_ms, Some(400), "the third restart waits 4 back-offs");
+        assert_eq!((p.send[0].window, p.send[0].keep), (4, 4 + 4 + 2));
+        let images = restarting.edges.iter().find(|e| e.topic == "images").unwrap();
+        assert_eq!((images.history, images.depth), (6, 6), "a window and two re-read after a restart");
     }
 
     #[test]

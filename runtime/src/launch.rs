@@ -368,6 +368,14 @@ pub struct BridgeSettings {
     pub jpeg_quality: u8,
     /// TLS and access control (`[bridge.tls]`); without it the bridges talk plain TCP.
     pub tls: Option<TlsSettings>,
+    /// Whether a host's supervisor restarts its bridge when it fails (`never` by default: a bridge that fails
+    /// ends the run, as any node). With `on-failure` the lossless edges between hosts resume with nothing lost:
+    /// the sending bridge keeps its last messages to re-send them, and the edges into it keep a history.
+    pub restart: RestartPolicy,
+    /// Restarts allowed with `restart = "on-failure"`.
+    pub max_restarts: u32,
+    /// The wait before the first restart, doubled for each further one.
+    pub backoff_ms: u64,
 }
 
 impl Default for BridgeSettings {
@@ -377,6 +385,9 @@ impl Default for BridgeSettings {
             images: ImageFormat::Raw,
             jpeg_quality: DEFAULT_JPEG_QUALITY,
             tls: None,
+            restart: RestartPolicy::Never,
+            max_restarts: default_max_restarts(),
+            backoff_ms: default_backoff_ms(),
         }
     }
 }

@@ -14,6 +14,7 @@ pub mod ports;
 pub mod report;
 pub mod run;
 pub mod runs;
+pub mod seen;
 pub mod shm;
 pub mod supervisor;
 pub mod tap;

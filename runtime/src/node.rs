@@ -158,6 +158,11 @@ impl NodeContext {
         &self.graph
     }
 
+    /// How often the supervisor restarted this node (0 for its first instance).
+    pub fn restarts(&self) -> u32 {
+        self.env.as_ref().map_or(0, |e| e.restart)
+    }
+
     /// The run's output folder.
     pub fn out_dir(&self) -> std::path::PathBuf {
         self.env.as_ref().map(|e| e.out.clone()).unwrap_or_else(|| ".".into())

@@ -11,6 +11,7 @@ use lineflow_messages::{Message, Stamp, StampFlags};
 
 use crate::launch::EdgeSpec;
 use crate::report::Reporter;
+use crate::seen::Seen;
 use crate::transport::{self, PubSub};
 
 /// How often a waiting node wakes without input: to publish its status and pick up restarted publishers.
@@ -54,11 +55,8 @@ pub(crate) struct InputInner<M: Message> {
     slot: usize,
     reporter: Rc<Reporter>,
     ended: Cell<bool>,
-    /// Largest (frame, revision) accepted, for duplicate detection.
-    last: Cell<Option<(u64, u32)>>,
-    /// Highest revision accepted per frame: an earlier frame republished with a higher revision (a result improved
-    /// later, e.g. after the end-of-stream adjustment) is new, not a duplicate.
-    revisions: RefCell<std::collections::BTreeMap<u64, u32>>,
+    /// What was taken, for duplicate detection.
+    seen: RefCell<Seen>,
     /// Frames up to this one were received by an earlier instance: a gap below it is not a miss.
     received_before: Option<u64>,
     /// Since when the topic has had no publisher while the input has not ended.
@@ -84,7 +82,7 @@ impl<M: Message> Input<M> {
             .buffer_size(edge.depth)
             .create()
             .map_err(|e| anyhow::anyhow!("node '{name}': cannot subscribe to '{}': {e:?}", edge.topic))?;
-        let last = resume.and_then(|(_, replay)| replay.checked_sub(1)).map(|f| (f, u32::MAX));
+        let seen = resume.map_or_else(Seen::default, |(_, replay)| Seen::before(replay));
         let received_before = resume.and_then(|(next, _)| next.checked_sub(1));
         Ok(Self {
             inner: Some(Rc::new(InputInner {
@@ -95,8 +93,7 @@ impl<M: Message> Input<M> {
                 slot,
                 reporter,
                 ended: Cell::new(false),
-                last: Cell::new(last),
-                revisions: RefCell::new(std::collections::BTreeMap::new()),
+                seen: RefCell::new(seen),
                 received_before,
                 orphaned_since: Cell::new(None),
             })),
@@ -140,10 +137,9 @@ impl<M: Message> Input<M> {
                 inner.reporter.input_ended();
                 continue;
             }
-            let key = (stamp.frame, stamp.revision);
-            let revised = inner.revisions.borrow().get(&stamp.frame).is_some_and(|&r| stamp.revision > r);
-            if let Some(last) = inner.last.get() {
-                if key <= last && !revised {
+            let last = inner.seen.borrow().last();
+            if let Some(last) = last {
+                if inner.seen.borrow().is_repeat(stamp.frame, stamp.revision) {
                     inner.reporter.duplicate();
                     continue;
                 }
@@ -157,8 +153,7 @@ impl<M: Message> Input<M> {
                     inner.reporter.missed(first_unseen, stamp.frame - 1);
                 }
             }
-            inner.last.set(Some(inner.last.get().map_or(key, |l| l.max(key))));
-            inner.revisions.borrow_mut().insert(stamp.frame, stamp.revision);
+            inner.seen.borrow_mut().take(stamp.frame, stamp.revision);
             inner.reporter.received(inner.slot, stamp.frame);
             return Ok(Some(sample));
         }

@@ -453,13 +453,19 @@ fn supervise(graph: &Graph, run: &RunRecord, ports: &BTreeMap<String, Ports>, op
                 current: NodeStatus::default(),
                 missed: Vec::new(),
                 wired_inputs,
-                output_depth: graph
-                    .edges
-                    .iter()
-                    .filter(|e| e.from == spec.name)
-                    .map(|e| e.depth + 2)
-                    .max()
-                    .unwrap_or(0),
+                // A bridge's messages wait on another host, not in its outputs: it re-reads its inputs' whole
+                // history, and the receiving bridge drops what it already has.
+                output_depth: if spec.name == crate::launch::BRIDGE {
+                    usize::MAX
+                } else {
+                    graph
+                        .edges
+                        .iter()
+                        .filter(|e| e.from == spec.name)
+                        .map(|e| e.depth + 2)
+                        .max()
+                        .unwrap_or(0)
+                },
                 relays: Vec::new(),
             }
         })

@@ -11,13 +11,15 @@ use std::time::{Duration, Instant};
 use anyhow::{anyhow, bail, Context, Result};
 use crossbeam::channel::{Receiver, Sender};
 use lineflow_messages::image::ImageFormat;
-use lineflow_messages::schema::{decode_view, encode, Decoded};
-use lineflow_messages::MessageKind;
+use lineflow_messages::schema::{decode_view, encode, read_pod, Decoded};
+use lineflow_messages::{MessageKind, Stamp};
 use lineflow_recordings::image_codec::{restore_parts, ImageCompressor};
 use lineflow_runtime::hosts::{BridgePlan, Crossing, BRIDGE};
 use lineflow_runtime::launch::{EdgePolicy, Graph};
+use lineflow_runtime::seen::Seen;
 use lineflow_runtime::tap::{update_ended, Emit, Topic};
 use lineflow_runtime::{NodeContext, StatusWatch};
+use zenoh::bytes::ZBytes;
 use zenoh::qos::CongestionControl;
 use zenoh::sample::{Sample, SampleKind};
 use zenoh::Wait;
@@ -28,6 +30,8 @@ use crate::wire::{check_topic, packing, Keys, Reply, Tag};
 
 /// How long a host that left is given before the run ends: what it sent before leaving may still be on its way.
 const GONE_GRACE: Duration = Duration::from_secs(1);
+/// With restarting bridges, how long a restarted one takes to be back, besides its supervisor's wait.
+const RESTART_GRACE: Duration = Duration::from_secs(5);
 /// How long a host waits, once its own work is done, for the hosts that send to it to leave first: they wait for
 /// its last replies, which closing its session at once could lose.
 const PARTING: Duration = Duration::from_secs(5);
@@ -57,6 +61,9 @@ struct Outgoing {
     packed: ImageFormat,
     /// The attachment of its messages.
     tag: Vec<u8>,
+    /// Its last messages, to re-send to a restarted receiving bridge (`[bridge] restart`), at most `keep`.
+    kept: VecDeque<ZBytes>,
+    keep: usize,
     end_sent: bool,
     /// Hosts that took the end.
     taken: BTreeSet<String>,
@@ -73,6 +80,12 @@ pub struct Incoming {
     ended: bool,
     /// Published since the last reply: the credit owed to the sending host.
     owed: u64,
+    /// What was published, to drop what a restarted sending bridge re-sends.
+    seen: Seen,
+    /// Dropped so.
+    repeats: u64,
+    /// This bridge was restarted and takes nothing until the sending host re-sends what it kept.
+    awaiting_resend: bool,
 }
 
 impl Incoming {
@@ -86,6 +99,9 @@ impl Incoming {
             emit,
             ended: false,
             owed: 0,
+            seen: Seen::default(),
+            repeats: 0,
+            awaiting_resend: false,
         }
     }
 }
@@ -153,9 +169,11 @@ impl Bridge {
             outgoing.push(Outgoing {
                 hosts: crossing.hosts.clone(),
                 publisher,
-                window: Window::new(&crossing.hosts, edge.depth.max(4) as u64),
+                window: Window::new(&crossing.hosts, crossing.window.max(1)),
                 packed: packing(t.kind, plan.images),
                 tag: Tag::packed(t.kind, plan.images).to_bytes(),
+                kept: VecDeque::new(),
+                keep: crossing.keep,
                 end_sent: false,
                 taken: BTreeSet::new(),
             });
@@ -270,7 +288,19 @@ impl Bridge {
         }
         if alive {
             self.seen.insert(host.to_owned());
-            self.gone.remove(host);
+            if self.gone.remove(host).is_some() {
+                // A restarted bridge there: it is owed nothing of the instance that left, and learns which of its
+                // topics ended here already (their publishers may be gone, and their history with them).
+                tracing::info!("host '{host}' is back");
+                for i in 0..self.incoming.len() {
+                    if self.incoming[i].from == host {
+                        self.incoming[i].owed = 0;
+                        if self.incoming[i].ended {
+                            self.reply(i, true)?;
+                        }
+                    }
+                }
+            }
         } else {
             self.gone.entry(host.to_owned()).or_insert_with(Instant::now);
         }
@@ -288,7 +318,9 @@ impl Bridge {
                 Event::Data { topic, cdr, tag } => self.on_data(topic, &cdr, tag)?,
                 Event::Reply(reply) => {
                     let r = reply.map_err(|e| anyhow!("a reply from another host: {e}"))?;
-                    if let Some(i) = self.topics.iter().position(|t| t.name == r.topic) {
+                    if r.resend {
+                        self.resend_to(&r.from)?;
+                    } else if let Some(i) = self.topics.iter().position(|t| t.name == r.topic) {
                         let out = &mut self.outgoing[i];
                         out.window.grant(&r.from, r.credit);
                         if r.ended {
@@ -309,38 +341,121 @@ impl Bridge {
     }
 
     fn on_data(&mut self, i: usize, cdr: &[u8], tag: Result<Tag, String>) -> Result<()> {
+        let me = self.plan.host.as_str();
         let inc = &mut self.incoming[i];
         let sender = inc.from.clone();
         let from = |e: String| anyhow!("from host '{sender}': {e}");
         let tag = tag.map_err(|e| from(format!("topic '{}': {e}", inc.topic)))?;
         tag.check(&inc.want, &inc.topic).map_err(from)?;
-        if inc.ended {
-            tracing::warn!("'{}': a message after its end from host '{}'; dropped", inc.topic, inc.from);
-            return Ok(());
-        }
         match tag {
+            Tag::Resend { to } => {
+                if to == me && inc.awaiting_resend {
+                    tracing::info!("'{}': host '{}' re-sends what it kept", inc.topic, inc.from);
+                    inc.awaiting_resend = false;
+                }
+                Ok(())
+            }
+            // Sent before the sending host knew of the restart: it re-sends it after the marker.
+            _ if inc.awaiting_resend => Ok(()),
             Tag::End => {
                 // A latched topic has no end-of-stream (a late subscriber still gets its message): it ends for
-                // this host's nodes when the bridge finishes.
-                if !inc.kind.latched() {
+                // this host's nodes when the bridge finishes. A restarted sending bridge ends a topic again.
+                if !inc.ended && !inc.kind.latched() {
                     inc.emit.end()?;
                 }
                 inc.ended = true;
                 self.reply(i, true)
             }
             Tag::Message { packed, .. } => {
-                let context = || format!("topic '{}' from host '{}'", inc.topic, inc.from);
-                if packed == ImageFormat::Raw {
-                    let (header, payload) = decode_view(inc.kind, cdr, &mut self.scratch).with_context(context)?;
-                    inc.emit.emit(header, payload)?;
-                } else {
-                    let (header, pixels) = restore_parts(cdr, &mut self.scratch).with_context(context)?;
-                    inc.emit.emit(&header, &pixels)?;
-                }
+                // Credit for every message put, kept or not: the sending host counted it.
                 inc.owed += 1;
-                Ok(())
+                if inc.ended {
+                    inc.repeats += 1;
+                    return Ok(());
+                }
+                let context = || format!("topic '{}' from host '{}'", inc.topic, inc.from);
+                let restored;
+                let (header, payload) = if packed == ImageFormat::Raw {
+                    decode_view(inc.kind, cdr, &mut self.scratch).with_context(context)?
+                } else {
+                    restored = restore_parts(cdr, &mut self.scratch).with_context(context)?;
+                    (restored.0.as_slice(), &restored.1[..])
+                };
+                let stamp: Stamp = read_pod(header);
+                if inc.seen.is_repeat(stamp.frame, stamp.revision) {
+                    inc.repeats += 1;
+                    return Ok(());
+                }
+                inc.seen.take(stamp.frame, stamp.revision);
+                inc.emit.emit(header, payload)
             }
         }
+    }
+
+    /// Asks every host that sends here to re-send what it kept: this bridge was restarted, and what the instance
+    /// before it had taken but not yet published died with it.
+    ///
+    /// # Errors
+    /// A transport error.
+    pub fn ask_for_resend(&mut self) -> Result<()> {
+        let senders: BTreeSet<String> = self.incoming.iter().map(|i| i.from.clone()).collect();
+        for inc in &mut self.incoming {
+            inc.awaiting_resend = true;
+        }
+        for host in senders {
+            let ask = Reply {
+                from: self.plan.host.clone(),
+                topic: String::new(),
+                credit: 0,
+                ended: false,
+                resend: true,
+            };
+            self.session
+                .put(self.keys.back(&host), serde_json::to_vec(&ask)?)
+                .congestion_control(CongestionControl::Block)
+                .wait()
+                .map_err(zenoh_error("cannot ask the sending host to re-send"))?;
+        }
+        Ok(())
+    }
+
+    /// Re-sends what this host kept of every topic to `host`, whose bridge was restarted: a marker, the messages
+    /// kept, and the topic's end when it has ended.
+    fn resend_to(&mut self, host: &str) -> Result<()> {
+        for (t, out) in self.topics.iter().zip(&mut self.outgoing) {
+            if !out.hosts.iter().any(|h| h == host) {
+                continue;
+            }
+            tracing::info!(
+                "'{}': re-sending the last {} messages to host '{host}', restarted",
+                t.name,
+                out.kept.len()
+            );
+            out.window.reset(host);
+            out.taken.remove(host);
+            let marker = Tag::Resend { to: host.to_owned() };
+            out.publisher
+                .put(Vec::<u8>::new())
+                .attachment(marker.to_bytes())
+                .wait()
+                .map_err(zenoh_error("cannot put a re-send's marker"))?;
+            for bytes in &out.kept {
+                out.publisher
+                    .put(bytes.clone())
+                    .attachment(out.tag.clone())
+                    .wait()
+                    .map_err(zenoh_error("cannot re-send a message"))?;
+                out.window.sent();
+            }
+            if out.end_sent {
+                out.publisher
+                    .put(Vec::<u8>::new())
+                    .attachment(Tag::End.to_bytes())
+                    .wait()
+                    .map_err(zenoh_error("cannot put a topic's end"))?;
+            }
+        }
+        Ok(())
     }
 
     fn reply(&mut self, i: usize, ended: bool) -> Result<()> {
@@ -350,6 +465,7 @@ impl Bridge {
             topic: inc.topic.clone(),
             credit: std::mem::take(&mut inc.owed),
             ended,
+            resend: false,
         };
         self.session
             .put(self.keys.back(&inc.from), serde_json::to_vec(&reply)?)
@@ -370,6 +486,7 @@ impl Bridge {
             let room = out.window.room() as usize;
             let kind = t.kind;
             let (publisher, tag, packed) = (&out.publisher, &out.tag, out.packed);
+            let (kept, keep) = (&mut out.kept, out.keep);
             let compressor = &mut self.compressor;
             let mut put = 0;
             t.messages += t.tap.drain_some(room, &mut |_, header, payload| {
@@ -381,8 +498,15 @@ impl Bridge {
                         .compress_parts(header, payload, packed, self.plan.jpeg_quality, &mut cdr)
                         .with_context(|| format!("cannot pack an image of '{}' as {packed:?}", t.name))?;
                 }
+                let bytes = ZBytes::from(cdr);
+                if keep > 0 {
+                    if kept.len() == keep {
+                        kept.pop_front();
+                    }
+                    kept.push_back(bytes.clone());
+                }
                 publisher
-                    .put(cdr)
+                    .put(bytes)
                     .attachment(tag.clone())
                     .wait()
                     .map_err(zenoh_error("cannot put a message"))?;
@@ -420,8 +544,12 @@ impl Bridge {
     /// # Errors
     /// The host that left and the topics it leaves unfinished.
     pub fn check_peers(&self) -> Result<()> {
+        let grace = self
+            .plan
+            .restart_wait_ms
+            .map_or(GONE_GRACE, |ms| Duration::from_millis(ms) + RESTART_GRACE);
         for (host, since) in &self.gone {
-            if since.elapsed() < GONE_GRACE || self.done_with(host) {
+            if since.elapsed() < grace || self.done_with(host) {
                 continue;
             }
             let open: Vec<&str> = self
@@ -438,7 +566,12 @@ impl Bridge {
                 )
                 .collect();
             bail!(
-                "host '{host}' is gone (its bridge left the Zenoh session) before these topics ended: {}",
+                "host '{host}' is gone (its bridge left the Zenoh session{}) before these topics ended: {}",
+                if self.plan.restart_wait_ms.is_some() {
+                    " and was not back in time"
+                } else {
+                    ""
+                },
                 open.join(", ")
             );
         }
@@ -458,6 +591,13 @@ impl Bridge {
     /// Closes the session; after a finished run, first waits (at most [`PARTING`]) for the hosts that send here
     /// to leave, as they wait for this host's last replies.
     pub fn close(mut self, finished: bool) {
+        for inc in self.incoming.iter().filter(|i| i.repeats > 0) {
+            tracing::info!(
+                "'{}': dropped {} messages re-sent after a restart, already published",
+                inc.topic,
+                inc.repeats
+            );
+        }
         if finished {
             let senders: BTreeSet<String> = self.incoming.iter().map(|i| i.from.clone()).collect();
             let deadline = Instant::now() + PARTING;

@@ -31,6 +31,12 @@ impl Window {
             *c = c.saturating_sub(1);
         }
     }
+    /// `host` owes nothing: a restarted bridge there starts afresh.
+    pub fn reset(&mut self, host: &str) {
+        if let Some(c) = self.left.get_mut(host) {
+            *c = self.size;
+        }
+    }
     /// `host` published `n` more messages; a reply from a host this topic does not go to is ignored. Credit never
     /// exceeds the window (a duplicated reply cannot open it wider).
     pub fn grant(&mut self, host: &str, n: u64) {
@@ -60,5 +66,8 @@ mod tests {
         w.grant("b", 10);
         w.grant("nobody", 5);
         assert_eq!(w.room(), 3, "capped at the window");
+        w.sent();
+        w.reset("a");
+        assert_eq!(w.room(), 2, "b still owes one");
     }
 }

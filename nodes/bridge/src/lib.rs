@@ -53,6 +53,9 @@ pub fn run(ctx: NodeContext) -> Result<()> {
     }
     let mut bridge = Bridge::open(plan, &graph, topics, incoming)?;
     bridge.wait_for_peers(&ctx, connect_timeout(&graph))?;
+    if ctx.restarts() > 0 {
+        bridge.ask_for_resend()?;
+    }
     ctx.connect()?;
     tracing::info!("{}", bridge.describe());
     let ended = ctx.run_every(TICK, || {

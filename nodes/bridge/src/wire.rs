@@ -118,6 +118,12 @@ pub enum Tag {
     },
     /// The topic has ended on the sending host: no message follows.
     End,
+    /// What follows is what the sending host kept of the topic, re-sent for a restarted bridge on host `to`, which
+    /// takes the topic from here on (and nothing before).
+    Resend {
+        /// The restarted host.
+        to: String,
+    },
 }
 
 impl Tag {
@@ -141,6 +147,7 @@ impl Tag {
                 Some(format) => format!("msg {schema} {version} {format}").into_bytes(),
             },
             Tag::End => b"end".to_vec(),
+            Tag::Resend { to } => format!("resend {to}").into_bytes(),
         }
     }
     /// Reads an attachment.
@@ -158,6 +165,7 @@ impl Tag {
         let mut words = text.split(' ');
         match (words.next(), words.next(), words.next(), words.next(), words.next()) {
             (Some("end"), None, None, None, None) => Ok(Tag::End),
+            (Some("resend"), Some(to), None, None, None) => Ok(Tag::Resend { to: to.into() }),
             (Some("msg"), Some(schema), Some(version), packed, None) => Ok(Tag::Message {
                 schema: schema.into(),
                 version: version.into(),
@@ -177,7 +185,7 @@ impl Tag {
     /// The type or version that differs, naming both; pixels packed in a message that is no image.
     pub fn check(&self, want: &Tag, topic: &str) -> Result<(), String> {
         match (self, want) {
-            (Tag::End, _) => Ok(()),
+            (Tag::End | Tag::Resend { .. }, _) => Ok(()),
             (Tag::Message { schema, .. }, Tag::Message { schema: s, .. }) if schema != s => Err(format!(
                 "topic '{topic}': a message of type {schema} arrived where this graph carries {s}"
             )),
@@ -206,6 +214,10 @@ pub struct Reply {
     pub credit: u64,
     /// It has taken the topic's end: nothing more is owed to it.
     pub ended: bool,
+    /// It was restarted and asks for what the sending host kept of every topic it receives from it (`topic` is
+    /// then empty).
+    #[serde(default)]
+    pub resend: bool,
 }
 
 #[cfg(test)]
@@ -235,6 +247,9 @@ mod tests {
         let tag = Tag::of(MessageKind::Image);
         assert_eq!(Tag::parse(&tag.to_bytes()).unwrap(), tag);
         assert_eq!(Tag::parse(b"end").unwrap(), Tag::End);
+        let resend = Tag::Resend { to: "main".into() };
+        assert_eq!(Tag::parse(&resend.to_bytes()).unwrap(), resend);
+        assert!(Tag::parse(b"resend").is_err() && Tag::parse(b"resend a b").is_err());
         assert!(Tag::parse(b"hello").is_err());
         assert!(tag.check(&Tag::of(MessageKind::Image), "images").is_ok());
         let e = tag.check(&Tag::of(MessageKind::Lines2D), "lines2d").unwrap_err();

@@ -19,6 +19,19 @@ fn free_port() -> u16 {
     std::net::TcpListener::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port()
 }
 
+/// The demo graph on one host, into `one`: what a split run must give.
+fn one_host_demo(sb: &Sandbox, one: &Path) {
+    let r = sb.run(&[
+        "run",
+        repo_file("launch/demo.toml").to_str().unwrap(),
+        "--set",
+        SCALE,
+        "--out",
+        one.to_str().unwrap(),
+    ]);
+    assert!(r.status.success(), "the one-host run failed");
+}
+
 /// The demo graph with two hosts: `main` listening on `port`, `camera` connecting to it.
 fn two_host_demo(sb: &Sandbox, port: u16) -> PathBuf {
     let demo = std::fs::read_to_string(repo_file("launch/demo.toml")).unwrap();
@@ -28,6 +41,11 @@ fn two_host_demo(sb: &Sandbox, port: u16) -> PathBuf {
 
 /// `lineflow run GRAPH --host HOST` with the split's `--set`s and `extra`, into `out`.
 fn start_host(sb: &Sandbox, graph: &Path, host: &str, out: &Path, extra: &[&str]) -> Child {
+    start_host_with(sb, graph, host, out, extra, &[])
+}
+
+/// As [`start_host`], with more arguments of `lineflow run` (`--chaos`).
+fn start_host_with(sb: &Sandbox, graph: &Path, host: &str, out: &Path, extra: &[&str], more: &[&str]) -> Child {
     let mut args = vec![
         "run",
         graph.to_str().unwrap(),
@@ -42,6 +60,7 @@ fn start_host(sb: &Sandbox, graph: &Path, host: &str, out: &Path, extra: &[&str]
     for s in sets.iter().map(String::as_str).chain(extra.iter().copied()) {
         args.extend(["--set", s]);
     }
+    args.extend(more);
     // To a file, not a pipe: a pipe nobody reads while the other host runs would fill and stall this one.
     let log = std::fs::File::create(log_of(out)).unwrap();
     sb.lineflow(&args)
@@ -132,15 +151,7 @@ fn the_demo_split_over_two_hosts_gives_the_bytes_of_one_host_and_its_recording_r
 
     // The same graph on one host.
     let one = sb.path().join("one");
-    let r = sb.run(&[
-        "run",
-        repo_file("launch/demo.toml").to_str().unwrap(),
-        "--set",
-        SCALE,
-        "--out",
-        one.to_str().unwrap(),
-    ]);
-    assert!(r.status.success(), "the one-host run failed");
+    one_host_demo(&sb, &one);
     let (rec_one, rec_two) = (one.join("recording.mcap"), main_out.join("recording.mcap"));
     let d = sb.run(&["diff", rec_one.to_str().unwrap(), rec_two.to_str().unwrap()]);
     assert!(
@@ -327,4 +338,59 @@ fn over_mutual_tls_the_split_runs_and_a_certificate_of_another_name_is_refused()
         main_err.contains("host camera did not appear") && main_err.contains("[bridge.tls]"),
         "{main_err}"
     );
+}
+
+/// A bridge killed mid-run, on the sending host and then on the receiving one, is restarted by its supervisor
+/// (`[bridge] restart = "on-failure"`), and the lossless edges between the hosts resume with nothing lost and
+/// nothing published twice: the recording and the 3-D lines are those of one host.
+#[test]
+fn a_bridge_killed_mid_run_is_restarted_and_the_edges_between_hosts_resume_with_nothing_lost() {
+    let sb = Sandbox::new();
+    let one = sb.path().join("one");
+    one_host_demo(&sb, &one);
+    for victim in ["camera", "main"] {
+        let graph = two_host_demo(&sb, free_port());
+        let (main_out, camera_out) = (sb.path().join(format!("main-{victim}")), sb.path().join(format!("camera-{victim}")));
+        let sets = ["bridge.restart=on-failure"];
+        let chaos = ["--chaos", "bridge@4"];
+        let on = |host: &str| if host == victim { &chaos[..] } else { &[][..] };
+        let camera = start_host_with(&sb, &graph, "camera", &camera_out, &sets, on("camera"));
+        let main = start_host_with(&sb, &graph, "main", &main_out, &sets, on("main"));
+        let (main_ok, main_err) = finish(main, &main_out);
+        let (camera_ok, camera_err) = finish(camera, &camera_out);
+        assert!(
+            main_ok && camera_ok,
+            "the {victim} host's bridge killed: a host failed:\n{main_err}\n{camera_err}"
+        );
+        let out = if victim == "main" { &main_out } else { &camera_out };
+        let summary: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
+        assert_eq!(summary["chaos"][0]["struck"], true, "the {victim} bridge was not killed: {summary}");
+        let bridge = summary["nodes"].as_array().unwrap().iter().find(|n| n["name"] == "bridge").unwrap();
+        assert_eq!(bridge["restarts"], 1, "{bridge}");
+        for (host, out) in [("main", &main_out), ("camera", &camera_out)] {
+            let summary: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
+            for node in summary["nodes"].as_array().unwrap() {
+                assert_eq!(node["missed"], 0, "the {victim} bridge killed, on {host}: {node}");
+                // What the killed bridge did not take counts as a drop at its publishers (history re-sends it).
+                if host != victim {
+                    assert_eq!(node["drops"], 0, "the {victim} bridge killed, on {host}: {node}");
+                }
+            }
+        }
+        let d = sb.run(&[
+            "diff",
+            one.join("recording.mcap").to_str().unwrap(),
+            main_out.join("recording.mcap").to_str().unwrap(),
+        ]);
+        assert!(
+            d.status.success(),
+            "the {victim} host's bridge restarted: two hosts differ from one:\n{}",
+            String::from_utf8_lossy(&d.stdout)
+        );
+        let lines = |dir: &Path| std::fs::read(dir.join("lines3d.csv")).unwrap();
+        assert!(
+            lines(&one) == lines(&main_out),
+            "lines3d.csv differs after the {victim} bridge's restart"
+        );
+    }
 }
