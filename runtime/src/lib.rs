@@ -5,6 +5,7 @@ pub mod chaos;
 pub mod console;
 pub mod describe;
 pub mod env;
+pub mod host_reports;
 pub mod hosts;
 pub mod launch;
 pub mod logging;

@@ -44,8 +44,10 @@ pub fn run_graph_with_faults(
         connect_timeout: None,
         chaos: chaos.to_vec(),
     };
+    crate::host_reports::clear_reports(out);
     let outcome = supervisor::run(g, &opts)?;
-    let mut table = outcome.table();
+    let reports = crate::host_reports::read_reports(out);
+    let mut table = outcome.table() + &crate::host_reports::table(&reports);
     for (fault, struck) in &outcome.faults {
         table += &format!(
             "chaos: {fault}: {}\n",
@@ -56,7 +58,11 @@ pub fn run_graph_with_faults(
             }
         );
     }
-    let json = outcome.json(&g.source).to_string();
+    let mut json = outcome.json(&g.source);
+    if !reports.is_empty() {
+        json["hosts"] = serde_json::to_value(&reports)?;
+    }
+    let json = json.to_string();
     if verbosity.json {
         println!("{json}");
     } else {

@@ -6,14 +6,16 @@
 //! credit, and on the `end` publishes the topic's end-of-stream and replies that it took it. A sender is done when
 //! every receiver took the end of every topic; a receiver when every topic it receives has ended.
 use std::collections::{BTreeMap, BTreeSet, VecDeque};
+use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
 use anyhow::{anyhow, bail, Context, Result};
 use crossbeam::channel::{Receiver, Sender};
 use lineflow_messages::image::ImageFormat;
 use lineflow_messages::schema::{decode_view, encode, read_pod, Decoded};
-use lineflow_messages::{MessageKind, Stamp};
+use lineflow_messages::{MessageKind, NodeStatus, Stamp};
 use lineflow_recordings::image_codec::{restore_parts, ImageCompressor};
+use lineflow_runtime::host_reports::{report_path, HostReport, RemoteNode};
 use lineflow_runtime::hosts::{BridgePlan, Crossing, BRIDGE};
 use lineflow_runtime::launch::{EdgePolicy, Graph};
 use lineflow_runtime::seen::Seen;
@@ -35,6 +37,8 @@ const RESTART_GRACE: Duration = Duration::from_secs(5);
 /// How long a host waits, once its own work is done, for the hosts that send to it to leave first: they wait for
 /// its last replies, which closing its session at once could lose.
 const PARTING: Duration = Duration::from_secs(5);
+/// How long a host's bridge waits, at the end, for its nodes to report finishing before it reports them.
+const REPORT_WAIT: Duration = Duration::from_secs(2);
 
 /// What the Zenoh callbacks hand to the bridge's thread.
 enum Event {
@@ -50,6 +54,8 @@ enum Event {
     Stop(String),
     /// A liveliness token appeared (`alive`) or went.
     Peer { key: String, alive: bool },
+    /// Another host's nodes at the end of its run.
+    Report(Result<HostReport, String>),
 }
 
 /// A topic published on this host and read on others.
@@ -124,6 +130,10 @@ pub struct Bridge {
     scratch: Decoded,
     /// Packs the images this host sends.
     compressor: ImageCompressor,
+    /// This host's nodes (index in its part, name), the bridge left out: what its report names.
+    nodes: Vec<(u32, String)>,
+    /// The run's output folder, where the other hosts' reports are kept.
+    out: PathBuf,
     /// Kept for their lifetime: dropping them undeclares them.
     _subscribers: Vec<zenoh::pubsub::Subscriber<()>>,
     _token: zenoh::liveliness::LivelinessToken,
@@ -140,7 +150,7 @@ impl Bridge {
     ///
     /// # Errors
     /// A topic that cannot be a key, an endpoint that cannot be used, or a declaration Zenoh refuses.
-    pub fn open(plan: BridgePlan, graph: &Graph, topics: Vec<Topic>, incoming: Vec<Incoming>) -> Result<Self> {
+    pub fn open(plan: BridgePlan, graph: &Graph, topics: Vec<Topic>, incoming: Vec<Incoming>, out: PathBuf) -> Result<Self> {
         for c in plan.send.iter().chain(&plan.receive) {
             check_topic(&c.topic).map_err(anyhow::Error::msg)?;
         }
@@ -198,6 +208,13 @@ impl Bridge {
             early: VecDeque::new(),
             scratch: Decoded::default(),
             compressor: ImageCompressor::default(),
+            nodes: graph
+                .nodes
+                .iter()
+                .filter(|n| n.name != BRIDGE)
+                .map(|n| (n.index, n.name.clone()))
+                .collect(),
+            out,
             _subscribers: subscribers,
             _token: token,
         })
@@ -330,6 +347,7 @@ impl Bridge {
                 }
                 Event::Stop(host) => bail!("host '{host}' was interrupted; its part of the graph and this one stop"),
                 Event::Peer { key, alive } => self.on_peer(&key, alive)?,
+                Event::Report(report) => self.keep_report(report),
             }
         }
         for i in 0..self.incoming.len() {
@@ -583,6 +601,63 @@ impl Bridge {
         self.plan.peers.iter().all(|p| self.done_with(p))
     }
 
+    /// Keeps another host's report for the summary of this host's supervisor; one that does not read is named.
+    fn keep_report(&self, report: Result<HostReport, String>) {
+        let kept = report.and_then(|r| {
+            let path = report_path(&self.out, &r.host);
+            std::fs::create_dir_all(path.parent().unwrap_or(&self.out))
+                .and_then(|()| std::fs::write(&path, serde_json::to_vec_pretty(&r).unwrap_or_default()))
+                .map_err(|e| format!("cannot write {}: {e}", path.display()))
+        });
+        if let Err(e) = kept {
+            tracing::warn!("another host's report is left out of the summary: {e}");
+        }
+    }
+
+    /// Tells the other hosts what this host's nodes did, once they have all reported finishing (at most
+    /// [`REPORT_WAIT`]: a node that did not is reported unfinished).
+    pub fn send_report(&self, status: &mut StatusWatch) {
+        let deadline = Instant::now() + REPORT_WAIT;
+        loop {
+            let latest = status.poll();
+            let finished = |i: &u32| latest.get(i).is_some_and(|s| s.flags & NodeStatus::FINISHED != 0);
+            if self.nodes.iter().all(|(i, _)| finished(i)) || Instant::now() > deadline {
+                break;
+            }
+            std::thread::sleep(Duration::from_millis(20));
+        }
+        let latest = status.poll();
+        let report = HostReport {
+            host: self.plan.host.clone(),
+            nodes: self
+                .nodes
+                .iter()
+                .map(|(i, name)| {
+                    let s = latest.get(i).copied().unwrap_or_default();
+                    RemoteNode {
+                        name: name.clone(),
+                        finished: s.flags & NodeStatus::FINISHED != 0,
+                        msgs_in: s.msgs_in,
+                        msgs_out: s.msgs_out,
+                        drops: s.drops,
+                        duplicates: s.duplicates,
+                        missed: s.missed,
+                    }
+                })
+                .collect(),
+        };
+        let sent = serde_json::to_vec(&report).map_err(|e| e.to_string()).and_then(|bytes| {
+            self.session
+                .put(self.keys.report(&self.plan.host), bytes)
+                .congestion_control(CongestionControl::Block)
+                .wait()
+                .map_err(|e| e.to_string())
+        });
+        if let Err(e) = sent {
+            tracing::warn!("cannot send this host's report to the others: {e}");
+        }
+    }
+
     /// Tells the other hosts this one was interrupted.
     pub fn say_stopped(&self) {
         let _ = self.session.put(self.keys.stop(), self.plan.host.clone()).wait();
@@ -602,8 +677,12 @@ impl Bridge {
             let senders: BTreeSet<String> = self.incoming.iter().map(|i| i.from.clone()).collect();
             let deadline = Instant::now() + PARTING;
             while senders.iter().any(|h| !self.gone.contains_key(h)) && Instant::now() < deadline {
-                if let Ok(Event::Peer { key, alive }) = self.events.recv_timeout(Duration::from_millis(20)) {
-                    let _ = self.on_peer(&key, alive);
+                match self.events.recv_timeout(Duration::from_millis(20)) {
+                    Ok(Event::Peer { key, alive }) => {
+                        let _ = self.on_peer(&key, alive);
+                    }
+                    Ok(Event::Report(report)) => self.keep_report(report),
+                    _ => {}
                 }
             }
         }
@@ -668,6 +747,21 @@ fn declare_subscribers(
             })
             .wait()
             .map_err(zenoh_error("cannot declare the stops' subscriber"))?,
+    );
+    let reports = tx.clone();
+    let me = plan.host.clone();
+    subscribers.push(
+        session
+            .declare_subscriber(keys.reports())
+            .callback(move |s: Sample| {
+                let report = serde_json::from_slice::<HostReport>(&s.payload().to_bytes()).map_err(|e| e.to_string());
+                if report.as_ref().is_ok_and(|r| r.host == me) {
+                    return;
+                }
+                let _ = reports.send(Event::Report(report));
+            })
+            .wait()
+            .map_err(zenoh_error("cannot declare the reports' subscriber"))?,
     );
     let peers = tx.clone();
     subscribers.push(

@@ -51,7 +51,7 @@ pub fn run(ctx: NodeContext) -> Result<()> {
     if lineflow_runtime::env::RunEnv::describe_requested() {
         return ctx.connect();
     }
-    let mut bridge = Bridge::open(plan, &graph, topics, incoming)?;
+    let mut bridge = Bridge::open(plan, &graph, topics, incoming, ctx.out_dir())?;
     bridge.wait_for_peers(&ctx, connect_timeout(&graph))?;
     if ctx.restarts() > 0 {
         bridge.ask_for_resend()?;
@@ -77,6 +77,9 @@ pub fn run(ctx: NodeContext) -> Result<()> {
                 bridge.say_stopped();
             }
             ctx.finish();
+            if let (true, Some(status)) = (finished, status.as_mut()) {
+                bridge.send_report(status);
+            }
             bridge.close(finished);
             Ok(())
         }

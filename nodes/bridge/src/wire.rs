@@ -38,6 +38,14 @@ impl Keys {
     pub fn stop(&self) -> String {
         format!("lineflow/{}/{}/stop", self.graph, self.hash)
     }
+    /// Where `host` puts its nodes' counters at the end of a run.
+    pub fn report(&self, host: &str) -> String {
+        format!("lineflow/{}/{}/report/{}", self.graph, self.hash, key_level(host))
+    }
+    /// Every host's report.
+    pub fn reports(&self) -> String {
+        format!("lineflow/{}/{}/report/*", self.graph, self.hash)
+    }
     /// The liveliness token of `host`.
     pub fn token(&self, host: &str) -> String {
         format!("lineflow/{}/host/{}/{}", self.graph, key_level(host), self.hash)

@@ -134,15 +134,28 @@ fn the_demo_split_over_two_hosts_gives_the_bytes_of_one_host_and_its_recording_r
     let (m, c) = (summary(&main_out), summary(&camera_out));
     assert!(c.contains("capture") && c.contains("bridge") && !c.contains("orientation"), "{c}");
     assert!(
-        m.contains("orientation") && m.contains("recorder") && !m.contains("capture "),
+        m.contains("orientation") && m.contains("recorder") && !m.lines().any(|l| l.starts_with("capture ")),
         "{m}"
     );
+    // The main host's summary has the camera's nodes too, as its bridge reported them.
+    for node in ON_CAMERA {
+        assert!(m.contains(&format!("camera/{node} ")), "no row of camera/{node}:\n{m}");
+    }
+    let json: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(main_out.join("summary.json")).unwrap()).unwrap();
+    let capture = &json["hosts"][0]["nodes"][0];
+    assert_eq!(
+        (&json["hosts"][0]["host"], &capture["name"]),
+        (&"camera".into(), &"capture".into()),
+        "{json}"
+    );
+    assert_eq!(capture["finished"], true, "{json}");
+    assert!(capture["msgs_out"].as_u64().unwrap() > 0, "{json}");
     for (text, host) in [(&m, "main"), (&c, "camera")] {
         for row in text
             .lines()
             .skip_while(|l| !l.starts_with("node "))
             .skip(1)
-            .take_while(|l| !l.trim().is_empty())
+            .take_while(|l| !l.trim().is_empty() && !l.starts_with('('))
         {
             let cols: Vec<&str> = row.split_whitespace().collect();
             assert_eq!((cols[4], cols[6]), ("0", "0"), "a drop or a missed frame on host {host}: {row}");
