@@ -413,7 +413,7 @@ fn a_sending_bridge_killed_mid_run_is_restarted_and_the_edges_between_hosts_lose
 
 /// The receiving bridge (the main host's) killed: the camera's bridge re-sends what it kept.
 #[test]
-#[ignore = "passes in about 22 of 23 runs: in the others, nodes of the main host that publish for the first time after its bridge restarted reach none of their subscribers (docs/hosts.md, Limits); run with --ignored"]
+#[ignore = "passed 69 of 70 runs here: in the other, nodes of the main host that publish for the first time after its bridge restarted reach none of their subscribers (docs/hosts.md, Limits); run with --ignored"]
 fn a_receiving_bridge_killed_mid_run_is_restarted_and_the_edges_between_hosts_lose_nothing() {
     bridge_killed_on("main");
 }
