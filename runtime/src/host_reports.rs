@@ -6,6 +6,8 @@ use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
 
+use crate::supervisor::Row;
+
 /// A host's nodes as its bridge saw them at the end.
 #[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
 pub struct HostReport {
@@ -68,19 +70,19 @@ pub fn table(reports: &[HostReport]) -> String {
     let mut s = String::new();
     for r in reports {
         for n in &r.nodes {
-            let status = if n.finished { "ok" } else { "unfinished" };
-            s += &format!(
-                "{:<14} {:>10} {:>8} {:>8} {:>6} {:>5} {:>8} {:>9} {:>8}  -\n",
-                format!("{}/{}", r.host, n.name),
-                status,
-                n.msgs_in,
-                n.msgs_out,
-                n.drops,
-                n.duplicates,
-                n.missed,
-                "-",
-                "-"
-            );
+            s += &Row {
+                name: &format!("{}/{}", r.host, n.name),
+                status: if n.finished { "ok" } else { "unfinished" },
+                msgs_in: n.msgs_in,
+                msgs_out: n.msgs_out,
+                drops: n.drops,
+                duplicates: n.duplicates,
+                missed: n.missed,
+                cpu_s: None,
+                restarts: None,
+                missed_ranges: &[],
+            }
+            .line();
         }
     }
     if !s.is_empty() {

@@ -101,6 +101,44 @@ pub struct Outcome {
     pub faults: Vec<(Fault, bool)>,
 }
 
+/// One row of the summary's table, its columns as [`Outcome::table`]'s header names them.
+pub(crate) struct Row<'a> {
+    pub name: &'a str,
+    pub status: &'a str,
+    pub msgs_in: u64,
+    pub msgs_out: u64,
+    pub drops: u64,
+    pub duplicates: u64,
+    pub missed: u64,
+    pub cpu_s: Option<f64>,
+    pub restarts: Option<u32>,
+    pub missed_ranges: &'a [(u64, u64)],
+}
+
+impl Row<'_> {
+    /// The row as a line of the table; a figure that is not known shows as `-`.
+    pub(crate) fn line(&self) -> String {
+        let ranges: Vec<String> = self
+            .missed_ranges
+            .iter()
+            .map(|(a, b)| if a == b { a.to_string() } else { format!("{a}-{b}") })
+            .collect();
+        format!(
+            "{:<14} {:>10} {:>8} {:>8} {:>6} {:>5} {:>8} {:>9} {:>8}  {}\n",
+            self.name,
+            self.status,
+            self.msgs_in,
+            self.msgs_out,
+            self.drops,
+            self.duplicates,
+            self.missed,
+            self.cpu_s.map_or("-".into(), |c| format!("{c:.2}")),
+            self.restarts.map_or("-".into(), |r| r.to_string()),
+            if ranges.is_empty() { "-".into() } else { ranges.join(",") }
+        )
+    }
+}
+
 impl Outcome {
     /// The summary as a text table.
     pub fn table(&self) -> String {
@@ -109,25 +147,19 @@ impl Outcome {
             "node", "status", "in", "out", "drops", "dups", "missed", "cpu s", "restarts", "frames missed"
         );
         for n in &self.nodes {
-            let status = n.end.status();
-            let ranges: Vec<String> = n
-                .missed_ranges
-                .iter()
-                .map(|(a, b)| if a == b { a.to_string() } else { format!("{a}-{b}") })
-                .collect();
-            s += &format!(
-                "{:<14} {:>10} {:>8} {:>8} {:>6} {:>5} {:>8} {:>9.2} {:>8}  {}\n",
-                n.name,
-                status,
-                n.msgs_in,
-                n.msgs_out,
-                n.drops,
-                n.duplicates,
-                n.missed(),
-                n.cpu.as_secs_f64(),
-                n.restarts,
-                if ranges.is_empty() { "-".into() } else { ranges.join(",") }
-            );
+            s += &Row {
+                name: &n.name,
+                status: &n.end.status(),
+                msgs_in: n.msgs_in,
+                msgs_out: n.msgs_out,
+                drops: n.drops,
+                duplicates: n.duplicates,
+                missed: n.missed(),
+                cpu_s: Some(n.cpu.as_secs_f64()),
+                restarts: Some(n.restarts),
+                missed_ranges: &n.missed_ranges,
+            }
+            .line();
         }
         s
     }

@@ -392,20 +392,20 @@ impl Bridge {
                     return Ok(());
                 }
                 let context = || format!("topic '{}' from host '{}'", inc.topic, inc.from);
-                let restored;
-                let (header, payload) = if packed == ImageFormat::Raw {
-                    decode_view(inc.kind, cdr, &mut self.scratch).with_context(context)?
-                } else {
-                    restored = restore_parts(cdr, &mut self.scratch).with_context(context)?;
-                    (restored.0.as_slice(), &restored.1[..])
-                };
+                // The stamp first: a repeat is dropped before a packed image is decoded.
+                let (header, payload) = decode_view(inc.kind, cdr, &mut self.scratch).with_context(context)?;
                 let stamp: Stamp = read_pod(header);
                 if inc.seen.is_repeat(stamp.frame, stamp.revision) {
                     inc.repeats += 1;
                     return Ok(());
                 }
                 inc.seen.take(stamp.frame, stamp.revision);
-                inc.emit.emit(header, payload)
+                if packed == ImageFormat::Raw {
+                    inc.emit.emit(header, payload)
+                } else {
+                    let (header, pixels) = restore_parts(cdr, &mut self.scratch).with_context(context)?;
+                    inc.emit.emit(&header, &pixels)
+                }
             }
         }
     }
