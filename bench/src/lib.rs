@@ -21,6 +21,7 @@ pub mod seed001;
 pub mod seed004;
 mod soak;
 mod stream;
+mod targets;
 mod transport;
 mod util;
 mod view;
@@ -62,6 +63,23 @@ pub enum BenchCmd {
         /// Image scale (1 = the preset's full size).
         #[arg(long, default_value_t = 1.0)]
         scale: f64,
+    },
+    /// The survey-target detector on rendered frames of a preset at several scales, against the targets' true
+    /// projections (found, false, centre RMS beside a thresholded centroid, time beside a PNG decode), and the
+    /// naming from the true poses moved into another frame.
+    Targets {
+        /// Preset.
+        #[arg(long, default_value = "a55-two-strips")]
+        preset: String,
+        /// Image scales, comma-separated.
+        #[arg(long, value_delimiter = ',', default_value = "1,0.5,0.3")]
+        scales: Vec<f64>,
+        /// Frames per scale, spread over the stations (0: every station).
+        #[arg(long, default_value_t = 0)]
+        frames: usize,
+        /// Seed of the scene.
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
     },
     /// Edge detectors on a full-size synthetic frame against OpenCV's Canny (needs opencv-python-headless).
     Edges {
@@ -344,6 +362,17 @@ pub fn bench(cmd: BenchCmd) -> Result<ExitCode> {
         BenchCmd::Transport { paced, flat_scale, .. } => transport::transport_bench(paced, flat_scale),
         BenchCmd::Render { preset, frames, scale } => render::bench_render(&preset, frames, scale),
         BenchCmd::Edges { preset, reps, high } => edges::bench_edges(&preset, reps, high),
+        BenchCmd::Targets {
+            preset,
+            scales,
+            frames,
+            seed,
+        } => targets::bench_targets(targets::TargetsArgs {
+            preset: &preset,
+            scales: &scales,
+            frames,
+            seed,
+        }),
         BenchCmd::Lines2d { preset, reps, high } => lines2d::bench_lines2d(&preset, reps, high),
         BenchCmd::Features { preset, reps, threshold } => features::bench_features(&preset, reps, threshold),
         BenchCmd::Model {

@@ -286,26 +286,7 @@ enum Cmd {
         fix: bool,
     },
     /// Write a synthetic scene (images with exact ground truth) as a project folder plus gt/.
-    Synth {
-        /// Preset: d2x-strip, a55-two-strips, convergent, roof.
-        #[arg(long, default_value = "a55-two-strips")]
-        preset: String,
-        /// Image size relative to the preset (the field of view stays); 0.13 gives about 640 px wide.
-        #[arg(long, default_value_t = 1.0)]
-        scale: f64,
-        /// Seed of everything random.
-        #[arg(long, default_value_t = 1)]
-        seed: u64,
-        /// Output folder.
-        #[arg(long)]
-        out: PathBuf,
-        /// Write JPEG images at this quality instead of PNG.
-        #[arg(long)]
-        jpeg: Option<u8>,
-        /// Sensor noise, standard deviation in grey levels [default: 1.5].
-        #[arg(long)]
-        noise: Option<f64>,
-    },
+    Synth(synth::SynthArgs),
     /// Evaluate a run's results against the ground truth of a synthetic scene; writes report.md with plots.
     Eval {
         /// Folder with the run's poses.csv, checkpoints.csv, lines2d.csv, lines3d.csv (any subset).
@@ -342,6 +323,10 @@ enum Cmd {
         #[arg(long = "set", value_name = "PARAM=VALUE")]
         set: Vec<String>,
     },
+    /// Find the circular survey targets in a project's images, name them by control_points.csv (the layout of the
+    /// targets intersected with the images' poses, in any frame) and add them to observations.csv, whose rows
+    /// stay as they are (docs/formats.md, "Survey targets").
+    Targets(lineflow_interop::targets::TargetsArgs),
     /// Class each line of a lines3d.csv as structure or texture, as the line stages do (docs/lines3d.md).
     Classify {
         /// 3-D lines (lines3d.csv).
@@ -466,21 +451,7 @@ fn main() -> ExitCode {
         Cmd::Man { out } => man_pages(&out),
         Cmd::Ps { json } => ps::ps(json),
         Cmd::Stop { run, wait } => ps::stop(&run, std::time::Duration::from_secs(wait)),
-        Cmd::Synth {
-            preset,
-            scale,
-            seed,
-            out,
-            jpeg,
-            noise,
-        } => synth::synth(synth::SynthArgs {
-            preset: &preset,
-            scale,
-            seed,
-            out: &out,
-            jpeg_quality: jpeg,
-            noise_dn: noise,
-        }),
+        Cmd::Synth(args) => synth::synth(args),
         Cmd::Eval { results, gt, out, json } => lineflow_eval::command(&results, &gt, out, json),
         Cmd::Classify {
             lines,
@@ -503,6 +474,7 @@ fn main() -> ExitCode {
                 .map(|(lines2d, camera)| model_cmd::RefineInputs { lines2d, camera });
             model_cmd::model(&lines, poses.as_deref(), refine, out, &set)
         }
+        Cmd::Targets(args) => lineflow_interop::targets::targets(args),
         Cmd::Experiment { name, trials, seed } => lineflow_bench::experiment(&name, trials, seed),
         Cmd::Camera { what } => lineflow_interop::camera(what),
         Cmd::Poses { what } => lineflow_interop::poses(what),

@@ -58,8 +58,10 @@ pub fn process(folder: &Path, out: Option<PathBuf>, graph: Option<PathBuf>, set:
         eprintln!("using the poses in {} in place of the orientation stage", supplied.display());
         set.push("orientation.impl=\"file\"".into());
         set.push(format!("orientation.poses={}", quoted(&supplied)));
-    } else if own_orientation && lineflow_interop::calibrate::is_nominal(&folder.join("camera.toml")) {
-        lineflow_interop::calibrate::self_calibrate(&folder, &out, &set, verbosity)?;
+    } else if own_orientation {
+        // A nominal camera is self-calibrated, and the survey targets found for control points without
+        // observations.
+        lineflow_interop::bare::prepare(&folder, &out, &set, verbosity)?;
     }
     eprintln!(
         "processing {} images of {} with {}",

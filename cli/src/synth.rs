@@ -1,6 +1,6 @@
 //! `lineflow synth`: writes a synthetic scene as a project folder plus `gt/`; `lineflow bench render`.
 use std::io::Write;
-use std::path::Path;
+use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::Instant;
 
@@ -8,22 +8,39 @@ use anyhow::{Context, Result};
 use lineflow_synthetic::{write_project, Synthetic};
 
 /// Options of `lineflow synth`.
-pub struct SynthArgs<'a> {
-    pub preset: &'a str,
-    pub scale: f64,
-    pub seed: u64,
-    pub out: &'a Path,
-    pub jpeg_quality: Option<u8>,
-    pub noise_dn: Option<f64>,
+#[derive(clap::Args)]
+pub struct SynthArgs {
+    /// Preset: d2x-strip, a55-two-strips, convergent, roof.
+    #[arg(long, default_value = "a55-two-strips")]
+    preset: String,
+    /// Image size relative to the preset (the field of view stays); 0.13 gives about 640 px wide.
+    #[arg(long, default_value_t = 1.0)]
+    scale: f64,
+    /// Seed of everything random.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Output folder.
+    #[arg(long)]
+    out: PathBuf,
+    /// Write JPEG images at this quality instead of PNG.
+    #[arg(long)]
+    jpeg: Option<u8>,
+    /// Sensor noise, standard deviation in grey levels [default: 1.5].
+    #[arg(long)]
+    noise: Option<f64>,
+    /// Made like a camera's photos: JPEG (quality 92 unless --jpeg) with EXIF, no camera.toml and no
+    /// observations.csv (both kept in gt/).
+    #[arg(long)]
+    bare: bool,
 }
 
 pub fn synth(a: SynthArgs) -> Result<ExitCode> {
-    let mut syn = Synthetic::new(a.preset, a.scale, a.seed)?;
-    if let Some(q) = a.jpeg_quality {
+    let mut syn = Synthetic::new(&a.preset, a.scale, a.seed)?;
+    if let Some(q) = a.jpeg.or(a.bare.then_some(92)) {
         anyhow::ensure!((1..=100).contains(&q), "--jpeg must be 1-100, got {q}");
         syn.preset.sensor.jpeg_quality = q;
     }
-    if let Some(n) = a.noise_dn {
+    if let Some(n) = a.noise {
         anyhow::ensure!(n >= 0.0, "--noise must be >= 0, got {n}");
         syn.preset.sensor.noise_dn = n;
     }
@@ -42,7 +59,7 @@ pub fn synth(a: SynthArgs) -> Result<ExitCode> {
         a.out.display()
     );
     let started = Instant::now();
-    write_project(&syn, a.out, &mut |done, total| {
+    write_project(&syn, &a.out, &mut |done, total| {
         let per = started.elapsed().as_secs_f64() / done as f64;
         eprint!(
             "\r  image {done}/{total}  {per:.2} s/image  ETA {:.0} s   ",
@@ -51,10 +68,14 @@ pub fn synth(a: SynthArgs) -> Result<ExitCode> {
         let _ = std::io::stderr().flush();
     })
     .with_context(|| format!("writing {}", a.out.display()))?;
-    eprintln!(
-        "\rwrote {} in {:.1} s (images, camera.toml, control_points.csv, observations.csv, site.toml, gt/)",
-        a.out.display(),
-        started.elapsed().as_secs_f64()
-    );
+    if a.bare {
+        lineflow_synthetic::make_bare(&syn, &a.out)?;
+    }
+    let what = if a.bare {
+        "JPEG images with EXIF, control_points.csv, site.toml; camera.toml and observations.csv in gt/"
+    } else {
+        "images, camera.toml, control_points.csv, observations.csv, site.toml, gt/"
+    };
+    eprintln!("\rwrote {} in {:.1} s ({what})", a.out.display(), started.elapsed().as_secs_f64());
     Ok(ExitCode::SUCCESS)
 }

@@ -109,6 +109,64 @@ pub fn exif_camera(path: &Path, width: u32, height: u32) -> Result<ExifCamera, F
     })
 }
 
+/// What a camera writes of itself into a photo's EXIF, as far as [`exif_camera`] reads it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ExifTags {
+    /// Make.
+    pub make: String,
+    /// Model.
+    pub model: String,
+    /// The focal length as the lens marks it, mm.
+    pub focal_mm: f64,
+    /// The sensor's pixel pitch, mm (written as the focal-plane resolution, pixels per mm).
+    pub pixel_size_mm: f64,
+    /// The image's size, pixels.
+    pub width: u32,
+    /// The image's height, pixels.
+    pub height: u32,
+}
+
+/// `jpeg` (a complete JPEG file) with `tags` in an EXIF APP1 segment after its start marker (kamadak-exif's
+/// writer); `None` when `jpeg` does not start with one or the tags cannot be encoded.
+pub fn with_exif(jpeg: &[u8], tags: &ExifTags) -> Option<Vec<u8>> {
+    use exif::experimental::Writer;
+    use exif::{Field, Rational};
+    if jpeg.get(..2) != Some(&[0xFF, 0xD8]) {
+        return None;
+    }
+    // Thousandths: a marked focal length and a pitch in pixels per mm need no more.
+    let thousandths = |v: f64| Value::Rational(vec![Rational::from(((v * 1000.0).round() as u32, 1000))]);
+    let field = |tag, value| Field {
+        tag,
+        ifd_num: In::PRIMARY,
+        value,
+    };
+    let fields = [
+        field(Tag::Make, Value::Ascii(vec![tags.make.as_bytes().to_vec()])),
+        field(Tag::Model, Value::Ascii(vec![tags.model.as_bytes().to_vec()])),
+        field(Tag::FocalLength, thousandths(tags.focal_mm)),
+        field(Tag::FocalPlaneXResolution, thousandths(1.0 / tags.pixel_size_mm)),
+        field(Tag::FocalPlaneYResolution, thousandths(1.0 / tags.pixel_size_mm)),
+        // 4: millimetres (EXIF 2.3).
+        field(Tag::FocalPlaneResolutionUnit, Value::Short(vec![4])),
+        field(Tag::PixelXDimension, Value::Long(vec![tags.width])),
+        field(Tag::PixelYDimension, Value::Long(vec![tags.height])),
+    ];
+    let mut writer = Writer::new();
+    for f in &fields {
+        writer.push_field(f);
+    }
+    let mut tiff = std::io::Cursor::new(Vec::new());
+    writer.write(&mut tiff, false).ok()?;
+    let payload = [b"Exif\x00\x00".as_slice(), &tiff.into_inner()].concat();
+    let length = u16::try_from(payload.len() + 2).ok()?;
+    let mut out = vec![0xFF, 0xD8, 0xFF, 0xE1];
+    out.extend(length.to_be_bytes());
+    out.extend(payload);
+    out.extend(&jpeg[2..]);
+    Some(out)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -182,6 +240,33 @@ mod tests {
         let c = camera_of(&[FOCAL_24, (0xA405, 3, 24)], 6000, 4000).unwrap();
         assert!((c.pixel_size_mm - 0.006).abs() < 1e-9, "{c:?}");
         assert_eq!(c.pitch_from, "the 35 mm equivalent focal length");
+    }
+
+    #[test]
+    fn what_with_exif_writes_is_read_back() {
+        let tags = ExifTags {
+            make: "lineflow".into(),
+            model: "synthetic A55".into(),
+            focal_mm: 18.0,
+            pixel_size_mm: 0.016,
+            width: 1474,
+            height: 979,
+        };
+        // A real (1 × 1) JPEG, so that the image decoders take the file too.
+        let mut jpeg = Vec::new();
+        image::codecs::jpeg::JpegEncoder::new(&mut jpeg)
+            .encode(&[128, 128, 128], 1, 1, image::ExtendedColorType::Rgb8)
+            .unwrap();
+        let file = with_exif(&jpeg, &tags).unwrap();
+        assert!(image::load_from_memory(&file).is_ok());
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("IMG.jpg");
+        std::fs::write(&p, &file).unwrap();
+        let c = exif_camera(&p, 1474, 979).unwrap();
+        assert_eq!(c.focal_mm, 18.0);
+        assert!((c.pixel_size_mm - 0.016).abs() < 1e-9, "{c:?}");
+        assert_eq!(c.name, "lineflow synthetic A55");
+        assert!(with_exif(b"not a jpeg", &tags).is_none());
     }
 
     #[test]

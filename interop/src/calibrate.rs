@@ -19,7 +19,7 @@ pub fn is_nominal(camera_toml: &Path) -> bool {
 ///
 /// # Errors
 /// The graph cannot be loaded or run, or orients too few images to calibrate, or a file cannot be written.
-pub fn self_calibrate(folder: &Path, out: &Path, set: &[String], verbosity: Verbosity) -> Result<()> {
+pub fn self_calibrate(folder: &Path, out: &Path, set: &[String], verbosity: Verbosity) -> Result<Option<std::path::PathBuf>> {
     let graph = launch_dir().join("calibrate.toml");
     let out = out.join("calibration");
     let set: Vec<String> = set
@@ -33,7 +33,7 @@ pub fn self_calibrate(folder: &Path, out: &Path, set: &[String], verbosity: Verb
         .collect();
     if set.iter().any(|s| s.replace(' ', "") == "orientation.self_calibrate=[]") {
         eprintln!("warning: the camera is nominal and orientation.self_calibrate = []: it is used as it is");
-        return Ok(());
+        return Ok(None);
     }
     eprintln!(
         "self-calibration: the camera is nominal; estimating its interior orientation first ({})",
@@ -61,5 +61,5 @@ pub fn self_calibrate(folder: &Path, out: &Path, set: &[String], verbosity: Verb
     );
     std::fs::write(&camera_toml, header + &text).with_context(|| format!("writing {}", camera_toml.display()))?;
     eprintln!("self-calibration: {} now holds the adjusted camera", camera_toml.display());
-    Ok(())
+    Ok(Some(out.join("poses.csv")))
 }

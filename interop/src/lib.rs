@@ -2,10 +2,13 @@
 //! ([`poses`]). `lineflow camera import | export`: a project's `camera.toml` from another tool's calibration file
 //! (OpenCV, COLMAP, Metashape) and back, through a least-squares fit between OpenCV's lens model and this project's
 //! correction model ([`lineflow_photogrammetry::lens`]), with the fit's residual over the frame printed.
+//! `lineflow targets`: a project's `observations.csv` from the survey targets in its images ([`targets`]).
 #![warn(missing_docs)]
 
+pub mod bare;
 pub mod calibrate;
 pub mod poses;
+pub mod targets;
 
 pub use poses::{poses, PosesCmd};
 

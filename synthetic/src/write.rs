@@ -24,6 +24,37 @@ pub fn jpeg_bytes(rgb: &[u8], width: u32, height: u32, quality: u8) -> Result<Ve
     Ok(out)
 }
 
+/// Makes a project folder written by [`write_project`] with JPEG images look like a camera's photos: each image
+/// gains an EXIF block (the lens's marked focal length, whole millimetres as most lenses report it, the sensor's
+/// pitch as its focal-plane resolution, the image size), and `camera.toml` and `observations.csv` move into `gt/`,
+/// so that the folder holds only what a photographer brings: photos, the surveyed points and the site model.
+///
+/// # Errors
+/// The images are not JPEG, or a file cannot be read, written or moved.
+pub fn make_bare(syn: &Synthetic, dir: &Path) -> Result<(), SynthError> {
+    let cam = syn.camera();
+    let tags = lineflow_formats::exif_camera::ExifTags {
+        make: "lineflow".into(),
+        model: "synthetic camera".into(),
+        focal_mm: cam.focal_mm.round(),
+        pixel_size_mm: cam.pixel_size_mm,
+        width: cam.width,
+        height: cam.height,
+    };
+    for frame in 0..syn.poses().len() {
+        let path = dir.join("images").join(syn.image_name(frame));
+        let jpeg = std::fs::read(&path).map_err(io(&path))?;
+        let tagged = lineflow_formats::exif_camera::with_exif(&jpeg, &tags)
+            .ok_or_else(|| SynthError::Io(format!("{}: not a JPEG, so no EXIF", path.display())))?;
+        std::fs::write(&path, tagged).map_err(io(&path))?;
+    }
+    for name in ["camera.toml", "observations.csv"] {
+        let (from, to) = (dir.join(name), dir.join("gt").join(name));
+        std::fs::rename(&from, &to).map_err(io(&from))?;
+    }
+    Ok(())
+}
+
 /// The true poses as `poses.csv` rows (standard deviations empty).
 pub fn truth_poses(syn: &Synthetic) -> Vec<PoseRow> {
     syn.poses()

@@ -1,0 +1,574 @@
+//! Detections named by the surveyed points they fit.
+//!
+//! Plain circular targets carry no code, so a detection is named by where it is: the detections of all images are
+//! intersected into 3-D points with the images' poses (any frame: the similarity found next takes it into the
+//! control frame), and the similarity that lays the most of those points onto the surveyed ones, each within
+//! [`NameSettings::match_m`], names them. It is sought from triangles of the best-seen points whose shape matches a
+//! triangle of surveyed points; a layout that two similarities fit equally well (a regular grid seen in part) is
+//! refused rather than guessed. Surveyed points seen in too few images to be intersected are then looked for at
+//! their projections.
+use lineflow_photogrammetry::intersect::{intersect_rays, similarity, Similarity};
+use lineflow_photogrammetry::{Camera, Pose, Vec3};
+
+use crate::Detection;
+
+/// One image's targets, with its pose.
+#[derive(Debug, Clone)]
+pub struct TargetView {
+    /// The image's frame number.
+    pub frame: usize,
+    /// Its pose, in the frame the naming starts from.
+    pub pose: Pose,
+    /// Its detections.
+    pub detections: Vec<Detection>,
+}
+
+/// How detections are grouped and named.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct NameSettings {
+    /// A detection shows a 3-D point when it lies within this of the point's projection, pixels.
+    pub reproject_px: f64,
+    /// A target is intersected from at least this many images.
+    pub min_views: usize,
+    /// The least angle between two rays of an intersection, degrees.
+    pub min_ray_angle_deg: f64,
+    /// An intersected target lies within this of its surveyed point once laid onto them, metres.
+    pub match_m: f64,
+    /// The best-seen intersected targets whose triangles are tried.
+    pub max_seeds: usize,
+}
+
+impl Default for NameSettings {
+    fn default() -> Self {
+        NameSettings {
+            reproject_px: 2.0,
+            min_views: 3,
+            min_ray_angle_deg: 1.0,
+            match_m: 0.1,
+            max_seeds: 12,
+        }
+    }
+}
+
+/// A detection named by a surveyed point: a row of `observations.csv`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Named {
+    /// The image's frame number.
+    pub frame: usize,
+    /// The surveyed point's id.
+    pub id: String,
+    /// The detection's centre, pixels.
+    pub centre: [f64; 2],
+}
+
+/// What the naming found.
+#[derive(Debug, Clone)]
+pub struct Naming {
+    /// The named detections, by frame, then id.
+    pub observations: Vec<Named>,
+    /// From the poses' frame into the surveyed points'.
+    pub similarity: Similarity,
+    /// Targets intersected from `min_views` images or more.
+    pub intersected: usize,
+    /// Of those, how many lie on a surveyed point.
+    pub matched: usize,
+    /// Their RMS distance from it after the similarity, metres.
+    pub rms_m: f64,
+    /// The surveyed points no detection was named for.
+    pub unseen: Vec<String>,
+}
+
+/// Why detections could not be named.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum NamingError {
+    /// Too few targets could be intersected.
+    #[error(
+        "only {found} targets were seen in {min_views} or more images (4 are needed to name them by their layout); \
+         were the poses computed for these images, and are the targets large enough to be found (3 px or more across their disc)?"
+    )]
+    TooFewIntersected {
+        /// Targets intersected.
+        found: usize,
+        /// Images each needed.
+        min_views: usize,
+    },
+    /// Too few surveyed points to fit a layout to.
+    #[error("control_points.csv has {0} points; at least 4 are needed to name targets by their layout")]
+    TooFewPoints(usize),
+    /// No similarity laid four targets, and half of those found, onto surveyed points.
+    #[error(
+        "the {intersected} targets found fit no layout of the surveyed points (at best {best} of them within {match_m} m): \
+         are control_points.csv and the images of the same site?"
+    )]
+    NoFit {
+        /// Targets intersected.
+        intersected: usize,
+        /// The most laid onto surveyed points by one similarity.
+        best: usize,
+        /// The tolerance.
+        match_m: f64,
+    },
+    /// Two similarities fit as many targets.
+    #[error(
+        "the targets' layout is ambiguous: two different namings each lay {matched} of the {intersected} targets found \
+         onto surveyed points (a regular grid seen in part?); measure a few targets by hand in observations.csv"
+    )]
+    Ambiguous {
+        /// Targets laid onto surveyed points by either naming.
+        matched: usize,
+        /// Targets intersected.
+        intersected: usize,
+    },
+}
+
+/// A target intersected from its detections: the point and the (view, detection) pairs that show it.
+#[derive(Debug, Clone)]
+struct Intersected {
+    point: Vec3,
+    seen: Vec<(usize, usize)>,
+}
+
+/// Names the detections of `views` by the surveyed `points` (id, coordinates).
+///
+/// # Errors
+/// Too few targets or points, no layout that fits, or one that fits two ways ([`NamingError`]).
+pub fn name(views: &[TargetView], camera: &Camera, points: &[(String, Vec3)], s: &NameSettings) -> Result<Naming, NamingError> {
+    if points.len() < 4 {
+        return Err(NamingError::TooFewPoints(points.len()));
+    }
+    let targets = intersect_all(views, camera, s);
+    if targets.len() < 4 {
+        return Err(NamingError::TooFewIntersected {
+            found: targets.len(),
+            min_views: s.min_views,
+        });
+    }
+    let block: Vec<Vec3> = targets.iter().map(|t| t.point).collect();
+    let surveyed: Vec<Vec3> = points.iter().map(|p| p.1).collect();
+    let fit = best_layout(&block, &surveyed, s)?;
+
+    // Named: every detection of a matched target, then each surveyed point's projection where it lies near a
+    // detection no target claimed (a point seen in too few images to be intersected, or missed by one).
+    let mut claimed: Vec<Vec<bool>> = views.iter().map(|v| vec![false; v.detections.len()]).collect();
+    let mut observations = Vec::new();
+    let mut named = vec![false; points.len()];
+    for &(t, q) in &fit.pairs {
+        for &(v, d) in &targets[t].seen {
+            claimed[v][d] = true;
+            observations.push(Named {
+                frame: views[v].frame,
+                id: points[q].0.clone(),
+                centre: views[v].detections[d].centre,
+            });
+        }
+        named[q] = true;
+    }
+    for (q, (id, xyz)) in points.iter().enumerate() {
+        let target = fit.pairs.iter().find(|p| p.1 == q).map(|p| &targets[p.0]);
+        let in_block = target.map_or_else(|| inverse(&fit.similarity, xyz), |t| t.point);
+        for (v, view) in views.iter().enumerate() {
+            if target.is_some_and(|t| t.seen.iter().any(|s| s.0 == v)) {
+                continue;
+            }
+            if let Some(d) = nearest(view, camera, &in_block, s.reproject_px, &claimed[v]) {
+                claimed[v][d] = true;
+                named[q] = true;
+                observations.push(Named {
+                    frame: view.frame,
+                    id: id.clone(),
+                    centre: view.detections[d].centre,
+                });
+            }
+        }
+    }
+    observations.sort_by(|a, b| a.frame.cmp(&b.frame).then_with(|| a.id.cmp(&b.id)));
+    Ok(Naming {
+        observations,
+        similarity: fit.similarity,
+        intersected: targets.len(),
+        matched: fit.pairs.len(),
+        rms_m: fit.rms_m,
+        unseen: points.iter().zip(&named).filter(|(_, &n)| !n).map(|(p, _)| p.0.clone()).collect(),
+    })
+}
+
+/// `x` taken back from the similarity's target frame into its source frame.
+fn inverse(sim: &Similarity, x: &Vec3) -> Vec3 {
+    sim.rotation.transpose() * (x - sim.translation) / sim.scale
+}
+
+/// The detection of `view` nearest `point`'s projection within `tolerance` pixels, among those not `taken`.
+fn nearest(view: &TargetView, camera: &Camera, point: &Vec3, tolerance: f64, taken: &[bool]) -> Option<usize> {
+    let px = view.pose.project(camera, point)?;
+    view.detections
+        .iter()
+        .enumerate()
+        .filter(|(d, _)| !taken[*d])
+        .map(|(d, det)| (d, (det.centre[0] - px[0]).hypot(det.centre[1] - px[1])))
+        .filter(|&(_, e)| e <= tolerance)
+        .min_by(|a, b| a.1.total_cmp(&b.1))
+        .map(|(d, _)| d)
+}
+
+/// The targets seen in `min_views` images or more: from every pair of detections whose rays meet (within
+/// `reproject_px` of both), the best-seen first, each detection claimed once.
+fn intersect_all(views: &[TargetView], camera: &Camera, s: &NameSettings) -> Vec<Intersected> {
+    let ray = |v: usize, d: usize| {
+        let pose = &views[v].pose;
+        (pose.center, pose.ray_of_pixel(camera, views[v].detections[d].centre))
+    };
+    let min_angle = s.min_ray_angle_deg.to_radians();
+    let none_taken: Vec<Vec<bool>> = views.iter().map(|v| vec![false; v.detections.len()]).collect();
+    let mut hypotheses: Vec<Intersected> = Vec::new();
+    for a in 0..views.len() {
+        for b in a + 1..views.len() {
+            for da in 0..views[a].detections.len() {
+                for db in 0..views[b].detections.len() {
+                    let Some((point, angle)) = intersect_rays(&[ray(a, da), ray(b, db)]) else { continue };
+                    if angle < min_angle
+                        || nearest(&views[a], camera, &point, s.reproject_px, &none_taken[a]) != Some(da)
+                        || nearest(&views[b], camera, &point, s.reproject_px, &none_taken[b]) != Some(db)
+                    {
+                        continue;
+                    }
+                    let seen: Vec<(usize, usize)> = (0..views.len())
+                        .filter_map(|v| nearest(&views[v], camera, &point, s.reproject_px, &none_taken[v]).map(|d| (v, d)))
+                        .collect();
+                    if seen.len() >= s.min_views {
+                        hypotheses.push(Intersected { point, seen });
+                    }
+                }
+            }
+        }
+    }
+    // The best-seen first; the sort is stable, so ties keep the order of the pairs.
+    hypotheses.sort_by(|x, y| y.seen.len().cmp(&x.seen.len()));
+    let mut claimed = none_taken;
+    let mut targets = Vec::new();
+    for h in hypotheses {
+        let free: Vec<(usize, usize)> = h.seen.iter().copied().filter(|&(v, d)| !claimed[v][d]).collect();
+        if free.len() < s.min_views {
+            continue;
+        }
+        let rays: Vec<(Vec3, Vec3)> = free.iter().map(|&(v, d)| ray(v, d)).collect();
+        let Some((point, _)) = intersect_rays(&rays) else { continue };
+        // Each ray again against the point of all of them: one wrong detection must not stay in.
+        let seen: Vec<(usize, usize)> = free
+            .into_iter()
+            .filter(|&(v, d)| {
+                views[v].pose.project(camera, &point).is_some_and(|px| {
+                    let c = views[v].detections[d].centre;
+                    (c[0] - px[0]).hypot(c[1] - px[1]) <= s.reproject_px
+                })
+            })
+            .collect();
+        if seen.len() < s.min_views {
+            continue;
+        }
+        for &(v, d) in &seen {
+            claimed[v][d] = true;
+        }
+        targets.push(Intersected { point, seen });
+    }
+    targets
+}
+
+/// A similarity and the (target, surveyed point) pairs it lays within the tolerance.
+#[derive(Debug, Clone)]
+struct Layout {
+    similarity: Similarity,
+    pairs: Vec<(usize, usize)>,
+    rms_m: f64,
+}
+
+/// Each target paired with the nearest surveyed point within `match_m` after `sim`, each point with one target
+/// (the nearest of those that chose it).
+fn pairs_under(sim: &Similarity, block: &[Vec3], surveyed: &[Vec3], match_m: f64) -> Layout {
+    let mut best: Vec<Option<(usize, f64)>> = vec![None; surveyed.len()];
+    for (t, p) in block.iter().enumerate() {
+        let x = sim.apply(p);
+        let near = surveyed
+            .iter()
+            .enumerate()
+            .map(|(q, y)| (q, (x - y).norm()))
+            .filter(|&(_, d)| d <= match_m)
+            .min_by(|a, b| a.1.total_cmp(&b.1));
+        if let Some((q, d)) = near {
+            if best[q].is_none_or(|(_, e)| d < e) {
+                best[q] = Some((t, d));
+            }
+        }
+    }
+    let mut pairs: Vec<(usize, usize)> = best.iter().enumerate().filter_map(|(q, b)| b.map(|(t, _)| (t, q))).collect();
+    pairs.sort_unstable();
+    let sum: f64 = best.iter().flatten().map(|(_, d)| d * d).sum();
+    Layout {
+        similarity: *sim,
+        rms_m: (sum / pairs.len().max(1) as f64).sqrt(),
+        pairs,
+    }
+}
+
+/// The similarity from the targets' frame into the surveyed points' that pairs the most targets, refined on its
+/// pairs; refused when another one pairs as many differently.
+fn best_layout(block: &[Vec3], surveyed: &[Vec3], s: &NameSettings) -> Result<Layout, NamingError> {
+    // Shapes of the surveyed triangles, every ordering: the sides ab, ac, bc.
+    let n = surveyed.len();
+    let dist = |a: &Vec3, b: &Vec3| (a - b).norm();
+    let mut triangles = Vec::new();
+    for a in 0..n {
+        for b in 0..n {
+            for c in 0..n {
+                if a != b && a != c && b != c {
+                    let sides = [dist(&surveyed[a], &surveyed[b]), dist(&surveyed[a], &surveyed[c]), dist(&surveyed[b], &surveyed[c])];
+                    if well_shaped(sides) {
+                        triangles.push(([a, b, c], sides));
+                    }
+                }
+            }
+        }
+    }
+    let seeds = block.len().min(s.max_seeds);
+    let mut best: Option<Layout> = None;
+    let mut rival: Option<Layout> = None;
+    for i in 0..seeds {
+        for j in i + 1..seeds {
+            for k in j + 1..seeds {
+                let sides = [dist(&block[i], &block[j]), dist(&block[i], &block[k]), dist(&block[j], &block[k])];
+                if !well_shaped(sides) {
+                    continue;
+                }
+                for (abc, q) in &triangles {
+                    let scale = q[0] / sides[0];
+                    if (1..3).any(|m| (q[m] - scale * sides[m]).abs() > 0.03 * q[m]) {
+                        continue;
+                    }
+                    let from = [block[i], block[j], block[k]];
+                    let to = abc.map(|a| surveyed[a]);
+                    let Some(sim) = similarity(&from, &to) else { continue };
+                    let layout = refined(pairs_under(&sim, block, surveyed, s.match_m), block, surveyed, s.match_m);
+                    consider(layout, &mut best, &mut rival);
+                }
+            }
+        }
+    }
+    let best = best.unwrap_or(Layout {
+        similarity: Similarity {
+            scale: 1.0,
+            rotation: lineflow_photogrammetry::Mat3::identity(),
+            translation: Vec3::zeros(),
+        },
+        pairs: Vec::new(),
+        rms_m: 0.0,
+    });
+    // Four pairs can be a coincidence among many surveyed points; most targets found are surveyed ones.
+    if best.pairs.len() < 4 || 2 * best.pairs.len() < block.len() {
+        return Err(NamingError::NoFit {
+            intersected: block.len(),
+            best: best.pairs.len(),
+            match_m: s.match_m,
+        });
+    }
+    if rival.as_ref().is_some_and(|r| r.pairs.len() >= best.pairs.len()) {
+        return Err(NamingError::Ambiguous {
+            matched: best.pairs.len(),
+            intersected: block.len(),
+        });
+    }
+    Ok(best)
+}
+
+/// Whether a triangle of these sides is worth fitting a similarity to: no side under a tenth of the longest,
+/// and not flat (its height over the longest side at least a tenth of that side).
+fn well_shaped([a, b, c]: [f64; 3]) -> bool {
+    let longest = a.max(b).max(c);
+    let s = 0.5 * (a + b + c);
+    let area = (s * (s - a) * (s - b) * (s - c)).max(0.0).sqrt();
+    longest > 0.0 && a.min(b).min(c) >= 0.1 * longest && 2.0 * area / longest >= 0.1 * longest
+}
+
+/// The layout's similarity fitted to all its pairs, and the pairs again under it, twice.
+fn refined(mut layout: Layout, block: &[Vec3], surveyed: &[Vec3], match_m: f64) -> Layout {
+    for _ in 0..2 {
+        if layout.pairs.len() < 3 {
+            break;
+        }
+        let from: Vec<Vec3> = layout.pairs.iter().map(|p| block[p.0]).collect();
+        let to: Vec<Vec3> = layout.pairs.iter().map(|p| surveyed[p.1]).collect();
+        let Some(sim) = similarity(&from, &to) else { break };
+        layout = pairs_under(&sim, block, surveyed, match_m);
+    }
+    layout
+}
+
+/// Keeps the layout with the most pairs (then the smallest RMS) as `best`, and the best one that pairs
+/// differently as `rival`.
+fn consider(layout: Layout, best: &mut Option<Layout>, rival: &mut Option<Layout>) {
+    let better = |a: &Layout, b: &Layout| a.pairs.len() > b.pairs.len() || (a.pairs.len() == b.pairs.len() && a.rms_m < b.rms_m);
+    match best {
+        None => *best = Some(layout),
+        Some(b) if layout.pairs == b.pairs => {
+            if layout.rms_m < b.rms_m {
+                *best = Some(layout);
+            }
+        }
+        Some(b) => {
+            if better(&layout, b) {
+                let old = best.replace(layout).expect("best is set");
+                if rival.as_ref().is_none_or(|r| better(&old, r)) {
+                    *rival = Some(old);
+                }
+            } else if rival.as_ref().is_none_or(|r| better(&layout, r)) {
+                *rival = Some(layout);
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use lineflow_photogrammetry::{look_at, rotation_from_opk};
+
+    /// A façade of targets on y = 0 (x 0–20 m, z 1–10 m, an irregular choice of a 7 × 4 grid) and a strip of
+    /// cameras 20 m in front looking at it.
+    fn site() -> (Camera, Vec<Pose>, Vec<(String, Vec3)>) {
+        let camera = Camera::pinhole(2000, 1500, 0.005, 12.0);
+        let poses = (0..9)
+            .map(|k| {
+                let center = Vec3::new(2.0 + 2.0 * k as f64, -20.0, 4.0);
+                Pose {
+                    center,
+                    rotation: look_at(&center, &(center + Vec3::y()), &Vec3::z()),
+                }
+            })
+            .collect();
+        let mut points = Vec::new();
+        for col in 0..7 {
+            for row in 0..4 {
+                if (col * 3 + row * 5) % 7 != 2 {
+                    points.push((format!("P{col}{row}"), Vec3::new(3.0 * col as f64 + 1.0, 0.0, 2.5 * row as f64 + 1.5)));
+                }
+            }
+        }
+        (camera, poses, points)
+    }
+
+    /// Every point's projection in every image, as a detection, with false detections where `clutter`.
+    fn views(camera: &Camera, poses: &[Pose], points: &[(String, Vec3)], clutter: bool) -> Vec<TargetView> {
+        poses
+            .iter()
+            .enumerate()
+            .map(|(frame, pose)| {
+                let mut detections: Vec<Detection> = points
+                    .iter()
+                    .filter_map(|p| pose.project(camera, &p.1))
+                    .filter(|px| camera.contains(*px, 10.0))
+                    .map(|centre| Detection {
+                        centre,
+                        radius_px: 3.0,
+                        contrast: 200.0,
+                    })
+                    .collect();
+                if clutter {
+                    detections.push(Detection {
+                        centre: [100.0 + 37.0 * frame as f64, 700.0],
+                        radius_px: 3.0,
+                        contrast: 200.0,
+                    });
+                }
+                detections
+            })
+            .enumerate()
+            .map(|(frame, detections)| TargetView {
+                frame,
+                pose: poses[frame],
+                detections,
+            })
+            .collect()
+    }
+
+    /// The poses in another frame: scaled by 0.37, turned and shifted, as a run without control points leaves them.
+    fn elsewhere(poses: &[Pose]) -> Vec<Pose> {
+        let r = rotation_from_opk(0.3, -0.2, 1.1);
+        poses
+            .iter()
+            .map(|p| Pose {
+                center: 0.37 * (r * p.center) + Vec3::new(100.0, -40.0, 7.0),
+                rotation: p.rotation * r.transpose(),
+            })
+            .collect()
+    }
+
+    #[test]
+    fn targets_are_named_from_poses_in_another_frame() {
+        let (camera, poses, points) = site();
+        let truth = views(&camera, &poses, &points, true);
+        let moved = elsewhere(&poses);
+        let views: Vec<TargetView> = truth.iter().zip(&moved).map(|(v, p)| TargetView { pose: *p, ..v.clone() }).collect();
+        let naming = name(&views, &camera, &points, &NameSettings::default()).expect("named");
+        assert_eq!(naming.matched, naming.intersected);
+        assert!(naming.rms_m < 1e-6, "{}", naming.rms_m);
+        // Every true detection named right, the clutter not at all.
+        let expected: usize = truth.iter().map(|v| v.detections.len() - 1).sum();
+        assert_eq!(naming.observations.len(), expected);
+        for o in &naming.observations {
+            let p = &points.iter().find(|p| p.0 == o.id).expect("a surveyed id").1;
+            let px = poses[o.frame].project(&camera, p).expect("in front");
+            assert!((px[0] - o.centre[0]).hypot(px[1] - o.centre[1]) < 1e-6, "{o:?}");
+        }
+        assert!(naming.unseen.is_empty(), "{:?}", naming.unseen);
+        assert!((naming.similarity.scale - 1.0 / 0.37).abs() < 1e-6);
+    }
+
+    #[test]
+    fn a_point_missing_from_the_survey_names_nothing_and_an_unseen_point_is_listed() {
+        let (camera, poses, mut points) = site();
+        let views = views(&camera, &poses, &points, false);
+        let gone = points.remove(5);
+        points.push(("FAR".into(), Vec3::new(60.0, 0.0, 3.0)));
+        let naming = name(&views, &camera, &points, &NameSettings::default()).expect("named");
+        assert!(naming.observations.iter().all(|o| o.id != gone.0));
+        assert_eq!(naming.unseen, vec!["FAR".to_string()]);
+        assert_eq!(naming.matched + 1, naming.intersected);
+    }
+
+    #[test]
+    fn a_full_regular_grid_seen_in_part_is_refused_as_ambiguous() {
+        let camera = Camera::pinhole(2000, 1500, 0.005, 12.0);
+        let (_, poses, _) = site();
+        let grid: Vec<(String, Vec3)> = (0..12)
+            .flat_map(|col| (0..4).map(move |row| (format!("G{col}{row}"), Vec3::new(3.0 * col as f64 - 6.0, 0.0, 2.5 * row as f64 + 1.5))))
+            .collect();
+        // The cameras see x from about -4 to 24 m: the grid continues on both sides, so a shift by a column fits
+        // the seen part as well.
+        let seen: Vec<(String, Vec3)> = grid.iter().filter(|p| (0.0..=18.0).contains(&p.1.x)).cloned().collect();
+        let views = views(&camera, &poses, &seen, false);
+        let err = name(&views, &camera, &grid, &NameSettings::default()).expect_err("ambiguous");
+        assert!(matches!(err, NamingError::Ambiguous { .. }), "{err}");
+    }
+
+    #[test]
+    fn too_few_targets_or_points_and_another_site_are_errors() {
+        let (camera, poses, points) = site();
+        let few: Vec<(String, Vec3)> = points[..3].to_vec();
+        let v = views(&camera, &poses, &few, false);
+        assert!(matches!(
+            name(&v, &camera, &points, &NameSettings::default()),
+            Err(NamingError::TooFewIntersected { found: 3, .. })
+        ));
+        assert_eq!(
+            name(&v, &camera, &few, &NameSettings::default()).unwrap_err(),
+            NamingError::TooFewPoints(3)
+        );
+        // Surveyed points of another site: as many, anywhere on a wall of the same size.
+        let other: Vec<(String, Vec3)> = (0..points.len() as u64)
+            .map(|k| {
+                let u = |part| lineflow_photogrammetry::random::unit(lineflow_photogrammetry::random::hash(&[k, part]));
+                (format!("O{k}"), Vec3::new(20.0 * u(1), 0.0, 1.0 + 9.0 * u(2)))
+            })
+            .collect();
+        let v = views(&camera, &poses, &points, false);
+        assert!(matches!(name(&v, &camera, &other, &NameSettings::default()), Err(NamingError::NoFit { .. })));
+    }
+}
