@@ -11,7 +11,7 @@ use anyhow::Result;
 use lineflow_messages::Encoding;
 use lineflow_photogrammetry::{rotation_from_opk, Pose, Vec3};
 use lineflow_synthetic::Synthetic;
-use lineflow_targets::{detect, name, DetectSettings, Detection, NameSettings, TargetView};
+use lineflow_targets::{detect, name, DetectSettings, Detection, Face, NameSettings, TargetView};
 
 /// Options of `lineflow bench targets`.
 pub struct TargetsArgs<'a> {
@@ -68,7 +68,10 @@ pub fn bench_targets(a: TargetsArgs<'_>) -> Result<ExitCode> {
             for d in &detections {
                 match here.iter().map(|t| distance(t, &d.centre)).min_by(f64::total_cmp) {
                     Some(e) if e <= FOUND_PX => {
-                        let t = here.iter().min_by(|x, y| distance(x, &d.centre).total_cmp(&distance(y, &d.centre))).expect("one");
+                        let t = here
+                            .iter()
+                            .min_by(|x, y| distance(x, &d.centre).total_cmp(&distance(y, &d.centre)))
+                            .expect("one");
                         found += 1;
                         err2 += e * e;
 
@@ -100,7 +103,11 @@ pub fn bench_targets(a: TargetsArgs<'_>) -> Result<ExitCode> {
     }
     println!(
         "targets (#31): >= 98 % of the targets in view found, centre RMS <= 0.1 px: {}",
-        if all_met { "met at every scale" } else { "not met at every scale (see the rows)" }
+        if all_met {
+            "met at every scale"
+        } else {
+            "not met at every scale (see the rows)"
+        }
     );
     Ok(ExitCode::SUCCESS)
 }
@@ -121,15 +128,23 @@ use image::ImageEncoder;
 /// radius of the detection: a simple blob detector's centre.
 fn thresholded_centroid(gray: &[u8], w: usize, h: usize, d: &Detection) -> [f64; 2] {
     let reach = 2.0 * d.radius_px;
-    let (x0, x1) = ((d.centre[0] - reach).floor().max(0.0) as usize, ((d.centre[0] + reach).ceil() as usize).min(w - 1));
-    let (y0, y1) = ((d.centre[1] - reach).floor().max(0.0) as usize, ((d.centre[1] + reach).ceil() as usize).min(h - 1));
+    let (x0, x1) = (
+        (d.centre[0] - reach).floor().max(0.0) as usize,
+        ((d.centre[0] + reach).ceil() as usize).min(w - 1),
+    );
+    let (y0, y1) = (
+        (d.centre[1] - reach).floor().max(0.0) as usize,
+        ((d.centre[1] + reach).ceil() as usize).min(h - 1),
+    );
     let inside = |x: usize, y: usize| distance(&[x as f64, y as f64], &d.centre) <= reach;
     let levels: Vec<f64> = (y0..=y1)
         .flat_map(|y| (x0..=x1).map(move |x| (x, y)))
         .filter(|&(x, y)| inside(x, y))
         .map(|(x, y)| f64::from(gray[y * w + x]))
         .collect();
-    let (lo, hi) = levels.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| (a.min(v), b.max(v)));
+    let (lo, hi) = levels
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| (a.min(v), b.max(v)));
     let mid = 0.5 * (lo + hi);
     let (mut n, mut sx, mut sy) = (0.0, 0.0, 0.0);
     for y in y0..=y1 {
@@ -161,14 +176,17 @@ fn naming_share(syn: &Synthetic, views: &[(usize, Vec<Detection>)]) -> String {
         .collect();
     let points: Vec<(String, Vec3)> = syn.building.targets.iter().map(|t| (t.id.clone(), Vec3::from(t.xyz))).collect();
     let camera = syn.camera();
-    match name(&target_views, camera, &points, &NameSettings::default()) {
+    let faces: Vec<Face> = syn.approximate_walls().iter().filter_map(|(_, c)| Face::of_wall(c)).collect();
+    match name(&target_views, camera, &points, &faces, &NameSettings::default()) {
         Ok(naming) => {
             let right = naming
                 .observations
                 .iter()
                 .filter(|o| {
                     let p = points.iter().find(|p| p.0 == o.id).expect("a surveyed id").1;
-                    syn.poses()[o.frame].project(camera, &p).is_some_and(|px| distance(&px, &o.centre) <= FOUND_PX)
+                    syn.poses()[o.frame]
+                        .project(camera, &p)
+                        .is_some_and(|px| distance(&px, &o.centre) <= FOUND_PX)
                 })
                 .count();
             format!("{right}/{}", naming.observations.len())

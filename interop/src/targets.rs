@@ -12,7 +12,7 @@ use lineflow_messages::str_from_fixed;
 use lineflow_photogrammetry::Vec3;
 use lineflow_runtime::launch::{self, Resolver};
 use lineflow_runtime::run::{launch_dir, run_graph, Verbosity};
-use lineflow_targets::{detect, name, DetectSettings, Detection, NameSettings, TargetView};
+use lineflow_targets::{detect, name, DetectSettings, Detection, Face, NameSettings, TargetView};
 
 /// Options of `lineflow targets`.
 #[derive(Debug, clap::Args)]
@@ -92,7 +92,8 @@ pub fn targets(a: TargetsArgs) -> Result<ExitCode> {
         .iter()
         .map(|p| (str_from_fixed(&p.id).to_string(), Vec3::from(p.xyz)))
         .collect();
-    let naming = name(&views, &camera, &points, &NameSettings::default()).map_err(|e| anyhow::anyhow!("{e}"))?;
+    let faces: Vec<Face> = project.walls.iter().filter_map(|w| Face::of_wall(w.corners())).collect();
+    let naming = name(&views, &camera, &points, &faces, &NameSettings::default()).map_err(|e| anyhow::anyhow!("{e}"))?;
 
     // The hand-measured rows stay; a detection of a point an image already has a row for is left out.
     let names: Vec<String> = project.images.iter().map(|p| file_name(p)).collect();
@@ -104,7 +105,14 @@ pub fn targets(a: TargetsArgs) -> Result<ExitCode> {
     let out = a.out.clone().unwrap_or_else(|| a.folder.join("observations.csv"));
     let mut text = String::from("image,point_id,col,row\n");
     for o in &project.observations {
-        let _ = writeln!(text, "{},{},{},{}", names[o.frame as usize], str_from_fixed(&o.point_id), o.col, o.row);
+        let _ = writeln!(
+            text,
+            "{},{},{},{}",
+            names[o.frame as usize],
+            str_from_fixed(&o.point_id),
+            o.col,
+            o.row
+        );
     }
     let added: Vec<_> = naming
         .observations

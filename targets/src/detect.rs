@@ -59,7 +59,11 @@ pub fn detect(gray: &[u8], width: usize, height: usize, settings: &DetectSetting
     if width < 3 || height < 3 || gray.len() != width * height {
         return Vec::new();
     }
-    let image = Gray { pixels: gray, width, height };
+    let image = Gray {
+        pixels: gray,
+        width,
+        height,
+    };
     let dark = dark_mask(&image, settings);
     let max_side = (4.0 * settings.max_radius_px).ceil() as usize + 2;
     let mut visited = vec![false; dark.len()];
@@ -176,7 +180,12 @@ struct Bounds {
 
 impl Bounds {
     fn at(x: usize, y: usize) -> Bounds {
-        Bounds { x0: x, x1: x, y0: y, y1: y }
+        Bounds {
+            x0: x,
+            x1: x,
+            y0: y,
+            y1: y,
+        }
     }
     fn grow(&mut self, x: usize, y: usize) {
         self.x0 = self.x0.min(x);
@@ -394,8 +403,14 @@ fn light_centroid(image: &Gray, start: [f64; 2], cov: [f64; 3], reach: f64, floo
     let extent = [(cov[0] * reach * reach).sqrt(), (cov[2] * reach * reach).sqrt()];
     let mut c = start;
     for _ in 0..3 {
-        let (x0, x1) = ((c[0] - extent[0]).floor().max(0.0) as usize, ((c[0] + extent[0]).ceil() as usize).min(image.width - 1));
-        let (y0, y1) = ((c[1] - extent[1]).floor().max(0.0) as usize, ((c[1] + extent[1]).ceil() as usize).min(image.height - 1));
+        let (x0, x1) = (
+            (c[0] - extent[0]).floor().max(0.0) as usize,
+            ((c[0] + extent[0]).ceil() as usize).min(image.width - 1),
+        );
+        let (y0, y1) = (
+            (c[1] - extent[1]).floor().max(0.0) as usize,
+            ((c[1] + extent[1]).ceil() as usize).min(image.height - 1),
+        );
         let (mut sw, mut sx, mut sy) = (0.0, 0.0, 0.0);
         for y in y0..=y1 {
             for x in x0..=x1 {
@@ -456,17 +471,29 @@ mod tests {
     #[test]
     fn the_dark_mask_compares_each_pixel_with_the_mean_of_its_window_clipped_at_the_borders() {
         let (w, h) = (23, 17);
-        let pixels: Vec<u8> = (0..(w * h) as u64).map(|i| (lineflow_photogrammetry::random::hash(&[i, 7]) % 256) as u8).collect();
+        let pixels: Vec<u8> = (0..(w * h) as u64)
+            .map(|i| (lineflow_photogrammetry::random::hash(&[i, 7]) % 256) as u8)
+            .collect();
         let s = DetectSettings {
             window_px: 7,
             min_contrast: 10.0,
             ..DetectSettings::default()
         };
-        let mask = dark_mask(&Gray { pixels: &pixels, width: w, height: h }, &s);
+        let mask = dark_mask(
+            &Gray {
+                pixels: &pixels,
+                width: w,
+                height: h,
+            },
+            &s,
+        );
         for y in 0..h {
             for x in 0..w {
                 let (x0, x1, y0, y1) = (x.saturating_sub(3), (x + 4).min(w), y.saturating_sub(3), (y + 4).min(h));
-                let sum: f64 = (y0..y1).flat_map(|yy| (x0..x1).map(move |xx| (xx, yy))).map(|(xx, yy)| f64::from(pixels[yy * w + xx])).sum();
+                let sum: f64 = (y0..y1)
+                    .flat_map(|yy| (x0..x1).map(move |xx| (xx, yy)))
+                    .map(|(xx, yy)| f64::from(pixels[yy * w + xx]))
+                    .sum();
                 let mean = sum / ((x1 - x0) * (y1 - y0)) as f64;
                 let v = f64::from(pixels[y * w + x]);
                 assert_eq!(mask[y * w + x], v < 0.5 * mean && v + 5.0 < mean, "({x}, {y})");
@@ -518,7 +545,10 @@ mod tests {
     fn several_targets_are_found_in_reading_order() {
         let img = draw(120, 80, &[([90.0, 20.0], 5.0), ([30.0, 21.0], 5.0), ([60.0, 60.0], 4.0)], 140, 1.0);
         let found = detect(&img, 120, 80, &DetectSettings::default());
-        let centres: Vec<[i64; 2]> = found.iter().map(|d| [d.centre[0].round() as i64, d.centre[1].round() as i64]).collect();
+        let centres: Vec<[i64; 2]> = found
+            .iter()
+            .map(|d| [d.centre[0].round() as i64, d.centre[1].round() as i64])
+            .collect();
         assert_eq!(centres, vec![[90, 20], [30, 21], [60, 60]]);
     }
 

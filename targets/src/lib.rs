@@ -8,5 +8,5 @@
 pub mod detect;
 pub mod name;
 
-pub use detect::{detect, Detection, DetectSettings};
-pub use name::{name, Named, Naming, NamingError, NameSettings, TargetView};
+pub use detect::{detect, DetectSettings, Detection};
+pub use name::{name, Face, NameSettings, Named, Naming, NamingError, TargetView};

@@ -4,11 +4,14 @@
 //! intersected into 3-D points with the images' poses (any frame: the similarity found next takes it into the
 //! control frame), and the similarity that lays the most of those points onto the surveyed ones, each within
 //! [`NameSettings::match_m`], names them. It is sought from triangles of the best-seen points whose shape matches a
-//! triangle of surveyed points; a layout that two similarities fit equally well (a regular grid seen in part) is
-//! refused rather than guessed. Surveyed points seen in too few images to be intersected are then looked for at
+//! triangle of surveyed points. A layout symmetric on a wall fits turned about it too, so of similarities that pair
+//! as many the one is kept that puts no camera behind the wall a target it sees is on (the site's walls, where
+//! known), then no camera upside down (the frame is Z up: held upright or on its side, an image's up does not
+//! point down), then leaves the fewest surveyed points unseen where an image shows their place; a layout two
+//! similarities fit equally well by all of these (a regular grid seen in part) is refused rather than guessed. Surveyed points seen in too few images to be intersected are then looked for at
 //! their projections.
 use lineflow_photogrammetry::intersect::{intersect_rays, similarity, Similarity};
-use lineflow_photogrammetry::{Camera, Pose, Vec3};
+use lineflow_photogrammetry::{polygon_normal, Camera, Pose, Vec3};
 
 use crate::Detection;
 
@@ -49,6 +52,31 @@ impl Default for NameSettings {
         }
     }
 }
+
+/// A plane surveyed targets may lie on, seen only from the side its normal points to: a wall of `site.toml`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Face {
+    /// A point of the plane, in the surveyed points' frame.
+    pub point: Vec3,
+    /// Its outward unit normal.
+    pub outward: Vec3,
+}
+
+impl Face {
+    /// The plane of a wall given as its corners counter-clockwise seen from outside (`site.toml`), if it has an
+    /// area.
+    pub fn of_wall(corners: &[[f64; 3]]) -> Option<Face> {
+        let ring: Vec<Vec3> = corners.iter().map(|&c| Vec3::from(c)).collect();
+        let outward = polygon_normal(&ring)?;
+        Some(Face {
+            point: ring.iter().sum::<Vec3>() / ring.len() as f64,
+            outward,
+        })
+    }
+}
+
+/// A surveyed point lies on a face when within this of its plane, metres.
+const ON_FACE_M: f64 = 0.3;
 
 /// A detection named by a surveyed point: a row of `observations.csv`.
 #[derive(Debug, Clone, PartialEq)]
@@ -108,10 +136,12 @@ pub enum NamingError {
         /// The tolerance.
         match_m: f64,
     },
-    /// Two similarities fit as many targets.
+    /// Two similarities fit as many targets, and neither is less plausible.
     #[error(
         "the targets' layout is ambiguous: two different namings each lay {matched} of the {intersected} targets found \
-         onto surveyed points (a regular grid seen in part?); measure a few targets by hand in observations.csv"
+         onto surveyed points, with the cameras upright, in front of the walls and missing as few surveyed points (a \
+         regular grid seen in part, or a symmetric one on a wall site.toml does not give?); measure a few targets by hand in \
+         observations.csv"
     )]
     Ambiguous {
         /// Targets laid onto surveyed points by either naming.
@@ -128,11 +158,18 @@ struct Intersected {
     seen: Vec<(usize, usize)>,
 }
 
-/// Names the detections of `views` by the surveyed `points` (id, coordinates).
+/// Names the detections of `views` by the surveyed `points` (id, coordinates), on the site's `faces` (may be
+/// empty).
 ///
 /// # Errors
 /// Too few targets or points, no layout that fits, or one that fits two ways ([`NamingError`]).
-pub fn name(views: &[TargetView], camera: &Camera, points: &[(String, Vec3)], s: &NameSettings) -> Result<Naming, NamingError> {
+pub fn name(
+    views: &[TargetView],
+    camera: &Camera,
+    points: &[(String, Vec3)],
+    faces: &[Face],
+    s: &NameSettings,
+) -> Result<Naming, NamingError> {
     if points.len() < 4 {
         return Err(NamingError::TooFewPoints(points.len()));
     }
@@ -145,7 +182,8 @@ pub fn name(views: &[TargetView], camera: &Camera, points: &[(String, Vec3)], s:
     }
     let block: Vec<Vec3> = targets.iter().map(|t| t.point).collect();
     let surveyed: Vec<Vec3> = points.iter().map(|p| p.1).collect();
-    let fit = best_layout(&block, &surveyed, s)?;
+    let tied = best_layouts(&block, &surveyed, s)?;
+    let fit = most_plausible(tied, &targets, views, camera, &surveyed, faces, s)?;
 
     // Named: every detection of a matched target, then each surveyed point's projection where it lies near a
     // detection no target claimed (a point seen in too few images to be intersected, or missed by one).
@@ -224,7 +262,9 @@ fn intersect_all(views: &[TargetView], camera: &Camera, s: &NameSettings) -> Vec
         for b in a + 1..views.len() {
             for da in 0..views[a].detections.len() {
                 for db in 0..views[b].detections.len() {
-                    let Some((point, angle)) = intersect_rays(&[ray(a, da), ray(b, db)]) else { continue };
+                    let Some((point, angle)) = intersect_rays(&[ray(a, da), ray(b, db)]) else {
+                        continue;
+                    };
                     if angle < min_angle
                         || nearest(&views[a], camera, &point, s.reproject_px, &none_taken[a]) != Some(da)
                         || nearest(&views[b], camera, &point, s.reproject_px, &none_taken[b]) != Some(db)
@@ -242,7 +282,7 @@ fn intersect_all(views: &[TargetView], camera: &Camera, s: &NameSettings) -> Vec
         }
     }
     // The best-seen first; the sort is stable, so ties keep the order of the pairs.
-    hypotheses.sort_by(|x, y| y.seen.len().cmp(&x.seen.len()));
+    hypotheses.sort_by_key(|h| std::cmp::Reverse(h.seen.len()));
     let mut claimed = none_taken;
     let mut targets = Vec::new();
     for h in hypotheses {
@@ -309,9 +349,9 @@ fn pairs_under(sim: &Similarity, block: &[Vec3], surveyed: &[Vec3], match_m: f64
     }
 }
 
-/// The similarity from the targets' frame into the surveyed points' that pairs the most targets, refined on its
-/// pairs; refused when another one pairs as many differently.
-fn best_layout(block: &[Vec3], surveyed: &[Vec3], s: &NameSettings) -> Result<Layout, NamingError> {
+/// The similarities from the targets' frame into the surveyed points' that pair the most targets, each refined on
+/// its pairs, one for each different pairing, the best fitting first.
+fn best_layouts(block: &[Vec3], surveyed: &[Vec3], s: &NameSettings) -> Result<Vec<Layout>, NamingError> {
     // Shapes of the surveyed triangles, every ordering: the sides ab, ac, bc.
     let n = surveyed.len();
     let dist = |a: &Vec3, b: &Vec3| (a - b).norm();
@@ -320,7 +360,11 @@ fn best_layout(block: &[Vec3], surveyed: &[Vec3], s: &NameSettings) -> Result<La
         for b in 0..n {
             for c in 0..n {
                 if a != b && a != c && b != c {
-                    let sides = [dist(&surveyed[a], &surveyed[b]), dist(&surveyed[a], &surveyed[c]), dist(&surveyed[b], &surveyed[c])];
+                    let sides = [
+                        dist(&surveyed[a], &surveyed[b]),
+                        dist(&surveyed[a], &surveyed[c]),
+                        dist(&surveyed[b], &surveyed[c]),
+                    ];
                     if well_shaped(sides) {
                         triangles.push(([a, b, c], sides));
                     }
@@ -329,8 +373,7 @@ fn best_layout(block: &[Vec3], surveyed: &[Vec3], s: &NameSettings) -> Result<La
         }
     }
     let seeds = block.len().min(s.max_seeds);
-    let mut best: Option<Layout> = None;
-    let mut rival: Option<Layout> = None;
+    let mut tied: Vec<Layout> = Vec::new();
     for i in 0..seeds {
         for j in i + 1..seeds {
             for k in j + 1..seeds {
@@ -347,35 +390,22 @@ fn best_layout(block: &[Vec3], surveyed: &[Vec3], s: &NameSettings) -> Result<La
                     let to = abc.map(|a| surveyed[a]);
                     let Some(sim) = similarity(&from, &to) else { continue };
                     let layout = refined(pairs_under(&sim, block, surveyed, s.match_m), block, surveyed, s.match_m);
-                    consider(layout, &mut best, &mut rival);
+                    consider(layout, &mut tied);
                 }
             }
         }
     }
-    let best = best.unwrap_or(Layout {
-        similarity: Similarity {
-            scale: 1.0,
-            rotation: lineflow_photogrammetry::Mat3::identity(),
-            translation: Vec3::zeros(),
-        },
-        pairs: Vec::new(),
-        rms_m: 0.0,
-    });
+    let most = tied.first().map_or(0, |l| l.pairs.len());
     // Four pairs can be a coincidence among many surveyed points; most targets found are surveyed ones.
-    if best.pairs.len() < 4 || 2 * best.pairs.len() < block.len() {
+    if most < 4 || 2 * most < block.len() {
         return Err(NamingError::NoFit {
             intersected: block.len(),
-            best: best.pairs.len(),
+            best: most,
             match_m: s.match_m,
         });
     }
-    if rival.as_ref().is_some_and(|r| r.pairs.len() >= best.pairs.len()) {
-        return Err(NamingError::Ambiguous {
-            matched: best.pairs.len(),
-            intersected: block.len(),
-        });
-    }
-    Ok(best)
+    tied.sort_by(|a, b| a.rms_m.total_cmp(&b.rms_m));
+    Ok(tied)
 }
 
 /// Whether a triangle of these sides is worth fitting a similarity to: no side under a tenth of the longest,
@@ -401,28 +431,117 @@ fn refined(mut layout: Layout, block: &[Vec3], surveyed: &[Vec3], match_m: f64) 
     layout
 }
 
-/// Keeps the layout with the most pairs (then the smallest RMS) as `best`, and the best one that pairs
-/// differently as `rival`.
-fn consider(layout: Layout, best: &mut Option<Layout>, rival: &mut Option<Layout>) {
-    let better = |a: &Layout, b: &Layout| a.pairs.len() > b.pairs.len() || (a.pairs.len() == b.pairs.len() && a.rms_m < b.rms_m);
-    match best {
-        None => *best = Some(layout),
-        Some(b) if layout.pairs == b.pairs => {
-            if layout.rms_m < b.rms_m {
-                *best = Some(layout);
-            }
+/// Keeps in `tied` the layouts with the most pairs, one for each pairing (the one of smallest RMS).
+fn consider(layout: Layout, tied: &mut Vec<Layout>) {
+    let most = tied.first().map_or(0, |l| l.pairs.len());
+    if layout.pairs.len() > most {
+        tied.clear();
+        tied.push(layout);
+    } else if layout.pairs.len() == most {
+        match tied.iter_mut().find(|l| l.pairs == layout.pairs) {
+            Some(same) if layout.rms_m < same.rms_m => *same = layout,
+            Some(_) => {}
+            None => tied.push(layout),
         }
-        Some(b) => {
-            if better(&layout, b) {
-                let old = best.replace(layout).expect("best is set");
-                if rival.as_ref().is_none_or(|r| better(&old, r)) {
-                    *rival = Some(old);
-                }
-            } else if rival.as_ref().is_none_or(|r| better(&layout, r)) {
-                *rival = Some(layout);
+    }
+}
+
+/// Of layouts that pair as many targets, the one with the fewest cameras behind a face a target they see is on,
+/// then the fewest upside down, then the fewest surveyed points missed; refused when two are equal in all three.
+fn most_plausible(
+    tied: Vec<Layout>,
+    targets: &[Intersected],
+    views: &[TargetView],
+    camera: &Camera,
+    surveyed: &[Vec3],
+    faces: &[Face],
+    s: &NameSettings,
+) -> Result<Layout, NamingError> {
+    let matched = tied[0].pairs.len();
+    let mut ranked: Vec<((usize, usize, usize), Layout)> = tied
+        .into_iter()
+        .map(|l| {
+            let rank = (
+                cameras_behind(&l, targets, views, surveyed, faces),
+                upside_down(&l, views),
+                missed(&l, views, camera, surveyed, faces, s),
+            );
+            (rank, l)
+        })
+        .collect();
+    // Stable: equal ranks keep the order of best fit.
+    ranked.sort_by_key(|r| r.0);
+    if ranked.len() > 1 && ranked[0].0 == ranked[1].0 {
+        return Err(NamingError::Ambiguous {
+            matched,
+            intersected: targets.len(),
+        });
+    }
+    Ok(ranked.swap_remove(0).1)
+}
+
+/// The face a surveyed point lies on: the nearest within [`ON_FACE_M`].
+fn face_of<'a>(point: &Vec3, faces: &'a [Face]) -> Option<&'a Face> {
+    faces
+        .iter()
+        .map(|f| (f, (point - f.point).dot(&f.outward).abs()))
+        .filter(|&(_, d)| d <= ON_FACE_M)
+        .min_by(|a, b| a.1.total_cmp(&b.1))
+        .map(|(f, _)| f)
+}
+
+/// How many (camera, target) sightings of the layout look at the back of the face the target's point is on.
+fn cameras_behind(layout: &Layout, targets: &[Intersected], views: &[TargetView], surveyed: &[Vec3], faces: &[Face]) -> usize {
+    layout
+        .pairs
+        .iter()
+        .filter_map(|&(t, q)| face_of(&surveyed[q], faces).map(|f| (t, q, f)))
+        .map(|(t, q, f)| {
+            targets[t]
+                .seen
+                .iter()
+                .filter(|&&(v, _)| (layout.similarity.apply(&views[v].pose.center) - surveyed[q]).dot(&f.outward) <= 0.0)
+                .count()
+        })
+        .sum()
+}
+
+/// How many images the layout turns upside down: their up (photo y) more than 120° from the frame's Z.
+fn upside_down(layout: &Layout, views: &[TargetView]) -> usize {
+    views
+        .iter()
+        .filter(|v| (layout.similarity.rotation * v.pose.rotation.transpose() * Vec3::y()).z < -0.5)
+        .count()
+}
+
+/// How many times a surveyed point, under the layout, falls well inside an image that faces it with no detection
+/// there.
+fn missed(layout: &Layout, views: &[TargetView], camera: &Camera, surveyed: &[Vec3], faces: &[Face], s: &NameSettings) -> usize {
+    let none_taken: Vec<bool> = views
+        .iter()
+        .map(|v| v.detections.len())
+        .max()
+        .map_or(Vec::new(), |n| vec![false; n]);
+    let mut count = 0;
+    for view in views {
+        // Far enough inside for the whole ring (twice the disc's radius) to have been in the image.
+        let largest = view.detections.iter().map(|d| d.radius_px).fold(2.5, f64::max);
+        let center = layout.similarity.apply(&view.pose.center);
+        for point in surveyed {
+            if face_of(point, faces).is_some_and(|f| (center - point).dot(&f.outward) <= 0.0) {
+                continue;
+            }
+            let in_block = inverse(&layout.similarity, point);
+            let inside = view
+                .pose
+                .project(camera, &in_block)
+                .is_some_and(|px| camera.contains(px, 4.0 * largest));
+            if inside && nearest(view, camera, &in_block, s.reproject_px, &none_taken).is_none() {
+                count += 1;
             }
         }
     }
+    count
 }
 
 #[cfg(test)]
@@ -447,7 +566,10 @@ mod tests {
         for col in 0..7 {
             for row in 0..4 {
                 if (col * 3 + row * 5) % 7 != 2 {
-                    points.push((format!("P{col}{row}"), Vec3::new(3.0 * col as f64 + 1.0, 0.0, 2.5 * row as f64 + 1.5)));
+                    points.push((
+                        format!("P{col}{row}"),
+                        Vec3::new(3.0 * col as f64 + 1.0, 0.0, 2.5 * row as f64 + 1.5),
+                    ));
                 }
             }
         }
@@ -505,8 +627,12 @@ mod tests {
         let (camera, poses, points) = site();
         let truth = views(&camera, &poses, &points, true);
         let moved = elsewhere(&poses);
-        let views: Vec<TargetView> = truth.iter().zip(&moved).map(|(v, p)| TargetView { pose: *p, ..v.clone() }).collect();
-        let naming = name(&views, &camera, &points, &NameSettings::default()).expect("named");
+        let views: Vec<TargetView> = truth
+            .iter()
+            .zip(&moved)
+            .map(|(v, p)| TargetView { pose: *p, ..v.clone() })
+            .collect();
+        let naming = name(&views, &camera, &points, &[], &NameSettings::default()).expect("named");
         assert_eq!(naming.matched, naming.intersected);
         assert!(naming.rms_m < 1e-6, "{}", naming.rms_m);
         // Every true detection named right, the clutter not at all.
@@ -527,7 +653,7 @@ mod tests {
         let views = views(&camera, &poses, &points, false);
         let gone = points.remove(5);
         points.push(("FAR".into(), Vec3::new(60.0, 0.0, 3.0)));
-        let naming = name(&views, &camera, &points, &NameSettings::default()).expect("named");
+        let naming = name(&views, &camera, &points, &[], &NameSettings::default()).expect("named");
         assert!(naming.observations.iter().all(|o| o.id != gone.0));
         assert_eq!(naming.unseen, vec!["FAR".to_string()]);
         assert_eq!(naming.matched + 1, naming.intersected);
@@ -538,14 +664,57 @@ mod tests {
         let camera = Camera::pinhole(2000, 1500, 0.005, 12.0);
         let (_, poses, _) = site();
         let grid: Vec<(String, Vec3)> = (0..12)
-            .flat_map(|col| (0..4).map(move |row| (format!("G{col}{row}"), Vec3::new(3.0 * col as f64 - 6.0, 0.0, 2.5 * row as f64 + 1.5))))
+            .flat_map(|col| {
+                (0..4).map(move |row| {
+                    (
+                        format!("G{col}{row}"),
+                        Vec3::new(3.0 * col as f64 - 6.0, 0.0, 2.5 * row as f64 + 1.5),
+                    )
+                })
+            })
             .collect();
-        // The cameras see x from about -4 to 24 m: the grid continues on both sides, so a shift by a column fits
-        // the seen part as well.
-        let seen: Vec<(String, Vec3)> = grid.iter().filter(|p| (0.0..=18.0).contains(&p.1.x)).cloned().collect();
-        let views = views(&camera, &poses, &seen, false);
-        let err = name(&views, &camera, &grid, &NameSettings::default()).expect_err("ambiguous");
+        // The cameras see x from about -6 to 26 m and the grid continues beyond: a shift by a column fits the
+        // part seen as well, and shows a target wherever the survey has one.
+        let views = views(&camera, &poses, &grid, false);
+        let err = name(&views, &camera, &grid, &[], &NameSettings::default()).expect_err("ambiguous");
         assert!(matches!(err, NamingError::Ambiguous { .. }), "{err}");
+    }
+
+    #[test]
+    fn a_symmetric_grid_on_a_wall_is_named_once_the_wall_is_known() {
+        let (camera, poses, _) = site();
+        // A full 7 × 4 grid, all in view: turned half a turn about its vertical axis it is the same grid with the
+        // cameras behind the wall, about its normal with them upside down.
+        let grid: Vec<(String, Vec3)> = (0..7)
+            .flat_map(|col| {
+                (0..4).map(move |row| {
+                    (
+                        format!("G{col}{row}"),
+                        Vec3::new(3.0 * col as f64 + 1.0, 0.0, 2.5 * row as f64 + 1.5),
+                    )
+                })
+            })
+            .collect();
+        let truth = views(&camera, &poses, &grid, false);
+        let moved = elsewhere(&poses);
+        let views: Vec<TargetView> = truth
+            .iter()
+            .zip(&moved)
+            .map(|(v, p)| TargetView { pose: *p, ..v.clone() })
+            .collect();
+        let err = name(&views, &camera, &grid, &[], &NameSettings::default()).expect_err("ambiguous without the wall");
+        assert!(matches!(err, NamingError::Ambiguous { .. }), "{err}");
+        let wall = Face {
+            point: Vec3::zeros(),
+            outward: -Vec3::y(),
+        };
+        let naming = name(&views, &camera, &grid, &[wall], &NameSettings::default()).expect("named");
+        assert_eq!(naming.matched, grid.len());
+        for o in &naming.observations {
+            let p = &grid.iter().find(|p| p.0 == o.id).expect("a surveyed id").1;
+            let px = poses[o.frame].project(&camera, p).expect("in front");
+            assert!((px[0] - o.centre[0]).hypot(px[1] - o.centre[1]) < 1e-6, "{o:?}");
+        }
     }
 
     #[test]
@@ -554,11 +723,11 @@ mod tests {
         let few: Vec<(String, Vec3)> = points[..3].to_vec();
         let v = views(&camera, &poses, &few, false);
         assert!(matches!(
-            name(&v, &camera, &points, &NameSettings::default()),
+            name(&v, &camera, &points, &[], &NameSettings::default()),
             Err(NamingError::TooFewIntersected { found: 3, .. })
         ));
         assert_eq!(
-            name(&v, &camera, &few, &NameSettings::default()).unwrap_err(),
+            name(&v, &camera, &few, &[], &NameSettings::default()).unwrap_err(),
             NamingError::TooFewPoints(3)
         );
         // Surveyed points of another site: as many, anywhere on a wall of the same size.
@@ -569,6 +738,9 @@ mod tests {
             })
             .collect();
         let v = views(&camera, &poses, &points, false);
-        assert!(matches!(name(&v, &camera, &other, &NameSettings::default()), Err(NamingError::NoFit { .. })));
+        assert!(matches!(
+            name(&v, &camera, &other, &[], &NameSettings::default()),
+            Err(NamingError::NoFit { .. })
+        ));
     }
 }
