@@ -29,7 +29,7 @@ pub struct DetectSettings {
     pub window_px: usize,
     /// A ring's pixels are darker than this share of their neighbourhood's mean.
     pub dark_share: f64,
-    /// Smallest disc radius, pixels. Below 1.5 px (a disc of 3 px, a target of 6) the disc is a blur.
+    /// Smallest disc radius, pixels. Below 1.2 px (a disc of 2.4 px, a target of 5) the disc is a blur.
     pub min_radius_px: f64,
     /// Largest disc radius, pixels.
     pub max_radius_px: f64,
@@ -45,7 +45,7 @@ impl Default for DetectSettings {
         DetectSettings {
             window_px: 61,
             dark_share: 0.5,
-            min_radius_px: 1.5,
+            min_radius_px: 1.2,
             max_radius_px: 60.0,
             min_contrast: 40.0,
             min_axis_ratio: 0.3,

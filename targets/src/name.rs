@@ -1,15 +1,15 @@
 //! Detections named by the surveyed points they fit.
 //!
 //! Plain circular targets carry no code, so a detection is named by where it is: the detections of all images are
-//! intersected into 3-D points with the images' poses (any frame: the similarity found next takes it into the
-//! control frame), and the similarity that lays the most of those points onto the surveyed ones, each within
-//! [`NameSettings::match_m`], names them. It is sought from triangles of the best-seen points whose shape matches a
-//! triangle of surveyed points. A layout symmetric on a wall fits turned about it too, so of similarities that pair
-//! as many the one is kept that puts no camera behind the wall a target it sees is on (the site's walls, where
-//! known), then no camera upside down (the frame is Z up: held upright or on its side, an image's up does not
+//! intersected into 3-D points with the images' poses (any frame: the similarity found next takes it into the control
+//! frame), and the similarity that lays the most of those points onto the surveyed ones, each within
+//! [`NameSettings::match_m`], names them. It is sought from triangles of points spread over the block whose shape
+//! matches a triangle of surveyed points. A layout symmetric on a wall fits turned about it too, so of similarities
+//! that pair as many the one is kept that puts no camera behind the wall a target it sees is on (the site's walls,
+//! where known), then no camera upside down (the frame is Z up: held upright or on its side, an image's up does not
 //! point down), then leaves the fewest surveyed points unseen where an image shows their place; a layout two
-//! similarities fit equally well by all of these (a regular grid seen in part) is refused rather than guessed. Surveyed points seen in too few images to be intersected are then looked for at
-//! their projections.
+//! similarities fit equally well by all of these (a regular grid seen in part) is refused rather than guessed.
+//! Surveyed points seen in too few images to be intersected are then looked for at their projections.
 use lineflow_photogrammetry::intersect::{intersect_rays, similarity, Similarity};
 use lineflow_photogrammetry::{polygon_normal, Camera, Pose, Vec3};
 
@@ -37,7 +37,7 @@ pub struct NameSettings {
     pub min_ray_angle_deg: f64,
     /// An intersected target lies within this of its surveyed point once laid onto them, metres.
     pub match_m: f64,
-    /// The best-seen intersected targets whose triangles are tried.
+    /// The intersected targets whose triangles are tried (the best-seen, then spread over the block).
     pub max_seeds: usize,
 }
 
@@ -112,7 +112,7 @@ pub enum NamingError {
     /// Too few targets could be intersected.
     #[error(
         "only {found} targets were seen in {min_views} or more images (4 are needed to name them by their layout); \
-         were the poses computed for these images, and are the targets large enough to be found (3 px or more across their disc)?"
+         were the poses computed for these images, and are the targets large enough to be found (2.4 px or more across their disc)?"
     )]
     TooFewIntersected {
         /// Targets intersected.
@@ -372,11 +372,11 @@ fn best_layouts(block: &[Vec3], surveyed: &[Vec3], s: &NameSettings) -> Result<V
             }
         }
     }
-    let seeds = block.len().min(s.max_seeds);
+    let seeds = spread(block, s.max_seeds);
     let mut tied: Vec<Layout> = Vec::new();
-    for i in 0..seeds {
-        for j in i + 1..seeds {
-            for k in j + 1..seeds {
+    for (n, &i) in seeds.iter().enumerate() {
+        for (m, &j) in seeds.iter().enumerate().skip(n + 1) {
+            for &k in &seeds[m + 1..] {
                 let sides = [dist(&block[i], &block[j]), dist(&block[i], &block[k]), dist(&block[j], &block[k])];
                 if !well_shaped(sides) {
                     continue;
@@ -406,6 +406,29 @@ fn best_layouts(block: &[Vec3], surveyed: &[Vec3], s: &NameSettings) -> Result<V
     }
     tied.sort_by(|a, b| a.rms_m.total_cmp(&b.rms_m));
     Ok(tied)
+}
+
+/// Up to `count` of the targets, spread over the block: the best-seen first (the block is in that order), then
+/// each time the one farthest from those taken. The best-seen alone can all lie on one row, whose triangles are
+/// flat.
+fn spread(block: &[Vec3], count: usize) -> Vec<usize> {
+    let mut taken: Vec<usize> = Vec::new();
+    let mut gap = vec![f64::INFINITY; block.len()];
+    while taken.len() < count.min(block.len()) {
+        // The first of the farthest: the best-seen among equals.
+        let next = (0..block.len())
+            .filter(|t| !taken.contains(t))
+            .fold(None, |best: Option<usize>, t| match best {
+                Some(b) if gap[b] >= gap[t] => Some(b),
+                _ => Some(t),
+            })
+            .expect("fewer taken than targets");
+        taken.push(next);
+        for (t, g) in gap.iter_mut().enumerate() {
+            *g = g.min((block[t] - block[next]).norm());
+        }
+    }
+    taken
 }
 
 /// Whether a triangle of these sides is worth fitting a similarity to: no side under a tenth of the longest,
@@ -715,6 +738,22 @@ mod tests {
             let px = poses[o.frame].project(&camera, p).expect("in front");
             assert!((px[0] - o.centre[0]).hypot(px[1] - o.centre[1]) < 1e-6, "{o:?}");
         }
+    }
+
+    #[test]
+    fn the_seeds_leave_a_row_of_best_seen_targets_for_the_rest_of_the_block() {
+        // Twelve on one row first, as the best-seen can be, then two rows more.
+        let block: Vec<Vec3> = (0..3)
+            .flat_map(|row| (0..12).map(move |col| Vec3::new(col as f64, 0.0, 3.0 * row as f64)))
+            .collect();
+        let seeds = spread(&block, 12);
+        assert_eq!(seeds[0], 0);
+        assert!(seeds.iter().any(|&t| block[t].z > 0.0), "{seeds:?}");
+        let mut unique = seeds.clone();
+        unique.sort_unstable();
+        unique.dedup();
+        assert_eq!(unique.len(), 12);
+        assert_eq!(spread(&block[..5], 12).len(), 5);
     }
 
     #[test]
