@@ -645,16 +645,21 @@ mod tests {
             .collect()
     }
 
+    /// The views with their poses moved [`elsewhere`].
+    fn seen_elsewhere(truth: &[TargetView]) -> Vec<TargetView> {
+        let poses: Vec<Pose> = truth.iter().map(|v| v.pose).collect();
+        truth
+            .iter()
+            .zip(elsewhere(&poses))
+            .map(|(v, pose)| TargetView { pose, ..v.clone() })
+            .collect()
+    }
+
     #[test]
     fn targets_are_named_from_poses_in_another_frame() {
         let (camera, poses, points) = site();
         let truth = views(&camera, &poses, &points, true);
-        let moved = elsewhere(&poses);
-        let views: Vec<TargetView> = truth
-            .iter()
-            .zip(&moved)
-            .map(|(v, p)| TargetView { pose: *p, ..v.clone() })
-            .collect();
+        let views = seen_elsewhere(&truth);
         let naming = name(&views, &camera, &points, &[], &NameSettings::default()).expect("named");
         assert_eq!(naming.matched, naming.intersected);
         assert!(naming.rms_m < 1e-6, "{}", naming.rms_m);
@@ -719,12 +724,7 @@ mod tests {
             })
             .collect();
         let truth = views(&camera, &poses, &grid, false);
-        let moved = elsewhere(&poses);
-        let views: Vec<TargetView> = truth
-            .iter()
-            .zip(&moved)
-            .map(|(v, p)| TargetView { pose: *p, ..v.clone() })
-            .collect();
+        let views = seen_elsewhere(&truth);
         let err = name(&views, &camera, &grid, &[], &NameSettings::default()).expect_err("ambiguous without the wall");
         assert!(matches!(err, NamingError::Ambiguous { .. }), "{err}");
         let wall = Face {
