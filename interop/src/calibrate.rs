@@ -20,27 +20,17 @@ pub fn is_nominal(camera_toml: &Path) -> bool {
 /// # Errors
 /// The graph cannot be loaded or run, or orients too few images to calibrate, or a file cannot be written.
 pub fn self_calibrate(folder: &Path, out: &Path, set: &[String], verbosity: Verbosity) -> Result<Option<std::path::PathBuf>> {
-    let graph = launch_dir().join("calibrate.toml");
     let out = out.join("calibration");
-    let set: Vec<String> = set
-        .iter()
-        .filter(|s| {
-            ["capture.", "orientation.", "features.", "matcher."]
-                .iter()
-                .any(|p| s.starts_with(p))
-        })
-        .cloned()
-        .collect();
+    let set = settings_of(set, &["capture.", "orientation.", "features.", "matcher."]);
     if set.iter().any(|s| s.replace(' ', "") == "orientation.self_calibrate=[]") {
         eprintln!("warning: the camera is nominal and orientation.self_calibrate = []: it is used as it is");
         return Ok(None);
     }
     eprintln!(
         "self-calibration: the camera is nominal; estimating its interior orientation first ({})",
-        graph.display()
+        launch_dir().join("calibrate.toml").display()
     );
-    let g = launch::load(&graph, &set, &Resolver::beside_current_exe())?;
-    let status = run_graph(&g, &out, None, verbosity)?;
+    let status = run_orientation_pass(&set, &out, verbosity)?;
     let calibrated = out.join("camera_calibrated.toml");
     if status != ExitCode::SUCCESS || !calibrated.is_file() {
         bail!(
@@ -62,4 +52,16 @@ pub fn self_calibrate(folder: &Path, out: &Path, set: &[String], verbosity: Verb
     std::fs::write(&camera_toml, header + &text).with_context(|| format!("writing {}", camera_toml.display()))?;
     eprintln!("self-calibration: {} now holds the adjusted camera", camera_toml.display());
     Ok(Some(out.join("poses.csv")))
+}
+
+/// The `--set` values among `set` that name one of the `stages` (`"capture."`, ...): those of the orientation
+/// graph's stages.
+pub(crate) fn settings_of(set: &[String], stages: &[&str]) -> Vec<String> {
+    set.iter().filter(|s| stages.iter().any(|p| s.starts_with(p))).cloned().collect()
+}
+
+/// `launch/calibrate.toml` (the graph that stops at the orientation) run into `out` with `set`.
+pub(crate) fn run_orientation_pass(set: &[String], out: &Path, verbosity: Verbosity) -> Result<ExitCode> {
+    let g = launch::load(&launch_dir().join("calibrate.toml"), set, &Resolver::beside_current_exe())?;
+    run_graph(&g, out, None, verbosity)
 }

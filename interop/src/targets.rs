@@ -6,12 +6,12 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
+use crate::calibrate;
 use anyhow::{bail, Context, Result};
 use lineflow_formats::project::{file_name, read_camera, Project};
 use lineflow_messages::str_from_fixed;
 use lineflow_photogrammetry::Vec3;
-use lineflow_runtime::launch::{self, Resolver};
-use lineflow_runtime::run::{launch_dir, run_graph, Verbosity};
+use lineflow_runtime::run::Verbosity;
 use lineflow_targets::{detect, name, DetectSettings, Detection, Face, NameSettings, TargetView};
 
 /// Options of `lineflow targets`.
@@ -176,14 +176,9 @@ pub fn observe(folder: &Path, out: &Path, poses: Option<PathBuf>, set: &[String]
         Some(p) => p,
         None => {
             let pass = out.join("targets");
-            let mut set: Vec<String> = set
-                .iter()
-                .filter(|s| ["capture.", "features.", "matcher."].iter().any(|p| s.starts_with(p)))
-                .cloned()
-                .collect();
+            let mut set = calibrate::settings_of(set, &["capture.", "features.", "matcher."]);
             set.push("orientation.self_calibrate=[]".into());
-            let g = launch::load(&launch_dir().join("calibrate.toml"), &set, &Resolver::beside_current_exe())?;
-            let status = run_graph(&g, &pass, None, verbosity)?;
+            let status = calibrate::run_orientation_pass(&set, &pass, verbosity)?;
             if status != ExitCode::SUCCESS {
                 bail!(
                     "orienting the images to find their targets failed (logs in {}); measure the control points in \
