@@ -8,6 +8,7 @@ use std::process::ExitCode;
 use std::time::Instant;
 
 use anyhow::Result;
+use image::ImageEncoder;
 use lineflow_messages::Encoding;
 use lineflow_photogrammetry::{rotation_from_opk, Pose, Vec3};
 use lineflow_synthetic::Synthetic;
@@ -121,8 +122,6 @@ fn png_of(gray: &[u8], w: usize, h: usize) -> Result<Vec<u8>> {
     image::codecs::png::PngEncoder::new(&mut png).write_image(gray, w as u32, h as u32, image::ExtendedColorType::L8)?;
     Ok(png)
 }
-
-use image::ImageEncoder;
 
 /// The plain centroid of the pixels brighter than halfway between the disc and the ring, within twice the disc's
 /// radius of the detection: a simple blob detector's centre.
