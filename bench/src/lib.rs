@@ -19,6 +19,7 @@ pub mod record;
 mod render;
 pub mod seed001;
 pub mod seed004;
+mod sides;
 mod soak;
 mod stream;
 mod targets;
@@ -249,6 +250,10 @@ pub enum BenchCmd {
     /// linefit's depth layers again, in this process, on a finished run's final lines of a synthetic building,
     /// scored before and after (for trying their settings on tuning buildings, PRESET@N with N < 1000).
     Layers(layers::LayersBench),
+    /// The half-plane test (one surface on both sides of a line makes it texture) on a finished run's final lines
+    /// of a synthetic building, its images rendered again, scored before and after (for trying its settings on
+    /// tuning buildings, PRESET@N with N < 1000).
+    Sides(sides::SidesBench),
     /// Every parser a user's file reaches, fed mutated copies of valid files: executions, panics, slowest call.
     Fuzz {
         /// Mutated inputs per parser.
@@ -409,6 +414,7 @@ pub fn bench(cmd: BenchCmd) -> Result<ExitCode> {
         } => linematch::bench_linematch(&preset, scale, reps, points.as_deref()),
         BenchCmd::Linemap(args) => linemap::bench_linemap(&args),
         BenchCmd::Layers(args) => layers::bench_layers(&args),
+        BenchCmd::Sides(args) => sides::bench_sides(&args),
         BenchCmd::Bundle { cameras, points } => bundle::bench_bundle(cameras, points),
         BenchCmd::Fuzz { executions, seed } => fuzz::bench_fuzz(executions, seed),
         BenchCmd::Buildings {

@@ -197,7 +197,7 @@ pub(crate) fn run_segments(run: &std::path::Path) -> Result<BTreeMap<String, Vec
 }
 
 /// Frame `f` of the scene as the convert stage's grey image.
-fn rendered_photo(scene: &Synthetic, f: usize) -> Option<Arc<Photo>> {
+pub(crate) fn rendered_photo(scene: &Synthetic, f: usize) -> Option<Arc<Photo>> {
     let (w, h) = (scene.camera().width as usize, scene.camera().height as usize);
     let rgb = scene.render(f);
     let mut gray = vec![0u8; w * h];

@@ -12,13 +12,17 @@ mod grid;
 pub mod layers;
 pub mod line2;
 pub mod multiview;
+pub mod photo;
 pub mod plumb_level;
 pub mod segments;
+pub mod sides;
 
 pub use class::{classify, classify_elements, classify_supported, ClassRule, RuleError, Sight};
 pub use fuse::{covered_shares, uncovered_stretches, Cover};
 pub use layers::{snap_to_layers, LayerParams, LayerStats};
 pub use line2::Line2;
 pub use multiview::{line_support, refine_line, refine_line_along, MultiviewLine, MultiviewParams};
+pub use photo::Photo;
 pub use plumb_level::{azimuth_mod_quarter, plan_azimuth, signed_quarter, snap_plumb_and_level};
 pub use segments::{FrameSegments, SlaveSegments};
+pub use sides::{reclass, sides, PhotoView, SideCounts, SideReport, SideRule, Verdict};

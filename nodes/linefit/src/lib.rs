@@ -7,8 +7,8 @@ pub mod fit;
 pub mod merge;
 
 use lineflow_linegeom::{
-    classify_elements, refine_line, uncovered_stretches, ClassRule, Cover, LayerParams, LayerStats, MultiviewLine, MultiviewParams, Sight,
-    SlaveSegments,
+    classify_elements, refine_line, uncovered_stretches, ClassRule, Cover, LayerParams, LayerStats, MultiviewLine, MultiviewParams,
+    SideRule, Sight, SlaveSegments,
 };
 use lineflow_messages::Line3;
 use lineflow_photogrammetry::{Camera, Pose, Vec3};
@@ -52,6 +52,10 @@ pub struct FitParams {
     pub classify: bool,
     /// The classing's settings.
     pub class: ClassRule,
+    /// The half-plane test of the final lines against the images ([`lineflow_linegeom::sides`]; needs `images`,
+    /// `poses` and `camera` wired; `sides = { enabled = true }`): a structure line with one surface on both sides
+    /// becomes texture.
+    pub sides: SideRule,
     /// A line covers a stretch of another within this distance of it, metres (and `merge_angle_deg`).
     pub join_distance_m: f64,
     /// With the `joined` input wired (another line stage's lines, linemap's): the stretches of its final lines
@@ -106,6 +110,7 @@ impl Default for FitParams {
             snap_deg: 8.0,
             classify: true,
             class: ClassRule::default(),
+            sides: SideRule::default(),
             join_distance_m: 0.03,
             join_stretch_m: 0.2,
             join_max_rms_px: 0.35,
@@ -179,9 +184,9 @@ impl lineflow_runtime::StageParams for FitParams {
         at_least("multiview_min_views", self.multiview_min_views, 2)?;
         at_least("min_points", self.min_points, 2)?;
         at_least("iterations", self.iterations, 1)?;
-        self.class
-            .validate()
-            .map_err(|e| lineflow_runtime::ParamError::new(e.name, e.requirement, e.value))
+        let named = |e: lineflow_linegeom::RuleError| lineflow_runtime::ParamError::new(e.name, e.requirement, e.value);
+        self.class.validate().map_err(named)?;
+        self.sides.validate().map_err(named)
     }
 }
 

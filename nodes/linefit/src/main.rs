@@ -12,7 +12,7 @@ use lineflow_linefit::{
     bridges, fit_group, join_lines, line_elements, merge, refine_multiview, snap, snap_layers, FitParams, Fragment, Merged, Method,
     MULTIVIEW_MIN_SEGMENT_PX,
 };
-use lineflow_linegeom::{FrameSegments, Sight, SlaveSegments};
+use lineflow_linegeom::{reclass, FrameSegments, Photo, PhotoView, Sight, SlaveSegments};
 use lineflow_messages::{kinds, parts, Line3, LineClass, Lines3DHeader, Point3, PointGroup, Segment2, Stamp, StampFlags};
 use lineflow_photogrammetry::{Camera, Pose, Vec3};
 use lineflow_runtime::{Flow, NodeContext};
@@ -42,14 +42,25 @@ fn run(ctx: NodeContext, method: Method) -> Result<()> {
     let poses_in = ctx.optional_input::<kinds::Poses>("poses")?;
     let camera_in = ctx.optional_input::<kinds::CameraModel>("camera")?;
     let joined_in = ctx.optional_input::<kinds::Lines3D>("joined")?;
+    // The images only for the half-plane test of the final lines.
+    let images_in = if params.sides.enabled {
+        ctx.optional_input::<kinds::Image>("images")?
+    } else {
+        None
+    };
     let output = ctx.output::<kinds::Lines3D>("lines3d")?;
     ctx.connect()?;
+    if params.sides.enabled && images_in.is_none() {
+        tracing::warn!("sides.enabled, but no images are wired to linefit: the lines' sides are not tested");
+    }
     let multiview = params.multiview && lines_in.is_some() && poses_in.is_some() && camera_in.is_some();
     let mut segments: BTreeMap<u64, Vec<Segment2>> = BTreeMap::new();
     let mut poses: BTreeMap<u64, Pose> = BTreeMap::new();
     let mut camera: Option<Camera> = None;
     // The other line stage's final set (flagged final): its earlier sets depend on when it remapped.
     let mut joined: Option<Vec<Line3>> = None;
+    let mut photos: BTreeMap<u64, Photo> = BTreeMap::new();
+    let mut gray = Vec::new();
 
     let mut fragments: BTreeMap<u64, Vec<Fragment>> = BTreeMap::new();
     let mut merged: Vec<Merged> = Vec::new();
@@ -65,6 +76,17 @@ fn run(ctx: NodeContext, method: Method) -> Result<()> {
             i.for_each_segments(|h, segs, _| {
                 if multiview {
                     segments.insert(h.stamp.frame, segs.to_vec());
+                }
+                Ok(())
+            })?;
+        }
+        if let Some(i) = &images_in {
+            lineflow_imaging::for_each_gray(i, &mut gray, |h, g| {
+                match Photo::new(h.width as usize, h.height as usize, g.to_vec()) {
+                    Some(photo) => {
+                        photos.insert(h.stamp.frame, photo);
+                    }
+                    None => tracing::warn!("frame {}: image of {}x{} too small to test", h.stamp.frame, h.width, h.height),
                 }
                 Ok(())
             })?;
@@ -118,9 +140,13 @@ fn run(ctx: NodeContext, method: Method) -> Result<()> {
             last = newest;
         }
         // The final set waits for every image's lines and the final poses too.
-        let others_ended = [lines_in.as_ref().map(|i| i.is_ended()), poses_in.as_ref().map(|i| i.is_ended())]
-            .iter()
-            .all(|e| e.unwrap_or(true));
+        let others_ended = [
+            lines_in.as_ref().map(|i| i.is_ended()),
+            poses_in.as_ref().map(|i| i.is_ended()),
+            images_in.as_ref().map(|i| i.is_ended()),
+        ]
+        .iter()
+        .all(|e| e.unwrap_or(true));
         let joined_ended = joined_in.as_ref().is_none_or(|i| i.is_ended());
         Ok(if input.is_ended() && (!multiview || others_ended) && joined_ended {
             Flow::Stop
@@ -200,7 +226,32 @@ fn run(ctx: NodeContext, method: Method) -> Result<()> {
     // A revision above the last one, or subscribers would take the final set for a duplicate of it.
     last.flags |= StampFlags::FINAL;
     last.revision += 1;
-    let lines = line_elements(&merged, &params, camera.as_ref(), &final_poses);
+    let mut lines = line_elements(&merged, &params, camera.as_ref(), &final_poses);
+    match (&camera, &images_in) {
+        (Some(cam), Some(_)) if params.classify => {
+            let start = std::time::Instant::now();
+            let views: Vec<PhotoView> = photos
+                .iter()
+                .filter_map(|(f, photo)| {
+                    Some(PhotoView {
+                        pose: poses.get(f)?,
+                        photo,
+                    })
+                })
+                .collect();
+            let counts = reclass(&mut lines, cam, &views, &params.sides);
+            tracing::info!(
+                "sides: {} of {} structure lines lie inside a surface (texture now), {} are steps; {} images, {:.2} s",
+                counts.texture,
+                counts.tested,
+                counts.step,
+                views.len(),
+                start.elapsed().as_secs_f64()
+            );
+        }
+        (None, Some(_)) => tracing::warn!("no camera model arrived: the lines' sides are not tested"),
+        _ => {}
+    }
     output.publish(Lines3DHeader { stamp: last }, &lines)?;
     output.end_of_stream()?;
     let rows: Vec<Line3Row> = lines.iter().map(Line3Row::from).collect();

@@ -9,6 +9,8 @@
 //! hidden, or seen against another background, from some of the images.
 use lineflow_photogrammetry::{Camera, Vec3};
 
+use lineflow_linegeom::photo::{ncc, sample_rows, variance};
+
 use crate::views::View;
 
 /// Settings of the test.
@@ -204,83 +206,11 @@ impl Ribbon {
         Some(Ribbon { points, cols })
     }
 
-    /// The ribbon's grey values in `view` (NaN where its photo does not show the point), if it has a photo. Every
-    /// `KNOT`-th point of a row is projected through the camera model and the points between are interpolated:
-    /// the projection bends too little over a few pixels to matter, and the full model costs most of the test.
+    /// The ribbon's grey values in `view` (NaN where its photo does not show the point), if it has a photo.
     fn sample(&self, camera: &Camera, view: &View) -> Option<Vec<f32>> {
-        const KNOT: usize = 8;
         let photo = view.photo.as_deref()?;
-        let value = |px: Option<[f64; 2]>| px.and_then(|q| photo.sample(q)).unwrap_or(f32::NAN);
-        let mut out = Vec::with_capacity(self.points.len());
-        for row in self.points.chunks(self.cols) {
-            let knots = (0..self.cols).step_by(KNOT).chain(std::iter::once(self.cols - 1));
-            let mut from = 0;
-            let mut a = view.pose.project(camera, &row[0]);
-            out.push(value(a));
-            for to in knots.skip(1) {
-                if to == from {
-                    continue;
-                }
-                let b = view.pose.project(camera, &row[to]);
-                for c in from + 1..=to {
-                    let f = (c - from) as f64 / (to - from) as f64;
-                    out.push(value(a.zip(b).map(|(a, b)| [a[0] + f * (b[0] - a[0]), a[1] + f * (b[1] - a[1])])));
-                }
-                (from, a) = (to, b);
-            }
-        }
-        Some(out)
-    }
-}
-
-fn variance(values: &[f32], cols: usize, rows: std::ops::Range<usize>) -> f32 {
-    let v = &values[rows.start * cols..rows.end * cols];
-    let n = v.len() as f32;
-    let mean = v.iter().sum::<f32>() / n;
-    v.iter().map(|x| (x - mean) * (x - mean)).sum::<f32>() / n
-}
-
-/// Normalised cross-correlation of the rows `ra` of grid `a` with the rows `rb` (as many) of grid `b`, over the
-/// samples both show (not NaN). None when they share less than half of them, or either is flat there: an image
-/// that sees part of a line still has its say on that part.
-fn ncc(a: &[f32], ra: std::ops::Range<usize>, b: &[f32], rb: std::ops::Range<usize>, cols: usize) -> Option<f64> {
-    let (a, b) = (&a[ra.start * cols..ra.end * cols], &b[rb.start * cols..rb.end * cols]);
-    let both = || a.iter().zip(b).filter(|(x, y)| x.is_finite() && y.is_finite());
-    let n = both().count();
-    if n < 4 || 2 * n < a.len() {
-        return None;
-    }
-    let (sa, sb) = both().fold((0.0, 0.0), |(sa, sb), (&x, &y)| (sa + x as f64, sb + y as f64));
-    let (ma, mb) = (sa / n as f64, sb / n as f64);
-    let (mut sab, mut saa, mut sbb) = (0.0, 0.0, 0.0);
-    for (&x, &y) in both() {
-        let (dx, dy) = (x as f64 - ma, y as f64 - mb);
-        sab += dx * dy;
-        saa += dx * dx;
-        sbb += dy * dy;
-    }
-    (saa > 1e-9 && sbb > 1e-9).then(|| sab / (saa * sbb).sqrt())
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn correlation_of_a_pattern_with_itself_its_negative_and_a_flat_grid() {
-        let a: Vec<f32> = (0..12).map(|i| (i * 7 % 5) as f32).collect();
-        let neg: Vec<f32> = a.iter().map(|x| 10.0 - x).collect();
-        assert!((ncc(&a, 0..3, &a, 0..3, 4).unwrap() - 1.0).abs() < 1e-12);
-        assert!((ncc(&a, 0..3, &neg, 0..3, 4).unwrap() + 1.0).abs() < 1e-12);
-        assert!(ncc(&a, 0..3, &[3.0; 12], 0..3, 4).is_none());
-        // Half of `b` unseen: compared on the rest; more than half unseen: no say.
-        let mut half: Vec<f32> = a.clone();
-        half[..6].fill(f32::NAN);
-        assert!((ncc(&a, 0..3, &half, 0..3, 4).unwrap() - 1.0).abs() < 1e-12);
-        half[6] = f32::NAN;
-        assert!(ncc(&a, 0..3, &half, 0..3, 4).is_none());
-        // Row 1 of `a` is row 0 of `b`: the two match best one row apart.
-        let b: Vec<f32> = a[4..].iter().chain(&a[..4]).copied().collect();
-        assert!((ncc(&a, 1..3, &b, 0..2, 4).unwrap() - 1.0).abs() < 1e-12);
+        Some(sample_rows(photo, self.points.len(), self.cols, |k| {
+            view.pose.project(camera, &self.points[k])
+        }))
     }
 }

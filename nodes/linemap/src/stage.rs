@@ -11,10 +11,10 @@ use lineflow_photogrammetry::{Camera, Pose, Vec3};
 
 use crate::guide::Guide;
 use crate::line::MappedLine;
-use crate::photo::Photo;
 use crate::tracks::map_lines;
 use crate::views::View;
 use crate::MapParams;
+use lineflow_linegeom::Photo;
 
 /// The stage's state.
 #[derive(Debug, Clone)]

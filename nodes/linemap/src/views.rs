@@ -7,7 +7,7 @@ use lineflow_linegeom::{FrameSegments, SlaveSegments};
 use lineflow_messages::Segment2;
 use lineflow_photogrammetry::{Camera, Pose, Vec3};
 
-use crate::photo::Photo;
+use lineflow_linegeom::Photo;
 
 /// One oriented image and its segments.
 #[derive(Debug, Clone)]
