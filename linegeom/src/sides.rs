@@ -66,7 +66,7 @@ impl Default for SideRule {
             min_variance: 9.0,
             min_correlation: 0.5,
             min_contrast: 0.15,
-            contrast_px: 2.0,
+            contrast_px: 4.0,
             same_px: 0.5,
             same_m: 0.03,
         }

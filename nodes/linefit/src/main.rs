@@ -42,12 +42,8 @@ fn run(ctx: NodeContext, method: Method) -> Result<()> {
     let poses_in = ctx.optional_input::<kinds::Poses>("poses")?;
     let camera_in = ctx.optional_input::<kinds::CameraModel>("camera")?;
     let joined_in = ctx.optional_input::<kinds::Lines3D>("joined")?;
-    // The images only for the half-plane test of the final lines.
-    let images_in = if params.sides.enabled {
-        ctx.optional_input::<kinds::Image>("images")?
-    } else {
-        None
-    };
+    // The images are for the half-plane test of the final lines only: without it they are taken and dropped.
+    let images_in = ctx.optional_input::<kinds::Image>("images")?;
     let output = ctx.output::<kinds::Lines3D>("lines3d")?;
     ctx.connect()?;
     if params.sides.enabled && images_in.is_none() {
@@ -80,7 +76,10 @@ fn run(ctx: NodeContext, method: Method) -> Result<()> {
                 Ok(())
             })?;
         }
-        if let Some(i) = &images_in {
+        if let Some(i) = images_in.as_ref().filter(|_| !params.sides.enabled) {
+            while i.receive()?.is_some() {}
+        }
+        if let Some(i) = images_in.as_ref().filter(|_| params.sides.enabled) {
             lineflow_imaging::for_each_gray(i, &mut gray, |h, g| {
                 match Photo::new(h.width as usize, h.height as usize, g.to_vec()) {
                     Some(photo) => {
@@ -228,7 +227,7 @@ fn run(ctx: NodeContext, method: Method) -> Result<()> {
     last.revision += 1;
     let mut lines = line_elements(&merged, &params, camera.as_ref(), &final_poses);
     match (&camera, &images_in) {
-        (Some(cam), Some(_)) if params.classify => {
+        (Some(cam), Some(_)) if params.classify && params.sides.enabled => {
             let start = std::time::Instant::now();
             let views: Vec<PhotoView> = photos
                 .iter()
@@ -249,7 +248,7 @@ fn run(ctx: NodeContext, method: Method) -> Result<()> {
                 start.elapsed().as_secs_f64()
             );
         }
-        (None, Some(_)) => tracing::warn!("no camera model arrived: the lines' sides are not tested"),
+        (None, Some(_)) if params.sides.enabled => tracing::warn!("no camera model arrived: the lines' sides are not tested"),
         _ => {}
     }
     output.publish(Lines3DHeader { stamp: last }, &lines)?;
