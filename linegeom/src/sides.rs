@@ -49,8 +49,9 @@ pub struct SideRule {
     /// Two sides' surfaces lie at one depth when their depths differ by less than this much parallax in the image
     /// that sees depth best, pixels.
     pub same_px: f64,
-    /// ... and by no more than this, metres: where a pixel of parallax spans decimetres, a pane's edge and its frame
-    /// 4 cm in front of it are alike to the images, and the test gives no texture verdict it cannot stand behind.
+    /// ... and by no more than this, metres. Where this much depth is less than `same_px` of parallax in the image
+    /// that sees depth best (at the test scale, 0.3, a pixel is 10-15 cm of depth), a pane's edge and its frame 4 cm
+    /// in front of it are alike to the images, and the test gives no texture verdict.
     pub same_m: f64,
 }
 
@@ -357,7 +358,9 @@ fn verdict(peaks: &[Option<Peak>; 2], px_per_m: f64, rule: &SideRule) -> Verdict
     match (side(&peaks[0], rule), side(&peaks[1], rule)) {
         (Some(Side::Surface(a)), Some(Side::Surface(b))) => {
             let apart_px = (a - b).abs() * px_per_m;
-            if apart_px <= rule.same_px && (a - b).abs() <= rule.same_m {
+            // Where `same_m` of depth is less than `same_px` of parallax, the images cannot tell a surface from one
+            // `same_m` behind it, and a pane's edge from its frame: no texture verdict then.
+            if apart_px <= rule.same_px && (a - b).abs() <= rule.same_m && px_per_m * rule.same_m >= rule.same_px {
                 Verdict::Texture
             } else if apart_px > 3.0 * rule.same_px {
                 Verdict::Step
@@ -532,6 +535,12 @@ mod tests {
         );
         // No texture on either side: no say.
         assert_eq!(verdict(plumb(-1.8, 0.0)).verdict, Verdict::Unknown);
+        // Where 1 cm of depth is less than half a pixel of parallax, no texture verdict within 1 cm can be trusted.
+        let fine = SideRule {
+            same_m: 0.01,
+            ..SideRule::default()
+        };
+        assert_eq!(sides(&cam, &v, &plumb(-1.0, 0.0), &fine).verdict, Verdict::Unknown);
         // Fewer than three images: no say.
         assert_eq!(sides(&cam, &v[..2], &plumb(-1.0, 0.0), &rule).verdict, Verdict::Unknown);
     }
