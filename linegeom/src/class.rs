@@ -83,16 +83,21 @@ pub struct RuleError {
     pub value: String,
 }
 
+impl RuleError {
+    /// The error of setting `TABLE.NAME` of a line stage's parameters.
+    pub fn of(table: &str, name: &str, requirement: &'static str, value: String) -> Self {
+        RuleError {
+            name: format!("{table}.{name}"),
+            requirement,
+            value,
+        }
+    }
+}
+
 impl ClassRule {
     /// `Ok` for a rule whose numbers make sense, else the first setting that does not.
     pub fn validate(&self) -> Result<(), RuleError> {
-        let bad = |name: &str, requirement: &'static str, value: String| {
-            Err(RuleError {
-                name: format!("class.{name}"),
-                requirement,
-                value,
-            })
-        };
+        let bad = |name: &str, requirement: &'static str, value: String| Err(RuleError::of("class", name, requirement, value));
         if !(self.behind_m.is_finite() && self.behind_m >= 0.0) {
             return bad("behind_m", ">= 0", self.behind_m.to_string());
         }

@@ -54,12 +54,16 @@ pub fn sample_rows(photo: &Photo, len: usize, cols: usize, project: impl Fn(usiz
     out
 }
 
-/// The variance of the rows `rows` of a grid of `cols` columns (NaN if any of them is NaN).
-pub fn variance(values: &[f32], cols: usize, rows: Range<usize>) -> f32 {
-    let v = &values[rows.start * cols..rows.end * cols];
-    let n = v.len() as f32;
-    let mean = v.iter().sum::<f32>() / n;
-    v.iter().map(|x| (x - mean) * (x - mean)).sum::<f32>() / n
+/// The variance of the finite values among the rows `rows` of a grid of `cols` columns, and how many there are
+/// (0 for fewer than two).
+pub fn variance(values: &[f32], cols: usize, rows: Range<usize>) -> (f32, usize) {
+    let v = values[rows.start * cols..rows.end * cols].iter().filter(|x| x.is_finite());
+    let (sum, n) = v.clone().fold((0.0, 0), |(s, n), x| (s + x, n + 1));
+    if n < 2 {
+        return (0.0, n);
+    }
+    let mean = sum / n as f32;
+    (v.map(|x| (x - mean) * (x - mean)).sum::<f32>() / n as f32, n)
 }
 
 /// Normalised cross-correlation of the rows `ra` of grid `a` with the rows `rb` (as many) of grid `b`, over the
@@ -115,6 +119,8 @@ mod tests {
         // Row 1 of `a` is row 0 of `b`: the two match best one row apart.
         let b: Vec<f32> = a[4..].iter().chain(&a[..4]).copied().collect();
         assert!((ncc(&a, 1..3, &b, 0..2, 4).unwrap() - 1.0).abs() < 1e-12);
-        assert_eq!(variance(&[1.0, 3.0, 5.0, 7.0], 2, 0..1), 1.0);
+        assert_eq!(variance(&[1.0, 3.0, 5.0, 7.0], 2, 0..1), (1.0, 2));
+        let (v, n) = variance(&[1.0, f32::NAN, 5.0, 7.0], 2, 0..2);
+        assert!((v - 56.0 / 9.0).abs() < 1e-5 && n == 3, "the NaN left out: {v} of {n}");
     }
 }

@@ -18,7 +18,7 @@
 use lineflow_photogrammetry::{Camera, Pose, Vec3};
 
 use crate::class::RuleError;
-use crate::photo::{ncc, sample_rows, Photo};
+use crate::photo::{ncc, sample_rows, variance, Photo};
 
 /// The settings of the test: the `sides` parameter of the line stages, a table (`sides = { width_px = 3 }`; what
 /// it leaves out keeps its default).
@@ -77,13 +77,7 @@ impl Default for SideRule {
 impl SideRule {
     /// `Ok` for settings that make sense, else the first that does not.
     pub fn validate(&self) -> Result<(), RuleError> {
-        let bad = |name: &str, requirement: &'static str, value: String| {
-            Err(RuleError {
-                name: format!("sides.{name}"),
-                requirement,
-                value,
-            })
-        };
+        let bad = |name: &str, requirement: &'static str, value: String| Err(RuleError::of("sides", name, requirement, value));
         if !(self.gap_px.is_finite() && self.gap_px >= 0.0) {
             return bad("gap_px", ">= 0", self.gap_px.to_string());
         }
@@ -203,12 +197,8 @@ pub fn sides(camera: &Camera, views: &[PhotoView], ends: &[Vec3; 2], rule: &Side
     let w = rule.width_px;
     let rows = [0..w, w..2 * w];
     let textured = rows.clone().map(|r| {
-        let v: Vec<f32> = base[r.start * ribbon.cols..r.end * ribbon.cols]
-            .iter()
-            .copied()
-            .filter(|x| x.is_finite())
-            .collect();
-        2 * v.len() >= (r.end - r.start) * ribbon.cols && spread(&v) >= rule.min_variance
+        let (spread, n) = variance(&base, ribbon.cols, r);
+        2 * n >= w * ribbon.cols && spread >= rule.min_variance
     });
     if !textured.iter().any(|&t| t) {
         return SideReport::unknown();
@@ -385,15 +375,6 @@ fn along_only(mut values: Vec<f32>, cols: usize) -> Vec<f32> {
         }
     }
     values
-}
-
-/// The variance of the finite values (0 for fewer than two).
-fn spread(v: &[f32]) -> f32 {
-    if v.len() < 2 {
-        return 0.0;
-    }
-    let mean = v.iter().sum::<f32>() / v.len() as f32;
-    v.iter().map(|x| (x - mean) * (x - mean)).sum::<f32>() / v.len() as f32
 }
 
 /// The object-space samples of the two sides: `cols` along the line, `width_px` rows on each side of it (side 0

@@ -121,7 +121,7 @@ fn compare_until(
     let sides = [search..search + h + 1, search + h..search + 2 * h + 1];
     let textured: Vec<bool> = sides
         .iter()
-        .map(|r| variance(&base, grid.cols, r.clone()) >= p.min_variance)
+        .map(|r| variance(&base, grid.cols, r.clone()).0 >= p.min_variance)
         .collect();
     if !textured.iter().any(|&t| t) {
         return None;
