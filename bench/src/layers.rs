@@ -3,15 +3,13 @@
 //! as `bench buildings` scores a run (the moved lines are written to `lines3d_layers.csv` in the run folder). For trying the layers' settings in seconds on tuning buildings.
 use std::process::ExitCode;
 
-use anyhow::{Context, Result};
+use anyhow::Result;
 use lineflow_eval::lines3d::evaluate;
-use lineflow_eval::Truth;
-use lineflow_formats::{read_lines3d, read_poses, Line3Row};
-use lineflow_linefit::{line_elements, snap, snap_layers, FitParams, Merged};
-use lineflow_linegeom::SlaveSegments;
+use lineflow_linefit::{snap, snap_layers, FitParams};
 
 use crate::buildings::{print_header, print_kinds, print_row, row};
-use crate::linemap::{frame_segments, run_segments, FinishedRun};
+use crate::final_lines::FinalLines;
+use crate::linemap::FinishedRun;
 
 /// What `lineflow bench layers` is asked.
 #[derive(Debug, clap::Args)]
@@ -29,44 +27,34 @@ pub fn bench_layers(args: &LayersBench) -> Result<ExitCode> {
     set.extend(args.set.iter().cloned());
     let fit: FitParams = lineflow_runtime::launch::params_from_overrides(&set)?;
     lineflow_runtime::StageParams::validate(&fit)?;
-    let run = args.of.run.as_path();
-    let scene = args.of.scene()?;
-    let camera = *scene.camera();
-    let truth = Truth::from_scene(scene);
-    let poses = read_poses(&run.join("poses.csv")).with_context(|| format!("{}: the run's poses", run.display()))?;
-    let lines = read_lines3d(&run.join("lines3d.csv")).with_context(|| format!("{}: the run's lines", run.display()))?;
-    let segments = run_segments(run)?;
-    let frames = frame_segments(&camera, &poses, &segments);
-    let views: Vec<SlaveSegments> = frames
-        .iter()
-        .map(|(pose, segments)| SlaveSegments { pose: *pose, segments })
-        .collect();
-    let mut merged: Vec<Merged> = lines.iter().map(Merged::from_row).collect();
+    let run = FinalLines::load(&args.of)?;
+    let views = run.views();
+    let mut merged = run.merged();
     let start = std::time::Instant::now();
-    let stats = snap_layers(&camera, &mut merged, &views, &fit);
+    let stats = snap_layers(&run.camera, &mut merged, &views, &fit);
     snap(&mut merged, &fit);
     let seconds = start.elapsed().as_secs_f64();
-    let pose_list: Vec<lineflow_photogrammetry::Pose> = poses.iter().map(|p| p.pose).collect();
-    let after: Vec<Line3Row> = line_elements(&merged, &fit, Some(&camera), &pose_list)
-        .iter()
-        .map(Line3Row::from)
-        .collect();
+    let after = run.rows(&merged, &fit);
     println!(
         "layers on {} ({} lines, {} views), {seconds:.2} s: {stats:?}\n",
         args.of.building,
-        lines.len(),
+        run.lines.len(),
         views.len()
     );
     print_header();
     let before = row(
         format!("{} the run's lines3d.csv", args.of.building),
-        &evaluate(&truth, &lines),
+        &evaluate(&run.truth, &run.lines),
         f64::NAN,
     );
-    let moved = row(format!("{} on the layers", args.of.building), &evaluate(&truth, &after), seconds);
+    let moved = row(
+        format!("{} on the layers", args.of.building),
+        &evaluate(&run.truth, &after),
+        seconds,
+    );
     print_row(&before);
     print_row(&moved);
     print_kinds([&before, &moved].into_iter());
-    lineflow_formats::write_lines3d(&run.join("lines3d_layers.csv"), &after)?;
+    lineflow_formats::write_lines3d(&args.of.run.join("lines3d_layers.csv"), &after)?;
     Ok(ExitCode::SUCCESS)
 }

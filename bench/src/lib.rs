@@ -6,6 +6,7 @@ mod bundle;
 mod chaos;
 mod edges;
 mod features;
+mod final_lines;
 pub mod fuzz;
 mod layers;
 mod linemap;
@@ -13,6 +14,7 @@ mod linematch;
 mod lines2d;
 pub mod model;
 mod modelfit;
+mod multiview;
 mod processes;
 pub mod reader;
 pub mod record;
@@ -250,6 +252,10 @@ pub enum BenchCmd {
     /// linefit's depth layers again, in this process, on a finished run's final lines of a synthetic building,
     /// scored before and after (for trying their settings on tuning buildings, PRESET@N with N < 1000).
     Layers(layers::LayersBench),
+    /// linefit's multi-view re-estimate again, in this process, on a finished run's final lines of a synthetic
+    /// building, with the defaults and with the given settings, both scored (for trying its settings on tuning
+    /// buildings, PRESET@N with N < 1000).
+    Multiview(multiview::MultiviewBench),
     /// The half-plane test (one surface on both sides of a line makes it texture) on a finished run's final lines
     /// of a synthetic building, its images rendered again, scored before and after (for trying its settings on
     /// tuning buildings, PRESET@N with N < 1000).
@@ -414,6 +420,7 @@ pub fn bench(cmd: BenchCmd) -> Result<ExitCode> {
         } => linematch::bench_linematch(&preset, scale, reps, points.as_deref()),
         BenchCmd::Linemap(args) => linemap::bench_linemap(&args),
         BenchCmd::Layers(args) => layers::bench_layers(&args),
+        BenchCmd::Multiview(args) => multiview::bench_multiview(&args),
         BenchCmd::Sides(args) => sides::bench_sides(&args),
         BenchCmd::Bundle { cameras, points } => bundle::bench_bundle(cameras, points),
         BenchCmd::Fuzz { executions, seed } => fuzz::bench_fuzz(executions, seed),
