@@ -20,12 +20,17 @@ pub(crate) struct FinalLines {
 }
 
 impl FinalLines {
-    pub fn load(of: &FinishedRun) -> Result<Self> {
+    /// With `truth_poses`, the scene's true poses stand in for the run's `poses.csv`.
+    pub fn load(of: &FinishedRun, truth_poses: bool) -> Result<Self> {
         let run = of.run.as_path();
         let scene = of.scene()?;
         let camera = *scene.camera();
         let truth = Truth::from_scene(scene);
-        let poses = read_poses(&run.join("poses.csv")).with_context(|| format!("{}: the run's poses", run.display()))?;
+        let poses = if truth_poses {
+            truth.poses.clone()
+        } else {
+            read_poses(&run.join("poses.csv")).with_context(|| format!("{}: the run's poses", run.display()))?
+        };
         let lines = read_lines3d(&run.join("lines3d.csv")).with_context(|| format!("{}: the run's lines", run.display()))?;
         let frames = frame_segments(&camera, &poses, &run_segments(run)?);
         Ok(FinalLines {

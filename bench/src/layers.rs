@@ -27,7 +27,7 @@ pub fn bench_layers(args: &LayersBench) -> Result<ExitCode> {
     set.extend(args.set.iter().cloned());
     let fit: FitParams = lineflow_runtime::launch::params_from_overrides(&set)?;
     lineflow_runtime::StageParams::validate(&fit)?;
-    let run = FinalLines::load(&args.of)?;
+    let run = FinalLines::load(&args.of, false)?;
     let views = run.views();
     let mut merged = run.merged();
     let start = std::time::Instant::now();

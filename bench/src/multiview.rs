@@ -20,14 +20,17 @@ pub struct MultiviewBench {
     /// Parameter override KEY=VALUE of the linefit stage for the variant (repeatable).
     #[arg(long)]
     pub set: Vec<String>,
+    /// Re-estimate with the true poses instead of the run's (how much of the lines' error the orientation leaves).
+    #[arg(long)]
+    pub truth_poses: bool,
 }
 
-/// `lineflow bench multiview RUN --building B [--scale S] [--seed N] [--set KEY=VALUE]...`
+/// `lineflow bench multiview RUN --building B [--scale S] [--seed N] [--truth-poses] [--set KEY=VALUE]...`
 pub fn bench_multiview(args: &MultiviewBench) -> Result<ExitCode> {
     let defaults = FitParams::default();
     let variant: FitParams = lineflow_runtime::launch::params_from_overrides(&args.set)?;
     lineflow_runtime::StageParams::validate(&variant)?;
-    let run = FinalLines::load(&args.of)?;
+    let run = FinalLines::load(&args.of, args.truth_poses)?;
     let views = run.views();
     let refined = |fit: &FitParams, label: &str| -> Row {
         let mut merged = run.merged();

@@ -44,6 +44,9 @@ pub struct FitParams {
     pub multiview_max_distance_px: f64,
     /// Images a line needs to be re-estimated.
     pub multiview_min_views: usize,
+    /// In the re-estimate, only directions across a line that its images' planes fix to this standard deviation,
+    /// metres, move (at 0.3 px per segment); the others keep the matched position.
+    pub multiview_max_sigma_m: f64,
     /// Lines within this angle of plumb, or of level along the façade's plan direction or square to it, are turned
     /// onto it about their midpoint, degrees ([`lineflow_linegeom::plumb_level`]); 0 turns none.
     pub snap_deg: f64,
@@ -107,6 +110,7 @@ impl Default for FitParams {
             multiview: true,
             multiview_max_distance_px: 2.5,
             multiview_min_views: 3,
+            multiview_max_sigma_m: 0.005,
             snap_deg: 8.0,
             classify: true,
             class: ClassRule::default(),
@@ -134,6 +138,7 @@ impl FitParams {
         MultiviewParams {
             max_distance_px: self.multiview_max_distance_px,
             min_views: self.multiview_min_views,
+            max_sigma_m: self.multiview_max_sigma_m,
             ..MultiviewParams::default()
         }
     }
@@ -182,6 +187,7 @@ impl lineflow_runtime::StageParams for FitParams {
         in_half_open("snap_deg", self.snap_deg, 0.0, 45.0)?;
         positive("multiview_max_distance_px", self.multiview_max_distance_px)?;
         at_least("multiview_min_views", self.multiview_min_views, 2)?;
+        positive("multiview_max_sigma_m", self.multiview_max_sigma_m)?;
         at_least("min_points", self.min_points, 2)?;
         at_least("iterations", self.iterations, 1)?;
         let named = |e: lineflow_linegeom::RuleError| lineflow_runtime::ParamError::new(e.name, e.requirement, e.value);
