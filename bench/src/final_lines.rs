@@ -17,6 +17,8 @@ pub(crate) struct FinalLines {
     /// The run's `lines3d.csv`.
     pub lines: Vec<Line3Row>,
     frames: Vec<(Pose, FrameSegments)>,
+    /// The image of each of `frames`.
+    images: Vec<String>,
 }
 
 impl FinalLines {
@@ -32,13 +34,20 @@ impl FinalLines {
             read_poses(&run.join("poses.csv")).with_context(|| format!("{}: the run's poses", run.display()))?
         };
         let lines = read_lines3d(&run.join("lines3d.csv")).with_context(|| format!("{}: the run's lines", run.display()))?;
-        let frames = frame_segments(&camera, &poses, &run_segments(run)?);
+        let segments = run_segments(run)?;
+        let frames = frame_segments(&camera, &poses, &segments);
+        let images = poses
+            .iter()
+            .filter(|p| segments.contains_key(&p.image))
+            .map(|p| p.image.clone())
+            .collect();
         Ok(FinalLines {
             truth,
             camera,
             poses,
             lines,
             frames,
+            images,
         })
     }
 
@@ -47,6 +56,23 @@ impl FinalLines {
         self.frames
             .iter()
             .map(|(pose, segments)| SlaveSegments { pose: *pose, segments })
+            .collect()
+    }
+
+    /// Every oriented image's segments with the pose `poses` gives it (in the order of [`FinalLines::views`]).
+    pub fn views_with<'a>(&'a self, poses: &[Pose]) -> Vec<SlaveSegments<'a>> {
+        self.frames
+            .iter()
+            .zip(poses)
+            .map(|((_, segments), &pose)| SlaveSegments { pose, segments })
+            .collect()
+    }
+
+    /// The true pose of each of [`FinalLines::views`]' images, where the truth has it.
+    pub fn true_poses(&self) -> Vec<Option<Pose>> {
+        self.images
+            .iter()
+            .map(|image| self.truth.poses.iter().find(|t| &t.image == image).map(|t| t.pose))
             .collect()
     }
 

@@ -7,6 +7,8 @@ use std::process::ExitCode;
 use anyhow::Result;
 use lineflow_eval::lines3d::evaluate;
 use lineflow_linefit::{refine_multiview, snap, FitParams};
+use lineflow_linegeom::line_bundle::{adjust_with_lines, turn_between, LineBundleParams};
+use lineflow_photogrammetry::Pose;
 
 use crate::buildings::{print_header, print_kinds, print_row, row, Row};
 use crate::final_lines::FinalLines;
@@ -23,6 +25,23 @@ pub struct MultiviewBench {
     /// Re-estimate with the true poses instead of the run's (how much of the lines' error the orientation leaves).
     #[arg(long)]
     pub truth_poses: bool,
+    /// Adjust the poses together with the lines on their 2-D segments first (`linegeom::line_bundle`), then
+    /// re-estimate the lines with the adjusted poses; prints the poses' error against the truth before and after.
+    #[arg(long)]
+    pub line_bundle: bool,
+    /// The variant's settings re-estimate only the plumb lines (within 1° of the vertical); the others keep the
+    /// defaults.
+    #[arg(long)]
+    pub plumb_only: bool,
+    /// The line bundle's prior σ of a camera centre, metres.
+    #[arg(long, default_value_t = LineBundleParams::default().center_sigma_m)]
+    pub bundle_center_sigma: f64,
+    /// The line bundle's prior σ of a camera's rotation, radians.
+    #[arg(long, default_value_t = LineBundleParams::default().rotation_sigma_rad)]
+    pub bundle_rotation_sigma: f64,
+    /// The line bundle's σ of a segment's plane, pixels.
+    #[arg(long, default_value_t = LineBundleParams::default().sigma_px)]
+    pub bundle_sigma_px: f64,
 }
 
 /// `lineflow bench multiview RUN --building B [--scale S] [--seed N] [--truth-poses] [--set KEY=VALUE]...`
@@ -31,11 +50,50 @@ pub fn bench_multiview(args: &MultiviewBench) -> Result<ExitCode> {
     let variant: FitParams = lineflow_runtime::launch::params_from_overrides(&args.set)?;
     lineflow_runtime::StageParams::validate(&variant)?;
     let run = FinalLines::load(&args.of, args.truth_poses)?;
-    let views = run.views();
+    let mut views = run.views();
+    let mut bundled = None;
+    if args.line_bundle {
+        let p = LineBundleParams {
+            center_sigma_m: args.bundle_center_sigma,
+            rotation_sigma_rad: args.bundle_rotation_sigma,
+            sigma_px: args.bundle_sigma_px,
+            ..LineBundleParams::default()
+        };
+        let ends: Vec<_> = run.merged().iter().map(|l| [l.start, l.end]).collect();
+        let start = std::time::Instant::now();
+        let b = adjust_with_lines(&run.camera, &views, &ends, &p);
+        println!(
+            "line bundle: {} lines, {} observations, residual RMS {:.3} → {:.3} px, {} iterations, {:.2} s",
+            b.lines.iter().flatten().count(),
+            b.observations,
+            b.rms_px[0],
+            b.rms_px[1],
+            b.iterations,
+            start.elapsed().as_secs_f64()
+        );
+        let given: Vec<Pose> = views.iter().map(|v| v.pose).collect();
+        print_pose_errors("poses as given", &given, &run.true_poses());
+        print_pose_errors("poses adjusted with the lines", &b.poses, &run.true_poses());
+        views = run.views_with(&b.poses);
+        bundled = Some(b);
+    }
     let refined = |fit: &FitParams, label: &str| -> Row {
         let mut merged = run.merged();
         let start = std::time::Instant::now();
-        let (moved, rms_px) = refine_multiview(&run.camera, &mut merged, &views, fit);
+        let plumb = |l: &lineflow_linefit::Merged| {
+            (l.end - l.start)
+                .try_normalize(1e-12)
+                .is_some_and(|d| d.z.abs() > 1f64.to_radians().cos())
+        };
+        let (moved, rms_px) = if args.plumb_only && std::ptr::eq(fit, &variant) {
+            let (mut vertical, mut others): (Vec<_>, Vec<_>) = merged.drain(..).partition(|l| plumb(l));
+            let a = refine_multiview(&run.camera, &mut vertical, &views, fit);
+            let b = refine_multiview(&run.camera, &mut others, &views, &defaults);
+            merged = vertical.into_iter().chain(others).collect();
+            (a.0 + b.0, a.1.max(b.1))
+        } else {
+            refine_multiview(&run.camera, &mut merged, &views, fit)
+        };
         snap(&mut merged, fit);
         let seconds = start.elapsed().as_secs_f64();
         println!(
@@ -50,6 +108,20 @@ pub fn bench_multiview(args: &MultiviewBench) -> Result<ExitCode> {
         }
         row(format!("{} {label}", args.of.building), &evaluate(&run.truth, &rows), seconds)
     };
+    let bundle_row = bundled.as_ref().map(|b| {
+        let mut merged = run.merged();
+        for (l, adjusted) in merged.iter_mut().zip(&b.lines) {
+            if let Some([s, e]) = adjusted {
+                (l.start, l.end) = (*s, *e);
+            }
+        }
+        snap(&mut merged, &defaults);
+        row(
+            format!("{} the line bundle's lines", args.of.building),
+            &evaluate(&run.truth, &run.rows(&merged, &defaults)),
+            f64::NAN,
+        )
+    });
     let rows = [
         row(
             format!("{} the run's lines3d.csv", args.of.building),
@@ -69,9 +141,31 @@ pub fn bench_multiview(args: &MultiviewBench) -> Result<ExitCode> {
             ),
         ),
     ];
+    let rows: Vec<Row> = rows.into_iter().chain(bundle_row).collect();
     println!();
     print_header();
     rows.iter().for_each(print_row);
     print_kinds(rows.iter());
     Ok(ExitCode::SUCCESS)
+}
+
+/// The camera centres' and rotations' RMS error against the truth (where known), printed.
+fn print_pose_errors(label: &str, poses: &[Pose], truth: &[Option<Pose>]) {
+    let pairs: Vec<(&Pose, &Pose)> = poses.iter().zip(truth).filter_map(|(p, t)| Some((p, t.as_ref()?))).collect();
+    let n = pairs.len().max(1) as f64;
+    let centres = (pairs.iter().map(|(p, t)| (p.center - t.center).norm_squared()).sum::<f64>() / n).sqrt();
+    let mean = pairs
+        .iter()
+        .map(|(p, t)| p.center - t.center)
+        .sum::<lineflow_photogrammetry::Vec3>()
+        / n;
+    let turns = (pairs.iter().map(|(p, t)| turn_between(t, p).norm_squared()).sum::<f64>() / n).sqrt();
+    println!(
+        "{label}: centres {:.1} mm RMS (mean offset {:.1} / {:.1} / {:.1} mm), rotations {:.3} mrad RMS",
+        centres * 1e3,
+        mean.x * 1e3,
+        mean.y * 1e3,
+        mean.z * 1e3,
+        turns * 1e3
+    );
 }

@@ -236,9 +236,10 @@ pub fn command(
     if let Some(l) = &evaluation.lines3d {
         let all = &l.classes[0];
         println!(
-            "3-D lines: {} estimated, success rate {:.1} % ({:.1} % of the {} edges the images resolve)",
+            "3-D lines: {} estimated, success rate {:.1} % (the images allow at most {:.1} %; {:.1} % of the {} edges they resolve)",
             all.n_estimated,
             100.0 * all.success_rate,
+            100.0 * all.success_ceiling,
             100.0 * all.success_resolvable,
             all.n_resolvable
         );

@@ -7,7 +7,7 @@ use lineflow_photogrammetry::{Pose, Vec3};
 use rayon::prelude::*;
 
 use crate::geometry::{bounds, class_on_walls, polygon_distance, segment_grid, Class, Grid, Seg, WallPlane};
-use crate::resolvable::resolvable;
+use crate::resolvable::{inseparable, most_recoverable, resolvable};
 use crate::Truth;
 
 /// Samples per segment for the coverage metrics.
@@ -52,6 +52,9 @@ pub struct ClassScores {
     pub n_resolvable: usize,
     /// Share of those that are recovered.
     pub success_resolvable: f64,
+    /// The highest success rate the images allow: the share of the edges of at least 0.5 m that any set of lines
+    /// could recover when of two edges no two images show apart, and more than 4 GSD apart, only one can be ([`crate::resolvable::most_recoverable`]).
+    pub success_ceiling: f64,
     pub at: Vec<AtTolerance>,
 }
 
@@ -118,6 +121,8 @@ pub fn evaluate(truth: &Truth, rows: &[Line3Row]) -> Lines3dReport {
     let faces: Vec<Vec<Vec3>> = truth.scene.building.faces.iter().map(|f| f.corners()).collect();
     let poses: Vec<Pose> = truth.poses.iter().map(|p| p.pose).collect();
     let resolved = resolvable(truth.scene.camera(), &poses, &gt);
+    // Edges within two tolerances (2 GSD each) of each other can both lie within 2 GSD of one line.
+    let pairs = inseparable(truth.scene.camera(), &poses, &gt, 4.0 * gsd);
 
     // Match each estimate to the nearby, nearly parallel true edge its endpoints lie closest to.
     let match_reach = (5.0 * gsd).max(0.1);
@@ -296,6 +301,7 @@ pub fn evaluate(truth: &Truth, rows: &[Line3Row]) -> Lines3dReport {
                 success_rate: share(found.iter().filter(|&&f| f).count(), long.len()),
                 n_resolvable,
                 success_resolvable: share(found_resolvable, n_resolvable),
+                success_ceiling: share(most_recoverable(&long, &pairs), long.len()),
                 at,
             }
         })

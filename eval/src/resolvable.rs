@@ -34,26 +34,32 @@ pub fn resolvable(camera: &Camera, poses: &[Pose], truth: &[Seg]) -> Vec<bool> {
 }
 
 fn resolved(camera: &Camera, poses: &[Pose], truth: &[Seg], grid: &Grid, i: usize) -> bool {
+    let beside: Vec<Vec3> = neighbours(truth, grid, i).into_iter().map(|(_, q)| q).collect();
+    beside.is_empty() || views_apart(camera, poses, &truth[i], &beside) >= RESOLVE_VIEWS
+}
+
+/// The parallel true edges that run beside edge `i`, each with its point beside `i`'s midpoint.
+fn neighbours(truth: &[Seg], grid: &Grid, i: usize) -> Vec<(usize, Vec3)> {
     let edge = &truth[i];
     let mid = edge.at(0.5);
-    // The point of each neighbour beside the midpoint.
-    let beside: Vec<Vec3> = grid
-        .near(&mid)
+    grid.near(&mid)
         .iter()
-        .filter(|&&j| j as usize != i)
-        .map(|&j| &truth[j as usize])
-        .filter(|other| other.angle_deg(edge) <= PARALLEL_DEG && other.line_distance(&mid) <= NEIGHBOUR_M)
-        .filter_map(|other| {
-            let t = other.param(&mid);
-            (0.0..=1.0).contains(&t).then(|| other.at(t))
+        .map(|&j| j as usize)
+        .filter(|&j| j != i)
+        .filter(|&j| truth[j].angle_deg(edge) <= PARALLEL_DEG && truth[j].line_distance(&mid) <= NEIGHBOUR_M)
+        .filter_map(|j| {
+            let t = truth[j].param(&mid);
+            (0.0..=1.0).contains(&t).then(|| (j, truth[j].at(t)))
         })
-        .collect();
-    if beside.is_empty() {
-        return true;
-    }
+        .collect()
+}
+
+/// The images that show `edge`'s midpoint at least [`RESOLVE_PX`] from each of the points `beside` it.
+fn views_apart(camera: &Camera, poses: &[Pose], edge: &Seg, beside: &[Vec3]) -> usize {
+    let mid = edge.at(0.5);
     // A short piece of the edge around its midpoint gives its image direction.
     let half = edge.dir() * (0.05f64).min(edge.length() / 2.0);
-    let views = poses
+    poses
         .iter()
         .filter(|pose| {
             let (Some(m), Some(a), Some(b)) = (
@@ -73,8 +79,103 @@ fn resolved(camera: &Camera, poses: &[Pose], truth: &[Seg], grid: &Grid, i: usiz
                 .iter()
                 .all(|q| pose.project(camera, q).is_none_or(|p| across(p) >= RESOLVE_PX))
         })
-        .count();
-    views >= RESOLVE_VIEWS
+        .count()
+}
+
+/// For each true edge, the parallel neighbours more than `min_apart_m` from it (one line cannot lie within the
+/// tolerance of both) that fewer than [`RESOLVE_VIEWS`] images show apart from it, taken one neighbour at a time and
+/// both ways: pairs of which lines placed from the images recover one.
+pub fn inseparable(camera: &Camera, poses: &[Pose], truth: &[Seg], min_apart_m: f64) -> Vec<Vec<usize>> {
+    if truth.is_empty() {
+        return Vec::new();
+    }
+    let (lo, hi) = bounds(truth.iter().flat_map(|s| [&s.a, &s.b]));
+    let grid = segment_grid(truth, NEIGHBOUR_M, (lo - Vec3::repeat(1.0), hi + Vec3::repeat(1.0)));
+    let one_way: Vec<Vec<usize>> = (0..truth.len())
+        .into_par_iter()
+        .map(|i| {
+            neighbours(truth, &grid, i)
+                .into_iter()
+                .filter(|(_, q)| (q - truth[i].at(0.5)).norm() > min_apart_m)
+                .filter(|(_, q)| views_apart(camera, poses, &truth[i], std::slice::from_ref(q)) < RESOLVE_VIEWS)
+                .map(|(j, _)| j)
+                .collect()
+        })
+        .collect();
+    let mut both = one_way.clone();
+    for (i, js) in one_way.iter().enumerate() {
+        for &j in js {
+            both[j].push(i);
+        }
+    }
+    for js in &mut both {
+        js.sort_unstable();
+        js.dedup();
+    }
+    both
+}
+
+/// The most of the edges `members` that any set of lines can recover when of two inseparable edges
+/// ([`inseparable`]) only one can be: the largest set of members no two of which are inseparable (exact on
+/// groups of up to [`EXACT_GROUP`] edges, greedy, by fewest conflicts first, on larger ones).
+pub fn most_recoverable(members: &[usize], inseparable: &[Vec<usize>]) -> usize {
+    let mut index = std::collections::BTreeMap::new();
+    for (k, &m) in members.iter().enumerate() {
+        index.insert(m, k);
+    }
+    let adjacent: Vec<Vec<usize>> = members
+        .iter()
+        .map(|&m| inseparable[m].iter().filter_map(|j| index.get(j).copied()).collect())
+        .collect();
+    let mut seen = vec![false; members.len()];
+    let mut total = 0;
+    for start in 0..members.len() {
+        if seen[start] {
+            continue;
+        }
+        let mut group = vec![start];
+        seen[start] = true;
+        let mut k = 0;
+        while k < group.len() {
+            for &j in &adjacent[group[k]] {
+                if !seen[j] {
+                    seen[j] = true;
+                    group.push(j);
+                }
+            }
+            k += 1;
+        }
+        total += largest_free_set(&group, &adjacent);
+    }
+    total
+}
+
+/// Groups up to this size get the exact largest set of mutually separable edges.
+pub const EXACT_GROUP: usize = 20;
+
+/// The size of the largest subset of `group` with no two members adjacent.
+fn largest_free_set(group: &[usize], adjacent: &[Vec<usize>]) -> usize {
+    if group.len() <= EXACT_GROUP {
+        let position = |x: usize| group.iter().position(|&g| g == x);
+        let masks: Vec<u32> = group
+            .iter()
+            .map(|&g| adjacent[g].iter().filter_map(|&j| position(j)).fold(0u32, |m, p| m | 1 << p))
+            .collect();
+        return (0u32..1 << group.len())
+            .filter(|set| (0..group.len()).all(|k| set & (1 << k) == 0 || set & masks[k] == 0))
+            .map(u32::count_ones)
+            .max()
+            .unwrap_or(0) as usize;
+    }
+    let mut left: Vec<usize> = group.to_vec();
+    let mut count = 0;
+    while !left.is_empty() {
+        let degree = |x: usize| adjacent[x].iter().filter(|j| left.contains(j)).count();
+        let pick = *left.iter().min_by_key(|&&x| (degree(x), x)).expect("left is not empty");
+        count += 1;
+        left.retain(|&x| x != pick && !adjacent[pick].contains(&x));
+    }
+    count
 }
 
 #[cfg(test)]
@@ -110,5 +211,24 @@ mod tests {
             seg([6.0, 0.0, 3.0], [7.0, 0.0, 3.0]),
         ];
         assert_eq!(resolvable(&camera, &poses, &truth), vec![false, false, true, true, true]);
+    }
+
+    #[test]
+    fn of_two_inseparable_edges_one_is_recoverable_and_a_chain_keeps_its_ends() {
+        let (camera, poses) = strip();
+        let seg = |a: [f64; 3], b: [f64; 3]| Seg::new(Vec3::from(a), Vec3::from(b));
+        let truth = [
+            seg([0.0, 0.2, 1.6], [1.4, 0.2, 1.6]),
+            seg([0.0, 0.3, 1.6], [1.4, 0.3, 1.6]),
+            seg([6.0, 0.0, 3.0], [7.0, 0.0, 3.0]),
+        ];
+        let pairs = inseparable(&camera, &poses, &truth, 0.05);
+        assert_eq!(pairs, vec![vec![1], vec![0], vec![]]);
+        assert_eq!(most_recoverable(&[0, 1, 2], &pairs), 2);
+        // A chain a – b – c, where a and c are apart: both ends count.
+        let chain = vec![vec![1], vec![0, 2], vec![1]];
+        assert_eq!(most_recoverable(&[0, 1, 2], &chain), 2);
+        // Only the members count: without b, a and c are free.
+        assert_eq!(most_recoverable(&[0, 2], &chain), 2);
     }
 }

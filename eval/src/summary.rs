@@ -51,6 +51,7 @@ pub fn summary(eval: &Evaluation) -> Value {
                     "success_rate": c.success_rate,
                     "resolvable": c.n_resolvable,
                     "success_resolvable": c.success_resolvable,
+                    "success_ceiling": c.success_ceiling,
                     "at": at,
                 })
             })

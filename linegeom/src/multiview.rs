@@ -121,7 +121,7 @@ pub fn line_support(camera: &Camera, start: Vec3, end: Vec3, views: &[SlaveSegme
 }
 
 /// Two unit directions across the line through `ends`, square to each other; each endpoint moves in their plane.
-fn across_axes(ends: &[Vec3; 2]) -> Option<(Vec3, Vec3)> {
+pub(crate) fn across_axes(ends: &[Vec3; 2]) -> Option<(Vec3, Vec3)> {
     let dir = (ends[1] - ends[0]).try_normalize(1e-12)?;
     let u = dir.cross(&if dir.z.abs() < 0.9 { Vec3::z() } else { Vec3::x() }).normalize();
     Some((u, dir.cross(&u)))
@@ -244,16 +244,16 @@ fn solve_offset(ends: &[Vec3; 2], which: &[usize], u: &Vec3, v: &Vec3, planes: &
     u * d[0] + v * d[1]
 }
 
-/// The interpretation plane of the 2-D segment of view `view` that lies along the projection of `start`–`end`,
-/// if there is exactly one best such segment.
-fn plane_view(camera: &Camera, start: &Vec3, end: &Vec3, view: &SlaveSegments, p: &MultiviewParams) -> Option<PlaneView> {
+/// The one 2-D segment of `view` that lies best along the projection of `start`–`end` (within `max_distance_px`
+/// at both its ends, within `max_angle_deg`, overlapping the projection by half), as its index, if any.
+pub(crate) fn segment_along(camera: &Camera, start: &Vec3, end: &Vec3, view: &SlaveSegments, p: &MultiviewParams) -> Option<usize> {
     let pose = &view.pose;
     let (a, b) = (pose.project_ideal(camera, start)?, pose.project_ideal(camera, end)?);
     let segments = view.segments;
     let pixel = segments.pixel_mm;
     let line = Line2::new(a, b).filter(|l| l.len >= 10.0 * pixel)?;
     let tolerance = p.max_distance_px * pixel;
-    let best = segments
+    segments
         .near(a, b, tolerance, p.max_angle_deg.to_radians())
         .into_iter()
         .filter_map(|k| {
@@ -261,13 +261,20 @@ fn plane_view(camera: &Camera, start: &Vec3, end: &Vec3, view: &SlaveSegments, p
             let distance = line.across(s).abs().max(line.across(e).abs());
             (distance <= tolerance && line.overlap_share(segments.ends[k]) >= 0.5).then_some((distance, k))
         })
-        .min_by(|x, y| x.0.total_cmp(&y.0).then(x.1.cmp(&y.1)))?;
-    let [s, e] = segments.ends[best.1];
+        .min_by(|x, y| x.0.total_cmp(&y.0).then(x.1.cmp(&y.1)))
+        .map(|(_, k)| k)
+}
+
+/// The interpretation plane of the 2-D segment of view `view` that lies along the projection of `start`–`end`,
+/// if there is exactly one best such segment.
+fn plane_view(camera: &Camera, start: &Vec3, end: &Vec3, view: &SlaveSegments, p: &MultiviewParams) -> Option<PlaneView> {
+    let pose = &view.pose;
+    let [s, e] = view.segments.ends[segment_along(camera, start, end, view, p)?];
     let normal = pose
         .ray_of_ideal(camera, s)
         .cross(&pose.ray_of_ideal(camera, e))
         .try_normalize(1e-12)?;
-    let angle = pixel / camera.focal_mm;
+    let angle = view.segments.pixel_mm / camera.focal_mm;
     Some(PlaneView {
         center: pose.center,
         normal,
