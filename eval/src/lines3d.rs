@@ -88,6 +88,9 @@ pub struct TrueEdge {
     pub resolvable: bool,
     /// Recovered (edges of at least 0.5 m; `None` for shorter ones, which the success rate does not count).
     pub found: Option<bool>,
+    /// A neighbour no two images show apart from it, more than 4 GSD away, was recovered: a line placed from the
+    /// images could not have recovered this one as well ([`crate::resolvable::inseparable`]).
+    pub partner_found: bool,
 }
 
 /// How many true edges of one kind (at least 0.5 m) were recovered.
@@ -221,7 +224,14 @@ pub fn evaluate(truth: &Truth, rows: &[Line3Row]) -> Lines3dReport {
         subsets.push(("structure lines", Subset::Lines(LineClass::Structure)));
         subsets.push(("texture lines", Subset::Lines(LineClass::Texture)));
     }
-    let true_edges = score_true_edges(truth, &gt, &gt_class, &resolved, |g| recovered(g, &est, &est_grid, reach, gsd));
+    let mut true_edges = score_true_edges(truth, &gt, &gt_class, &resolved, |g| recovered(g, &est, &est_grid, reach, gsd));
+    let partner_found: Vec<bool> = pairs
+        .iter()
+        .map(|js| js.iter().any(|&j| true_edges[j].found == Some(true)))
+        .collect();
+    for (e, p) in true_edges.iter_mut().zip(partner_found) {
+        e.partner_found = p;
+    }
     let classes = subsets
         .iter()
         .map(|&(name, subset)| {
@@ -346,6 +356,7 @@ fn score_true_edges(truth: &Truth, gt: &[Seg], class: &[Class], resolved: &[bool
             class: class[i],
             resolvable: resolved[i],
             found: (g.length() >= 0.5).then(|| found(g)),
+            partner_found: false,
         })
         .collect()
 }
