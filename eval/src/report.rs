@@ -184,7 +184,7 @@ fn lines3d_section(md: &mut String, eval: &Evaluation, out: &Path) -> Result<()>
             for c in &l.classes {
                 let _ = writeln!(
                     md,
-                    "### {} ({} true, {} estimated); success rate {}\n\nOver the {} edges of at least 0.5 m that at least {} images show {} px or more from every parallel true edge beside them: {}. The most any lines could recover, where of two edges no two images show apart only one can be: {}.\n\n| τ | P_τ (segments) | precision (length) | recall (length) | precision vs surfaces |\n|---|---|---|---|---|",
+                    "### {} ({} true, {} estimated); success rate {}\n\nOver the {} edges of at least 0.5 m that at least {} images show {} px or more from every parallel true edge beside them: {}. At most (the images): {}, where of two edges more than 4 GSD apart that no two images show apart only one counts.\n\n| τ | P_τ (segments) | precision (length) | recall (length) | precision vs surfaces |\n|---|---|---|---|---|",
                     if c.class.ends_with("lines") {
                         c.class.to_string()
                     } else {
