@@ -33,6 +33,11 @@ pub struct MultiviewBench {
     /// defaults.
     #[arg(long)]
     pub plumb_only: bool,
+    /// Then re-estimate each plumb line from the images on one side of it only (left or right along the façade,
+    /// with the variant's settings), keeping by this rule: left, right, front (the estimate nearer the cameras),
+    /// back, or fit (the side with the smaller residual RMS).
+    #[arg(long)]
+    pub one_side: Option<OneSide>,
     /// The line bundle's prior σ of a camera centre, metres.
     #[arg(long, default_value_t = LineBundleParams::default().center_sigma_m)]
     pub bundle_center_sigma: f64,
@@ -42,6 +47,16 @@ pub struct MultiviewBench {
     /// The line bundle's σ of a segment's plane, pixels.
     #[arg(long, default_value_t = LineBundleParams::default().sigma_px)]
     pub bundle_sigma_px: f64,
+}
+
+/// Which one-sided estimate of a plumb line `--one-side` keeps.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum OneSide {
+    Left,
+    Right,
+    Front,
+    Back,
+    Fit,
 }
 
 /// `lineflow bench multiview RUN --building B [--scale S] [--seed N] [--truth-poses] [--set KEY=VALUE]...`
@@ -94,6 +109,10 @@ pub fn bench_multiview(args: &MultiviewBench) -> Result<ExitCode> {
         } else {
             refine_multiview(&run.camera, &mut merged, &views, fit)
         };
+        if let (Some(rule), true) = (args.one_side, std::ptr::eq(fit, &variant)) {
+            let n = one_sided(&run.camera, &mut merged, &views, &fit.multiview(), rule);
+            println!("{label}: {n} plumb lines placed from one side's images ({rule:?})");
+        }
         snap(&mut merged, fit);
         let seconds = start.elapsed().as_secs_f64();
         println!(
@@ -168,4 +187,76 @@ fn print_pose_errors(label: &str, poses: &[Pose], truth: &[Option<Pose>]) {
         mean.z * 1e3,
         turns * 1e3
     );
+}
+
+/// Each plumb line of `lines` re-estimated from the images on each side of it along the façade (their centres'
+/// side of the vertical plane through the line square to the mean viewing direction), the estimate `rule` keeps
+/// replacing it where both sides give one; returns how many moved.
+fn one_sided(
+    camera: &lineflow_photogrammetry::Camera,
+    lines: &mut [lineflow_linefit::Merged],
+    views: &[lineflow_linegeom::SlaveSegments],
+    p: &lineflow_linegeom::MultiviewParams,
+    rule: OneSide,
+) -> usize {
+    use lineflow_photogrammetry::Vec3;
+    let axis: Vec3 = views.iter().map(|v| v.pose.axis()).sum::<Vec3>();
+    let Some(across) = Vec3::z().cross(&axis).try_normalize(1e-12) else {
+        return 0;
+    };
+    let toward = Vec3::new(axis.x, axis.y, 0.0).normalize();
+    let mut moved = 0;
+    for l in lines.iter_mut() {
+        let plumb = (l.end - l.start)
+            .try_normalize(1e-12)
+            .is_some_and(|d| d.z.abs() > 1f64.to_radians().cos());
+        if !plumb {
+            continue;
+        }
+        let mid = (l.start + l.end) * 0.5;
+        let side = |left: bool| -> Vec<lineflow_linegeom::SlaveSegments> {
+            views
+                .iter()
+                .filter(|v| ((v.pose.center - mid).dot(&across) < 0.0) == left)
+                .map(|v| lineflow_linegeom::SlaveSegments {
+                    pose: v.pose,
+                    segments: v.segments,
+                })
+                .collect()
+        };
+        let estimate = |left: bool| lineflow_linegeom::refine_line(camera, l.start, l.end, &side(left), p);
+        let (Some(a), Some(b)) = (estimate(true), estimate(false)) else {
+            continue;
+        };
+        // Depth along the viewing direction: larger is further from the cameras.
+        let depth = |x: &lineflow_linegeom::MultiviewLine| ((x.start + x.end) * 0.5).dot(&toward);
+        let keep = match rule {
+            OneSide::Left => a,
+            OneSide::Right => b,
+            OneSide::Front => {
+                if depth(&a) <= depth(&b) {
+                    a
+                } else {
+                    b
+                }
+            }
+            OneSide::Back => {
+                if depth(&a) > depth(&b) {
+                    a
+                } else {
+                    b
+                }
+            }
+            OneSide::Fit => {
+                if a.rms_px <= b.rms_px {
+                    a
+                } else {
+                    b
+                }
+            }
+        };
+        (l.start, l.end) = (keep.start, keep.end);
+        moved += 1;
+    }
+    moved
 }

@@ -91,6 +91,50 @@ pub struct TrueEdge {
     /// A neighbour no two images show apart from it, more than 4 GSD away, was recovered: a line placed from the
     /// images could not have recovered this one as well ([`crate::resolvable::inseparable`]).
     pub partner_found: bool,
+    /// For a missed edge: the nearest line within 2° and 10 cm over its length that overlaps it ([`nearest_line`]).
+    pub nearest: Option<NearestLine>,
+}
+
+/// The estimated line nearest a true edge (within 2° and [`NEAREST_REACH_M`] at both its ends, overlapping it).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct NearestLine {
+    /// From the edge's midpoint to the line, square to the edge, metres.
+    pub offset: Vec3,
+    /// Share of the edge's length the line spans.
+    pub coverage: f64,
+}
+
+/// How far [`nearest_line`] looks, metres.
+pub const NEAREST_REACH_M: f64 = 0.1;
+
+/// The estimate of `est` that lies nearest the true edge `g` (the smallest larger distance of its two ends from
+/// the edge's line), among those within 2° and [`NEAREST_REACH_M`] that overlap it.
+fn nearest_line(g: &Seg, est: &[Seg], grid: &Grid) -> Option<NearestLine> {
+    let n = (g.length() / NEAREST_REACH_M).ceil() as usize + 1;
+    let mut near: Vec<u32> = (0..=n)
+        .flat_map(|k| grid.near(&g.at(k as f64 / n as f64)).iter().copied())
+        .collect();
+    near.sort_unstable();
+    near.dedup();
+    near.iter()
+        .map(|&i| &est[i as usize])
+        .filter(|e| g.angle_deg(e) <= 2.0)
+        .filter_map(|e| {
+            let worst = g.line_distance(&e.a).max(g.line_distance(&e.b));
+            let (s, t) = (g.param(&e.a), g.param(&e.b));
+            let coverage = s.max(t).min(1.0) - s.min(t).max(0.0);
+            (worst <= NEAREST_REACH_M && coverage > 0.0).then_some((worst, e, coverage))
+        })
+        .min_by(|x, y| x.0.total_cmp(&y.0))
+        .map(|(_, e, coverage)| {
+            let mid = g.at(0.5);
+            let on_line = e.at(e.param(&mid));
+            let across = on_line - mid;
+            NearestLine {
+                offset: across - g.dir() * across.dot(&g.dir()),
+                coverage,
+            }
+        })
 }
 
 /// How many true edges of one kind (at least 0.5 m) were recovered.
@@ -229,8 +273,12 @@ pub fn evaluate(truth: &Truth, rows: &[Line3Row]) -> Lines3dReport {
         .iter()
         .map(|js| js.iter().any(|&j| true_edges[j].found == Some(true)))
         .collect();
-    for (e, p) in true_edges.iter_mut().zip(partner_found) {
+    let near_grid = segment_grid(&est, NEAREST_REACH_M, region);
+    for ((e, p), g) in true_edges.iter_mut().zip(partner_found).zip(&gt) {
         e.partner_found = p;
+        if e.found == Some(false) {
+            e.nearest = nearest_line(g, &est, &near_grid);
+        }
     }
     let classes = subsets
         .iter()
@@ -357,6 +405,7 @@ fn score_true_edges(truth: &Truth, gt: &[Seg], class: &[Class], resolved: &[bool
             resolvable: resolved[i],
             found: (g.length() >= 0.5).then(|| found(g)),
             partner_found: false,
+            nearest: None,
         })
         .collect()
 }

@@ -129,11 +129,12 @@ fn lines2d_section(md: &mut String, eval: &Evaluation) {
 /// The 3-D lines: the thesis's tables, each class's figures, and the plots written beside the report.
 /// The true edges of at least 0.5 m no line recovered, with what they belong to, for finding where lines go missing.
 fn write_missed(l: &crate::lines3d::Lines3dReport, path: &Path) -> Result<()> {
-    let mut csv = String::from("X1,Y1,Z1,X2,Y2,Z2,length_m,kind,class,resolvable,partner_found\n");
+    let mut csv =
+        String::from("X1,Y1,Z1,X2,Y2,Z2,length_m,kind,class,resolvable,partner_found,nearest_dX,nearest_dY,nearest_dZ,nearest_coverage\n");
     for (g, e) in l.truth.iter().zip(&l.true_edges).filter(|(_, e)| e.found == Some(false)) {
         let _ = writeln!(
             csv,
-            "{:.6},{:.6},{:.6},{:.6},{:.6},{:.6},{:.3},{},{},{},{}",
+            "{:.6},{:.6},{:.6},{:.6},{:.6},{:.6},{:.3},{},{},{},{},{}",
             g.a.x,
             g.a.y,
             g.a.z,
@@ -144,7 +145,11 @@ fn write_missed(l: &crate::lines3d::Lines3dReport, path: &Path) -> Result<()> {
             e.kind,
             format!("{:?}", e.class).to_lowercase(),
             e.resolvable,
-            e.partner_found
+            e.partner_found,
+            e.nearest.map_or(",,,".to_owned(), |n| format!(
+                "{:.4},{:.4},{:.4},{:.3}",
+                n.offset.x, n.offset.y, n.offset.z, n.coverage
+            ))
         );
     }
     std::fs::write(path, csv).with_context(|| format!("writing {}", path.display()))
