@@ -110,13 +110,8 @@ pub const NEAREST_REACH_M: f64 = 0.1;
 /// The estimate of `est` that lies nearest the true edge `g` (the smallest larger distance of its two ends from
 /// the edge's line), among those within 2° and [`NEAREST_REACH_M`] that overlap it.
 fn nearest_line(g: &Seg, est: &[Seg], grid: &Grid) -> Option<NearestLine> {
-    let n = (g.length() / NEAREST_REACH_M).ceil() as usize + 1;
-    let mut near: Vec<u32> = (0..=n)
-        .flat_map(|k| grid.near(&g.at(k as f64 / n as f64)).iter().copied())
-        .collect();
-    near.sort_unstable();
-    near.dedup();
-    near.iter()
+    candidates(g, grid, NEAREST_REACH_M)
+        .iter()
         .map(|&i| &est[i as usize])
         .filter(|e| g.angle_deg(e) <= 2.0)
         .filter_map(|e| {
@@ -445,17 +440,22 @@ fn kind_scores(edges: &[TrueEdge]) -> Vec<KindScores> {
     kinds
 }
 
-/// A true edge is recovered when estimates within 2 GSD and 2° of it cover at least half of its length.
-/// Candidates come from the estimates' grid (`reach` ≥ 5 GSD): sampling the edge every `reach` metres finds every
-/// estimate within 2 GSD of it.
-fn recovered(g: &Seg, est: &[Seg], grid: &Grid, reach: f64, gsd: f64) -> bool {
+/// The estimates `grid` lists near the edge `g`, sampled every `reach` metres along it (the grid's reach), each once.
+fn candidates(g: &Seg, grid: &Grid, reach: f64) -> Vec<u32> {
     let n = (g.length() / reach).ceil() as usize + 1;
     let mut near: Vec<u32> = (0..=n)
         .flat_map(|k| grid.near(&g.at(k as f64 / n as f64)).iter().copied())
         .collect();
     near.sort_unstable();
     near.dedup();
-    let mut spans: Vec<(f64, f64)> = near
+    near
+}
+
+/// A true edge is recovered when estimates within 2 GSD and 2° of it cover at least half of its length.
+/// Candidates come from the estimates' grid (`reach` ≥ 5 GSD): sampling the edge every `reach` metres finds every
+/// estimate within 2 GSD of it.
+fn recovered(g: &Seg, est: &[Seg], grid: &Grid, reach: f64, gsd: f64) -> bool {
+    let mut spans: Vec<(f64, f64)> = candidates(g, grid, reach)
         .iter()
         .map(|&i| &est[i as usize])
         .filter(|e| g.angle_deg(e) <= 2.0 && g.line_distance(&e.a) <= 2.0 * gsd && g.line_distance(&e.b) <= 2.0 * gsd)
