@@ -68,11 +68,17 @@ impl FinalLines {
             .collect()
     }
 
-    /// The true pose of each of [`FinalLines::views`]' images, where the truth has it.
-    pub fn true_poses(&self) -> Vec<Option<Pose>> {
+    /// `poses` (in the order of [`FinalLines::views`]) as rows of `poses.csv`, for scoring them.
+    pub fn pose_rows(&self, poses: &[Pose]) -> Vec<PoseRow> {
         self.images
             .iter()
-            .map(|image| self.truth.poses.iter().find(|t| &t.image == image).map(|t| t.pose))
+            .zip(poses)
+            .map(|(image, &pose)| PoseRow {
+                image: image.clone(),
+                pose,
+                sigma_center_m: None,
+                sigma_angles_deg: None,
+            })
             .collect()
     }
 

@@ -7,7 +7,7 @@ use std::process::ExitCode;
 use anyhow::Result;
 use lineflow_eval::lines3d::evaluate;
 use lineflow_linefit::{refine_multiview, snap, FitParams};
-use lineflow_linegeom::line_bundle::{adjust_with_lines, turn_between, LineBundleParams};
+use lineflow_linegeom::line_bundle::{adjust_with_lines, LineBundleParams};
 use lineflow_photogrammetry::Pose;
 
 use crate::buildings::{print_header, print_kinds, print_row, row, Row};
@@ -87,24 +87,20 @@ pub fn bench_multiview(args: &MultiviewBench) -> Result<ExitCode> {
             start.elapsed().as_secs_f64()
         );
         let given: Vec<Pose> = views.iter().map(|v| v.pose).collect();
-        print_pose_errors("poses as given", &given, &run.true_poses());
-        print_pose_errors("poses adjusted with the lines", &b.poses, &run.true_poses());
+        print_pose_errors("poses as given", &run, &given);
+        print_pose_errors("poses adjusted with the lines", &run, &b.poses);
         views = run.views_with(&b.poses);
         bundled = Some(b);
     }
     let refined = |fit: &FitParams, label: &str| -> Row {
         let mut merged = run.merged();
         let start = std::time::Instant::now();
-        let plumb = |l: &lineflow_linefit::Merged| {
-            (l.end - l.start)
-                .try_normalize(1e-12)
-                .is_some_and(|d| d.z.abs() > 1f64.to_radians().cos())
-        };
         let (moved, rms_px) = if args.plumb_only && std::ptr::eq(fit, &variant) {
-            let (mut vertical, mut others): (Vec<_>, Vec<_>) = merged.drain(..).partition(|l| plumb(l));
-            let a = refine_multiview(&run.camera, &mut vertical, &views, fit);
-            let b = refine_multiview(&run.camera, &mut others, &views, &defaults);
-            merged = vertical.into_iter().chain(others).collect();
+            // The plumb lines with the variant, the others with the defaults, each back in its place.
+            let (a, b) = (
+                refine_subset(&run, &mut merged, &views, fit, true),
+                refine_subset(&run, &mut merged, &views, &defaults, false),
+            );
             (a.0 + b.0, a.1.max(b.1))
         } else {
             refine_multiview(&run.camera, &mut merged, &views, fit)
@@ -168,25 +164,45 @@ pub fn bench_multiview(args: &MultiviewBench) -> Result<ExitCode> {
     Ok(ExitCode::SUCCESS)
 }
 
-/// The camera centres' and rotations' RMS error against the truth (where known), printed.
-fn print_pose_errors(label: &str, poses: &[Pose], truth: &[Option<Pose>]) {
-    let pairs: Vec<(&Pose, &Pose)> = poses.iter().zip(truth).filter_map(|(p, t)| Some((p, t.as_ref()?))).collect();
-    let n = pairs.len().max(1) as f64;
-    let centres = (pairs.iter().map(|(p, t)| (p.center - t.center).norm_squared()).sum::<f64>() / n).sqrt();
-    let mean = pairs
-        .iter()
-        .map(|(p, t)| p.center - t.center)
-        .sum::<lineflow_photogrammetry::Vec3>()
-        / n;
-    let turns = (pairs.iter().map(|(p, t)| turn_between(t, p).norm_squared()).sum::<f64>() / n).sqrt();
+/// The camera centres' and rotations' RMS error against the truth (`lineflow eval`'s), printed.
+fn print_pose_errors(label: &str, run: &FinalLines, poses: &[Pose]) {
+    let r = lineflow_eval::orientation::evaluate(&run.truth, &run.pose_rows(poses), None);
+    let n = r.images.len().max(1) as f64;
+    let mean = |k: usize| r.images.iter().map(|e| e.center_m[k]).sum::<f64>() / n * 1e3;
     println!(
         "{label}: centres {:.1} mm RMS (mean offset {:.1} / {:.1} / {:.1} mm), rotations {:.3} mrad RMS",
-        centres * 1e3,
-        mean.x * 1e3,
-        mean.y * 1e3,
-        mean.z * 1e3,
-        turns * 1e3
+        r.rms_center_m * 1e3,
+        mean(0),
+        mean(1),
+        mean(2),
+        r.rms_rotation_deg.to_radians() * 1e3
     );
+}
+
+/// Within 1° of the vertical.
+fn is_plumb(start: &lineflow_photogrammetry::Vec3, end: &lineflow_photogrammetry::Vec3) -> bool {
+    (end - start)
+        .try_normalize(1e-12)
+        .is_some_and(|d| d.z.abs() > 1f64.to_radians().cos())
+}
+
+/// The multi-view re-estimate with `fit` of the plumb lines of `lines` (`plumb`) or of the others, in place.
+fn refine_subset(
+    run: &FinalLines,
+    lines: &mut [lineflow_linefit::Merged],
+    views: &[lineflow_linegeom::SlaveSegments],
+    fit: &FitParams,
+    plumb: bool,
+) -> (usize, f64) {
+    let at: Vec<usize> = (0..lines.len())
+        .filter(|&i| is_plumb(&lines[i].start, &lines[i].end) == plumb)
+        .collect();
+    let mut subset: Vec<_> = at.iter().map(|&i| lines[i].clone()).collect();
+    let result = refine_multiview(&run.camera, &mut subset, views, fit);
+    for (i, l) in at.into_iter().zip(subset) {
+        lines[i] = l;
+    }
+    result
 }
 
 /// Each plumb line of `lines` re-estimated from the images on each side of it along the façade (their centres'
@@ -207,10 +223,7 @@ fn one_sided(
     let toward = Vec3::new(axis.x, axis.y, 0.0).normalize();
     let mut moved = 0;
     for l in lines.iter_mut() {
-        let plumb = (l.end - l.start)
-            .try_normalize(1e-12)
-            .is_some_and(|d| d.z.abs() > 1f64.to_radians().cos());
-        if !plumb {
+        if !is_plumb(&l.start, &l.end) {
             continue;
         }
         let mid = (l.start + l.end) * 0.5;

@@ -25,12 +25,17 @@ pub fn resolvable(camera: &Camera, poses: &[Pose], truth: &[Seg]) -> Vec<bool> {
     if truth.is_empty() {
         return Vec::new();
     }
-    let (lo, hi) = bounds(truth.iter().flat_map(|s| [&s.a, &s.b]));
-    let grid = segment_grid(truth, NEIGHBOUR_M, (lo - Vec3::repeat(1.0), hi + Vec3::repeat(1.0)));
+    let grid = neighbour_grid(truth);
     (0..truth.len())
         .into_par_iter()
         .map(|i| resolved(camera, poses, truth, &grid, i))
         .collect()
+}
+
+/// The true edges indexed for finding each one's neighbours.
+fn neighbour_grid(truth: &[Seg]) -> Grid {
+    let (lo, hi) = bounds(truth.iter().flat_map(|s| [&s.a, &s.b]));
+    segment_grid(truth, NEIGHBOUR_M, (lo - Vec3::repeat(1.0), hi + Vec3::repeat(1.0)))
 }
 
 fn resolved(camera: &Camera, poses: &[Pose], truth: &[Seg], grid: &Grid, i: usize) -> bool {
@@ -89,8 +94,7 @@ pub fn inseparable(camera: &Camera, poses: &[Pose], truth: &[Seg], min_apart_m: 
     if truth.is_empty() {
         return Vec::new();
     }
-    let (lo, hi) = bounds(truth.iter().flat_map(|s| [&s.a, &s.b]));
-    let grid = segment_grid(truth, NEIGHBOUR_M, (lo - Vec3::repeat(1.0), hi + Vec3::repeat(1.0)));
+    let grid = neighbour_grid(truth);
     let one_way: Vec<Vec<usize>> = (0..truth.len())
         .into_par_iter()
         .map(|i| {

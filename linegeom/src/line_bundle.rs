@@ -11,7 +11,7 @@
 //! Each line moves its two endpoints across itself (four unknowns); each pose turns its rays about its centre and
 //! moves the centre (six). The lines are eliminated per line (Schur complement), leaving a dense system in the
 //! poses only.
-use lineflow_photogrammetry::{Camera, Mat3, Pose, Vec3};
+use lineflow_photogrammetry::{Camera, Pose, Vec3};
 use nalgebra::{DMatrix, DVector, Matrix4, Rotation3, SMatrix, Vector4};
 use rayon::prelude::*;
 
@@ -118,7 +118,8 @@ impl Sight {
 /// One line's share of the normal equations: its own block and right-hand side, and per observation the pose's
 /// index, the pose-line block, the pose's own block and right-hand side.
 struct TrackSystem {
-    lines: Matrix4<f64>,
+    /// The inverse of the line's own block (regular: the line's prior is in it).
+    inverse: Matrix4<f64>,
     rhs: Vector4<f64>,
     poses: Vec<(usize, Matrix4x6, Matrix6, Vector6)>,
 }
@@ -277,7 +278,7 @@ fn track_system(t: &Track, poses: &[Pose], angle_per_px: f64, p: &LineBundlePara
         pose_blocks.push((o.view, cross, own, own_rhs));
     }
     TrackSystem {
-        lines,
+        inverse: lines.try_inverse().unwrap_or_else(Matrix4::zeros),
         rhs,
         poses: pose_blocks,
     }
@@ -300,7 +301,7 @@ fn pose_steps(systems: &[TrackSystem], poses: &[Pose], given: &[Pose], turned: &
         }
     }
     for s in systems {
-        let inverse = s.lines.try_inverse()?;
+        let inverse = s.inverse;
         for (a, cross_a, own, own_rhs) in &s.poses {
             let mut diagonal = reduced.fixed_view_mut::<6, 6>(6 * a, 6 * a);
             diagonal += own;
@@ -324,13 +325,7 @@ fn line_step(s: &TrackSystem, steps: &[Vector6]) -> Vector4<f64> {
     for (a, cross, _, _) in &s.poses {
         rhs -= cross * steps[*a];
     }
-    s.lines.try_inverse().map_or(Vector4::zeros(), |inverse| inverse * rhs)
-}
-
-/// The rotation `pose` has relative to `given`, as an axis-angle vector (radians), in object space.
-pub fn turn_between(given: &Pose, pose: &Pose) -> Vec3 {
-    let relative: Mat3 = given.rotation.transpose() * pose.rotation;
-    Rotation3::from_matrix_unchecked(relative.transpose()).scaled_axis()
+    s.inverse * rhs
 }
 
 #[cfg(test)]
@@ -339,7 +334,7 @@ mod tests {
     use crate::segments::FrameSegments;
     use lineflow_messages::Segment2;
     use lineflow_photogrammetry::random::Rng;
-    use lineflow_photogrammetry::rotation_from_opk;
+    use lineflow_photogrammetry::{rotation_from_opk, Mat3};
 
     fn camera() -> Camera {
         Camera::pinhole(4000, 3000, 0.005, 20.0)
@@ -406,6 +401,12 @@ mod tests {
                 }
             })
             .collect()
+    }
+
+    /// The rotation `pose` has relative to `given`, as an axis-angle vector (radians), in object space.
+    fn turn_between(given: &Pose, pose: &Pose) -> Vec3 {
+        let relative: Mat3 = given.rotation.transpose() * pose.rotation;
+        Rotation3::from_matrix_unchecked(relative.transpose()).scaled_axis()
     }
 
     fn center_rms(a: &[Pose], b: &[Pose]) -> f64 {
