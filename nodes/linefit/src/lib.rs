@@ -38,6 +38,9 @@ pub struct FitParams {
     pub merge_distance_m: f64,
     /// …and that overlap or leave at most this gap, metres, are one edge.
     pub merge_gap_m: f64,
+    /// …and, with the camera and poses, that no image holding both shows more than this many pixels apart across
+    /// the line; 0 (the default) leaves it to `merge_distance_m` (docs/lines3d.md, "Merged across features").
+    pub merge_max_px: f64,
     /// Re-estimate the final lines from every image's 2-D segments (needs `lines2d`, `poses` and `camera`).
     pub multiview: bool,
     /// Largest distance, pixels, of an image's 2-D segment from a line's projection to count as its view.
@@ -107,6 +110,7 @@ impl Default for FitParams {
             merge_angle_deg: 2.0,
             merge_distance_m: 0.03,
             merge_gap_m: 0.05,
+            merge_max_px: 0.0,
             multiview: true,
             multiview_max_distance_px: 2.5,
             multiview_min_views: 3,
@@ -158,6 +162,7 @@ impl FitParams {
             angle_deg: self.merge_angle_deg,
             distance_m: self.merge_distance_m,
             gap_m: self.merge_gap_m,
+            max_apart_px: self.merge_max_px,
         }
     }
 }
@@ -168,6 +173,7 @@ impl lineflow_runtime::StageParams for FitParams {
         positive("inlier_m", self.inlier_m)?;
         non_negative("merge_distance_m", self.merge_distance_m)?;
         non_negative("merge_gap_m", self.merge_gap_m)?;
+        non_negative("merge_max_px", self.merge_max_px)?;
         non_negative("min_length_m", self.min_length_m)?;
         in_closed("min_inlier_share", self.min_inlier_share, 0.0, 1.0)?;
         non_negative("join_distance_m", self.join_distance_m)?;

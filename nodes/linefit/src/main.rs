@@ -129,7 +129,9 @@ fn run(ctx: NodeContext, method: Method) -> Result<()> {
         }
         if let Some(&newest) = received.last() {
             let all: Vec<Fragment> = fragments.values().flatten().cloned().collect();
-            merged = merge(&all, &params.rule());
+            let pose_list: Vec<Pose> = poses.values().copied().collect();
+            let sight = camera.as_ref().map(|camera| Sight { camera, poses: &pose_list });
+            merged = merge(&all, &params.rule(), sight.as_ref());
             snap(&mut merged, &params);
             // Classed once per set: the frames of one wake share it.
             let lines = elements(&merged, &params, camera.as_ref(), &poses);

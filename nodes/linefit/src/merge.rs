@@ -1,6 +1,7 @@
 //! Fragments of one 3-D edge, seen from different masters (or traced as pieces in one), merged into one segment.
 use std::collections::HashMap;
 
+use lineflow_linegeom::Sight;
 use lineflow_photogrammetry::Vec3;
 
 use crate::fit::principal_axis;
@@ -64,6 +65,11 @@ pub struct MergeRule {
     pub distance_m: f64,
     /// Largest gap between them along the line, metres.
     pub gap_m: f64,
+    /// With the images' poses: largest distance across the line, pixels, between the two fragments in any image
+    /// whose frame holds them; 0 leaves it to `distance_m`. Two edges a few millimetres apart (a window's sill
+    /// and the mortar joint below it) are apart in every image, while one edge's fragments at slightly different
+    /// depths are not.
+    pub max_apart_px: f64,
 }
 
 fn line_distance(p: &Vec3, a: &Vec3, dir: &Vec3) -> f64 {
@@ -71,8 +77,44 @@ fn line_distance(p: &Vec3, a: &Vec3, dir: &Vec3) -> f64 {
     (v - dir * v.dot(dir)).norm()
 }
 
-/// Whether two fragments belong to one edge under `rule`.
-fn same_edge(f: &Fragment, g: &Fragment, rule: &MergeRule) -> bool {
+/// The distance, pixels, across the line between `p` and `q` (points of two near-parallel fragments beside each
+/// other, along direction `dir`) in the image of `pose`, or `None` where the image does not hold `p`.
+fn apart_in_image(sight: &Sight<'_>, pose: &lineflow_photogrammetry::Pose, p: &Vec3, q: &Vec3, dir: &Vec3) -> Option<f64> {
+    let cam = sight.camera;
+    let (half_w, half_h) = (
+        0.5 * cam.width as f64 * cam.pixel_size_mm,
+        0.5 * cam.height as f64 * cam.pixel_size_mm,
+    );
+    let a = pose.project_ideal(cam, p)?;
+    if a[0].abs() > half_w || a[1].abs() > half_h {
+        return None;
+    }
+    let b = pose.project_ideal(cam, q)?;
+    let c = pose.project_ideal(cam, &(p + dir * 0.1))?;
+    let (tx, ty) = (c[0] - a[0], c[1] - a[1]);
+    let n = tx.hypot(ty);
+    if n < 1e-12 {
+        return None;
+    }
+    Some(((b[0] - a[0]) * ty - (b[1] - a[1]) * tx).abs() / n / cam.pixel_size_mm)
+}
+
+/// Whether `f` and `g` (overlapping over `[lo, hi]` along `f`'s direction, or the nearest ends where they leave
+/// a gap) stay within `limit` pixels of each other in every image that holds them.
+fn together_in_images(sight: &Sight<'_>, f: &Fragment, g: &Fragment, lo: f64, hi: f64, limit: f64) -> bool {
+    let (df, dg) = ((f.end - f.start).normalize(), (g.end - g.start).normalize());
+    [lo, hi].iter().all(|&t| {
+        let p = f.start + df * t;
+        let q = g.start + dg * (p - g.start).dot(&dg);
+        sight
+            .poses
+            .iter()
+            .all(|pose| apart_in_image(sight, pose, &p, &q, &df).is_none_or(|d| d <= limit))
+    })
+}
+
+/// Whether two fragments belong to one edge under `rule` (and, with `sight`, the images).
+fn same_edge(f: &Fragment, g: &Fragment, rule: &MergeRule, sight: Option<&Sight<'_>>) -> bool {
     let (df, dg) = ((f.end - f.start).normalize(), (g.end - g.start).normalize());
     if df.dot(&dg).abs() < rule.angle_deg.to_radians().cos() {
         return false;
@@ -87,7 +129,16 @@ fn same_edge(f: &Fragment, g: &Fragment, rule: &MergeRule) -> bool {
     let t = |p: &Vec3| (p - f.start).dot(&df);
     let (g0, g1) = (t(&g.start).min(t(&g.end)), t(&g.start).max(t(&g.end)));
     let (f0, f1) = (0.0, t(&f.end));
-    g0 <= f1 + rule.gap_m && f0 <= g1 + rule.gap_m
+    if !(g0 <= f1 + rule.gap_m && f0 <= g1 + rule.gap_m) {
+        return false;
+    }
+    match sight {
+        Some(sight) if rule.max_apart_px > 0.0 => {
+            let (lo, hi) = (g0.max(f0).min(f1), g1.min(f1).max(f0));
+            together_in_images(sight, f, g, lo.min(hi), hi.max(lo), rule.max_apart_px)
+        }
+        _ => true,
+    }
 }
 
 fn find(parent: &mut [usize], mut i: usize) -> usize {
@@ -99,8 +150,9 @@ fn find(parent: &mut [usize], mut i: usize) -> usize {
 }
 
 /// Merges fragments that are one edge (transitively), each group refitted by its principal axis over all its
-/// points, endpoints at the extreme projections. Output in the order of each group's first fragment.
-pub fn merge(fragments: &[Fragment], rule: &MergeRule) -> Vec<Merged> {
+/// points, endpoints at the extreme projections. Output in the order of each group's first fragment. With `sight`
+/// (the camera and the images' poses) and `rule.max_apart_px`, fragments the images show apart stay apart.
+pub fn merge(fragments: &[Fragment], rule: &MergeRule, sight: Option<&Sight<'_>>) -> Vec<Merged> {
     let n = fragments.len();
     let mut parent: Vec<usize> = (0..n).collect();
     // Candidate pairs share a cell of a coarse grid over samples along each fragment.
@@ -142,7 +194,7 @@ pub fn merge(fragments: &[Fragment], rule: &MergeRule) -> Vec<Merged> {
         for &i in members {
             for &j in near.iter().filter(|&&j| j > i) {
                 let (ri, rj) = (find(&mut parent, i), find(&mut parent, j));
-                if ri != rj && same_edge(&fragments[i], &fragments[j], rule) {
+                if ri != rj && same_edge(&fragments[i], &fragments[j], rule, sight) {
                     parent[ri.max(rj)] = ri.min(rj);
                 }
             }
@@ -210,6 +262,7 @@ mod tests {
             angle_deg: 2.0,
             distance_m: 0.02,
             gap_m: 0.05,
+            max_apart_px: 0.0,
         };
         let frags = [
             fragment(1, [0.0, 0.0, 1.0], [1.0, 0.0, 1.0]),
@@ -221,12 +274,52 @@ mod tests {
             // Crossing at right angles: another edge.
             fragment(5, [0.5, 0.0, 0.5], [0.5, 0.0, 1.5]),
         ];
-        let merged = merge(&frags, &rule);
+        let merged = merge(&frags, &rule, None);
         assert_eq!(merged.len(), 3);
         assert_eq!(merged[0].fragments, vec![(1, 0), (2, 0), (3, 0)]);
         assert!((merged[0].start - Vec3::new(0.0, 0.0, 1.0)).norm() < 0.01);
         assert!((merged[0].end - Vec3::new(2.5, 0.0, 1.0)).norm() < 0.01);
         assert_eq!(merged[0].n_points, 33);
         assert_eq!(merged[0].n_images, 5);
+    }
+
+    /// Two strips of stations 25 m in front of the wall Y = 0 (ω = 90°: looking along +Y), at 1.5 and 4.5 m.
+    fn strips() -> (lineflow_photogrammetry::Camera, Vec<lineflow_photogrammetry::Pose>) {
+        let camera = lineflow_photogrammetry::Camera::pinhole(4912, 3264, 0.0048, 18.0);
+        let rotation = lineflow_photogrammetry::rotation_from_opk(90f64.to_radians(), 0.0, 0.0);
+        let poses = [1.5, 4.5]
+            .iter()
+            .flat_map(|&z| (0..5).map(move |k| Vec3::new(2.0 * k as f64, -25.0, z)))
+            .map(|center| lineflow_photogrammetry::Pose { center, rotation })
+            .collect();
+        (camera, poses)
+    }
+
+    #[test]
+    fn fragments_the_images_show_apart_stay_apart_and_one_edge_at_two_depths_merges() {
+        let (camera, poses) = strips();
+        let sight = Sight {
+            camera: &camera,
+            poses: &poses,
+        };
+        let rule = MergeRule {
+            angle_deg: 2.0,
+            distance_m: 0.03,
+            gap_m: 0.05,
+            max_apart_px: 1.5,
+        };
+        // A sill 1.4 cm below a mortar joint that continues it: 2 px apart in every image (7 mm a pixel).
+        let apart = [
+            fragment(1, [3.8, 0.0, 4.9], [5.2, 0.0, 4.9]),
+            fragment(2, [5.2, 0.0, 4.886], [6.8, 0.0, 4.886]),
+        ];
+        assert_eq!(merge(&apart, &rule, None).len(), 1, "the distance alone merges them");
+        assert_eq!(merge(&apart, &rule, Some(&sight)).len(), 2);
+        // One level edge matched 2 cm apart in depth: along the strips' epipolar lines, under a pixel apart.
+        let depths = [
+            fragment(1, [3.8, 0.0, 4.9], [5.2, 0.0, 4.9]),
+            fragment(2, [4.5, 0.02, 4.9], [6.0, 0.02, 4.9]),
+        ];
+        assert_eq!(merge(&depths, &rule, Some(&sight)).len(), 1);
     }
 }
