@@ -256,14 +256,18 @@ mod tests {
         }
     }
 
+    fn rule(distance_m: f64, max_apart_px: f64) -> MergeRule {
+        MergeRule {
+            angle_deg: 2.0,
+            distance_m,
+            gap_m: 0.05,
+            max_apart_px,
+        }
+    }
+
     #[test]
     fn overlapping_collinear_fragments_merge_and_others_stay() {
-        let rule = MergeRule {
-            angle_deg: 2.0,
-            distance_m: 0.02,
-            gap_m: 0.05,
-            max_apart_px: 0.0,
-        };
+        let rule = rule(0.02, 0.0);
         let frags = [
             fragment(1, [0.0, 0.0, 1.0], [1.0, 0.0, 1.0]),
             fragment(2, [0.8, 0.005, 1.0], [2.0, 0.005, 1.0]),
@@ -302,12 +306,7 @@ mod tests {
             camera: &camera,
             poses: &poses,
         };
-        let rule = MergeRule {
-            angle_deg: 2.0,
-            distance_m: 0.03,
-            gap_m: 0.05,
-            max_apart_px: 1.5,
-        };
+        let rule = rule(0.03, 1.5);
         // A sill 1.4 cm below a mortar joint that continues it: 2 px apart in every image (7 mm a pixel).
         let apart = [
             fragment(1, [3.8, 0.0, 4.9], [5.2, 0.0, 4.9]),
