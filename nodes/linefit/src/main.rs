@@ -21,12 +21,6 @@ fn main() -> std::process::ExitCode {
     lineflow_runtime::run_stage("linefit", "tls", &[("tls", run_tls), ("thesis", run_thesis)])
 }
 
-/// The message elements of the merged lines, against every oriented image.
-fn elements(lines: &[Merged], params: &FitParams, camera: Option<&Camera>, poses: &BTreeMap<u64, Pose>) -> Vec<Line3> {
-    let poses: Vec<Pose> = poses.values().copied().collect();
-    line_elements(lines, params, camera, &poses)
-}
-
 fn run_tls(ctx: NodeContext) -> Result<()> {
     run(ctx, Method::Tls)
 }
@@ -134,7 +128,7 @@ fn run(ctx: NodeContext, method: Method) -> Result<()> {
             merged = merge(&all, &params.rule(), sight.as_ref());
             snap(&mut merged, &params);
             // Classed once per set: the frames of one wake share it.
-            let lines = elements(&merged, &params, camera.as_ref(), &poses);
+            let lines = line_elements(&merged, &params, camera.as_ref(), &pose_list);
             for stamp in lineflow_runtime::frames_to_publish(&received, &mut published) {
                 output.publish(Lines3DHeader { stamp }, &lines)?;
             }

@@ -81,14 +81,10 @@ fn line_distance(p: &Vec3, a: &Vec3, dir: &Vec3) -> f64 {
 /// other, along direction `dir`) in the image of `pose`, or `None` where the image does not hold `p`.
 fn apart_in_image(sight: &Sight<'_>, pose: &lineflow_photogrammetry::Pose, p: &Vec3, q: &Vec3, dir: &Vec3) -> Option<f64> {
     let cam = sight.camera;
-    let (half_w, half_h) = (
-        0.5 * cam.width as f64 * cam.pixel_size_mm,
-        0.5 * cam.height as f64 * cam.pixel_size_mm,
-    );
-    let a = pose.project_ideal(cam, p)?;
-    if a[0].abs() > half_w || a[1].abs() > half_h {
+    if !pose.project(cam, p).is_some_and(|px| cam.contains(px, 0.0)) {
         return None;
     }
+    let a = pose.project_ideal(cam, p)?;
     let b = pose.project_ideal(cam, q)?;
     let c = pose.project_ideal(cam, &(p + dir * 0.1))?;
     let (tx, ty) = (c[0] - a[0], c[1] - a[1]);
@@ -134,8 +130,10 @@ fn same_edge(f: &Fragment, g: &Fragment, rule: &MergeRule, sight: Option<&Sight<
     }
     match sight {
         Some(sight) if rule.max_apart_px > 0.0 => {
-            let (lo, hi) = (g0.max(f0).min(f1), g1.min(f1).max(f0));
-            together_in_images(sight, f, g, lo.min(hi), hi.max(lo), rule.max_apart_px)
+            // g0 ≤ g1, so the interval held to f stays ordered: the overlap, or the nearest ends across a gap
+            // (max/min rather than clamp, which panics on a degenerate fragment's NaN).
+            let (lo, hi) = (g0.max(f0).min(f1), g1.max(f0).min(f1));
+            together_in_images(sight, f, g, lo, hi, rule.max_apart_px)
         }
         _ => true,
     }
