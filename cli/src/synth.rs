@@ -5,7 +5,7 @@ use std::process::ExitCode;
 use std::time::Instant;
 
 use anyhow::{Context, Result};
-use lineflow_synthetic::{write_project, Synthetic};
+use lineflow_synthetic::{write_project, write_project_files, Synthetic};
 
 /// Options of `lineflow synth`.
 #[derive(clap::Args)]
@@ -32,6 +32,10 @@ pub struct SynthArgs {
     /// observations.csv (both kept in gt/).
     #[arg(long)]
     bare: bool,
+    /// The project files and gt/ without rendering the images: enough for `lineflow eval` of a run of the
+    /// synthetic camera node, which renders its own.
+    #[arg(long, conflicts_with_all = ["bare", "jpeg"])]
+    no_images: bool,
 }
 
 pub fn synth(a: SynthArgs) -> Result<ExitCode> {
@@ -48,6 +52,14 @@ pub fn synth(a: SynthArgs) -> Result<ExitCode> {
         anyhow::bail!("{}: already holds images/; choose an empty folder", a.out.display());
     }
     let cam = *syn.camera();
+    if a.no_images {
+        write_project_files(&syn, &a.out).with_context(|| format!("writing {}", a.out.display()))?;
+        eprintln!(
+            "wrote {}: camera.toml, control_points.csv, observations.csv, site.toml, gt/ (no images)",
+            a.out.display()
+        );
+        return Ok(ExitCode::SUCCESS);
+    }
     eprintln!(
         "{}: {} images of {}x{} (scale {}), seed {} -> {}",
         a.preset,

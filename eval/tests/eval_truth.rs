@@ -237,3 +237,20 @@ fn frames_scored_one_by_one_report_as_the_rows_scored_at_once() {
     assert!(at_once.images[last].n_estimated > 0);
     assert!(one_by_one.recall < at_once.recall);
 }
+
+/// `lineflow synth --no-images`: the same project files and truth as a full write, and no images to score a live
+/// run against.
+#[test]
+fn the_project_files_without_images_hold_the_same_truth() {
+    let (full, truth) = scene();
+    let bare = tempfile::tempdir().unwrap();
+    let syn = Synthetic::new("convergent", 0.08, 5).unwrap();
+    lineflow_synthetic::write_project_files(&syn, bare.path()).unwrap();
+    assert!(!bare.path().join("images").exists());
+    for file in ["camera.toml", "control_points.csv", "observations.csv", "site.toml", "gt/poses.csv", "gt/lines3d.csv", "gt/scene.json"] {
+        let read = |dir: &std::path::Path| std::fs::read(dir.join(file)).unwrap();
+        assert_eq!(read(full.path()), read(bare.path()), "{file}");
+    }
+    let again = Truth::load(bare.path()).unwrap();
+    assert_eq!(again.poses.len(), truth.poses.len());
+}

@@ -90,10 +90,7 @@ pub fn truth_lines(syn: &Synthetic) -> Vec<Line3Row> {
 /// `progress(done, total)` is called after each image.
 pub fn write_project(syn: &Synthetic, dir: &Path, progress: &mut dyn FnMut(usize, usize)) -> Result<(), SynthError> {
     let images = dir.join("images");
-    let gt = dir.join("gt");
-    for d in [&images, &gt] {
-        std::fs::create_dir_all(d).map_err(io(d))?;
-    }
+    std::fs::create_dir_all(&images).map_err(io(&images))?;
     let cam = syn.camera();
     let n = syn.poses().len();
     for frame in 0..n {
@@ -108,7 +105,15 @@ pub fn write_project(syn: &Synthetic, dir: &Path, progress: &mut dyn FnMut(usize
         }
         progress(frame + 1, n);
     }
+    write_project_files(syn, dir)
+}
 
+/// The project folder's files without its images, and `gt/`: what scores a run of the synthetic camera node (which
+/// renders its own images) with `lineflow eval`, in seconds rather than a render of every frame.
+pub fn write_project_files(syn: &Synthetic, dir: &Path) -> Result<(), SynthError> {
+    let gt = dir.join("gt");
+    std::fs::create_dir_all(&gt).map_err(io(&gt))?;
+    let cam = syn.camera();
     let camera_toml =
         toml::to_string(&lineflow_formats::project::CameraFile::of(cam)).map_err(|e| SynthError::Io(format!("camera.toml: {e}")))?;
     write(
