@@ -327,7 +327,8 @@ fn walls(
     chosen
         .into_iter()
         .filter_map(|plane| {
-            let wall = Wall::facing(plane, viewpoint)?.settled(vertices, edges, sizes.recess_m.0);
+            let observed = [(vertices, edges), (&surface_vertices[..], &surface_edges[..])];
+            let wall = Wall::facing(plane, viewpoint)?.settled(observed, sizes.recess_m.0);
             // Up to where a recess starts, so that a nearly flush frame (3 to 6 cm back) is on the wall, not lost
             // between the two.
             let on_wall = (-DEPTH_TOLERANCE_M, sizes.recess_m.0);

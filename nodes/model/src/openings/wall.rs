@@ -28,10 +28,11 @@ impl Wall {
     /// within `reach` of it. The plane of the faces is fitted to corners, which noise and the frames a few
     /// centimetres behind pull off the wall by up to a few centimetres; its own edges, most of them on it, say
     /// where it is.
-    pub(super) fn settled(mut self, vertices: &[Vertex], edges: &[Edge], reach: f64) -> Wall {
+    pub(super) fn settled(mut self, observed: [(&[Vertex], &[Edge]); 2], reach: f64) -> Wall {
         let mut depths: Vec<(f64, f64)> = [true, false]
             .into_iter()
-            .flat_map(|upright| pieces(&self, vertices, edges, upright, (-reach, reach)))
+            .flat_map(|upright| observed.map(|(vertices, edges)| pieces(&self, vertices, edges, upright, (-reach, reach))))
+            .flatten()
             .map(|(_, depth, a, b, _)| (depth, b - a))
             .collect();
         depths.sort_by(|a, b| a.0.total_cmp(&b.0));
@@ -186,4 +187,52 @@ pub(super) fn opening_corners(wall: &Wall, rect: Rect, depth: f64, centres: &[Ve
             sigma,
         })
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::tests::{edge, vertex};
+    use super::*;
+
+    /// Vertices and edges of level lines from x 0 to `length` at the heights `zs`, `y` metres behind the wall y = 0.
+    fn level_lines(y: f64, zs: &[f64], length: f64) -> (Vec<Vertex>, Vec<Edge>) {
+        let vertices = zs.iter().flat_map(|&z| [vertex([0.0, y, z]), vertex([length, y, z])]).collect();
+        (vertices, (0..zs.len()).map(|k| edge(2 * k, 2 * k + 1)).collect())
+    }
+
+    /// On a brick wall whose courses the line stage classed texture, the model's own edges near the wall are
+    /// mostly nearly flush frames 2 cm behind it: they alone settle the wall on the frames, and every reveal comes
+    /// out 2 cm short. The courses left out of the model lie on the wall's face and settle it there.
+    #[test]
+    fn the_surface_lines_settle_the_wall_on_its_face_not_on_its_frames() {
+        let plane = Plane {
+            normal: Vec3::y(),
+            offset: 0.01,
+        };
+        let wall = Wall::facing(plane, &Vec3::new(3.0, -19.0, 1.6)).unwrap();
+        let (outline_v, outline_e) = level_lines(0.0, &[0.0, 6.0], 8.0);
+        let (frames_v, frames_e) = level_lines(0.02, &[1.0, 1.5, 2.5, 3.0, 4.0, 4.5], 8.0);
+        let mut vertices = outline_v.clone();
+        vertices.extend(frames_v);
+        let edges: Vec<Edge> = outline_e
+            .iter()
+            .copied()
+            .chain(frames_e.iter().map(|e| edge(e.a + outline_v.len(), e.b + outline_v.len())))
+            .collect();
+        let none: (&[Vertex], &[Edge]) = (&[], &[]);
+        let on_frames = wall.settled([(&vertices, &edges), none], 0.06);
+        assert!(
+            (on_frames.depth(&Vec3::zeros()) + 0.02).abs() < 1e-9,
+            "the frames alone: {}",
+            on_frames.plane.offset
+        );
+        let zs: Vec<f64> = (0..60).map(|k| 0.05 + 0.1 * k as f64).collect();
+        let (courses_v, courses_e) = level_lines(0.0, &zs, 8.0);
+        let on_face = wall.settled([(&vertices, &edges), (&courses_v, &courses_e)], 0.06);
+        assert!(
+            on_face.depth(&Vec3::zeros()).abs() < 1e-9,
+            "with the courses: {}",
+            on_face.plane.offset
+        );
+    }
 }
