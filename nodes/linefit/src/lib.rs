@@ -39,7 +39,9 @@ pub struct FitParams {
     /// …and that overlap or leave at most this gap, metres, are one edge.
     pub merge_gap_m: f64,
     /// …and, with the camera and poses, that no image holding both shows more than this many pixels apart across
-    /// the line; 0 (the default) leaves it to `merge_distance_m` (docs/lines3d.md, "Merged across features").
+    /// the line (1.5 by default: a sill and the mortar joint 14 mm below it are 2 px apart at full size, while at
+    /// the demo's scale 0.3 a pixel is 23 mm and the distance rules alone); 0 leaves it to `merge_distance_m`
+    /// (docs/lines3d.md, "Merged across features").
     pub merge_max_px: f64,
     /// Re-estimate the final lines from every image's 2-D segments (needs `lines2d`, `poses` and `camera`).
     pub multiview: bool,
@@ -110,7 +112,7 @@ impl Default for FitParams {
             merge_angle_deg: 2.0,
             merge_distance_m: 0.03,
             merge_gap_m: 0.05,
-            merge_max_px: 0.0,
+            merge_max_px: 1.5,
             multiview: true,
             multiview_max_distance_px: 2.5,
             multiview_min_views: 3,
