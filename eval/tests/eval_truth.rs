@@ -247,15 +247,7 @@ fn the_project_files_without_images_hold_the_same_truth() {
     let syn = Synthetic::new("convergent", 0.08, 5).unwrap();
     lineflow_synthetic::write_project_files(&syn, bare.path()).unwrap();
     assert!(!bare.path().join("images").exists());
-    for file in [
-        "camera.toml",
-        "control_points.csv",
-        "observations.csv",
-        "site.toml",
-        "gt/poses.csv",
-        "gt/lines3d.csv",
-        "gt/scene.json",
-    ] {
+    for file in lineflow_synthetic::PROJECT_FILES {
         let read = |dir: &std::path::Path| std::fs::read(dir.join(file)).unwrap();
         assert_eq!(read(full.path()), read(bare.path()), "{file}");
     }

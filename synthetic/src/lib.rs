@@ -18,7 +18,7 @@ use lineflow_photogrammetry::{Camera, Pose, Vec3};
 pub use presets::{preset, Preset, PRESETS};
 pub use render::{Sensor, World};
 pub use truth::{SeenEdge, TargetObservation};
-pub use write::{jpeg_bytes, make_bare, truth_lines, truth_poses, write_project, write_project_files};
+pub use write::{jpeg_bytes, make_bare, truth_lines, truth_poses, write_project, write_project_files, PROJECT_FILES};
 
 use rng::Rng;
 

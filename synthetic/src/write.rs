@@ -108,6 +108,17 @@ pub fn write_project(syn: &Synthetic, dir: &Path, progress: &mut dyn FnMut(usize
     write_project_files(syn, dir)
 }
 
+/// The files [`write_project_files`] writes, relative to the project folder.
+pub const PROJECT_FILES: [&str; 7] = [
+    "camera.toml",
+    "control_points.csv",
+    "observations.csv",
+    "site.toml",
+    "gt/poses.csv",
+    "gt/lines3d.csv",
+    "gt/scene.json",
+];
+
 /// The project folder's files without its images, and `gt/`: what scores a run of the synthetic camera node (which
 /// renders its own images) with `lineflow eval`, in seconds rather than a render of every frame.
 pub fn write_project_files(syn: &Synthetic, dir: &Path) -> Result<(), SynthError> {

@@ -610,16 +610,7 @@ fn small_convergent_scene(sb: &Sandbox) -> PathBuf {
 fn a_synth_folder_loads_through_the_folder_capture_and_evaluates() {
     let sb = Sandbox::new();
     let scene = small_convergent_scene(&sb);
-    for f in [
-        "images/IMG_0012.png",
-        "camera.toml",
-        "control_points.csv",
-        "observations.csv",
-        "site.toml",
-        "gt/poses.csv",
-        "gt/lines3d.csv",
-        "gt/scene.json",
-    ] {
+    for f in std::iter::once("images/IMG_0012.png").chain(lineflow_synthetic::PROJECT_FILES) {
         assert!(scene.join(f).is_file(), "synth wrote no {f}");
     }
     let r = sb.run(&["process", scene.to_str().unwrap()]);
