@@ -55,8 +55,9 @@ pub fn synth(a: SynthArgs) -> Result<ExitCode> {
     if a.no_images {
         write_project_files(&syn, &a.out).with_context(|| format!("writing {}", a.out.display()))?;
         eprintln!(
-            "wrote {}: camera.toml, control_points.csv, observations.csv, site.toml, gt/ (no images)",
-            a.out.display()
+            "wrote {}: {} (no images)",
+            a.out.display(),
+            lineflow_synthetic::PROJECT_FILES.join(", ")
         );
         return Ok(ExitCode::SUCCESS);
     }

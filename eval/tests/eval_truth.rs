@@ -247,6 +247,17 @@ fn the_project_files_without_images_hold_the_same_truth() {
     let syn = Synthetic::new("convergent", 0.08, 5).unwrap();
     lineflow_synthetic::write_project_files(&syn, bare.path()).unwrap();
     assert!(!bare.path().join("images").exists());
+    // Every file written is listed: the top folder's files and gt/'s, and nothing else.
+    let listed = |dir: &std::path::Path| {
+        std::fs::read_dir(dir)
+            .unwrap()
+            .filter(|e| e.as_ref().unwrap().path().is_file())
+            .count()
+    };
+    assert_eq!(
+        listed(bare.path()) + listed(&bare.path().join("gt")),
+        lineflow_synthetic::PROJECT_FILES.len()
+    );
     for file in lineflow_synthetic::PROJECT_FILES {
         let read = |dir: &std::path::Path| std::fs::read(dir.join(file)).unwrap();
         assert_eq!(read(full.path()), read(bare.path()), "{file}");

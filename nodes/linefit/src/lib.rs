@@ -40,7 +40,7 @@ pub struct FitParams {
     pub merge_gap_m: f64,
     /// …and, with the camera and poses, that no image holding both shows more than this many pixels apart across
     /// the line (1.5 by default: a sill and the mortar joint 14 mm below it are 2 px apart at full size, while at
-    /// the demo's scale 0.3 a pixel is 23 mm and the distance rules alone); 0 leaves it to `merge_distance_m`
+    /// the demo's scale 0.3 a pixel is 23 mm and `merge_distance_m` decides alone); 0 leaves it to `merge_distance_m`
     /// (docs/lines3d.md, "Merged across features").
     pub merge_max_px: f64,
     /// Re-estimate the final lines from every image's 2-D segments (needs `lines2d`, `poses` and `camera`).
