@@ -85,8 +85,8 @@ pub fn bench_model(preset: &str, sigmas_gsd: &[f64], reps: usize, set: &[String]
             std::hint::black_box(junction::candidates_all_pairs(&lines, &params));
         });
         let vertices: Vec<Vec3> = model.vertices.iter().map(|v| v.point).collect();
-        let edges: Vec<[usize; 2]> = model.observed_edges();
-        let r = lineflow_eval::model::evaluate(&truth.lines, &vertices, &edges, gsd);
+        let edges: Vec<[usize; 2]> = model.visible_edges();
+        let r = lineflow_eval::model::evaluate(&truth.lines, &truth.every_edge(), &vertices, &edges, gsd);
         let found: Vec<_> = model.openings().into_iter().map(lineflow_eval::model::ModelOpening::from).collect();
         let o = lineflow_eval::model::evaluate_openings(&truth.scene.building.openings, &found, gsd);
         println!(

@@ -94,7 +94,7 @@ pub fn bench_modelfit(args: Args) -> Result<ExitCode> {
     let mut model = Model::default();
     let t_build = median_time(reps, || model = build(&input.lines, &input.params, &input.cameras));
     let vertices: Vec<Vec3> = model.vertices.iter().map(|v| v.point).collect();
-    let edges: Vec<[usize; 2]> = model.observed_edges();
+    let edges: Vec<[usize; 2]> = model.visible_edges();
     let faces = face_planes(&model);
     let params = FitParams {
         weighting,
@@ -102,8 +102,9 @@ pub fn bench_modelfit(args: Args) -> Result<ExitCode> {
     };
     let mut fitted = Default::default();
     let t_fit = median_time(reps, || fitted = fit_wireframe(&vertices, &edges, &faces, &images, &params));
-    let before = lineflow_eval::model::evaluate(&truth.lines, &vertices, &edges, gsd);
-    let after = lineflow_eval::model::evaluate(&truth.lines, &fitted.vertices, &edges, gsd);
+    let every = truth.every_edge();
+    let before = lineflow_eval::model::evaluate(&truth.lines, &every, &vertices, &edges, gsd);
+    let after = lineflow_eval::model::evaluate(&truth.lines, &every, &fitted.vertices, &edges, gsd);
     println!(
         "model: {} vertices, {} edges, {} openings; {}",
         vertices.len(),

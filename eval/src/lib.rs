@@ -32,6 +32,24 @@ pub struct Truth {
 pub type Wireframe = (Vec<lineflow_photogrammetry::Vec3>, Vec<[usize; 2]>);
 
 impl Truth {
+    /// Every structural edge of the building, seen or not (the truth's `lines` hold those two images see).
+    pub fn every_edge(&self) -> Vec<Line3Row> {
+        self.scene
+            .building
+            .edges
+            .iter()
+            .map(|e| Line3Row {
+                id: String::new(),
+                start: e.a.into(),
+                end: e.b.into(),
+                n_points: None,
+                n_images: None,
+                rms_m: None,
+                class: Default::default(),
+            })
+            .collect()
+    }
+
     /// Loads `DIR/gt/` and regenerates the scene it describes.
     pub fn load(dir: &Path) -> Result<Truth> {
         let gt = dir.join("gt");
@@ -180,11 +198,11 @@ pub fn evaluate(truth: &Truth, results: &Results) -> Evaluation {
         model: results
             .model
             .as_ref()
-            .map(|(v, e)| model::evaluate(&truth.lines, v, e, truth.gsd_m())),
+            .map(|(v, e)| model::evaluate(&truth.lines, &truth.every_edge(), v, e, truth.gsd_m())),
         model_fitted: results
             .model_fitted
             .as_ref()
-            .map(|(v, e)| model::evaluate(&truth.lines, v, e, truth.gsd_m())),
+            .map(|(v, e)| model::evaluate(&truth.lines, &truth.every_edge(), v, e, truth.gsd_m())),
         openings: results
             .model_openings
             .as_ref()

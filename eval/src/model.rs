@@ -4,7 +4,9 @@
 //! edge's end on it is split there, as a model edge would be. A model vertex matches the true vertex it is
 //! mutually nearest to within 5 GSD; the vertex RMSE is over those pairs. A model edge is right when both its ends
 //! lie within 3 GSD of the two ends of one true edge; edge precision is the share of model edges that are right,
-//! edge recall the share of true edges some model edge matches.
+//! edge recall the share of true edges some model edge matches. The truth holds the edges two images see;
+//! a model edge on an edge of the building fewer images see (a frame's foot behind its sill, seen from below) is
+//! neither right nor wrong: it is left out of the precision and counted apart.
 use lineflow_formats::Line3Row;
 
 use crate::geometry::Seg;
@@ -23,6 +25,9 @@ pub struct ModelReport {
     pub model_edges: usize,
     pub edge_precision: f64,
     pub edge_recall: f64,
+    /// Model edges on an edge of the building that the truth leaves out (fewer than two images see it): left out of
+    /// the precision.
+    pub unseen_edges: usize,
     /// Reach for vertex matching and tolerance for edge ends, metres.
     pub vertex_reach_m: f64,
     pub edge_tolerance_m: f64,
@@ -81,8 +86,9 @@ fn nearest(points: &[Vec3], p: &Vec3) -> Option<(usize, f64)> {
         .min_by(|a, b| a.1.total_cmp(&b.1))
 }
 
-/// Scores a wire-frame (`vertices`, `edges`) against the true segments at ground sample distance `gsd_m`.
-pub fn evaluate(truth: &[Line3Row], vertices: &[Vec3], edges: &[[usize; 2]], gsd_m: f64) -> ModelReport {
+/// Scores a wire-frame (`vertices`, `edges`) against the true segments `truth` (seen in two images) at ground
+/// sample distance `gsd_m`; `every` holds every edge of the building, seen or not (empty: none is forgiven).
+pub fn evaluate(truth: &[Line3Row], every: &[Line3Row], vertices: &[Vec3], edges: &[[usize; 2]], gsd_m: f64) -> ModelReport {
     let (tv, te) = true_wireframe(truth);
     let reach = 5.0 * gsd_m;
     let tol = EDGE_TOLERANCE_GSD * gsd_m;
@@ -113,6 +119,13 @@ pub fn evaluate(truth: &[Line3Row], vertices: &[Vec3], edges: &[[usize; 2]], gsd
         })
         .collect();
     let right = edge_error_m.iter().filter(|e| !e.is_nan()).count();
+    let (ev, ee) = true_wireframe(every);
+    let on_every = edge_matcher(&ev, vertices, tol);
+    let unseen = edges
+        .iter()
+        .zip(&edge_error_m)
+        .filter(|(m, e)| e.is_nan() && ee.iter().any(|t| on_every(m, t)))
+        .count();
     let found = te.iter().filter(|t| edges.iter().any(|m| edge_matches(m, t))).count();
     let share = |n: usize, d: usize| if d == 0 { 0.0 } else { n as f64 / d as f64 };
     ModelReport {
@@ -123,7 +136,8 @@ pub fn evaluate(truth: &[Line3Row], vertices: &[Vec3], edges: &[[usize; 2]], gsd
         vertex_rmse_m: if matched == 0 { f64::NAN } else { (sq / matched as f64).sqrt() },
         true_edges: te.len(),
         model_edges: edges.len(),
-        edge_precision: share(right, edges.len()),
+        edge_precision: share(right, edges.len() - unseen),
+        unseen_edges: unseen,
         edge_recall: share(found, te.len()),
         vertex_reach_m: reach,
         edge_tolerance_m: tol,
@@ -358,7 +372,7 @@ mod tests {
         let lines = vec![row([0.0, 0.0, 0.0], [4.0, 0.0, 0.0]), row([2.0, 0.0, 0.0], [2.0, 0.0, 1.0])];
         let (v, e) = true_wireframe(&lines);
         assert_eq!((v.len(), e.len()), (4, 3));
-        let r = evaluate(&lines, &v, &e, 0.005);
+        let r = evaluate(&lines, &[], &v, &e, 0.005);
         assert_eq!((r.edge_precision, r.edge_recall, r.matched_vertices), (1.0, 1.0, 4));
         assert_eq!(r.vertex_rmse_m, 0.0);
     }
@@ -368,10 +382,10 @@ mod tests {
         let lines = vec![row([0.0, 0.0, 0.0], [1.0, 0.0, 0.0])];
         let (v, e) = true_wireframe(&lines);
         let near: Vec<Vec3> = v.iter().map(|p| p + Vec3::new(0.0, 0.01, 0.0)).collect();
-        let r = evaluate(&lines, &near, &e, 0.005);
+        let r = evaluate(&lines, &[], &near, &e, 0.005);
         assert!((r.vertex_rmse_m - 0.01).abs() < 1e-12);
         assert_eq!(r.edge_precision, 1.0, "1 cm is within 3 GSD = 1.5 cm");
         let far: Vec<Vec3> = v.iter().map(|p| p + Vec3::new(0.0, 0.02, 0.0)).collect();
-        assert_eq!(evaluate(&lines, &far, &e, 0.005).edge_precision, 0.0);
+        assert_eq!(evaluate(&lines, &[], &far, &e, 0.005).edge_precision, 0.0);
     }
 }

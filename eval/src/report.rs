@@ -295,6 +295,12 @@ fn model_section(md: &mut String, truth: &Truth, eval: &Evaluation, out: &Path) 
         );
     }
     let _ = writeln!(md);
+    if let Some(n) = eval.model.as_ref().map(|m| m.unseen_edges).filter(|&n| n > 0) {
+        let _ = writeln!(
+            md,
+            "{n} edges of the model lie on edges of the building that fewer than two images see; they are left out of the precision (`docs/eval.md`).\n"
+        );
+    }
     if let Some(n) = eval.hidden_edges.filter(|&n| n > 0) {
         let _ = writeln!(
             md,

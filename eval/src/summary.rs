@@ -110,5 +110,6 @@ fn model(m: &ModelReport) -> Value {
         "model_edges": m.model_edges,
         "edge_precision": m.edge_precision,
         "edge_recall": m.edge_recall,
+        "unseen_edges": m.unseen_edges,
     })
 }

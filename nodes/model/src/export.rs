@@ -7,7 +7,7 @@ use std::path::Path;
 use anyhow::{Context, Result};
 use serde_json::json;
 
-use crate::{Model, SurfaceKind};
+use crate::{EdgeOrigin, Model, SurfaceKind};
 
 fn write(path: &Path, text: &str) -> Result<()> {
     if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
@@ -17,8 +17,9 @@ fn write(path: &Path, text: &str) -> Result<()> {
 }
 
 /// Wavefront OBJ: `v` per vertex (metres, object coordinates), `f` per face outer ring grouped by kind (OBJ has no
-/// holes: openings are their own faces), `l` per edge (group `edges`, `completed_edges` for the occluded ones, and
-/// `surface_lines` for the lines inside a wall's surface, which are no edges of the model).
+/// holes: openings are their own faces), `l` per edge (group `edges` for the observed ones, `inferred_edges` for
+/// those the model's rules placed, `completed_edges` for the occluded ones, and `surface_lines` for the lines inside
+/// a wall's surface, which are no edges of the model).
 pub fn obj_text(model: &Model) -> String {
     let mut s = String::new();
     let _ = writeln!(
@@ -42,9 +43,14 @@ pub fn obj_text(model: &Model) -> String {
             let _ = writeln!(s, "f {}", idx.join(" "));
         }
     }
-    // Completed (hidden) edges in their own group, as the seed flags them.
-    for (group, completed) in [("edges", false), ("completed_edges", true)] {
-        let mut group_edges = model.edges.iter().filter(|e| e.completed == completed).peekable();
+    // Hidden edges in their own group, as the seed flags them; inferred ones apart from the observed, as a reader
+    // may want to tell them, though both are edges a camera sees.
+    for (group, origin) in [
+        ("edges", EdgeOrigin::Observed),
+        ("inferred_edges", EdgeOrigin::Inferred),
+        ("completed_edges", EdgeOrigin::Hidden),
+    ] {
+        let mut group_edges = model.edges.iter().filter(|e| e.origin == origin).peekable();
         if group_edges.peek().is_some() {
             let _ = writeln!(s, "g {group}");
         }

@@ -210,6 +210,15 @@ pub struct ModelParams {
     pub frame_min_m: f64,
     /// …and at most this.
     pub frame_max_m: f64,
+    /// Give the windows whose sill's nose the 3-D lines show their sills, as boxes shaped by the wall's sills
+    /// together ([`openings`], "Sills").
+    pub sills: bool,
+    /// A sill's nose lies at least this far in front of its wall, metres…
+    pub sill_proud_min_m: f64,
+    /// …and at most this.
+    pub sill_proud_max_m: f64,
+    /// How far below its window's foot a sill's top may lie, metres.
+    pub sill_reach_m: f64,
 }
 
 impl Default for ModelParams {
@@ -255,6 +264,10 @@ impl Default for ModelParams {
             opening_max_m: 4.0,
             frame_min_m: 0.02,
             frame_max_m: 0.15,
+            sills: true,
+            sill_proud_min_m: 0.02,
+            sill_proud_max_m: 0.3,
+            sill_reach_m: 0.3,
         }
     }
 }
@@ -277,6 +290,14 @@ impl ModelParams {
             recess_m: (self.recess_min_m, self.recess_max_m),
             opening_m: (self.opening_min_m, self.opening_max_m),
             frame_m: (self.frame_min_m, self.frame_max_m),
+        }
+    }
+
+    /// The sills' rule.
+    pub(crate) fn sill_rule(&self) -> openings::SillRule {
+        openings::SillRule {
+            proud_m: (self.sill_proud_min_m, self.sill_proud_max_m),
+            reach_m: self.sill_reach_m,
         }
     }
 
@@ -349,6 +370,7 @@ impl lineflow_runtime::StageParams for ModelParams {
             ("recess_min_m", self.recess_min_m),
             ("opening_min_m", self.opening_min_m),
             ("frame_max_m", self.frame_max_m),
+            ("sill_reach_m", self.sill_reach_m),
         ] {
             positive(name, v)?;
         }
@@ -363,6 +385,7 @@ impl lineflow_runtime::StageParams for ModelParams {
             ("min_length_m", self.min_length_m),
             ("surface_margin_m", self.surface_margin_m),
             ("frame_min_m", self.frame_min_m),
+            ("sill_proud_min_m", self.sill_proud_min_m),
         ] {
             non_negative(name, v)?;
         }
@@ -370,6 +393,7 @@ impl lineflow_runtime::StageParams for ModelParams {
             ("recess_max_m", self.recess_min_m, self.recess_max_m),
             ("opening_max_m", self.opening_min_m, self.opening_max_m),
             ("frame_max_m", self.frame_min_m, self.frame_max_m),
+            ("sill_proud_max_m", self.sill_proud_min_m, self.sill_proud_max_m),
         ] {
             lineflow_runtime::params::check(hi > lo, name, "more than its minimum", hi)?;
         }
@@ -395,10 +419,29 @@ pub struct Vertex {
 pub struct Edge {
     pub a: usize,
     pub b: usize,
-    /// Index of the input line; `usize::MAX` for a completed edge.
+    /// Index of the input line; `usize::MAX` for an edge no line observed.
     pub line: usize,
-    /// Not observed: completed along an occluder's outline ([`occlusion`]).
-    pub completed: bool,
+    pub origin: EdgeOrigin,
+}
+
+/// Where an edge of the wire-frame comes from. Scores and fits treat inferred edges as seen (a camera sees an
+/// opening's outline, its frame and its reveals wherever the model puts them) and leave hidden ones out.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum EdgeOrigin {
+    /// An input 3-D line.
+    Observed,
+    /// Placed by the model's rules where no line gave it: an opening's outline, its frame and reveals
+    /// ([`openings`]).
+    Inferred,
+    /// Completed behind an occluder ([`occlusion`]): no camera sees it.
+    Hidden,
+}
+
+impl Edge {
+    /// Whether an input line gave this edge.
+    pub fn observed(&self) -> bool {
+        self.origin == EdgeOrigin::Observed
+    }
 }
 
 /// What the model was built from and how, for the log and the report.
@@ -450,10 +493,14 @@ pub struct Model {
 }
 
 impl Model {
-    /// The observed edges as vertex pairs: those completed behind an occluder left out (they have no image
+    /// The edges a camera sees, as vertex pairs: those completed behind an occluder left out (they have no image
     /// evidence, and a ground truth of seen edges does not hold them).
-    pub fn observed_edges(&self) -> Vec<[usize; 2]> {
-        self.edges.iter().filter(|e| !e.completed).map(|e| [e.a, e.b]).collect()
+    pub fn visible_edges(&self) -> Vec<[usize; 2]> {
+        self.edges
+            .iter()
+            .filter(|e| e.origin != EdgeOrigin::Hidden)
+            .map(|e| [e.a, e.b])
+            .collect()
     }
 
     /// The window and door faces: whether a door, and the points of the outer ring.
@@ -734,7 +781,7 @@ pub fn build_with_images(lines: &[ModelLine], params: &ModelParams, cameras: &Ca
                     a: w[0].1,
                     b: w[1].1,
                     line: kept[l],
-                    completed: false,
+                    origin: EdgeOrigin::Observed,
                 });
             }
         }

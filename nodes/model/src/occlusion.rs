@@ -36,7 +36,7 @@ use lineflow_photogrammetry::Vec3;
 use crate::disjoint::Disjoint;
 use crate::faces::{incident_edges, merge_close, plane_hypotheses, plane_tolerance};
 use crate::surface::{plane_basis, smaller_side, Plane};
-use crate::{Edge, ModelParams, Vertex};
+use crate::{Edge, EdgeOrigin, ModelParams, Vertex};
 
 /// Closes the open chains that an occluder in front of them explains; appends the new vertices (no σ) and edges
 /// (`completed`) and returns the number of chains closed. `viewpoint` (e.g. the mean camera centre) tells walls
@@ -149,7 +149,7 @@ fn relief_hides_chord(
         h > std::f64::consts::SQRT_2 * view.tol && h < view.min_depth
     };
     edges.iter().any(|e| {
-        if e.completed || component.get(e.a).is_none_or(|&k| k == own) {
+        if !e.observed() || component.get(e.a).is_none_or(|&k| k == own) {
             return false;
         }
         let (pa, pb) = (vertices[e.a].point, vertices[e.b].point);
@@ -185,7 +185,7 @@ impl Occluders {
             }
         }
         let edges = (0..edges.len())
-            .filter(|&k| !edges[k].completed)
+            .filter(|&k| edges[k].observed())
             .filter(|&k| view.in_front(&vertices[edges[k].a].point) && view.in_front(&vertices[edges[k].b].point))
             .map(|k| (k, component[edges[k].a]))
             .filter(|&(_, c)| !wall || standing[c])
@@ -479,14 +479,14 @@ fn add_path(vertices: &mut Vec<Vertex>, edges: &mut Vec<Edge>, chain: &Chain, pa
             a: w[0],
             b: w[1],
             line: usize::MAX,
-            completed: true,
+            origin: EdgeOrigin::Hidden,
         });
     }
 }
 
 #[cfg(test)]
 mod tests {
-    use crate::{build, Cameras, Model, ModelLine, ModelParams, SurfaceKind};
+    use crate::{build, Cameras, EdgeOrigin, Model, ModelLine, ModelParams, SurfaceKind};
     use lineflow_photogrammetry::Vec3;
 
     fn lines(segments: &[([f64; 3], [f64; 3])]) -> Vec<ModelLine> {
@@ -520,7 +520,7 @@ mod tests {
         let params = ModelParams::default();
         let model = build(&lines(&segs), &params, &Vec3::new(4.0, 3.0, 300.0).into());
         assert_eq!(model.diagnostics.chains_completed, 1, "{}", model.summary());
-        let completed: Vec<_> = model.edges.iter().filter(|e| e.completed).collect();
+        let completed: Vec<_> = model.edges.iter().filter(|e| e.origin == EdgeOrigin::Hidden).collect();
         assert_eq!(completed.len(), 2, "(0, 2) → (2, 2) → (2, 6)");
         let roof = model
             .faces
@@ -580,7 +580,7 @@ mod tests {
         // The block behind the wall hides nothing.
         let behind = build(&facade(3.0), &ModelParams::default(), camera);
         assert_eq!(behind.diagnostics.chains_completed, 0);
-        assert!(behind.edges.iter().all(|e| !e.completed));
+        assert!(behind.edges.iter().all(|e| e.observed()));
         // No viewpoint: a wall has no known front.
         let blind = build(&facade(-3.0), &ModelParams::default(), &Cameras::default());
         assert_eq!(blind.diagnostics.chains_completed, 0);
@@ -592,7 +592,7 @@ mod tests {
 
 #[cfg(test)]
 mod relief_tests {
-    use crate::{build, ModelLine, ModelParams, SurfaceKind};
+    use crate::{build, EdgeOrigin, ModelLine, ModelParams, SurfaceKind};
     use lineflow_photogrammetry::Vec3;
 
     /// A window (x 1…2.4, z 10…11.7 in the wall y = 0) whose bottom edge is not seen, with reveals running back
@@ -625,14 +625,14 @@ mod relief_tests {
         let (closed, windows) = window_faces(&window_over_a_sill(-0.06, 9.97), below);
         assert_eq!((closed, windows), (1, 1), "closed along the chord, an opening by its reveals");
         let model = build(&window_over_a_sill(-0.06, 9.97), &ModelParams::default(), &below.into());
-        let hidden: Vec<_> = model.edges.iter().filter(|e| e.completed).collect();
+        let hidden: Vec<_> = model.edges.iter().filter(|e| e.origin == EdgeOrigin::Hidden).collect();
         assert_eq!(hidden.len(), 1);
         let (a, b) = (model.vertices[hidden[0].a].point, model.vertices[hidden[0].b].point);
         assert!(
             (a.z - 10.0).abs() < 1e-9 && (b.z - 10.0).abs() < 1e-9,
             "the chord between the seen ends: {a} {b}"
         );
-        assert_eq!(model.observed_edges().len(), model.edges.len() - 1);
+        assert_eq!(model.visible_edges().len(), model.edges.len() - 1);
     }
 
     #[test]

@@ -9,7 +9,7 @@ use lineflow_messages::{FaceVertex, Line3, Pose as PoseMessage, Segment2, Stamp,
 use lineflow_photogrammetry::{Camera, Pose, Vec3};
 
 use crate::refine::{Endpoints, ImageLines};
-use crate::{build_with_images, lines_from_rows, Cameras, Images, Model, ModelParams, SurfaceKind};
+use crate::{build_with_images, lines_from_rows, Cameras, EdgeOrigin, Images, Model, ModelParams, SurfaceKind};
 
 /// The images' 2-D lines for Refine and the openings' evidence: segments as they arrive, indexed once the camera is known, each image
 /// placed at its newest pose.
@@ -177,7 +177,7 @@ pub fn wire_edges(model: &Model) -> Vec<WireEdge> {
                 b: e.b as u32,
                 face: face.map_or(u32::MAX, |f| f as u32),
                 kind,
-                hidden: u32::from(e.completed),
+                hidden: u32::from(e.origin == EdgeOrigin::Hidden),
             }
         })
         .collect()

@@ -109,11 +109,11 @@ pub(crate) fn separate(
             walls[w].depth(&m).abs() < RECESS_REACH_M && u >= u0 && u <= u1 && m.z >= z0 && m.z <= z1
         })
     };
-    let candidate = |e: &Edge| !e.completed && free(e.a) && free(e.b) && wall_of[e.a] == wall_of[e.b] && !in_opening(e);
+    let candidate = |e: &Edge| e.observed() && free(e.a) && free(e.b) && wall_of[e.a] == wall_of[e.b] && !in_opening(e);
     let candidates: Vec<usize> = (0..edges.len()).filter(|&k| candidate(&edges[k])).collect();
     let in_field = in_a_field(vertices, edges, &candidates, &walls, &wall_of, rule);
     let classed = |e: &Edge| {
-        texture.get(e.line).copied().unwrap_or(false) && !e.completed && !on_other_face[e.a] && !on_other_face[e.b] && !in_opening(e)
+        texture.get(e.line).copied().unwrap_or(false) && e.observed() && !on_other_face[e.a] && !on_other_face[e.b] && !in_opening(e)
     };
     let mut is_surface: Vec<bool> = edges.iter().map(classed).collect();
     for (&k, &f) in candidates.iter().zip(&in_field) {
@@ -239,6 +239,7 @@ fn extent(vertices: &[Vertex], edges: &[Edge], wall: &Wall, own: impl Fn(usize) 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::EdgeOrigin;
 
     fn vertex(x: f64, y: f64, z: f64) -> Vertex {
         Vertex {
@@ -252,7 +253,7 @@ mod tests {
             a,
             b,
             line: 0,
-            completed: false,
+            origin: EdgeOrigin::Observed,
         }
     }
 

@@ -17,8 +17,8 @@ fn noisy_lines(truth: &Truth, sigma: f64) -> Vec<ModelLine> {
 
 fn score(truth: &Truth, model: &Model) -> lineflow_eval::model::ModelReport {
     let v: Vec<Vec3> = model.vertices.iter().map(|v| v.point).collect();
-    let e: Vec<[usize; 2]> = model.observed_edges();
-    evaluate(&truth.lines, &v, &e, truth.gsd_m())
+    let e: Vec<[usize; 2]> = model.visible_edges();
+    evaluate(&truth.lines, &truth.every_edge(), &v, &e, truth.gsd_m())
 }
 
 /// The a55 preset's truth, and its true edges with `sigma_gsd` GSD of noise per coordinate with the parameters

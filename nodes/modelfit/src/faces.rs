@@ -2,7 +2,7 @@
 //! `model_fitted.city.json` are written by the same code as `model.obj` and `model.city.json`. The fit moves
 //! vertices only; the faces (rings of vertex indices, from the `faces` topic) hold as they are.
 use lineflow_messages::{FaceVertex, WireEdge};
-use lineflow_model::{Edge, Face, Model, SurfaceKind, Vertex};
+use lineflow_model::{Edge, EdgeOrigin, Face, Model, SurfaceKind, Vertex};
 use lineflow_photogrammetry::{polygon_normal, Vec3};
 
 /// The model of `vertices` and `edges` with the faces of `faces` (rings in order, outer ring 0 first, then the
@@ -16,7 +16,7 @@ pub fn fitted_model(vertices: &[Vec3], edges: &[WireEdge], faces: &[FaceVertex])
                 a: e.a as usize,
                 b: e.b as usize,
                 line: usize::MAX,
-                completed: e.hidden != 0,
+                origin: if e.hidden != 0 { EdgeOrigin::Hidden } else { EdgeOrigin::Observed },
             })
             .collect(),
         ..Model::default()

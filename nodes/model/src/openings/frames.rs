@@ -5,6 +5,9 @@
 //! four reveals as completed edges ([`add_frames`], [`add_frame`]).
 use super::*;
 
+/// Panes cover at least this share of their opening's area (one pane of four will do: frames and mullions take
+/// their share, and panes often fail to close).
+const MIN_PANES_SHARE: f64 = 0.2;
 /// A frame side's edges cover at least this share of the opening's height.
 const MIN_FRAME_COVER: f64 = 0.3;
 /// How far outside the opening's side a frame side may lie, metres (the opening's own edge is a noisy line too).
@@ -64,21 +67,55 @@ pub(super) fn flush_frame_depth(view: &WallView, [x0, x1, z0, z1]: [f64; 4]) -> 
     agreed(behind_at(x0), behind_at(x1))
 }
 
-/// Whether a face of the model (a frame that closed but made no rectangle, or its panes) lies behind the opening
+/// The faces of the model behind an opening: a frame that closed, or its panes.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(super) struct FaceBehind {
+    /// The front-most one's depth behind the wall, metres.
+    pub(super) depth: f64,
+    /// Whether one spans the opening, side to side and foot to top (within a frame's width): the frame itself,
+    /// not its panes.
+    pub(super) spans: bool,
+    /// The share of the opening's area they cover at the front-most one's depth.
+    pub(super) share: f64,
+}
+
+/// The faces of the model (a frame that closed but made no rectangle, or its panes) behind the opening
 /// `[x0, x1, z0, z1]` of `wall`, from [`FLUSH_MIN_M`] (a nearly flush frame) to the deepest recess `sizes`
-/// allow: it gives the reveal already.
-pub(super) fn face_behind(outlines: &[Outline], wall: &Wall, [x0, x1, z0, z1]: [f64; 4], sizes: OpeningSizes, cos_par: f64) -> bool {
-    outlines.iter().any(|o| {
-        let [a0, a1, b0, b1] = o.bounds_in(wall);
-        o.normal.dot(&wall.out).abs() > cos_par
-            && (FLUSH_MIN_M..=sizes.recess_m.1).contains(&wall.depth(&o.centroid))
-            && (x0..=x1).contains(&((a0 + a1) / 2.0))
-            && (z0..=z1).contains(&((b0 + b1) / 2.0))
+/// allow: they give the reveal already.
+pub(super) fn face_behind(
+    outlines: &[Outline],
+    wall: &Wall,
+    [x0, x1, z0, z1]: [f64; 4],
+    sizes: OpeningSizes,
+    cos_par: f64,
+) -> Option<FaceBehind> {
+    let reach = sizes.frame_m.1.max(OUTSIDE_M);
+    let behind: Vec<([f64; 4], f64, f64)> = outlines
+        .iter()
+        .filter_map(|o| {
+            let [a0, a1, b0, b1] = o.bounds_in(wall);
+            let depth = wall.depth(&o.centroid);
+            (o.normal.dot(&wall.out).abs() > cos_par
+                && (FLUSH_MIN_M..=sizes.recess_m.1).contains(&depth)
+                && (x0..=x1).contains(&((a0 + a1) / 2.0))
+                && (z0..=z1).contains(&((b0 + b1) / 2.0)))
+            .then_some(([a0, a1, b0, b1], depth, o.area))
+        })
+        .collect();
+    let depth = behind.iter().map(|b| b.1).min_by(f64::total_cmp)?;
+    let front: Vec<&([f64; 4], f64, f64)> = behind.iter().filter(|b| b.1 - depth <= DEPTH_TOLERANCE_M).collect();
+    Some(FaceBehind {
+        depth,
+        spans: front
+            .iter()
+            .any(|([a0, a1, b0, b1], _, _)| [a0 - x0, x1 - a1, b0 - z0, z1 - b1].iter().all(|gap| gap.abs() <= reach)),
+        share: front.iter().map(|b| b.2).sum::<f64>() / ((x1 - x0) * (z1 - z0)).max(1e-9),
     })
 }
 
-/// Gives every window and door of the model in a wall's plane with no face behind it (its outline closed on the
-/// wall, or its row and column predicted it) the frame its 3-D lines show ([`frame_depth`]), with its reveals.
+/// Gives every window and door of the model in a wall's plane with no frame face behind it (its outline closed on
+/// the wall, or its row and column predicted it) the frame its 3-D lines show: at its panes' depth where the model
+/// has them ([`face_behind`]), else where the frame's sides are ([`frame_depth`]); with its reveals.
 /// After the openings are nested, so that the frame takes its opening's kind.
 pub(crate) fn add_frames(
     walls: &[WallView],
@@ -104,11 +141,20 @@ pub(crate) fn add_frames(
             continue;
         };
         let bounds = o.bounds_in(&view.wall);
-        if face_behind(&outlines, &view.wall, bounds, sizes, cos_par) {
-            continue;
-        }
-        // The standing sides behind the wall start at `recess_min_m`; nearer frames are among the wall's own edges.
-        if let Some(depth) = frame_depth(view, bounds).or_else(|| flush_frame_depth(view, bounds)) {
+        let depth = match face_behind(&outlines, &view.wall, bounds, sizes, cos_par) {
+            // Panes: they sit in the frame's face, which the opening's reveals reach. A face that spans the opening
+            // is its frame already; one that covers little of it is something else behind it.
+            Some(FaceBehind {
+                depth,
+                spans: false,
+                share,
+            }) if share >= MIN_PANES_SHARE => Some(depth),
+            Some(_) => continue,
+            // The standing sides behind the wall start at `recess_min_m`; nearer frames are among the wall's own
+            // edges.
+            None => frame_depth(view, bounds).or_else(|| flush_frame_depth(view, bounds)),
+        };
+        if let Some(depth) = depth {
             frames.push((j, depth));
         }
     }
@@ -142,6 +188,6 @@ pub(super) fn add_frame(
         a,
         b,
         line: usize::MAX,
-        completed: true,
+        origin: EdgeOrigin::Inferred,
     }));
 }

@@ -18,7 +18,7 @@ use lineflow_photogrammetry::Vec3;
 use lineflow_photogrammetry::{point_in_polygon, signed_area};
 
 use crate::surface::{plane_basis, smaller_side, Face, Plane, SurfaceKind};
-use crate::{Cameras, Edge, ModelParams, Vertex};
+use crate::{Cameras, Edge, EdgeOrigin, ModelParams, Vertex};
 
 /// The sizes the opening rules assume, metres (the model's parameters `recess_*_m`, `opening_*_m`, `frame_*_m`).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -87,9 +87,11 @@ mod recesses;
 mod rectangles;
 mod settle;
 mod sides;
+mod sills;
 mod wall;
 pub(crate) use evidence::Evidence;
 pub(crate) use frames::add_frames;
+pub(crate) use sills::{add_sills, SillRule};
 pub(crate) use wall::{Outline, Wall};
 mod wall_from_edges;
 
@@ -193,7 +195,7 @@ pub(crate) fn infer(
                     normal: wall.out,
                     // None where the model has a face behind already, or the frame is nearly flush (on the wall).
                     reveal_m: Some(p.depth)
-                        .filter(|&d| d >= sizes.recess_m.0 && !face_behind(&outlines, wall, rect.bounds, sizes, cos_par)),
+                        .filter(|&d| d >= sizes.recess_m.0 && face_behind(&outlines, wall, rect.bounds, sizes, cos_par).is_none()),
                 });
             }
         }
@@ -253,7 +255,7 @@ pub(super) fn add_face(
         a,
         b: ring[(k + 1) % ring.len()],
         line: usize::MAX,
-        completed: true,
+        origin: EdgeOrigin::Inferred,
     }));
     faces.push(Face {
         ring: ring.clone(),
@@ -321,7 +323,7 @@ fn walls(
             a: 2 * k,
             b: 2 * k + 1,
             line: usize::MAX,
-            completed: false,
+            origin: EdgeOrigin::Observed,
         })
         .collect();
     chosen
@@ -373,7 +375,7 @@ pub(super) mod tests {
             a,
             b,
             line: a,
-            completed: false,
+            origin: EdgeOrigin::Observed,
         }
     }
 
@@ -448,7 +450,10 @@ pub(super) mod tests {
             assert_true_opening(&vertices, &faces, n, &format!("overshoot {overshoot}"));
             // Its outline (and the frame's, and the reveals) are completed, not observed; the outline is cut into
             // the wall.
-            assert_eq!(edges.iter().filter(|e| e.completed).count(), if frame { 12 } else { 4 });
+            assert_eq!(
+                edges.iter().filter(|e| e.origin == EdgeOrigin::Inferred).count(),
+                if frame { 12 } else { 4 }
+            );
             let wall = faces.iter().find(|f| f.ring.contains(&0)).expect("wall");
             assert_eq!((wall.kind, wall.holes.len()), (SurfaceKind::Wall, 1));
             if frame {
@@ -457,7 +462,7 @@ pub(super) mod tests {
                 for (k, &v) in back.ring.iter().enumerate() {
                     let front = vertices[n + k].point;
                     assert!((vertices[v].point - front - Vec3::new(0.0, 0.2, 0.0)).norm() < 1e-9, "{back:?}");
-                    assert!(edges.iter().any(|e| e.completed && (e.a, e.b) == (n + k, v)));
+                    assert!(edges.iter().any(|e| e.origin == EdgeOrigin::Inferred && (e.a, e.b) == (n + k, v)));
                 }
             }
         }
@@ -597,7 +602,7 @@ pub(super) mod tests {
                 assert_eq!(back.kind, SurfaceKind::Window);
                 for (&a, &b) in outline.ring.iter().zip(&back.ring) {
                     assert!((vertices[b].point - vertices[a].point - Vec3::new(0.0, 0.2, 0.0)).norm() < 1e-9);
-                    assert!(edges.iter().any(|e| e.completed && (e.a, e.b) == (a, b)));
+                    assert!(edges.iter().any(|e| e.origin == EdgeOrigin::Inferred && (e.a, e.b) == (a, b)));
                 }
             }
         }

@@ -60,7 +60,7 @@ pub(super) type Piece = (f64, f64, f64, f64, Option<Vec3>);
 pub(super) fn pieces(wall: &Wall, vertices: &[Vertex], edges: &[Edge], upright: bool, depths: (f64, f64)) -> Vec<Piece> {
     let mut pieces: Vec<Piece> = edges
         .iter()
-        .filter(|e| !e.completed)
+        .filter(|e| e.observed())
         .filter_map(|e| {
             let (p, q) = (vertices[e.a].point, vertices[e.b].point);
             let d = q - p;

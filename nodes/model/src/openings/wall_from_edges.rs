@@ -21,7 +21,7 @@ const MIN_STANDING_SHARE: f64 = 0.1;
 pub(super) fn wall_from_edges(vertices: &[Vertex], edges: &[Edge], surface: &[[Vec3; 2]], viewpoint: &Vec3) -> Option<Plane> {
     let segments: Vec<(Vec3, Vec3)> = edges
         .iter()
-        .filter(|e| !e.completed)
+        .filter(|e| e.observed())
         .map(|e| (vertices[e.a].point, vertices[e.b].point))
         .filter(|(p, q)| (q - p).norm() >= 0.05)
         .collect();
@@ -114,7 +114,7 @@ mod tests {
                 a: 2 * k,
                 b: 2 * k + 1,
                 line: k,
-                completed: false,
+                origin: EdgeOrigin::Observed,
             })
             .collect();
         (vertices, edges)
