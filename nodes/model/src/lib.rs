@@ -219,6 +219,9 @@ pub struct ModelParams {
     pub sill_proud_max_m: f64,
     /// How far below its window's foot a sill's top may lie, metres.
     pub sill_reach_m: f64,
+    /// Give the windows with a frame and no panes the panes their lines, or those of the wall's windows of their
+    /// size, lay out ([`openings`], "Panes").
+    pub panes: bool,
 }
 
 impl Default for ModelParams {
@@ -268,6 +271,7 @@ impl Default for ModelParams {
             sill_proud_min_m: 0.02,
             sill_proud_max_m: 0.3,
             sill_reach_m: 0.3,
+            panes: true,
         }
     }
 }

@@ -43,7 +43,7 @@ fn agreed(left: Option<f64>, right: Option<f64>) -> Option<f64> {
 /// Standing edges this far from an opening's side, metres, are its reveal's corners.
 const AT_SIDE_M: f64 = 2.0 * SIDE_TOLERANCE_M;
 /// A nearly flush frame lies at least this far behind the wall's face, metres, and this many σ of its edges…
-const FLUSH_MIN_M: f64 = 0.015;
+pub(super) const FLUSH_MIN_M: f64 = 0.015;
 const FLUSH_MIN_SIGMAS: f64 = 3.0;
 
 /// The depth of a nearly flush frame (less than `recess_min_m` back, among the wall's own edges) behind the opening
@@ -75,8 +75,10 @@ pub(super) struct FaceBehind {
     /// Whether one spans the opening, side to side and foot to top (within a frame's width): the frame itself,
     /// not its panes.
     pub(super) spans: bool,
-    /// The share of the opening's area they cover at the front-most one's depth.
+    /// The share of the opening's area they cover at the front-most one's depth…
     pub(super) share: f64,
+    /// …and how many they are.
+    pub(super) faces: usize,
 }
 
 /// The faces of the model (a frame that closed but made no rectangle, or its panes) behind the opening
@@ -110,6 +112,7 @@ pub(super) fn face_behind(
             .iter()
             .any(|([a0, a1, b0, b1], _, _)| [a0 - x0, x1 - a1, b0 - z0, z1 - b1].iter().all(|gap| gap.abs() <= reach)),
         share: front.iter().map(|b| b.2).sum::<f64>() / ((x1 - x0) * (z1 - z0)).max(1e-9),
+        faces: front.len(),
     })
 }
 
@@ -148,6 +151,7 @@ pub(crate) fn add_frames(
                 depth,
                 spans: false,
                 share,
+                ..
             }) if share >= MIN_PANES_SHARE => Some(depth),
             Some(_) => continue,
             // The standing sides behind the wall start at `recess_min_m`; nearer frames are among the wall's own

@@ -1,0 +1,218 @@
+//! The panes of a window's frame. A frame holds its glazing in panes, a grid of mullions and transoms; the 3-D lines
+//! show the panes' sides in the frame's plane, but a rail's line often runs on across a mullion, and the faces of
+//! few panes close. The windows of a wall are of a few kinds, each with one layout of panes: the layout the lines
+//! show clearly at some windows of a size is given to every window of that size on the wall ([`add_panes`]).
+use super::*;
+
+/// A pane's sides cover at least this share of the window's height (standing) or width (lying).
+const MIN_PANE_SIDE_COVER: f64 = 0.3;
+/// The sides of panes lie at least this far inside the window's outline, metres (the frame's own width).
+const MIN_INSIDE_M: f64 = 0.01;
+/// A pane is at least this wide and high, metres…
+const MIN_PANE_M: f64 = 0.15;
+/// Windows within this of each other in width and height are of one size, metres.
+const SIZE_TOLERANCE_M: f64 = 0.04;
+
+/// The panes' sides across one direction of a window, as offsets from its first side: pairs (a pane's two sides)
+/// with at most `bar_m` (a mullion or transom) between one pair and the next, and at least [`MIN_PANE_M`] within a
+/// pair. None where the positions do not pair up so.
+fn pair_up(positions: &[f64], bar_m: f64) -> Option<Vec<(f64, f64)>> {
+    if positions.len() < 2 || positions.len() % 2 == 1 {
+        return None;
+    }
+    let pairs: Vec<(f64, f64)> = positions.chunks(2).map(|c| (c[0], c[1])).collect();
+    let wide = pairs.iter().all(|p| p.1 - p.0 >= MIN_PANE_M);
+    let bars = pairs.windows(2).all(|w| w[1].0 - w[0].1 <= bar_m);
+    (wide && bars).then_some(pairs)
+}
+
+/// The positions of the panes' sides inside `[lo, hi]` from the sides in the frame's plane (`at`, cover of the
+/// other direction's extent), in order, merged within [`SIDE_TOLERANCE_M`].
+fn positions(sides: &[(f64, f64)], lo: f64, hi: f64) -> Vec<f64> {
+    let mut at: Vec<f64> = sides
+        .iter()
+        .filter(|s| s.0 > lo + MIN_INSIDE_M && s.0 < hi - MIN_INSIDE_M && s.1 >= MIN_PANE_SIDE_COVER)
+        .map(|s| s.0)
+        .collect();
+    at.sort_by(f64::total_cmp);
+    at.dedup_by(|b, a| *b - *a <= SIDE_TOLERANCE_M);
+    at
+}
+
+/// A window's layout of panes: the pairs across (x) and up (z), as offsets from its outline's first corner.
+type Layout = (Vec<(f64, f64)>, Vec<(f64, f64)>);
+
+/// The layouts of a wall's windows (`windows`: bounds and the frame's depth), from the standing and lying sides
+/// behind the wall at each frame's depth: a window's own where its lines pair up, else the one most windows of its
+/// size show (their median offsets), else none.
+fn layouts(windows: &[([f64; 4], f64)], standing: &[Side], lying: &[Side], bar_m: f64) -> Vec<Option<Layout>> {
+    let own: Vec<Option<Layout>> = windows
+        .iter()
+        .map(|&([x0, x1, z0, z1], depth)| {
+            let at = |sides: &[Side], lo: f64, hi: f64| -> Vec<(f64, f64)> {
+                sides
+                    .iter()
+                    .filter(|s| (s.depth - depth).abs() <= DEPTH_TOLERANCE_M / 2.0)
+                    .map(|s| (s.at, s.cover(lo, hi)))
+                    .collect()
+            };
+            let across = pair_up(&positions(&at(standing, z0, z1), x0, x1), bar_m)?;
+            let up = pair_up(&positions(&at(lying, x0, x1), z0, z1), bar_m)?;
+            let offset = |pairs: Vec<(f64, f64)>, from: f64| pairs.into_iter().map(|(a, b)| (a - from, b - from)).collect();
+            Some((offset(across, x0), offset(up, z0)))
+        })
+        .collect();
+    let size = |b: &[f64; 4]| (b[1] - b[0], b[3] - b[2]);
+    windows
+        .iter()
+        .zip(&own)
+        .map(|((bounds, _), mine)| {
+            mine.clone().or_else(|| {
+                let (w, h) = size(bounds);
+                let alike: Vec<&Layout> = windows
+                    .iter()
+                    .zip(&own)
+                    .filter(|((b, _), _)| {
+                        let (bw, bh) = size(b);
+                        (bw - w).abs() <= SIZE_TOLERANCE_M && (bh - h).abs() <= SIZE_TOLERANCE_M
+                    })
+                    .filter_map(|(_, l)| l.as_ref())
+                    .collect();
+                common(&alike)
+            })
+        })
+        .collect()
+}
+
+/// The layout most of `layouts` share (the same numbers of panes across and up), with each offset their median;
+/// none without a majority.
+fn common(layouts: &[&Layout]) -> Option<Layout> {
+    let shape = |l: &Layout| (l.0.len(), l.1.len());
+    let best = layouts
+        .iter()
+        .map(|l| shape(l))
+        .max_by_key(|s| layouts.iter().filter(|l| shape(l) == *s).count())?;
+    let same: Vec<&&Layout> = layouts.iter().filter(|l| shape(l) == best).collect();
+    if 2 * same.len() <= layouts.len() {
+        return None;
+    }
+    let median = |f: &dyn Fn(&Layout) -> f64| {
+        let mut v: Vec<f64> = same.iter().map(|l| f(l)).collect();
+        v.sort_by(f64::total_cmp);
+        v[v.len() / 2]
+    };
+    let pairs = |n: usize, pick: fn(&Layout) -> &Vec<(f64, f64)>| -> Vec<(f64, f64)> {
+        (0..n).map(|k| (median(&|l| pick(l)[k].0), median(&|l| pick(l)[k].1))).collect()
+    };
+    Some((pairs(best.0, |l| &l.0), pairs(best.1, |l| &l.1)))
+}
+
+/// Gives every window of a wall whose frame's depth the model knows (a face behind it: its frame or panes) the panes
+/// its layout shows ([`layouts`]), as window faces in the frame's plane with inferred outlines, where it has
+/// none of its own yet (no face behind it but the frame). Runs after [`super::add_frames`].
+pub(crate) fn add_panes(
+    walls: &[WallView],
+    params: &ModelParams,
+    vertices: &mut Vec<Vertex>,
+    edges: &mut Vec<Edge>,
+    faces: &mut Vec<Face>,
+) {
+    let cos_par = params.plane_angle_deg.to_radians().cos();
+    let sizes = params.opening_sizes();
+    let outlines: Vec<Outline> = faces
+        .iter()
+        .map(|f| Outline::of(&f.ring.iter().map(|&k| vertices[k].point).collect::<Vec<_>>(), f.normal))
+        .collect();
+    let mut new = Vec::new();
+    for view in walls {
+        let wall = &view.wall;
+        let windows: Vec<([f64; 4], f64, Vec3)> = faces
+            .iter()
+            .zip(&outlines)
+            .filter(|(f, o)| {
+                f.kind == SurfaceKind::Window && o.normal.dot(&wall.out) > cos_par && wall.depth(&o.centroid).abs() < FLUSH_MIN_M
+            })
+            .filter_map(|(_, o)| {
+                let bounds = o.bounds_in(wall);
+                let behind = face_behind(&outlines, wall, bounds, sizes, cos_par)?;
+                // Only the frame behind it: its panes are still to come.
+                (behind.spans && behind.faces == 1).then_some((bounds, behind.depth, o.normal))
+            })
+            .collect();
+        let deepest = sizes.recess_m.1;
+        let standing = sides(wall, vertices, edges, true, (FLUSH_MIN_M, deepest));
+        let lying = sides(wall, vertices, edges, false, (FLUSH_MIN_M, deepest));
+        let frame: Vec<([f64; 4], f64)> = windows.iter().map(|w| (w.0, w.1)).collect();
+        for ((bounds, depth, normal), layout) in windows.iter().zip(layouts(&frame, &standing, &lying, sizes.frame_m.1)) {
+            let Some((across, up)) = layout else { continue };
+            for &(a, b) in &across {
+                for &(c, d) in &up {
+                    let corner = |x: f64, z: f64| Vertex {
+                        point: wall.point(bounds[0] + x, bounds[2] + z, &Vec3::zeros()) - wall.out * *depth,
+                        sigma: None,
+                    };
+                    new.push((vec![corner(a, c), corner(b, c), corner(b, d), corner(a, d)], *normal));
+                }
+            }
+        }
+    }
+    for (corners, normal) in new {
+        add_face(corners, normal, SurfaceKind::Window, vertices, edges, faces);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn side(at: f64, depth: f64, lo: f64, hi: f64) -> Side {
+        Side {
+            at,
+            depth,
+            spans: vec![(lo, hi)],
+            sigma: None,
+        }
+    }
+
+    /// A window 1 to 2 m across and up, its frame 0.12 behind the wall, two panes across (mullion at 1.47–1.53)
+    /// and two up (transom at 1.6–1.65), frame 5 cm wide.
+    fn window_lines(x0: f64, full: bool) -> (Vec<Side>, Vec<Side>) {
+        let standing = [0.05, 0.47, 0.53, 0.95].iter().map(|&x| side(x0 + x, 0.12, 1.0, 2.0)).collect();
+        let rails: &[f64] = if full { &[0.05, 0.6, 0.65, 0.95] } else { &[0.05, 0.6, 0.95] };
+        let lying = rails.iter().map(|&z| side(1.0 + z, 0.12, x0, x0 + 1.0)).collect();
+        (standing, lying)
+    }
+
+    #[test]
+    fn a_window_whose_lines_pair_up_gets_its_panes_and_one_whose_lines_do_not_takes_those_of_its_size() {
+        let (mut standing, mut lying) = window_lines(0.0, true);
+        for x0 in [2.0, 4.0] {
+            let (s, l) = window_lines(x0, x0 == 2.0);
+            standing.extend(s);
+            lying.extend(l);
+        }
+        let windows = [
+            ([0.0, 1.0, 1.0, 2.0], 0.12),
+            ([2.0, 3.0, 1.0, 2.0], 0.12),
+            ([4.0, 5.0, 1.0, 2.0], 0.12),
+        ];
+        standing.sort_by(|a, b| a.at.total_cmp(&b.at));
+        let found = layouts(&windows, &standing, &lying, 0.15);
+        let expected: Layout = (vec![(0.05, 0.47), (0.53, 0.95)], vec![(0.05, 0.6), (0.65, 0.95)]);
+        for (k, l) in found.iter().enumerate() {
+            let l = l.as_ref().unwrap_or_else(|| panic!("window {k} has no layout"));
+            for (got, want) in l.0.iter().chain(&l.1).zip(expected.0.iter().chain(&expected.1)) {
+                assert!((got.0 - want.0).abs() < 1e-9 && (got.1 - want.1).abs() < 1e-9, "window {k}: {l:?}");
+            }
+        }
+    }
+
+    #[test]
+    fn positions_that_do_not_pair_into_panes_give_no_layout() {
+        // Three rails alone: odd; two sides 10 cm apart: no pane; a bar wider than a frame's: two windows.
+        assert!(pair_up(&[0.05, 0.6, 0.95], 0.15).is_none());
+        assert!(pair_up(&[0.05, 0.15], 0.15).is_none());
+        assert!(pair_up(&[0.05, 0.4, 0.7, 0.95], 0.15).is_none());
+        assert_eq!(pair_up(&[0.05, 0.47, 0.53, 0.95], 0.15), Some(vec![(0.05, 0.47), (0.53, 0.95)]));
+    }
+}
