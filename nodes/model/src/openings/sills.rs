@@ -67,11 +67,12 @@ fn weighted(pieces: &[&Piece], f: impl Fn(&Piece) -> f64) -> f64 {
 }
 
 /// The nose under the window `[x0, x1, z0, z1]` among the lying pieces in front of its wall (`front`, depths
-/// negative): the pieces below its foot within `rule.reach_m` overlapping it, at the front-most depth whose edges
-/// cover [`MIN_NOSE_COVER`] of its width (where the wall stands a little off its face, the sill's line along the
-/// wall passes for a nose too, nearer the wall), gathered into arrises by height; the arrises that cover as much
-/// count.
-fn nose(front: &[Piece], [x0, x1, z0, _]: [f64; 4], rule: SillRule) -> Option<Nose> {
+/// negative): the pieces below its foot within `rule.reach_m` overlapping it, at a depth whose edges cover
+/// [`MIN_NOSE_COVER`] of its width, gathered into arrises by height; the arrises that cover as much count. The
+/// depth is the one nearest `proud` in front of the wall (its wall's sills' median) within twice
+/// [`NOSE_DEPTH_TOLERANCE_M`], or without it the front-most (where the wall stands a little off its face, the
+/// sill's line along the wall passes for a nose too, nearer the wall).
+fn nose(front: &[Piece], [x0, x1, z0, _]: [f64; 4], rule: SillRule, proud: Option<f64>) -> Option<Nose> {
     let below: Vec<&Piece> = front
         .iter()
         .filter(|p| (z0 - rule.reach_m - MAX_THICKNESS_M..=z0 + ABOVE_FOOT_M).contains(&p.0) && p.3 > x0 && p.2 < x1)
@@ -87,7 +88,13 @@ fn nose(front: &[Piece], [x0, x1, z0, _]: [f64; 4], rule: SillRule) -> Option<No
     };
     let mut depths: Vec<f64> = below.iter().map(|p| p.1).collect();
     depths.sort_by(f64::total_cmp);
-    let depth = depths.into_iter().find(|&d| cover(&at_depth(d)) >= MIN_NOSE_COVER)?;
+    let mut covering = depths.into_iter().filter(|&d| cover(&at_depth(d)) >= MIN_NOSE_COVER);
+    let depth = match proud {
+        Some(proud) => covering
+            .filter(|d| (d + proud).abs() <= 2.0 * NOSE_DEPTH_TOLERANCE_M)
+            .min_by(|a, b| (a + proud).abs().total_cmp(&(b + proud).abs()))?,
+        None => covering.next()?,
+    };
     let covering: Vec<Vec<&Piece>> = levels(at_depth(depth)).into_iter().filter(|l| cover(l) >= MIN_NOSE_COVER).collect();
     let top = covering.first()?;
     let upper = weighted(top, |p| p.0);
@@ -139,7 +146,11 @@ fn median(mut values: Vec<f64>) -> Option<f64> {
 /// sides reach past the window by the median of what the noses show. None on a wall where no sill shows both
 /// arrises: how thick they are is unknown.
 fn sill_boxes(front: &[Piece], windows: &[[f64; 4]], rule: SillRule) -> Vec<[f64; 6]> {
-    let noses: Vec<Nose> = windows.iter().filter_map(|&w| nose(front, w, rule)).collect();
+    // Each nose where its wall's sills stand proud together: a line further out under one window (a lamp, a sign)
+    // is no sill.
+    let first: Vec<Nose> = windows.iter().filter_map(|&w| nose(front, w, rule, None)).collect();
+    let proud = median(first.iter().map(|n| n.proud).collect());
+    let noses: Vec<Nose> = windows.iter().filter_map(|&w| nose(front, w, rule, proud)).collect();
     let both = || noses.iter().filter_map(|n| Some((n.foot, n.arrises.0, n.arrises.1?)));
     let (Some(thickness), Some(drop)) = (
         median(both().map(|(_, a, b)| a - b).collect()),
@@ -292,6 +303,18 @@ mod tests {
         assert_eq!(boxes.len(), 1);
         assert!((boxes[0][4] - 0.0805).abs() < 2e-3, "{boxes:?}");
         assert!((boxes[0][5] + 0.025).abs() < 1e-9, "its back on the line along the wall: {boxes:?}");
+    }
+
+    #[test]
+    fn a_line_far_in_front_of_one_window_is_no_sill_where_the_walls_sills_stand_less_proud() {
+        let sill = |x0: f64| [piece(0.97, 0.06, x0 - 0.05, x0 + 1.05), piece(0.91, 0.06, x0 - 0.05, x0 + 1.05)];
+        let mut front: Vec<Piece> = [1.0, 3.0, 5.0].iter().flat_map(|&x| sill(x)).collect();
+        // Under the middle window something 25 cm out, across it.
+        front.extend([piece(0.95, 0.25, 2.9, 4.1), piece(0.9, 0.25, 2.9, 4.1)]);
+        let windows: Vec<[f64; 4]> = [1.0, 3.0, 5.0].iter().map(|&x| [x, x + 1.0, 1.0, 2.5]).collect();
+        let boxes = sill_boxes(&front, &windows, RULE);
+        assert_eq!(boxes.len(), 3);
+        assert!(boxes.iter().all(|b| (b[4] - 0.06).abs() < 1e-9), "{boxes:?}");
     }
 
     #[test]
