@@ -185,6 +185,7 @@ pub struct Evaluation {
 
 /// Evaluates whatever `results` holds.
 pub fn evaluate(truth: &Truth, results: &Results) -> Evaluation {
+    let every = truth.every_edge();
     Evaluation {
         orientation: results
             .poses
@@ -198,11 +199,11 @@ pub fn evaluate(truth: &Truth, results: &Results) -> Evaluation {
         model: results
             .model
             .as_ref()
-            .map(|(v, e)| model::evaluate(&truth.lines, &truth.every_edge(), v, e, truth.gsd_m())),
+            .map(|(v, e)| model::evaluate(&truth.lines, &every, v, e, truth.gsd_m())),
         model_fitted: results
             .model_fitted
             .as_ref()
-            .map(|(v, e)| model::evaluate(&truth.lines, &truth.every_edge(), v, e, truth.gsd_m())),
+            .map(|(v, e)| model::evaluate(&truth.lines, &every, v, e, truth.gsd_m())),
         openings: results
             .model_openings
             .as_ref()

@@ -15,6 +15,7 @@ mod pose;
 pub mod random;
 pub mod ransac;
 mod rotation;
+mod stats;
 
 pub use camera::Camera;
 pub use interior::{Interior, InteriorReport, SelfCalibration};
@@ -22,6 +23,7 @@ pub use lens::{camera_from_opencv, opencv_from_camera, FitResidual, OpenCvLens};
 pub use polygon::{point_in_polygon, polygon_normal, signed_area};
 pub use pose::Pose;
 pub use rotation::{look_at, opk_from_rotation, rotation_from_opk};
+pub use stats::median;
 
 /// Object-space 3-vector (metres).
 pub type Vec3 = nalgebra::Vector3<f64>;

@@ -7,7 +7,7 @@
 //! tints), at a wrong one the images of the other strip show the neighbouring course. Each side of the line is
 //! compared on its own, and the better side counts, because an edge between two surfaces may have its far side
 //! hidden, or seen against another background, from some of the images.
-use lineflow_photogrammetry::{Camera, Vec3};
+use lineflow_photogrammetry::{median, Camera, Vec3};
 
 use lineflow_linegeom::photo::{ncc, sample_rows, variance};
 
@@ -166,18 +166,6 @@ fn compare_until(
         reference,
         correlations: compared.iter().map(|&(k, c, _)| (k, c)).collect(),
         shifts: compared.iter().map(|&(_, _, d)| d).collect(),
-    })
-}
-
-fn median(mut values: Vec<f64>) -> Option<f64> {
-    values.sort_by(f64::total_cmp);
-    let n = values.len();
-    (n > 0).then(|| {
-        if n % 2 == 1 {
-            values[n / 2]
-        } else {
-            0.5 * (values[n / 2 - 1] + values[n / 2])
-        }
     })
 }
 

@@ -129,10 +129,7 @@ pub(crate) fn add_frames(
 ) {
     let cos_par = params.plane_angle_deg.to_radians().cos();
     let sizes = params.opening_sizes();
-    let outlines: Vec<Outline> = faces
-        .iter()
-        .map(|f| Outline::of(&f.ring.iter().map(|&k| vertices[k].point).collect::<Vec<_>>(), f.normal))
-        .collect();
+    let outlines = Outline::of_faces(faces, vertices);
     let mut frames = Vec::new();
     for (j, (f, o)) in faces.iter().zip(&outlines).enumerate() {
         if !matches!(f.kind, SurfaceKind::Window | SurfaceKind::Door) {

@@ -136,8 +136,7 @@ pub(crate) fn infer(
     };
     let centres = cameras.centres();
     let cos_par = params.plane_angle_deg.to_radians().cos();
-    let ring = |r: &[usize]| r.iter().map(|&k| vertices[k].point).collect::<Vec<_>>();
-    let outlines: Vec<Outline> = faces.iter().map(|f| Outline::of(&ring(&f.ring), f.normal)).collect();
+    let outlines = Outline::of_faces(faces, vertices);
     let sizes = params.opening_sizes();
     let walls = walls(vertices, edges, planes, plane_edges, surface, cos_par, &viewpoint, sizes);
     // Recessed faces first, then rectangles; each only where no opening is on the wall there yet.

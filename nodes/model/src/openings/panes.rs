@@ -3,6 +3,7 @@
 //! few panes close. The windows of a wall are of a few kinds, each with one layout of panes: the layout the lines
 //! show clearly at some windows of a size is given to every window of that size on the wall ([`add_panes`]).
 use super::*;
+use lineflow_photogrammetry::median;
 
 /// A pane's sides cover at least this share of the window's height (standing) or width (lying).
 const MIN_PANE_SIDE_COVER: f64 = 0.3;
@@ -96,11 +97,7 @@ fn common(layouts: &[&Layout]) -> Option<Layout> {
     if 2 * same.len() <= layouts.len() {
         return None;
     }
-    let median = |f: &dyn Fn(&Layout) -> f64| {
-        let mut v: Vec<f64> = same.iter().map(|l| f(l)).collect();
-        v.sort_by(f64::total_cmp);
-        v[v.len() / 2]
-    };
+    let median = |f: &dyn Fn(&Layout) -> f64| median(same.iter().map(|l| f(l)).collect()).unwrap_or(f64::NAN);
     let pairs = |n: usize, pick: fn(&Layout) -> &Vec<(f64, f64)>| -> Vec<(f64, f64)> {
         (0..n).map(|k| (median(&|l| pick(l)[k].0), median(&|l| pick(l)[k].1))).collect()
     };
@@ -119,10 +116,7 @@ pub(crate) fn add_panes(
 ) {
     let cos_par = params.plane_angle_deg.to_radians().cos();
     let sizes = params.opening_sizes();
-    let outlines: Vec<Outline> = faces
-        .iter()
-        .map(|f| Outline::of(&f.ring.iter().map(|&k| vertices[k].point).collect::<Vec<_>>(), f.normal))
-        .collect();
+    let outlines = Outline::of_faces(faces, vertices);
     let mut new = Vec::new();
     for view in walls {
         let wall = &view.wall;

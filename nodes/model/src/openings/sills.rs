@@ -4,6 +4,7 @@
 //! (how far proud, how thick, how far past the window they reach) is taken for the others: a sill is built under
 //! every window whose nose the lines show, as a box from the wall to its nose ([`add_sills`]).
 use super::*;
+use lineflow_photogrammetry::median;
 
 /// The sills' rule (the model's parameters `sill_*`).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -125,19 +126,6 @@ fn nose(front: &[Piece], [x0, x1, z0, _]: [f64; 4], rule: SillRule, proud: Optio
     })
 }
 
-/// The median of `values`; none when empty.
-fn median(mut values: Vec<f64>) -> Option<f64> {
-    values.sort_by(f64::total_cmp);
-    let n = values.len();
-    (n > 0).then(|| {
-        if n % 2 == 1 {
-            values[n / 2]
-        } else {
-            (values[n / 2 - 1] + values[n / 2]) / 2.0
-        }
-    })
-}
-
 /// The sill boxes of one wall's windows (`windows`: their bounds), as their corners in the wall's coordinates
 /// `[x0, x1, top, bottom, proud, back]`: each window whose nose the lines show gets one, shaped by the wall's sills
 /// together. The sills that show both arrises give the thickness and how far below the foot the top lies (their
@@ -187,6 +175,7 @@ pub(crate) fn add_sills(
     edges: &mut Vec<Edge>,
     faces: &[Face],
 ) {
+    let outlines = Outline::of_faces(faces, vertices);
     for view in walls {
         let wall = &view.wall;
         let front = pieces(
@@ -196,25 +185,23 @@ pub(crate) fn add_sills(
             false,
             (-rule.proud_m.1 - DEPTH_TOLERANCE_M, -rule.proud_m.0 + DEPTH_TOLERANCE_M),
         );
-        let windows: Vec<([f64; 4], Vec3)> = faces
+        let windows: Vec<[f64; 4]> = faces
             .iter()
-            .filter(|f| f.kind == SurfaceKind::Window && f.normal.dot(&wall.out) > cos_par)
-            .filter_map(|f| {
-                let points: Vec<Vec3> = f.ring.iter().map(|&k| vertices[k].point).collect();
-                let outline = Outline::of(&points, f.normal);
-                (wall.depth(&outline.centroid).abs() < DEPTH_TOLERANCE_M).then(|| (outline.bounds_in(wall), outline.centroid))
+            .zip(&outlines)
+            .filter(|(f, o)| {
+                f.kind == SurfaceKind::Window && f.normal.dot(&wall.out) > cos_par && wall.depth(&o.centroid).abs() < DEPTH_TOLERANCE_M
             })
+            .map(|(_, o)| o.bounds_in(wall))
             .collect();
         // A window inside another is a pane of its frame.
         let inside =
             |[a0, a1, b0, b1]: [f64; 4], [x0, x1, z0, z1]: [f64; 4]| (a0, b0) != (x0, z0) && a0 >= x0 && a1 <= x1 && b0 >= z0 && b1 <= z1;
         let bounds: Vec<[f64; 4]> = windows
             .iter()
-            .map(|w| w.0)
-            .filter(|&b| !windows.iter().any(|o| inside(b, o.0)))
+            .copied()
+            .filter(|&b| !windows.iter().any(|&o| inside(b, o)))
             .collect();
         for [x0, x1, top, bottom, proud, back] in sill_boxes(&front, &bounds, rule) {
-            let near = windows[0].1;
             let first = vertices.len();
             for (x, z, out) in [
                 (x0, top, -back),
@@ -227,7 +214,7 @@ pub(crate) fn add_sills(
                 (x0, bottom, proud),
             ] {
                 vertices.push(Vertex {
-                    point: wall.point(x, z, &near) + wall.out * out,
+                    point: wall.point(x, z, &Vec3::zeros()) + wall.out * out,
                     sigma: None,
                 });
             }
