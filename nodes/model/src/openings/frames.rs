@@ -68,7 +68,7 @@ pub(super) fn flush_frame_depth(view: &WallView, [x0, x1, z0, z1]: [f64; 4]) -> 
 }
 
 /// The faces of the model behind an opening: a frame that closed, or its panes.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 pub(super) struct FaceBehind {
     /// The front-most one's depth behind the wall, metres.
     pub(super) depth: f64,
@@ -79,6 +79,8 @@ pub(super) struct FaceBehind {
     pub(super) share: f64,
     /// …and how many they are.
     pub(super) faces: usize,
+    /// The bounds of those that do not span it: its panes.
+    pub(super) panes: Vec<[f64; 4]>,
 }
 
 /// The faces of the model (a frame that closed but made no rectangle, or its panes) behind the opening
@@ -106,13 +108,13 @@ pub(super) fn face_behind(
         .collect();
     let depth = behind.iter().map(|b| b.1).min_by(f64::total_cmp)?;
     let front: Vec<&([f64; 4], f64, f64)> = behind.iter().filter(|b| b.1 - depth <= DEPTH_TOLERANCE_M).collect();
+    let spanning = |[a0, a1, b0, b1]: &[f64; 4]| [a0 - x0, x1 - a1, b0 - z0, z1 - b1].iter().all(|gap| gap.abs() <= reach);
     Some(FaceBehind {
         depth,
-        spans: front
-            .iter()
-            .any(|([a0, a1, b0, b1], _, _)| [a0 - x0, x1 - a1, b0 - z0, z1 - b1].iter().all(|gap| gap.abs() <= reach)),
+        spans: front.iter().any(|b| spanning(&b.0)),
         share: front.iter().map(|b| b.2).sum::<f64>() / ((x1 - x0) * (z1 - z0)).max(1e-9),
         faces: front.len(),
+        panes: front.iter().filter(|b| !spanning(&b.0)).map(|b| b.0).collect(),
     })
 }
 

@@ -104,9 +104,39 @@ fn common(layouts: &[&Layout]) -> Option<Layout> {
     Some((pairs(best.0, |l| &l.0), pairs(best.1, |l| &l.1)))
 }
 
+/// A window of a wall with its frame: its bounds, the frame's depth, and the bounds of the panes it has.
+type Framed = ([f64; 4], f64, Vec<[f64; 4]>);
+
+/// The panes the windows' layouts ([`layouts`]) give them that they do not have yet: (window, the pane's bounds).
+fn missing_panes(windows: &[Framed], standing: &[Side], lying: &[Side], bar_m: f64) -> Vec<(usize, [f64; 4])> {
+    let frames: Vec<([f64; 4], f64)> = windows.iter().map(|w| (w.0, w.1)).collect();
+    let mut out = Vec::new();
+    for (k, ((bounds, _, present), layout)) in windows.iter().zip(layouts(&frames, standing, lying, bar_m)).enumerate() {
+        let Some((across, up)) = layout else { continue };
+        for &(a, b) in &across {
+            for &(c, d) in &up {
+                let pane = [bounds[0] + a, bounds[0] + b, bounds[2] + c, bounds[2] + d];
+                if !present.iter().any(|p| same_pane(p, &pane)) {
+                    out.push((k, pane));
+                }
+            }
+        }
+    }
+    out
+}
+
+/// Whether two panes' bounds are one pane: each one's centre lies inside the other.
+fn same_pane(p: &[f64; 4], q: &[f64; 4]) -> bool {
+    let inside = |b: &[f64; 4], c: &[f64; 4]| {
+        let (x, z) = ((c[0] + c[1]) / 2.0, (c[2] + c[3]) / 2.0);
+        (b[0]..=b[1]).contains(&x) && (b[2]..=b[3]).contains(&z)
+    };
+    inside(p, q) || inside(q, p)
+}
+
 /// Gives every window of a wall whose frame's depth the model knows (a face behind it: its frame or panes) the panes
 /// its layout shows ([`layouts`]), as window faces in the frame's plane with inferred outlines, where it has
-/// none of its own yet (no face behind it but the frame). Runs after [`super::add_frames`].
+/// none of its own there yet (a pane whose face closed stays as it is). Runs after [`super::add_frames`].
 pub(crate) fn add_panes(
     walls: &[WallView],
     params: &ModelParams,
@@ -120,7 +150,7 @@ pub(crate) fn add_panes(
     let mut new = Vec::new();
     for view in walls {
         let wall = &view.wall;
-        let windows: Vec<([f64; 4], f64, Vec3)> = faces
+        let windows: Vec<([f64; 4], f64, Vec3, Vec<[f64; 4]>)> = faces
             .iter()
             .zip(&outlines)
             .filter(|(f, o)| {
@@ -129,25 +159,21 @@ pub(crate) fn add_panes(
             .filter_map(|(_, o)| {
                 let bounds = o.bounds_in(wall);
                 let behind = face_behind(&outlines, wall, bounds, sizes, cos_par)?;
-                // Only the frame behind it: its panes are still to come.
-                (behind.spans && behind.faces == 1).then_some((bounds, behind.depth, o.normal))
+                // The frame behind it gives the panes' plane; the panes already there stay.
+                behind.spans.then_some((bounds, behind.depth, o.normal, behind.panes))
             })
             .collect();
         let deepest = sizes.recess_m.1;
         let standing = sides(wall, vertices, edges, true, (FLUSH_MIN_M, deepest));
         let lying = sides(wall, vertices, edges, false, (FLUSH_MIN_M, deepest));
-        let frame: Vec<([f64; 4], f64)> = windows.iter().map(|w| (w.0, w.1)).collect();
-        for ((bounds, depth, normal), layout) in windows.iter().zip(layouts(&frame, &standing, &lying, sizes.frame_m.1)) {
-            let Some((across, up)) = layout else { continue };
-            for &(a, b) in &across {
-                for &(c, d) in &up {
-                    let corner = |x: f64, z: f64| Vertex {
-                        point: wall.point(bounds[0] + x, bounds[2] + z, &Vec3::zeros()) - wall.out * *depth,
-                        sigma: None,
-                    };
-                    new.push((vec![corner(a, c), corner(b, c), corner(b, d), corner(a, d)], *normal));
-                }
-            }
+        let framed: Vec<Framed> = windows.iter().map(|w| (w.0, w.1, w.3.clone())).collect();
+        for (k, [x0, x1, z0, z1]) in missing_panes(&framed, &standing, &lying, sizes.frame_m.1) {
+            let (_, depth, normal, _) = &windows[k];
+            let corner = |x: f64, z: f64| Vertex {
+                point: wall.point(x, z, &Vec3::zeros()) - wall.out * *depth,
+                sigma: None,
+            };
+            new.push((vec![corner(x0, z0), corner(x1, z0), corner(x1, z1), corner(x0, z1)], *normal));
         }
     }
     for (corners, normal) in new {
@@ -199,6 +225,39 @@ mod tests {
                 assert!((got.0 - want.0).abs() < 1e-9 && (got.1 - want.1).abs() < 1e-9, "window {k}: {l:?}");
             }
         }
+    }
+
+    #[test]
+    fn a_window_with_some_of_its_panes_gets_the_others_of_its_layout_and_a_whole_one_none() {
+        // Window 0's lines pair up; windows 1 and 2 show three rails only, window 1 has its left column of panes
+        // as faces already, window 2 all four.
+        let (mut standing, mut lying) = (Vec::new(), Vec::new());
+        for x0 in [0.0, 2.0, 4.0] {
+            let (s, l) = window_lines(x0, x0 == 0.0);
+            standing.extend(s);
+            lying.extend(l);
+        }
+        standing.sort_by(|a, b| a.at.total_cmp(&b.at));
+        let pane = |x0: f64, [a, b]: [f64; 2], [c, d]: [f64; 2]| [x0 + a, x0 + b, 1.0 + c, 1.0 + d];
+        let (left, right, low, high) = ([0.05, 0.47], [0.53, 0.95], [0.05, 0.6], [0.65, 0.95]);
+        let windows: Vec<Framed> = vec![
+            ([0.0, 1.0, 1.0, 2.0], 0.12, Vec::new()),
+            ([2.0, 3.0, 1.0, 2.0], 0.12, vec![pane(2.0, left, low), pane(2.0, left, high)]),
+            (
+                [4.0, 5.0, 1.0, 2.0],
+                0.12,
+                [left, right].iter().flat_map(|&x| [low, high].map(|z| pane(4.0, x, z))).collect(),
+            ),
+        ];
+        let added = missing_panes(&windows, &standing, &lying, 0.15);
+        let of = |k: usize| added.iter().filter(|a| a.0 == k).map(|a| a.1).collect::<Vec<_>>();
+        assert_eq!(of(0).len(), 4, "{added:?}");
+        let expected = [pane(2.0, right, low), pane(2.0, right, high)];
+        assert_eq!(of(1).len(), 2, "{added:?}");
+        for (got, want) in of(1).iter().zip(&expected) {
+            assert!(got.iter().zip(want).all(|(g, w)| (g - w).abs() < 1e-9), "{got:?} against {want:?}");
+        }
+        assert!(of(2).is_empty(), "{added:?}");
     }
 
     #[test]
