@@ -150,7 +150,7 @@ pub(crate) fn add_panes(
     let mut new = Vec::new();
     for view in walls {
         let wall = &view.wall;
-        let windows: Vec<([f64; 4], f64, Vec3, Vec<[f64; 4]>)> = faces
+        let windows: Vec<(Framed, Vec3)> = faces
             .iter()
             .zip(&outlines)
             .filter(|(f, o)| {
@@ -160,15 +160,15 @@ pub(crate) fn add_panes(
                 let bounds = o.bounds_in(wall);
                 let behind = face_behind(&outlines, wall, bounds, sizes, cos_par)?;
                 // The frame behind it gives the panes' plane; the panes already there stay.
-                behind.spans.then_some((bounds, behind.depth, o.normal, behind.panes))
+                behind.spans.then_some(((bounds, behind.depth, behind.panes), o.normal))
             })
             .collect();
         let deepest = sizes.recess_m.1;
         let standing = sides(wall, vertices, edges, true, (FLUSH_MIN_M, deepest));
         let lying = sides(wall, vertices, edges, false, (FLUSH_MIN_M, deepest));
-        let framed: Vec<Framed> = windows.iter().map(|w| (w.0, w.1, w.3.clone())).collect();
+        let framed: Vec<Framed> = windows.iter().map(|w| w.0.clone()).collect();
         for (k, [x0, x1, z0, z1]) in missing_panes(&framed, &standing, &lying, sizes.frame_m.1) {
-            let (_, depth, normal, _) = &windows[k];
+            let ((_, depth, _), normal) = &windows[k];
             let corner = |x: f64, z: f64| Vertex {
                 point: wall.point(x, z, &Vec3::zeros()) - wall.out * *depth,
                 sigma: None,
