@@ -73,7 +73,7 @@ fn weighted(pieces: &[&Piece], f: impl Fn(&Piece) -> f64) -> f64 {
 /// depth is the one nearest `proud` in front of the wall (its wall's sills' median) within twice
 /// [`NOSE_DEPTH_TOLERANCE_M`], or without it the front-most (where the wall stands a little off its face, the
 /// sill's line along the wall passes for a nose too, nearer the wall).
-fn nose(front: &[Piece], [x0, x1, z0, _]: [f64; 4], rule: SillRule, proud: Option<f64>) -> Option<Nose> {
+fn nose(front: &[Piece], on_wall: &[Piece], [x0, x1, z0, _]: [f64; 4], rule: SillRule, proud: Option<f64>) -> Option<Nose> {
     let below: Vec<&Piece> = front
         .iter()
         .filter(|p| (z0 - rule.reach_m - MAX_THICKNESS_M..=z0 + ABOVE_FOOT_M).contains(&p.0) && p.3 > x0 && p.2 < x1)
@@ -104,8 +104,30 @@ fn nose(front: &[Piece], [x0, x1, z0, _]: [f64; 4], rule: SillRule, proud: Optio
     }
     let lower = covering[1..]
         .iter()
-        .map(|level| weighted(level, |p| p.0))
-        .find(|&z| (MIN_THICKNESS_M..=MAX_THICKNESS_M).contains(&(upper - z)));
+        .map(|level| (weighted(level, |p| p.0), level))
+        .find(|(z, _)| (MIN_THICKNESS_M..=MAX_THICKNESS_M).contains(&(upper - z)));
+    // A sill's top does not rise toward its nose. Where the line at which it meets the wall shows between the lower
+    // arris and the upper one, below the foot, the upper one is no arris of the sill (the foot's own edge placed in
+    // front of the wall: a lying line's depth is what a strip measures worst), and the top is at that line.
+    let meets = lower.and_then(|(z, _)| {
+        let band = on_wall
+            .iter()
+            .filter(|p| {
+                (z + MIN_THICKNESS_M..=upper.min(z0) - LEVEL_TOLERANCE_M).contains(&p.0)
+                    && p.2 >= x0 - MAX_OVERHANG_M
+                    && p.3 <= x1 + MAX_OVERHANG_M
+            })
+            .collect();
+        levels(band)
+            .into_iter()
+            .find(|l| cover(l) >= MIN_NOSE_COVER)
+            .map(|l| weighted(&l, |p| p.0))
+    });
+    let (upper, proud) = match (meets, lower) {
+        (Some(top), Some((_, level))) => (top, -weighted(level, |p| p.1)),
+        _ => (upper, -weighted(top, |p| p.1)),
+    };
+    let lower = lower.map(|(z, _)| z);
     let along_wall = levels(below.iter().copied().filter(|p| p.1 - depth >= rule.proud_m.0).collect())
         .into_iter()
         .filter(|l| cover(l) >= MIN_NOSE_COVER)
@@ -119,7 +141,7 @@ fn nose(front: &[Piece], [x0, x1, z0, _]: [f64; 4], rule: SillRule, proud: Optio
     Some(Nose {
         foot: z0,
         x: (x0, x1),
-        proud: -weighted(top, |p| p.1),
+        proud,
         arrises: (upper, lower),
         along_wall,
         overhang: [past(x0 - lo), past(hi - x1)],
@@ -133,12 +155,12 @@ fn nose(front: &[Piece], [x0, x1, z0, _]: [f64; 4], rule: SillRule, proud: Optio
 /// sill's line along the wall where one is seen at the height of an arris (the wall's face), else the wall. The
 /// sides reach past the window by the median of what the noses show. None on a wall where no sill shows both
 /// arrises: how thick they are is unknown.
-fn sill_boxes(front: &[Piece], windows: &[[f64; 4]], rule: SillRule) -> Vec<[f64; 6]> {
+fn sill_boxes(front: &[Piece], on_wall: &[Piece], windows: &[[f64; 4]], rule: SillRule) -> Vec<[f64; 6]> {
     // Each nose where its wall's sills stand proud together: a line further out under one window (a lamp, a sign)
     // is no sill.
-    let first: Vec<Nose> = windows.iter().filter_map(|&w| nose(front, w, rule, None)).collect();
+    let first: Vec<Nose> = windows.iter().filter_map(|&w| nose(front, on_wall, w, rule, None)).collect();
     let proud = median(first.iter().map(|n| n.proud).collect());
-    let noses: Vec<Nose> = windows.iter().filter_map(|&w| nose(front, w, rule, proud)).collect();
+    let noses: Vec<Nose> = windows.iter().filter_map(|&w| nose(front, on_wall, w, rule, proud)).collect();
     let both = || noses.iter().filter_map(|n| Some((n.foot, n.arrises.0, n.arrises.1?)));
     let (Some(thickness), Some(drop)) = (
         median(both().map(|(_, a, b)| a - b).collect()),
@@ -201,7 +223,7 @@ pub(crate) fn add_sills(
             .copied()
             .filter(|&b| !windows.iter().any(|&o| inside(b, o)))
             .collect();
-        for [x0, x1, top, bottom, proud, back] in sill_boxes(&front, &bounds, rule) {
+        for [x0, x1, top, bottom, proud, back] in sill_boxes(&front, &view.lying_pieces_on_wall, &bounds, rule) {
             let first = vertices.len();
             for (x, z, out) in [
                 (x0, top, -back),
@@ -256,12 +278,28 @@ mod tests {
             piece(0.971, 0.06, 1.5, 2.05),
             piece(0.91, 0.061, 0.95, 2.05),
         ];
-        let boxes = sill_boxes(&front, &[[1.0, 2.0, 1.0, 2.5]], RULE);
+        let boxes = sill_boxes(&front, &[], &[[1.0, 2.0, 1.0, 2.5]], RULE);
         assert_eq!(boxes.len(), 1);
         let [x0, x1, top, bottom, proud, back] = boxes[0];
         assert!((x0 - 0.95).abs() < 1e-9 && (x1 - 2.05).abs() < 1e-9, "{boxes:?}");
         assert!((top - 0.9705).abs() < 1e-3 && (top - bottom - 0.06).abs() < 2e-3, "{boxes:?}");
         assert!((proud - 0.06).abs() < 1e-3 && back == 0.0, "{boxes:?}");
+    }
+
+    #[test]
+    fn a_line_in_front_of_the_wall_at_the_foots_height_is_no_top_arris_where_the_sills_top_meets_the_wall_below() {
+        // The sill as in the first test; the window's foot edge placed 7 cm in front of the wall (a lying line's
+        // depth is a strip's weakest), the top arris not seen, the sill's top seen where it meets the wall.
+        let front = [piece(1.005, 0.07, 0.95, 2.05), piece(0.91, 0.06, 0.95, 2.05)];
+        let on_wall = [piece(0.97, 0.0, 0.95, 2.05), piece(1.0, 0.0, 1.0, 2.0)];
+        let boxes = sill_boxes(&front, &on_wall, &[[1.0, 2.0, 1.0, 2.5]], RULE);
+        assert_eq!(boxes.len(), 1);
+        let [_, _, top, bottom, proud, _] = boxes[0];
+        assert!((top - 0.97).abs() < 1e-9 && (bottom - 0.91).abs() < 1e-9, "{boxes:?}");
+        assert!((proud - 0.06).abs() < 1e-9, "the nose's depth is the lower arris's: {boxes:?}");
+        // Without the line along the wall, the two lines in front are the arrises.
+        let boxes = sill_boxes(&front, &on_wall[1..], &[[1.0, 2.0, 1.0, 2.5]], RULE);
+        assert!((boxes[0][2] - 1.005).abs() < 1e-9, "{boxes:?}");
     }
 
     #[test]
@@ -271,7 +309,7 @@ mod tests {
             piece(0.91, 0.06, 0.95, 2.05),
             piece(0.97, 0.06, 3.2, 3.9),
         ];
-        let boxes = sill_boxes(&front, &[[1.0, 2.0, 1.0, 2.5], [3.0, 4.0, 1.0, 2.5]], RULE);
+        let boxes = sill_boxes(&front, &[], &[[1.0, 2.0, 1.0, 2.5], [3.0, 4.0, 1.0, 2.5]], RULE);
         assert_eq!(boxes.len(), 2);
         assert!((boxes[1][2] - boxes[1][3] - 0.06).abs() < 1e-9, "{boxes:?}");
         assert!((boxes[1][0] - 2.95).abs() < 1e-9, "the first sill's overhang: {boxes:?}");
@@ -286,7 +324,7 @@ mod tests {
             piece(0.91, 0.081, 1.6, 2.05),
             piece(0.97, 0.08, 1.1, 1.9),
         ];
-        let boxes = sill_boxes(&front, &[[1.0, 2.0, 1.0, 2.5]], RULE);
+        let boxes = sill_boxes(&front, &[], &[[1.0, 2.0, 1.0, 2.5]], RULE);
         assert_eq!(boxes.len(), 1);
         assert!((boxes[0][4] - 0.0805).abs() < 2e-3, "{boxes:?}");
         assert!((boxes[0][5] + 0.025).abs() < 1e-9, "its back on the line along the wall: {boxes:?}");
@@ -299,7 +337,7 @@ mod tests {
         // Under the middle window something 25 cm out, across it.
         front.extend([piece(0.95, 0.25, 2.9, 4.1), piece(0.9, 0.25, 2.9, 4.1)]);
         let windows: Vec<[f64; 4]> = [1.0, 3.0, 5.0].iter().map(|&x| [x, x + 1.0, 1.0, 2.5]).collect();
-        let boxes = sill_boxes(&front, &windows, RULE);
+        let boxes = sill_boxes(&front, &[], &windows, RULE);
         assert_eq!(boxes.len(), 3);
         assert!(boxes.iter().all(|b| (b[4] - 0.06).abs() < 1e-9), "{boxes:?}");
     }
@@ -309,21 +347,24 @@ mod tests {
         // Half the width is not enough; a nose too far below the foot is something else (a string course).
         assert!(sill_boxes(
             &[piece(0.97, 0.06, 1.0, 1.4), piece(0.91, 0.06, 1.0, 1.4)],
+            &[],
             &[[1.0, 2.0, 1.0, 2.5]],
             RULE
         )
         .is_empty());
         assert!(sill_boxes(
             &[piece(0.5, 0.06, 1.0, 2.0), piece(0.45, 0.06, 1.0, 2.0)],
+            &[],
             &[[1.0, 2.0, 1.0, 2.5]],
             RULE
         )
         .is_empty());
         // One arris alone on the whole wall: how thick the sills are is unknown.
-        assert!(sill_boxes(&[piece(0.97, 0.06, 1.0, 2.0)], &[[1.0, 2.0, 1.0, 2.5]], RULE).is_empty());
+        assert!(sill_boxes(&[piece(0.97, 0.06, 1.0, 2.0)], &[], &[[1.0, 2.0, 1.0, 2.5]], RULE).is_empty());
         // Flush with the wall: no sill.
         assert!(sill_boxes(
             &[piece(0.97, 0.005, 1.0, 2.0), piece(0.91, 0.005, 1.0, 2.0)],
+            &[],
             &[[1.0, 2.0, 1.0, 2.5]],
             RULE
         )
