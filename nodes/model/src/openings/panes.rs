@@ -107,17 +107,38 @@ fn common(layouts: &[&Layout]) -> Option<Layout> {
 /// A window of a wall with its frame: its bounds, the frame's depth, and the bounds of the panes it has.
 type Framed = ([f64; 4], f64, Vec<[f64; 4]>);
 
-/// The panes the windows' layouts ([`layouts`]) give them that they do not have yet: (window, the pane's bounds).
-fn missing_panes(windows: &[Framed], standing: &[Side], lying: &[Side], bar_m: f64) -> Vec<(usize, [f64; 4])> {
+/// The depth of a window's panes (`bounds`, `layout`): the median of the sides its 3-D lines show where the layout
+/// puts the panes' sides. The frame's own depth comes from its outer sides, often few; the glazing's edges are many
+/// (and where the glass lies a little behind the frame, one line stands for both, between them).
+fn pane_depth(bounds: &[f64; 4], (across, up): &Layout, standing: &[Side], lying: &[Side]) -> Option<f64> {
+    let [x0, x1, z0, z1] = *bounds;
+    let at = |sides: &[Side], from: f64, pairs: &[(f64, f64)], lo: f64, hi: f64| -> Vec<f64> {
+        let positions: Vec<f64> = pairs.iter().flat_map(|&(a, b)| [from + a, from + b]).collect();
+        sides
+            .iter()
+            .filter(|s| positions.iter().any(|p| (s.at - p).abs() <= SIDE_TOLERANCE_M) && s.cover(lo, hi) >= MIN_PANE_SIDE_COVER / 2.0)
+            .map(|s| s.depth)
+            .collect()
+    };
+    let mut depths = at(standing, x0, across, z0, z1);
+    depths.extend(at(lying, z0, up, x0, x1));
+    median(depths)
+}
+
+/// The panes the windows' layouts ([`layouts`]) give them that they do not have yet: (window, the pane's bounds, its
+/// depth behind the wall: [`pane_depth`], else the frame's).
+fn missing_panes(windows: &[Framed], standing: &[Side], lying: &[Side], bar_m: f64) -> Vec<(usize, [f64; 4], f64)> {
     let frames: Vec<([f64; 4], f64)> = windows.iter().map(|w| (w.0, w.1)).collect();
     let mut out = Vec::new();
-    for (k, ((bounds, _, present), layout)) in windows.iter().zip(layouts(&frames, standing, lying, bar_m)).enumerate() {
-        let Some((across, up)) = layout else { continue };
-        for &(a, b) in &across {
-            for &(c, d) in &up {
+    for (k, ((bounds, frame, present), layout)) in windows.iter().zip(layouts(&frames, standing, lying, bar_m)).enumerate() {
+        let Some(layout) = layout else { continue };
+        // Never in front of the frame that holds them.
+        let depth = pane_depth(bounds, &layout, standing, lying).map_or(*frame, |d| d.max(*frame));
+        for &(a, b) in &layout.0 {
+            for &(c, d) in &layout.1 {
                 let pane = [bounds[0] + a, bounds[0] + b, bounds[2] + c, bounds[2] + d];
                 if !present.iter().any(|p| same_pane(p, &pane)) {
-                    out.push((k, pane));
+                    out.push((k, pane, depth));
                 }
             }
         }
@@ -167,10 +188,10 @@ pub(crate) fn add_panes(
         let standing = sides(wall, vertices, edges, true, (FLUSH_MIN_M, deepest));
         let lying = sides(wall, vertices, edges, false, (FLUSH_MIN_M, deepest));
         let framed: Vec<Framed> = windows.iter().map(|w| w.0.clone()).collect();
-        for (k, [x0, x1, z0, z1]) in missing_panes(&framed, &standing, &lying, sizes.frame_m.1) {
-            let ((_, depth, _), normal) = &windows[k];
+        for (k, [x0, x1, z0, z1], depth) in missing_panes(&framed, &standing, &lying, sizes.frame_m.1) {
+            let (_, normal) = &windows[k];
             let corner = |x: f64, z: f64| Vertex {
-                point: wall.point(x, z, &Vec3::zeros()) - wall.out * *depth,
+                point: wall.point(x, z, &Vec3::zeros()) - wall.out * depth,
                 sigma: None,
             };
             new.push((vec![corner(x0, z0), corner(x1, z0), corner(x1, z1), corner(x0, z1)], *normal));
@@ -250,6 +271,7 @@ mod tests {
             ),
         ];
         let added = missing_panes(&windows, &standing, &lying, 0.15);
+        assert!(added.iter().all(|a| (a.2 - 0.12).abs() < 1e-9), "{added:?}");
         let of = |k: usize| added.iter().filter(|a| a.0 == k).map(|a| a.1).collect::<Vec<_>>();
         assert_eq!(of(0).len(), 4, "{added:?}");
         let expected = [pane(2.0, right, low), pane(2.0, right, high)];
@@ -258,6 +280,19 @@ mod tests {
             assert!(got.iter().zip(want).all(|(g, w)| (g - w).abs() < 1e-9), "{got:?} against {want:?}");
         }
         assert!(of(2).is_empty(), "{added:?}");
+    }
+
+    #[test]
+    fn the_panes_lie_where_the_lines_at_their_sides_are() {
+        // The left sides of the panes 12 cm behind the wall, the right ones and the rails 15 cm; a mullion's
+        // middle line (no side of a pane) 30 cm.
+        let layout: Layout = (vec![(0.05, 0.47), (0.53, 0.95)], vec![(0.05, 0.95)]);
+        let mut standing: Vec<Side> = [0.05, 0.53].iter().map(|&x| side(x, 0.12, 1.0, 2.0)).collect();
+        standing.extend([0.47, 0.95].iter().map(|&x| side(x, 0.15, 1.0, 2.0)));
+        standing.push(side(0.5, 0.3, 1.0, 2.0));
+        let lying: Vec<Side> = [1.05, 1.95].iter().map(|&z| side(z, 0.15, 0.0, 1.0)).collect();
+        assert_eq!(pane_depth(&[0.0, 1.0, 1.0, 2.0], &layout, &standing, &lying), Some(0.15));
+        assert_eq!(pane_depth(&[0.0, 1.0, 1.0, 2.0], &layout, &[], &[]), None);
     }
 
     #[test]
