@@ -57,6 +57,8 @@ const MIN_WALL_SPAN_M: f64 = 2.0;
 const SIDE_TOLERANCE_M: f64 = 0.015;
 /// …depths within this, metres…
 const DEPTH_TOLERANCE_M: f64 = 0.03;
+/// Planes whose normals lie within this cosine (about 10°) are one wall's, for what a predicted opening overlaps.
+const NEAR_PLANE_COS: f64 = 0.985;
 /// …the standing sides covered by their edges over at least this share (a frame's sides are often seen only in
 /// part)…
 const MIN_STANDING_COVER: f64 = 0.5;
@@ -168,7 +170,7 @@ pub(crate) fn infer(
         let on_wall_here = |o: &Outline| {
             o.normal.dot(&wall.out).abs() > cos_par && wall.depth(&o.centroid).abs() < sizes.recess_m.0 && o.contains(&centre)
         };
-        if found.iter().any(on_wall_here) {
+        if found.iter().any(on_wall_here) || found_near(&found, &wall.out, &centre, sizes.recess_m.0) {
             continue;
         }
         // An outline of about its size on the wall that closed without being taken for an opening (nothing nests
@@ -209,6 +211,9 @@ pub(crate) fn infer(
         for rect in from_grid(view, &taken, &viewpoint, evidence.filter(|_| params.verify_openings)) {
             let [x0, x1, z0, z1] = rect.bounds;
             let centre = wall.point((x0 + x1) / 2.0, (z0 + z1) / 2.0, &viewpoint);
+            if found_near(&found, &wall.out, &centre, sizes.recess_m.0) {
+                continue;
+            }
             let rect = settled_in_images(wall, rect);
             let corners = opening_corners(wall, rect, 0.0, centres, None, &centre);
             found.push(Outline::of(&corners.iter().map(|v| v.point).collect::<Vec<_>>(), wall.out));
@@ -220,6 +225,15 @@ pub(crate) fn infer(
         }
     }
     (out, walls)
+}
+
+/// Whether an opening already found on a wall whose normal lies within [`NEAR_PLANE_COS`] of `out` (the wall
+/// proposing one, or a second plane fitted to a column of frames a few degrees off it), within `reach_m` of
+/// `centre` across its plane, holds `centre`: it is the one proposed there.
+fn found_near(found: &[Outline], out: &Vec3, centre: &Vec3, reach_m: f64) -> bool {
+    found
+        .iter()
+        .any(|o| o.normal.dot(out).abs() > NEAR_PLANE_COS && (centre - o.centroid).dot(&o.normal).abs() < reach_m && o.contains(centre))
 }
 
 /// Adds the inferred openings to the model: marked faces become windows, new ones get their corners, their
@@ -736,6 +750,22 @@ pub(super) mod tests {
             ModelParams::default().opening_sizes(),
         );
         assert_eq!(found.len(), 1);
+    }
+
+    #[test]
+    fn an_opening_found_on_a_wall_a_few_degrees_off_is_the_one_proposed_there() {
+        // A window 1 to 2 m across and up on the wall y = 0 facing −y.
+        let found = [Outline::of(
+            &[[1.0, 0.0, 1.0], [2.0, 0.0, 1.0], [2.0, 0.0, 2.0], [1.0, 0.0, 2.0]].map(|p| Vec3::new(p[0], p[1], p[2])),
+            Vec3::new(0.0, -1.0, 0.0),
+        )];
+        let turned = |deg: f64| Vec3::new(deg.to_radians().sin(), -deg.to_radians().cos(), 0.0);
+        let centre = Vec3::new(1.5, 0.03, 1.53);
+        assert!(found_near(&found, &turned(3.0), &centre, 0.1));
+        // A wall at right angles, a point beside the window or far behind the wall: another opening.
+        assert!(!found_near(&found, &turned(90.0), &centre, 0.1));
+        assert!(!found_near(&found, &turned(3.0), &Vec3::new(2.5, 0.0, 1.5), 0.1));
+        assert!(!found_near(&found, &turned(3.0), &Vec3::new(1.5, 0.5, 1.5), 0.1));
     }
 
     #[test]
