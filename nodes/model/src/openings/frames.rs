@@ -75,11 +75,9 @@ pub(super) struct FaceBehind {
     /// Whether one spans the opening, side to side and foot to top (within a frame's width): the frame itself,
     /// not its panes.
     pub(super) spans: bool,
-    /// The share of the opening's area they cover at the front-most one's depth…
+    /// The share of the opening's area they cover at the front-most one's depth.
     pub(super) share: f64,
-    /// …and how many they are.
-    pub(super) faces: usize,
-    /// The bounds of those that do not span it: its panes.
+    /// The bounds of those at that depth that do not span it: its panes.
     pub(super) panes: Vec<[f64; 4]>,
 }
 
@@ -113,7 +111,6 @@ pub(super) fn face_behind(
         depth,
         spans: front.iter().any(|b| spanning(&b.0)),
         share: front.iter().map(|b| b.2).sum::<f64>() / ((x1 - x0) * (z1 - z0)).max(1e-9),
-        faces: front.len(),
         panes: front.iter().filter(|b| !spanning(&b.0)).map(|b| b.0).collect(),
     })
 }

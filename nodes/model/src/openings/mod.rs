@@ -57,14 +57,15 @@ const MIN_WALL_SPAN_M: f64 = 2.0;
 const SIDE_TOLERANCE_M: f64 = 0.015;
 /// …depths within this, metres…
 const DEPTH_TOLERANCE_M: f64 = 0.03;
-/// Planes whose normals lie within this cosine (about 10°) are one wall's, for what a predicted opening overlaps.
-const NEAR_PLANE_COS: f64 = 0.985;
 /// …the standing sides covered by their edges over at least this share (a frame's sides are often seen only in
 /// part)…
 const MIN_STANDING_COVER: f64 = 0.5;
 /// …and the lying ones over this much: they run the whole width, and a lower share lets the tops of two
 /// neighbouring windows at one height pass for one wide opening.
 const MIN_LYING_COVER: f64 = 0.8;
+/// Planes whose normals lie within this cosine (about 10°) are one wall's, for what a proposed or predicted opening
+/// overlaps.
+const NEAR_PLANE_COS: f64 = 0.985;
 
 /// What the inference does to the faces.
 pub(crate) enum Inferred {
@@ -170,7 +171,7 @@ pub(crate) fn infer(
         let on_wall_here = |o: &Outline| {
             o.normal.dot(&wall.out).abs() > cos_par && wall.depth(&o.centroid).abs() < sizes.recess_m.0 && o.contains(&centre)
         };
-        if found.iter().any(on_wall_here) || found_near(&found, &wall.out, &centre, sizes.recess_m.0) {
+        if found_near(&found, &wall.out, &centre, sizes.recess_m.0) {
             continue;
         }
         // An outline of about its size on the wall that closed without being taken for an opening (nothing nests

@@ -132,16 +132,23 @@ fn missing_panes(windows: &[Framed], standing: &[Side], lying: &[Side], bar_m: f
     let mut out = Vec::new();
     for (k, ((bounds, frame, present), layout)) in windows.iter().zip(layouts(&frames, standing, lying, bar_m)).enumerate() {
         let Some(layout) = layout else { continue };
+        let missing: Vec<[f64; 4]> = layout
+            .0
+            .iter()
+            .flat_map(|&(a, b)| {
+                layout
+                    .1
+                    .iter()
+                    .map(move |&(c, d)| [bounds[0] + a, bounds[0] + b, bounds[2] + c, bounds[2] + d])
+            })
+            .filter(|pane| !present.iter().any(|p| same_pane(p, pane)))
+            .collect();
+        if missing.is_empty() {
+            continue;
+        }
         // Never in front of the frame that holds them.
         let depth = pane_depth(bounds, &layout, standing, lying).map_or(*frame, |d| d.max(*frame));
-        for &(a, b) in &layout.0 {
-            for &(c, d) in &layout.1 {
-                let pane = [bounds[0] + a, bounds[0] + b, bounds[2] + c, bounds[2] + d];
-                if !present.iter().any(|p| same_pane(p, &pane)) {
-                    out.push((k, pane, depth));
-                }
-            }
-        }
+        out.extend(missing.into_iter().map(|pane| (k, pane, depth)));
     }
     out
 }

@@ -70,10 +70,10 @@ fn weighted(pieces: &[&Piece], f: impl Fn(&Piece) -> f64) -> f64 {
 /// The nose under the window `[x0, x1, z0, z1]` among the lying pieces in front of its wall (`front`, depths
 /// negative): the pieces below its foot within `rule.reach_m` overlapping it, at a depth whose edges cover
 /// [`MIN_NOSE_COVER`] of its width, gathered into arrises by height; the arrises that cover as much count. The
-/// depth is the one nearest `proud` in front of the wall (its wall's sills' median) within twice
+/// depth is the one nearest `wall_proud` in front of the wall (its wall's sills' median) within twice
 /// [`NOSE_DEPTH_TOLERANCE_M`], or without it the front-most (where the wall stands a little off its face, the
 /// sill's line along the wall passes for a nose too, nearer the wall).
-fn nose(front: &[Piece], on_wall: &[Piece], [x0, x1, z0, _]: [f64; 4], rule: SillRule, proud: Option<f64>) -> Option<Nose> {
+fn nose(front: &[Piece], on_wall: &[Piece], [x0, x1, z0, _]: [f64; 4], rule: SillRule, wall_proud: Option<f64>) -> Option<Nose> {
     let below: Vec<&Piece> = front
         .iter()
         .filter(|p| (z0 - rule.reach_m - MAX_THICKNESS_M..=z0 + ABOVE_FOOT_M).contains(&p.0) && p.3 > x0 && p.2 < x1)
@@ -90,7 +90,7 @@ fn nose(front: &[Piece], on_wall: &[Piece], [x0, x1, z0, _]: [f64; 4], rule: Sil
     let mut depths: Vec<f64> = below.iter().map(|p| p.1).collect();
     depths.sort_by(f64::total_cmp);
     let mut covering = depths.into_iter().filter(|&d| cover(&at_depth(d)) >= MIN_NOSE_COVER);
-    let depth = match proud {
+    let depth = match wall_proud {
         Some(proud) => covering
             .filter(|d| (d + proud).abs() <= 2.0 * NOSE_DEPTH_TOLERANCE_M)
             .min_by(|a, b| (a + proud).abs().total_cmp(&(b + proud).abs()))?,

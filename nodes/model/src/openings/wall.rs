@@ -118,7 +118,6 @@ impl Outline {
         }
     }
 
-    /// The ring's bounds `[x0, x1, z0, z1]` in `wall`'s coordinates.
     /// The outline of every face, in order.
     pub(crate) fn of_faces(faces: &[Face], vertices: &[Vertex]) -> Vec<Outline> {
         faces
@@ -127,6 +126,7 @@ impl Outline {
             .collect()
     }
 
+    /// The ring's bounds `[x0, x1, z0, z1]` in `wall`'s coordinates.
     pub(crate) fn bounds_in(&self, wall: &Wall) -> [f64; 4] {
         let xs: Vec<f64> = self.points.iter().map(|p| p.dot(&wall.across)).collect();
         let zs: Vec<f64> = self.points.iter().map(|p| p.z).collect();
