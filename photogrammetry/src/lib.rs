@@ -23,7 +23,7 @@ pub use lens::{camera_from_opencv, opencv_from_camera, FitResidual, OpenCvLens};
 pub use polygon::{point_in_polygon, polygon_normal, signed_area};
 pub use pose::Pose;
 pub use rotation::{look_at, opk_from_rotation, rotation_from_opk};
-pub use stats::median;
+pub use stats::{median, weighted_quantile};
 
 /// Object-space 3-vector (metres).
 pub type Vec3 = nalgebra::Vector3<f64>;

@@ -307,10 +307,18 @@ fn walls(
         };
         span(&|q| q.dot(&across)) >= MIN_WALL_SPAN_M && span(&|q| q.z) >= MIN_WALL_SPAN_M
     };
-    let parallel_near = |a: &Plane, b: &Plane| {
-        let along = a.normal.dot(&b.normal);
-        along.abs() > cos_par && (a.offset - b.offset * along.signum()).abs() <= sizes.recess_m.1
+    // Where a plane's edges lie: a plane a few degrees off another (fitted to a column of frames) crosses it
+    // somewhere along the façade, so offsets alone do not tell how far apart the two are where it matters.
+    let centroids: Vec<Vec3> = plane_edges
+        .iter()
+        .map(|on| on.iter().map(|e| vertices[e.a].point + vertices[e.b].point).sum::<Vec3>() / (2 * on.len()).max(1) as f64)
+        .collect();
+    // A plane within 10° of another with its edges within the deepest recess of it: a frame's plane, a column of
+    // frames, a row of sill fronts in front of that wall, or the same wall twice.
+    let within = |p: &Plane, centroid: &Vec3, wall: &Plane| {
+        p.normal.dot(&wall.normal).abs() > NEAR_PLANE_COS && (wall.normal.dot(centroid) - wall.offset).abs() <= sizes.recess_m.1
     };
+    let parallel_near = |k: usize, j: usize| within(&planes[j], &centroids[j], &planes[k]) || within(&planes[k], &centroids[k], &planes[j]);
     let mut chosen: Vec<(usize, usize)> = (0..planes.len())
         .filter(|&k| {
             let (p, n) = (&planes[k], plane_edges[k].len());
@@ -318,20 +326,21 @@ fn walls(
                 && p.normal.z.abs() < (1.0 - cos_par * cos_par).sqrt()
                 // Of two hypotheses that converged on one plane (as many edges), the first stands for both.
                 && (0..planes.len()).all(|j| {
-                    j == k || !parallel_near(p, &planes[j]) || plane_edges[j].len() < n || (plane_edges[j].len() == n && j > k)
+                    j == k || !parallel_near(k, j) || plane_edges[j].len() < n || (plane_edges[j].len() == n && j > k)
                 })
                 && spread(p, &plane_edges[k])
         })
         .map(|k| (plane_edges[k].len(), k))
         .collect();
     chosen.sort_by(|a, b| b.0.cmp(&a.0).then(a.1.cmp(&b.1)));
-    let mut chosen: Vec<Plane> = chosen.into_iter().map(|(_, k)| planes[k]).collect();
+    let mut chosen: Vec<usize> = chosen.into_iter().map(|(_, k)| k).collect();
     // The faces' planes count closed faces, and deep frames close more of them than the wall in front: the wall of
     // the edges comes first, in place of the planes within a recess of it.
-    if let Some(wall) = wall_from_edges(vertices, edges, surface, viewpoint) {
-        chosen.retain(|p| !parallel_near(p, &wall));
-        chosen.insert(0, wall);
+    let from_edges = wall_from_edges(vertices, edges, surface, viewpoint);
+    if let Some(wall) = &from_edges {
+        chosen.retain(|&k| !within(&planes[k], &centroids[k], wall));
     }
+    let chosen: Vec<Plane> = from_edges.into_iter().chain(chosen.into_iter().map(|k| planes[k])).collect();
     // The surface lines as edges of their own: the courses they are run across the wall too.
     let surface_vertices: Vec<Vertex> = surface.iter().flatten().map(|&point| Vertex { point, sigma: None }).collect();
     let surface_edges: Vec<Edge> = (0..surface.len())
