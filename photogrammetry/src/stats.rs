@@ -19,7 +19,7 @@ pub fn weighted_quantile(pairs: &[(f64, f64)], q: f64) -> Option<f64> {
     let mut sorted = pairs.to_vec();
     sorted.sort_by(|a, b| a.0.total_cmp(&b.0));
     let total: f64 = sorted.iter().map(|p| p.1).sum();
-    if !(total > 0.0) {
+    if total.is_nan() || total <= 0.0 {
         return None;
     }
     let mut cumulative = 0.0;
