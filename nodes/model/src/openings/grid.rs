@@ -59,7 +59,7 @@ fn storey_count(rows: &[([f64; 2], usize)], range: [f64; 2]) -> usize {
 }
 
 /// Rows sharing this much of the shorter one's height are one storey ([`storey_count`]).
-const STOREY_SHARE: f64 = 0.8;
+pub(super) const STOREY_SHARE: f64 = 0.8;
 
 /// The distinct intervals among `intervals`: those whose ends both lie within [`GRID_TOLERANCE_M`] of a group's
 /// mean are one, at their mean. In order of their start.

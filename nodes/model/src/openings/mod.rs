@@ -89,6 +89,7 @@ mod grid;
 mod panes;
 mod recesses;
 mod rectangles;
+mod rows;
 mod settle;
 mod sides;
 mod sills;
@@ -104,6 +105,7 @@ use frames::*;
 use grid::*;
 use recesses::*;
 use rectangles::*;
+use rows::agreed_by_rows;
 use settle::settle;
 use sides::*;
 use wall::*;
@@ -164,6 +166,9 @@ pub(crate) fn infer(
         None => rect,
     };
     let mut out = Vec::new();
+    // The new openings: their place in `out`, their wall, their outline in `found`, whether their row and column
+    // predicted them.
+    let mut news: Vec<(usize, usize, usize, bool)> = Vec::new();
     for p in proposals {
         let wall = &walls[p.wall].wall;
         let [x0, x1, z0, z1] = p.rect.bounds;
@@ -193,6 +198,7 @@ pub(crate) fn infer(
             None => {
                 let rect = settled_in_images(wall, p.rect);
                 let corners = opening_corners(wall, rect, p.depth, centres, p.sigma, &centre);
+                news.push((out.len(), p.wall, found.len(), false));
                 found.push(Outline::of(&corners.iter().map(|v| v.point).collect::<Vec<_>>(), wall.out));
                 out.push(Inferred::New {
                     corners,
@@ -205,7 +211,7 @@ pub(crate) fn infer(
         }
     }
     // The rows and columns of what was found on each wall predict what was missed.
-    for view in &walls {
+    for (w, view) in walls.iter().enumerate() {
         let wall = &view.wall;
         let on_this_wall = |o: &&Outline| o.normal.dot(&wall.out).abs() > cos_par && wall.depth(&o.centroid).abs() < sizes.recess_m.0;
         let taken: Vec<[f64; 4]> = found.iter().filter(on_this_wall).map(|o| o.bounds_in(wall)).collect();
@@ -217,12 +223,32 @@ pub(crate) fn infer(
             }
             let rect = settled_in_images(wall, rect);
             let corners = opening_corners(wall, rect, 0.0, centres, None, &centre);
+            news.push((out.len(), w, found.len(), true));
             found.push(Outline::of(&corners.iter().map(|v| v.point).collect::<Vec<_>>(), wall.out));
             out.push(Inferred::New {
                 corners,
                 normal: wall.out,
                 reveal_m: None,
             });
+        }
+    }
+    // Each new opening with the sides its row and column agree on. Those found count; a predicted one copies its
+    // row's and column's sides, and a row's wrong foot copied along it would outvote the openings that show it.
+    let predicted: Vec<usize> = news.iter().filter(|n| n.3).map(|n| n.2).collect();
+    for &(k, w, own, _) in &news {
+        let wall = &walls[w].wall;
+        let on_this_wall = |o: &Outline| o.normal.dot(&wall.out).abs() > cos_par && wall.depth(&o.centroid).abs() < sizes.recess_m.0;
+        let others: Vec<[f64; 4]> = (found.iter().enumerate())
+            .filter(|&(j, o)| j != own && !predicted.contains(&j) && on_this_wall(o))
+            .map(|(_, o)| o.bounds_in(wall))
+            .collect();
+        if let Inferred::New { corners, .. } = &mut out[k] {
+            let at = |v: &Vertex| (v.point.dot(&wall.across), v.point.z);
+            let ([x0, z0], [x1, z1]) = ([at(&corners[0]).0, at(&corners[0]).1], [at(&corners[2]).0, at(&corners[2]).1]);
+            let [ax0, ax1, az0, az1] = agreed_by_rows([x0, x1, z0, z1], &others);
+            for (v, (x, z)) in corners.iter_mut().zip([(ax0, az0), (ax1, az0), (ax1, az1), (ax0, az1)]) {
+                v.point = wall.point(x, z, &v.point);
+            }
         }
     }
     (out, walls)
