@@ -112,6 +112,47 @@ pub enum TextureLines {
     Keep,
 }
 
+/// What becomes of the lines that reach no corner, the model's loose edges. Measured in docs/model.md ("Loose
+/// lines"). In a launch file a name (`"keep"`, `"openings"`, `"drop"`), or `true` (keep) and `false` (drop).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(try_from = "LooseLinesSetting")]
+pub enum LooseLines {
+    /// Every loose line is an edge of the model.
+    Keep,
+    /// Those at an opening stay (its outline, frame, panes and sill: on plaster most are true edges whose
+    /// neighbours were not found); away from every opening they go (fragments of eaves, balconies, the ground
+    /// line, courses: on the held-out buildings 1 to 4 of 200-350 were true edges).
+    Openings,
+    /// Left out unless a face uses them.
+    Drop,
+}
+
+/// How a launch file may spell [`LooseLines`].
+#[derive(Deserialize)]
+#[serde(untagged)]
+enum LooseLinesSetting {
+    Flag(bool),
+    Name(String),
+}
+
+impl TryFrom<LooseLinesSetting> for LooseLines {
+    type Error = String;
+    fn try_from(setting: LooseLinesSetting) -> Result<Self, String> {
+        match setting {
+            LooseLinesSetting::Flag(true) => Ok(LooseLines::Keep),
+            LooseLinesSetting::Flag(false) => Ok(LooseLines::Drop),
+            LooseLinesSetting::Name(name) => match name.as_str() {
+                "keep" => Ok(LooseLines::Keep),
+                "openings" => Ok(LooseLines::Openings),
+                "drop" => Ok(LooseLines::Drop),
+                other => Err(format!(
+                    "loose_lines: expected \"keep\", \"openings\" or \"drop\" (or true / false), found \"{other}\""
+                )),
+            },
+        }
+    }
+}
+
 /// Parameters of the model stage (launch-file `params` of node `model`).
 #[derive(Debug, Clone, Deserialize)]
 #[serde(default, deny_unknown_fields)]
@@ -177,10 +218,8 @@ pub struct ModelParams {
     pub align_k: f64,
     /// The fewest lines that make a shared value.
     pub align_min_lines: usize,
-    /// Keep the lines that reach no corner as loose edges of the model. On brick most of them are lines inside the
-    /// wall (mortar courses), which are no edges of the building; on plaster most are true edges whose neighbours
-    /// were not found. Measured both ways in docs/model.md ("Loose lines"); on by default.
-    pub loose_lines: bool,
+    /// What becomes of the lines that reach no corner ([`LooseLines`]; those at an opening stay by default).
+    pub loose_lines: LooseLines,
     /// Keep the lines lying inside a wall's surface (mortar, tile and panel joints) out of the model's edges, as
     /// `surface_lines` ([`surface_lines`]).
     pub surface_lines: bool,
@@ -253,7 +292,7 @@ impl Default for ModelParams {
             align: true,
             align_k: 2.0,
             align_min_lines: 3,
-            loose_lines: true,
+            loose_lines: LooseLines::Openings,
             surface_lines: true,
             surface_band_m: 0.03,
             surface_margin_m: 0.1,
@@ -454,7 +493,7 @@ pub struct Diagnostics {
     pub lines_in: usize,
     /// Lines that reached at least one corner (the others are loose: left out unless `loose_lines`).
     pub lines_used: usize,
-    /// Loose lines left out of the model.
+    /// Edges of loose lines left out of the model ([`LooseLines`]).
     pub loose_dropped: usize,
     /// Lines the line stage (or the model, for unclassed lines) classed texture.
     pub texture_lines: usize,
@@ -530,7 +569,7 @@ impl Model {
     pub fn summary(&self) -> String {
         let d = &self.diagnostics;
         format!(
-            "{} of {} lines used ({} classed texture, {} loose lines left out), {} objects ({} left unadjusted, {} corners kept where their lines met), {} vertices, {} edges ({} lines inside a wall's surface set aside), {} faces ({} walls, {} window/door, {} roof), ends resolved by stage 1/2/3: {}/{}/{}, free {}, median sigma0 {}, {} edges refined by image lines, {} occluded boundaries completed, {} objects inside another in plan, lines turned plumb/level/level on a plan direction/sloped on one: {}/{}/{}/{} ({} plan directions), line coordinates aligned along/across the wall/in height: {}/{}/{} ({}/{}/{} shared values)",
+            "{} of {} lines used ({} classed texture, {} edges of loose lines left out), {} objects ({} left unadjusted, {} corners kept where their lines met), {} vertices, {} edges ({} lines inside a wall's surface set aside), {} faces ({} walls, {} window/door, {} roof), ends resolved by stage 1/2/3: {}/{}/{}, free {}, median sigma0 {}, {} edges refined by image lines, {} occluded boundaries completed, {} objects inside another in plan, lines turned plumb/level/level on a plan direction/sloped on one: {}/{}/{}/{} ({} plan directions), line coordinates aligned along/across the wall/in height: {}/{}/{} ({}/{}/{} shared values)",
             d.lines_used,
             d.lines_in,
             d.texture_lines,
@@ -811,15 +850,24 @@ pub fn build_with_images(lines: &[ModelLine], params: &ModelParams, cameras: &Ca
             images: i.lines,
         });
     let (mut faces, walls) = faces::find_with_walls(&mut vertices, &mut edges, params, cameras, &surface, evidence.as_ref());
-    if !params.loose_lines {
+    if params.loose_lines != LooseLines::Keep {
         let mut loose = vec![false; lines.len()];
         for (l, corners_on) in on_line.iter().enumerate() {
             loose[kept[l]] = corners_on.is_empty();
         }
-        diagnostics.loose_dropped = loose.iter().filter(|&&x| x).count();
-        drop_loose_edges(&mut vertices, &mut edges, &mut faces, corners.len(), |line| {
-            loose.get(line).copied().unwrap_or(false)
+        let boxes = openings_boxes(&vertices, &faces, &walls);
+        let at_opening =
+            |e: &Edge| params.loose_lines == LooseLines::Openings && boxes.holds(&((vertices[e.a].point + vertices[e.b].point) / 2.0));
+        let leaving: std::collections::HashSet<[usize; 2]> = edges
+            .iter()
+            .filter(|e| loose.get(e.line).copied().unwrap_or(false) && !at_opening(e))
+            .map(|e| sorted_pair(e.a, e.b))
+            .collect();
+        let before = edges.len();
+        drop_loose_edges(&mut vertices, &mut edges, &mut faces, corners.len(), |e| {
+            leaving.contains(&sorted_pair(e.a, e.b))
         });
+        diagnostics.loose_dropped = before - edges.len();
     }
     let surface_lines = if params.surface_lines {
         let rule = surface_lines::SurfaceRule {
@@ -849,6 +897,16 @@ pub fn build_with_images(lines: &[ModelLine], params: &ModelParams, cameras: &Ca
     }
 }
 
+/// The window and door faces as boxes in their walls' coordinates, grown by [`LOOSE_REACH_M`]: what lies there is
+/// the opening's (its outline, frame, panes, sill).
+fn openings_boxes<'a>(vertices: &[Vertex], faces: &[Face], walls: &'a [openings::Wall]) -> surface_lines::OpeningBoxes<'a> {
+    surface_lines::OpeningBoxes::of(vertices, faces, walls.iter().collect(), LOOSE_REACH_M)
+}
+
+/// How far around an opening's outline its frame, sill and panes' loose lines lie, metres: a sill's nose below
+/// the foot, a frame's width around.
+const LOOSE_REACH_M: f64 = 0.15;
+
 /// Removes the edges of loose lines that no face uses, and the vertices left without an edge or a face. The first
 /// `n_corners` vertices (the corners, which the objects index) keep their indices; the others are renumbered in
 /// order.
@@ -857,14 +915,14 @@ fn drop_loose_edges(
     edges: &mut Vec<Edge>,
     faces: &mut [Face],
     n_corners: usize,
-    is_loose: impl Fn(usize) -> bool,
+    is_loose: impl Fn(&Edge) -> bool,
 ) {
     let on_face: std::collections::HashSet<[usize; 2]> = faces
         .iter()
         .flat_map(|f| std::iter::once(&f.ring).chain(&f.holes))
         .flat_map(|ring| (0..ring.len()).map(move |i| sorted_pair(ring[i], ring[(i + 1) % ring.len()])))
         .collect();
-    edges.retain(|e| !is_loose(e.line) || on_face.contains(&sorted_pair(e.a, e.b)));
+    edges.retain(|e| !is_loose(e) || on_face.contains(&sorted_pair(e.a, e.b)));
     let mut used = vec![false; vertices.len()];
     used[..n_corners.min(vertices.len())].fill(true);
     for e in edges.iter() {
@@ -1091,7 +1149,17 @@ mod tests {
     }
 
     #[test]
-    fn loose_lines_stay_in_the_model_only_when_asked() {
+    fn loose_lines_are_spelt_by_name_or_as_a_flag() {
+        let parse = |v: &str| toml::from_str::<ModelParams>(&format!("loose_lines = {v}")).map(|p| p.loose_lines);
+        assert_eq!(parse("true").unwrap(), LooseLines::Keep);
+        assert_eq!(parse("false").unwrap(), LooseLines::Drop);
+        assert_eq!(parse("\"openings\"").unwrap(), LooseLines::Openings);
+        let err = parse("\"some\"").unwrap_err().to_string();
+        assert!(err.contains("expected \"keep\", \"openings\" or \"drop\""), "{err}");
+    }
+
+    #[test]
+    fn loose_lines_stay_when_asked_and_go_away_from_openings() {
         // A box's four edges meeting at corners, and a mortar course 2 m away that meets nothing.
         let sq = [[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]];
         let mut lines: Vec<ModelLine> = (0..4)
@@ -1102,11 +1170,18 @@ mod tests {
             .collect();
         lines.push(ModelLine::new(Vec3::new(3.0, 0.0, 0.5), Vec3::new(4.0, 0.0, 0.5), 0.002));
         let cameras = Cameras::from(Vec3::new(0.5, -10.0, 0.5));
-        let with = build(&lines, &ModelParams::default(), &cameras);
+        let with = build(
+            &lines,
+            &ModelParams {
+                loose_lines: LooseLines::Keep,
+                ..ModelParams::default()
+            },
+            &cameras,
+        );
         let without = build(
             &lines,
             &ModelParams {
-                loose_lines: false,
+                loose_lines: LooseLines::Drop,
                 ..ModelParams::default()
             },
             &cameras,
@@ -1118,5 +1193,8 @@ mod tests {
         assert!(without.edges.iter().all(|e| e.line < 4 && e.a < 4 && e.b < 4));
         assert_eq!(without.faces.len(), with.faces.len());
         assert!(without.faces.iter().flat_map(|f| &f.ring).all(|&v| v < without.vertices.len()));
+        // No opening anywhere: the default leaves the course out too.
+        let by_default = build(&lines, &ModelParams::default(), &cameras);
+        assert_eq!(by_default.edges.len(), 4, "{:?}", by_default.edges);
     }
 }

@@ -101,14 +101,8 @@ pub(crate) fn separate(
         }
     }
     let free = |v: usize| inside[v] && !anchored[v] && !on_other_face[v];
-    let openings = opening_boxes(vertices, faces, &walls, rule.band_m);
-    let in_opening = |e: &Edge| {
-        let m = (vertices[e.a].point + vertices[e.b].point) / 2.0;
-        openings.iter().any(|&(w, [u0, u1, z0, z1])| {
-            let u = m.dot(&walls[w].across);
-            walls[w].depth(&m).abs() < RECESS_REACH_M && u >= u0 && u <= u1 && m.z >= z0 && m.z <= z1
-        })
-    };
+    let openings = OpeningBoxes::of(vertices, faces, walls.clone(), rule.band_m);
+    let in_opening = |e: &Edge| openings.holds(&((vertices[e.a].point + vertices[e.b].point) / 2.0));
     let candidate = |e: &Edge| e.observed() && free(e.a) && free(e.b) && wall_of[e.a] == wall_of[e.b] && !in_opening(e);
     let candidates: Vec<usize> = (0..edges.len()).filter(|&k| candidate(&edges[k])).collect();
     let in_field = in_a_field(vertices, edges, &candidates, &walls, &wall_of, rule);
@@ -135,21 +129,39 @@ pub(crate) fn separate(
 /// How far behind or before a wall an opening's frames and panes may lie, metres.
 const RECESS_REACH_M: f64 = 0.5;
 
-/// The window and door faces as boxes `[u0, u1, z0, z1]` in their wall's coordinates, grown by `grow`: a line
-/// along an opening's outline or inside it (its frame, its panes) is no course of the wall.
-fn opening_boxes(vertices: &[Vertex], faces: &[Face], walls: &[&Wall], grow: f64) -> Vec<(usize, [f64; 4])> {
-    let parallel = |f: &Face, w: &Wall| f.normal.dot(&w.out).abs() > 0.99;
-    faces
-        .iter()
-        .filter(|f| matches!(f.kind, SurfaceKind::Window | SurfaceKind::Door))
-        .filter_map(|f| {
-            let w = (0..walls.len())
-                .find(|&w| parallel(f, walls[w]) && f.ring.iter().all(|&v| walls[w].depth(&vertices[v].point).abs() < RECESS_REACH_M))?;
-            let ring: Vec<Vec3> = f.ring.iter().map(|&v| vertices[v].point).collect();
-            let [u0, u1, z0, z1] = Outline::of(&ring, f.normal).bounds_in(walls[w]);
-            Some((w, [u0 - grow, u1 + grow, z0 - grow, z1 + grow]))
+/// The window and door faces as boxes `[u0, u1, z0, z1]` in their wall's coordinates, each with its wall.
+pub(crate) struct OpeningBoxes<'a> {
+    walls: Vec<&'a Wall>,
+    boxes: Vec<(usize, [f64; 4])>,
+}
+
+impl<'a> OpeningBoxes<'a> {
+    /// The boxes of the window and door faces of `walls`, grown by `grow`: a line along an opening's outline or
+    /// inside it (its frame, its panes) is no course of the wall.
+    pub(crate) fn of(vertices: &[Vertex], faces: &[Face], walls: Vec<&'a Wall>, grow: f64) -> OpeningBoxes<'a> {
+        let parallel = |f: &Face, w: &Wall| f.normal.dot(&w.out).abs() > 0.99;
+        let boxes = faces
+            .iter()
+            .filter(|f| matches!(f.kind, SurfaceKind::Window | SurfaceKind::Door))
+            .filter_map(|f| {
+                let w = (0..walls.len()).find(|&w| {
+                    parallel(f, walls[w]) && f.ring.iter().all(|&v| walls[w].depth(&vertices[v].point).abs() < RECESS_REACH_M)
+                })?;
+                let ring: Vec<Vec3> = f.ring.iter().map(|&v| vertices[v].point).collect();
+                let [u0, u1, z0, z1] = Outline::of(&ring, f.normal).bounds_in(walls[w]);
+                Some((w, [u0 - grow, u1 + grow, z0 - grow, z1 + grow]))
+            })
+            .collect();
+        OpeningBoxes { walls, boxes }
+    }
+
+    /// Whether `p` lies in a box, within the deepest recess of its wall.
+    pub(crate) fn holds(&self, p: &Vec3) -> bool {
+        self.boxes.iter().any(|&(w, [u0, u1, z0, z1])| {
+            let u = p.dot(&self.walls[w].across);
+            self.walls[w].depth(p).abs() < RECESS_REACH_M && u >= u0 && u <= u1 && p.z >= z0 && p.z <= z1
         })
-        .collect()
+    }
 }
 
 /// A level or plumb line in its wall's coordinates: its position across its direction and its extent along it.

@@ -1,7 +1,7 @@
 //! The model of a synthetic façade's true edges with noise added, scored against the truth as `lineflow eval`
 //! scores it (targets of issue #8: vertex RMSE ≤ 1 GSD, edge precision and recall ≥ 95 %).
 use lineflow_eval::{model::evaluate, Truth};
-use lineflow_model::{build, export, Cameras, Model, ModelLine, ModelParams, SurfaceKind};
+use lineflow_model::{build, export, Cameras, LooseLines, Model, ModelLine, ModelParams, SurfaceKind};
 use lineflow_photogrammetry::Vec3;
 use lineflow_synthetic::{rng::Rng, Synthetic};
 
@@ -158,14 +158,21 @@ fn bad_input_gives_an_empty_or_loose_model_without_panicking() {
     ];
     let m = build(&degenerate, &params, &Cameras::default());
     assert!(m.vertices.is_empty() && m.faces.is_empty());
-    // Two parallel lines: no corner, no face, both kept as loose edges.
+    // Two parallel lines: no corner, no face, both kept as loose edges when asked; by default, with no opening
+    // they could belong to, they go.
     let parallel = vec![
         ModelLine::new(Vec3::zeros(), Vec3::new(1.0, 0.0, 0.0), 0.01),
         ModelLine::new(Vec3::new(0.0, 0.0, 1.0), Vec3::new(1.0, 0.0, 1.0), 0.01),
     ];
-    let m = build(&parallel, &params, &Cameras::default());
+    let keep = ModelParams {
+        loose_lines: LooseLines::Keep,
+        ..ModelParams::default()
+    };
+    let m = build(&parallel, &keep, &Cameras::default());
     assert_eq!((m.edges.len(), m.faces.len(), m.diagnostics.lines_used), (2, 0, 0));
     assert!(export::cityjson(&m)["CityObjects"].as_object().unwrap().is_empty());
+    let m = build(&parallel, &params, &Cameras::default());
+    assert_eq!((m.edges.len(), m.diagnostics.loose_dropped), (0, 2));
 }
 
 /// Every image's visible true edges as 2-D lines in measured pixels, endpoints jittered by `sigma_px`.
