@@ -102,6 +102,9 @@ pub(crate) fn find_with_walls(
     if params.panes {
         crate::openings::add_panes(&walls, params, vertices, edges_out, &mut faces);
     }
+    if params.glass {
+        crate::openings::add_glass(&walls, params, vertices, edges_out, &mut faces);
+    }
     if params.sills {
         let cos_par = params.plane_angle_deg.to_radians().cos();
         crate::openings::add_sills(&walls, params.sill_rule(), cos_par, vertices, edges_out, &faces);

@@ -261,6 +261,12 @@ pub struct ModelParams {
     /// Give the windows with a frame and no panes the panes their lines, or those of the wall's windows of their
     /// size, lay out ([`openings`], "Panes").
     pub panes: bool,
+    /// Give every pane its glass behind it, with the reveals from the frame's face to the glass ([`openings`],
+    /// "Glass").
+    pub glass: bool,
+    /// How far the glass lies behind its pane's frame where the lines do not show it, metres (a glazing bead's
+    /// depth; the lines' own measure, where enough of them show it, comes first).
+    pub glass_inset_m: f64,
 }
 
 impl Default for ModelParams {
@@ -311,6 +317,8 @@ impl Default for ModelParams {
             sill_proud_max_m: 0.3,
             sill_reach_m: 0.3,
             panes: true,
+            glass: true,
+            glass_inset_m: 0.015,
         }
     }
 }
@@ -429,6 +437,7 @@ impl lineflow_runtime::StageParams for ModelParams {
             ("surface_margin_m", self.surface_margin_m),
             ("frame_min_m", self.frame_min_m),
             ("sill_proud_min_m", self.sill_proud_min_m),
+            ("glass_inset_m", self.glass_inset_m),
         ] {
             non_negative(name, v)?;
         }

@@ -85,6 +85,7 @@ mod evidence;
 #[cfg(test)]
 mod flush_tests;
 mod frames;
+mod glass;
 mod grid;
 mod panes;
 mod recesses;
@@ -96,6 +97,7 @@ mod sills;
 mod wall;
 pub(crate) use evidence::Evidence;
 pub(crate) use frames::add_frames;
+pub(crate) use glass::add_glass;
 pub(crate) use panes::add_panes;
 pub(crate) use sills::{add_sills, SillRule};
 pub(crate) use wall::{Outline, Wall};
