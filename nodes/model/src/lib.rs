@@ -258,8 +258,8 @@ pub struct ModelParams {
     pub sill_proud_max_m: f64,
     /// How far below its window's foot a sill's top may lie, metres.
     pub sill_reach_m: f64,
-    /// Give the windows with a frame and no panes the panes their lines, or those of the wall's windows of their
-    /// size, lay out ([`openings`], "Panes").
+    /// Give every window whose frame the model knows the panes its lines, or those of the wall's windows of its
+    /// size, lay out and it lacks ([`openings`], "Panes").
     pub panes: bool,
     /// Give every pane its glass behind it, with the reveals from the frame's face to the glass ([`openings`],
     /// "Glass").
