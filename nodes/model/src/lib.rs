@@ -864,9 +864,12 @@ pub fn build_with_images(lines: &[ModelLine], params: &ModelParams, cameras: &Ca
         for (l, corners_on) in on_line.iter().enumerate() {
             loose[kept[l]] = corners_on.is_empty();
         }
-        let boxes = openings_boxes(&vertices, &faces, &walls);
-        let at_opening =
-            |e: &Edge| params.loose_lines == LooseLines::Openings && boxes.holds(&((vertices[e.a].point + vertices[e.b].point) / 2.0));
+        let boxes = (params.loose_lines == LooseLines::Openings).then(|| openings_boxes(&vertices, &faces, &walls));
+        let at_opening = |e: &Edge| {
+            boxes
+                .as_ref()
+                .is_some_and(|b| b.holds(&((vertices[e.a].point + vertices[e.b].point) / 2.0)))
+        };
         let leaving: std::collections::HashSet<[usize; 2]> = edges
             .iter()
             .filter(|e| loose.get(e.line).copied().unwrap_or(false) && !at_opening(e))
@@ -1179,22 +1182,14 @@ mod tests {
             .collect();
         lines.push(ModelLine::new(Vec3::new(3.0, 0.0, 0.5), Vec3::new(4.0, 0.0, 0.5), 0.002));
         let cameras = Cameras::from(Vec3::new(0.5, -10.0, 0.5));
-        let with = build(
-            &lines,
-            &ModelParams {
-                loose_lines: LooseLines::Keep,
+        let with_mode = |loose_lines: LooseLines| {
+            let params = ModelParams {
+                loose_lines,
                 ..ModelParams::default()
-            },
-            &cameras,
-        );
-        let without = build(
-            &lines,
-            &ModelParams {
-                loose_lines: LooseLines::Drop,
-                ..ModelParams::default()
-            },
-            &cameras,
-        );
+            };
+            build(&lines, &params, &cameras)
+        };
+        let (with, without) = (with_mode(LooseLines::Keep), with_mode(LooseLines::Drop));
         assert_eq!(with.edges.len(), 5, "{:?}", with.edges);
         assert_eq!(without.edges.len(), 4, "{:?}", without.edges);
         assert_eq!(without.diagnostics.loose_dropped, 1);

@@ -24,11 +24,10 @@ const GLASS_CLUSTER_M: f64 = 0.02;
 /// The panes on `wall`: window faces parallel to it, behind it by at least [`FLUSH_MIN_M`] and at most the deepest
 /// recess, inside an opening's outline on the wall and spanning none (that face is the frame). Their indices.
 fn panes_of(wall: &Wall, outlines: &[Outline], faces: &[Face], sizes: OpeningSizes, cos_par: f64) -> Vec<usize> {
-    let parallel = |o: &Outline| o.normal.dot(&wall.out).abs() > cos_par;
     let openings: Vec<[f64; 4]> = faces
         .iter()
         .zip(outlines)
-        .filter(|(f, o)| f.kind == SurfaceKind::Window && parallel(o) && wall.depth(&o.centroid).abs() < FLUSH_MIN_M)
+        .filter(|(f, o)| f.kind == SurfaceKind::Window && o.on(wall, cos_par, FLUSH_MIN_M))
         .map(|(_, o)| o.bounds_in(wall))
         .collect();
     let reach = sizes.frame_m.1;
@@ -36,7 +35,10 @@ fn panes_of(wall: &Wall, outlines: &[Outline], faces: &[Face], sizes: OpeningSiz
         .filter(|&k| {
             let o = &outlines[k];
             let depth = wall.depth(&o.centroid);
-            if faces[k].kind != SurfaceKind::Window || !parallel(o) || !(FLUSH_MIN_M..=sizes.recess_m.1).contains(&depth) {
+            if faces[k].kind != SurfaceKind::Window
+                || !o.on(wall, cos_par, f64::INFINITY)
+                || !(FLUSH_MIN_M..=sizes.recess_m.1).contains(&depth)
+            {
                 return false;
             }
             let [a0, a1, b0, b1] = o.bounds_in(wall);
@@ -99,13 +101,23 @@ pub(crate) fn add_glass(
     edges: &mut Vec<Edge>,
     faces: &mut Vec<Face>,
 ) {
+    glaze(walls.iter().map(|v| &v.wall), params, vertices, edges, faces);
+}
+
+/// [`add_glass`] on the walls themselves.
+fn glaze<'w>(
+    walls: impl Iterator<Item = &'w Wall>,
+    params: &ModelParams,
+    vertices: &mut Vec<Vertex>,
+    edges: &mut Vec<Edge>,
+    faces: &mut Vec<Face>,
+) {
     let cos_par = params.plane_angle_deg.to_radians().cos();
     let sizes = params.opening_sizes();
     let outlines = Outline::of_faces(faces, vertices);
     let mut taken = vec![false; faces.len()];
     let mut glass = Vec::new();
-    for view in walls {
-        let wall = &view.wall;
+    for wall in walls {
         let panes: Vec<usize> = panes_of(wall, &outlines, faces, sizes, cos_par)
             .into_iter()
             .filter(|&k| !taken[k])
@@ -119,7 +131,7 @@ pub(crate) fn add_glass(
         let rings: Vec<([f64; 4], f64)> = faces
             .iter()
             .zip(&outlines)
-            .filter(|(f, o)| f.kind == SurfaceKind::Window && o.normal.dot(&wall.out).abs() > cos_par)
+            .filter(|(f, o)| f.kind == SurfaceKind::Window && o.on(wall, cos_par, f64::INFINITY))
             .flat_map(|(f, _)| std::iter::once(&f.ring).chain(&f.holes))
             .map(|ring| {
                 let points: Vec<Vec3> = ring.iter().map(|&v| vertices[v].point).collect();
@@ -204,6 +216,33 @@ mod tests {
             None,
             "too few lines"
         );
+    }
+
+    #[test]
+    fn each_pane_gets_its_glass_and_reveals_unless_its_glass_closed() {
+        // A window 1–2 m across and up in the wall y = 0, its two panes 12 cm behind; the left pane's glass closed
+        // as a face of its own 4 cm behind it.
+        let out = Vec3::new(0.0, -1.0, 0.0);
+        let (mut vertices, mut edges, mut faces) = (Vec::new(), Vec::new(), Vec::new());
+        let mut face = |[x0, x1, z0, z1]: [f64; 4], y: f64| {
+            let corners = [[x0, y, z0], [x1, y, z0], [x1, y, z1], [x0, y, z1]].map(vertex).to_vec();
+            add_face(corners, out, SurfaceKind::Window, &mut vertices, &mut edges, &mut faces);
+        };
+        face([1.0, 2.0, 1.0, 2.0], 0.0);
+        face([1.05, 1.47, 1.05, 1.95], 0.12);
+        face([1.53, 1.95, 1.05, 1.95], 0.12);
+        face([1.05, 1.47, 1.05, 1.95], 0.16);
+        let (n_faces, n_edges) = (faces.len(), edges.len());
+        let params = ModelParams::default();
+        glaze(std::iter::once(&wall()), &params, &mut vertices, &mut edges, &mut faces);
+        assert_eq!(faces.len(), n_faces + 1, "only the right pane gets glass");
+        let glass: Vec<Vec3> = faces[n_faces].ring.iter().map(|&v| vertices[v].point).collect();
+        assert!(
+            glass.iter().all(|p| (p.y - 0.12 - params.glass_inset_m).abs() < 1e-9 && p.x > 1.5),
+            "{glass:?}"
+        );
+        assert_eq!(edges.len(), n_edges + 8, "the glass's ring and its four reveals");
+        assert!(edges[n_edges..].iter().all(|e| e.origin == EdgeOrigin::Inferred));
     }
 
     #[test]

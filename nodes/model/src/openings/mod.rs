@@ -175,9 +175,7 @@ pub(crate) fn infer(
         let wall = &walls[p.wall].wall;
         let [x0, x1, z0, z1] = p.rect.bounds;
         let centre = wall.point((x0 + x1) / 2.0, (z0 + z1) / 2.0, &viewpoint);
-        let on_wall_here = |o: &Outline| {
-            o.normal.dot(&wall.out).abs() > cos_par && wall.depth(&o.centroid).abs() < sizes.recess_m.0 && o.contains(&centre)
-        };
+        let on_wall_here = |o: &Outline| o.on(wall, cos_par, sizes.recess_m.0) && o.contains(&centre);
         if found_near(&found, &wall.out, &centre, sizes.recess_m.0) {
             continue;
         }
@@ -215,8 +213,11 @@ pub(crate) fn infer(
     // The rows and columns of what was found on each wall predict what was missed.
     for (w, view) in walls.iter().enumerate() {
         let wall = &view.wall;
-        let on_this_wall = |o: &&Outline| o.normal.dot(&wall.out).abs() > cos_par && wall.depth(&o.centroid).abs() < sizes.recess_m.0;
-        let taken: Vec<[f64; 4]> = found.iter().filter(on_this_wall).map(|o| o.bounds_in(wall)).collect();
+        let taken: Vec<[f64; 4]> = found
+            .iter()
+            .filter(|o| o.on(wall, cos_par, sizes.recess_m.0))
+            .map(|o| o.bounds_in(wall))
+            .collect();
         for rect in from_grid(view, &taken, &viewpoint, evidence.filter(|_| params.verify_openings)) {
             let [x0, x1, z0, z1] = rect.bounds;
             let centre = wall.point((x0 + x1) / 2.0, (z0 + z1) / 2.0, &viewpoint);
@@ -236,12 +237,14 @@ pub(crate) fn infer(
     }
     // Each new opening with the sides its row and column agree on. Those found count; a predicted one copies its
     // row's and column's sides, and a row's wrong foot copied along it would outvote the openings that show it.
-    let predicted: Vec<usize> = news.iter().filter(|n| n.3).map(|n| n.2).collect();
+    let mut predicted = vec![false; found.len()];
+    for n in news.iter().filter(|n| n.3) {
+        predicted[n.2] = true;
+    }
     for &(k, w, own, _) in &news {
         let wall = &walls[w].wall;
-        let on_this_wall = |o: &Outline| o.normal.dot(&wall.out).abs() > cos_par && wall.depth(&o.centroid).abs() < sizes.recess_m.0;
         let others: Vec<[f64; 4]> = (found.iter().enumerate())
-            .filter(|&(j, o)| j != own && !predicted.contains(&j) && on_this_wall(o))
+            .filter(|&(j, o)| j != own && !predicted[j] && o.on(wall, cos_par, sizes.recess_m.0))
             .map(|(_, o)| o.bounds_in(wall))
             .collect();
         if let Inferred::New { corners, .. } = &mut out[k] {

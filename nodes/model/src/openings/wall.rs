@@ -139,6 +139,12 @@ impl Outline {
             .collect()
     }
 
+    /// Whether the ring lies on `wall`: its normal within `cos_par` of the wall's, its centroid within `within_m`
+    /// of the wall's plane.
+    pub(super) fn on(&self, wall: &Wall, cos_par: f64, within_m: f64) -> bool {
+        self.normal.dot(&wall.out).abs() > cos_par && wall.depth(&self.centroid).abs() < within_m
+    }
+
     /// The ring's bounds `[x0, x1, z0, z1]` in `wall`'s coordinates.
     pub(crate) fn bounds_in(&self, wall: &Wall) -> [f64; 4] {
         let xs: Vec<f64> = self.points.iter().map(|p| p.dot(&wall.across)).collect();
@@ -221,6 +227,14 @@ mod tests {
         (vertices, (0..zs.len()).map(|k| edge(2 * k, 2 * k + 1)).collect())
     }
 
+    /// Two sets of vertices and edges as one.
+    fn joined((mut vertices, mut edges): (Vec<Vertex>, Vec<Edge>), (more_v, more_e): (Vec<Vertex>, Vec<Edge>)) -> (Vec<Vertex>, Vec<Edge>) {
+        let n = vertices.len();
+        vertices.extend(more_v);
+        edges.extend(more_e.iter().map(|e| edge(e.a + n, e.b + n)));
+        (vertices, edges)
+    }
+
     /// On a plastered wall, or a brick one whose courses the line stage classed texture, the model's own edges
     /// near the wall are mostly nearly flush frames 2 cm behind it; a median of them settled the wall on the frames
     /// and every reveal came out 2 cm short. The face is in front of them, and the courses, where given, agree.
@@ -233,13 +247,7 @@ mod tests {
         let wall = Wall::facing(plane, &Vec3::new(3.0, -19.0, 1.6)).unwrap();
         let (outline_v, outline_e) = level_lines(0.0, &[0.0, 6.0], 8.0);
         let (frames_v, frames_e) = level_lines(0.02, &[1.0, 1.5, 2.5, 3.0, 4.0, 4.5], 8.0);
-        let mut vertices = outline_v.clone();
-        vertices.extend(frames_v);
-        let edges: Vec<Edge> = outline_e
-            .iter()
-            .copied()
-            .chain(frames_e.iter().map(|e| edge(e.a + outline_v.len(), e.b + outline_v.len())))
-            .collect();
+        let (vertices, edges) = joined((outline_v, outline_e), (frames_v, frames_e));
         let none: (&[Vertex], &[Edge]) = (&[], &[]);
         let on_frames = wall.settled([(&vertices, &edges), none], 0.06);
         assert!(
@@ -247,14 +255,7 @@ mod tests {
             "the frames outweigh the face: {}",
             on_frames.plane.offset
         );
-        let (sill_v, sill_e) = level_lines(-0.05, &[0.9, 2.4], 1.0);
-        let mut with_sills = vertices.clone();
-        with_sills.extend(sill_v);
-        let sills: Vec<Edge> = edges
-            .iter()
-            .copied()
-            .chain(sill_e.iter().map(|e| edge(e.a + vertices.len(), e.b + vertices.len())))
-            .collect();
+        let (with_sills, sills) = joined((vertices.clone(), edges.clone()), level_lines(-0.05, &[0.9, 2.4], 1.0));
         let past_sills = wall.settled([(&with_sills, &sills), none], 0.06);
         assert!(
             past_sills.depth(&Vec3::zeros()).abs() < 1e-9,
