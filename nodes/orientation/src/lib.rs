@@ -7,11 +7,14 @@
 //! the tracks already intersected, starting at the nearest oriented frame or its extrapolation along the path; new
 //! tracks are intersected; the latest `window` frames are adjusted (the sliding window), the earlier ones held. As
 //! soon as three control points are intersected the block is moved into the control frame by a similarity and the
-//! control points join the adjustment with their a-priori standard deviations. At the end a full adjustment removes
-//! outliers and solves again, and the check points are intersected for `checkpoints.csv`.
+//! control points join the adjustment with their a-priori standard deviations. From then on a resected frame must
+//! agree with the control points it measures, or is resected from them (`control_veto`: ties matched a storey or
+//! a bay off). At the end a full adjustment removes outliers and solves again, and the check points are intersected
+//! for `checkpoints.csv`.
 #![warn(missing_docs)]
 pub mod calibration_report;
 pub mod colmap;
+mod control_veto;
 mod essential;
 pub mod results;
 pub mod stage;
@@ -204,6 +207,9 @@ pub struct Block {
     interior: Vec<Interior>,
     /// The principal distance of the camera the block was made for, mm (the prior of a self-calibrated f).
     nominal_focal_mm: f64,
+    /// Tracks whose observations in some frame disagreed with that frame's control points, and the track those
+    /// observations were moved to (`control_veto`).
+    split: BTreeMap<u64, u64>,
 }
 
 /// What is known about one oriented frame besides its pose.
@@ -239,6 +245,7 @@ impl Block {
             order: Vec::new(),
             states: BTreeMap::new(),
             finished: false,
+            split: BTreeMap::new(),
         }
     }
 
@@ -448,11 +455,19 @@ impl Block {
     }
 
     fn resect_frame(&mut self, k: u64) -> bool {
-        let (xyz, obs): (Vec<Vec3>, Vec<[f64; 2]>) = self
-            .tracks
-            .values()
-            .filter_map(|t| Some((t.point?, t.obs.iter().find(|o| o.0 == k)?.1)))
-            .unzip();
+        let mut ties = control_veto::Resection {
+            xyz: Vec::new(),
+            ideal: Vec::new(),
+            tracks: Vec::new(),
+        };
+        for (&id, t) in &self.tracks {
+            if let (Some(x), Some(o)) = (t.point, t.obs.iter().find(|o| o.0 == k)) {
+                ties.xyz.push(x);
+                ties.ideal.push(o.1);
+                ties.tracks.push(id);
+            }
+        }
+        let (xyz, obs) = (&ties.xyz, &ties.ideal);
         if xyz.len() < self.params.min_resect_points {
             tracing::warn!("frame {k}: only {} intersected tie points, not oriented yet", xyz.len());
             return false;
@@ -472,13 +487,17 @@ impl Block {
         }
         let best = starts
             .iter()
-            .filter_map(|s| resect(self.camera.focal_mm, s, &xyz, &obs, sigma))
+            .filter_map(|s| resect(self.camera.focal_mm, s, xyz, obs, sigma))
             .min_by(|x, y| x.1.total_cmp(&y.1));
         match best {
-            Some((pose, median)) if median < 3.0 * sigma => {
-                self.poses.insert(k, pose);
-                true
-            }
+            Some((pose, median)) if median < 3.0 * sigma => match self.checked_by_controls(k, pose, &ties) {
+                Some(pose) => {
+                    self.split_disagreeing(k, &pose, &ties);
+                    self.poses.insert(k, pose);
+                    true
+                }
+                None => false,
+            },
             Some((_, median)) => {
                 tracing::warn!(
                     "frame {k}: resection failed: median residual {:.1} px of {} tie points (at most {:.1} px), \
@@ -511,7 +530,7 @@ impl Block {
             .tracks
             .iter()
             .filter(|(_, t)| t.point.is_none())
-            .filter_map(|(&id, t)| self.triangulate(t).map(|x| (id, x)))
+            .filter_map(|(&id, t)| self.triangulate(t).filter(|x| self.rays_meet(t, x)).map(|x| (id, x)))
             .collect();
         for (id, x) in updates {
             if let Some(t) = self.tracks.get_mut(&id) {
