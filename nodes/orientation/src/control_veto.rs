@@ -10,6 +10,7 @@
 //! the frames that share them, not of the point their track was intersected at).
 
 use lineflow_photogrammetry::bundle::resect;
+use lineflow_photogrammetry::intersect::intersect_rays;
 use lineflow_photogrammetry::median;
 use lineflow_photogrammetry::{Camera, Pose, Vec3};
 
@@ -18,8 +19,12 @@ use crate::Block;
 /// Track ids of split-off observations start here, above any id the matcher gives.
 const SPLIT_TRACKS_FROM: u64 = 1 << 62;
 
-/// Control points needed to resect a frame from them alone.
-const MIN_CONTROLS_TO_RESECT: usize = 4;
+/// Control points needed to place a frame whose ties they veto: two, with the ties' rotation held, give its centre
+/// with one redundancy; four or more are resected from.
+const MIN_CONTROLS: usize = 2;
+
+/// Control points (and agreeing ties) from which a frame is resected in all six elements.
+const MIN_POINTS_TO_RESECT: usize = 4;
 
 /// How far (metres) the viewing ray of a measured pixel passes from the object point.
 pub(crate) fn ray_miss(camera: &Camera, pose: &Pose, ideal: [f64; 2], x: &Vec3) -> f64 {
@@ -55,57 +60,72 @@ impl Block {
             .collect()
     }
 
+    /// Where the control points place a frame whose ties put it at `pose`: ties matched a storey or a bay off
+    /// move the centre by that step and keep the rotation, so the centre is first found with the rotation held
+    /// (the point nearest the rays cast back from the surveyed points along their measured directions), then, with
+    /// four control points or more, all six elements are resected. `None` when the result leaves the control
+    /// points' rays off them by more than the gate.
+    fn placed_by_controls(&self, pose: &Pose, controls: &[(Vec3, [f64; 2])]) -> Option<Pose> {
+        let back: Vec<(Vec3, Vec3)> = controls.iter().map(|(x, o)| (*x, -pose.ray_of_ideal(&self.camera, *o))).collect();
+        let (center, _) = intersect_rays(&back)?;
+        let mut placed = Pose { center, ..*pose };
+        if controls.len() >= MIN_POINTS_TO_RESECT {
+            let sigma = self.params.target_sigma_px * self.camera.pixel_size_mm;
+            let (cx, co): (Vec<Vec3>, Vec<[f64; 2]>) = controls.iter().copied().unzip();
+            placed = resect(self.camera.focal_mm, &placed, &cx, &co, sigma)?.0;
+        }
+        self.control_miss(&placed, controls)
+            .is_some_and(|m| m <= self.control_gate_m())
+            .then_some(placed)
+    }
+
     /// Median distance (metres) of frame `k`'s control rays under `pose` from the surveyed points.
     fn control_miss(&self, pose: &Pose, controls: &[(Vec3, [f64; 2])]) -> Option<f64> {
         median(controls.iter().map(|(x, o)| ray_miss(&self.camera, pose, *o, x)).collect())
     }
 
     /// `pose`, resected for frame `k` from `ties`, if the control points the frame measures agree with it;
-    /// otherwise the pose resected from the control points and the ties that agree with them. `None` (with a
-    /// warning) when the control points disagree and are too few to resect from.
+    /// otherwise the pose the control points place it at, resected again with the ties that agree with it. `None`
+    /// (with a warning) when the control points disagree and fewer than two, or no pose fits them.
     pub(crate) fn checked_by_controls(&mut self, k: u64, pose: Pose, ties: &Resection) -> Option<Pose> {
         let controls = self.controls_seen(k);
         let gate = self.control_gate_m();
         let Some(miss) = self.control_miss(&pose, &controls).filter(|&m| m > gate) else {
             return Some(pose);
         };
-        if controls.len() < MIN_CONTROLS_TO_RESECT {
+        if controls.len() < MIN_CONTROLS {
             tracing::warn!(
-                "frame {k}: its tie points put it where its {} control points' rays pass {miss:.2} m from them \
-                 (repeated façade structure matched a storey or bay off?), and {MIN_CONTROLS_TO_RESECT} are needed \
-                 to resect it from them; not oriented",
+                "frame {k}: its tie points put it where its {} control point's ray passes {miss:.2} m from it \
+                 (repeated façade structure matched a storey or bay off?), and {MIN_CONTROLS} are needed to place \
+                 it by them; not oriented",
                 controls.len()
             );
             return None;
         }
-        let sigma = self.params.target_sigma_px * self.camera.pixel_size_mm;
-        let (cx, co): (Vec<Vec3>, Vec<[f64; 2]>) = controls.iter().copied().unzip();
-        let from_controls = resect(self.camera.focal_mm, &pose, &cx, &co, sigma)
-            .map(|(p, _)| p)
-            .filter(|p| self.control_miss(p, &controls).is_some_and(|m| m <= gate));
-        let Some(from_controls) = from_controls else {
+        let Some(from_controls) = self.placed_by_controls(&pose, &controls) else {
             tracing::warn!(
                 "frame {k}: its {} control points' rays pass {miss:.2} m from them and no pose fits the control \
-                 points alone; not oriented",
+                 points; not oriented",
                 controls.len()
             );
             return None;
         };
         let agrees = |p: &Pose, i: usize| ray_miss(&self.camera, p, ties.ideal[i], &ties.xyz[i]) <= gate;
         let agreeing: Vec<usize> = (0..ties.xyz.len()).filter(|&i| agrees(&from_controls, i)).collect();
-        let mut xyz = cx;
-        let mut ideal = co;
+        let (mut xyz, mut ideal): (Vec<Vec3>, Vec<[f64; 2]>) = controls.iter().copied().unzip();
         xyz.extend(agreeing.iter().map(|&i| ties.xyz[i]));
         ideal.extend(agreeing.iter().map(|&i| ties.ideal[i]));
         let tie_sigma = self.tie_sigma_px * self.camera.pixel_size_mm;
-        let joint = resect(self.camera.focal_mm, &from_controls, &xyz, &ideal, tie_sigma)
+        let joint = (xyz.len() >= MIN_POINTS_TO_RESECT)
+            .then(|| resect(self.camera.focal_mm, &from_controls, &xyz, &ideal, tie_sigma))
+            .flatten()
             .map(|(p, _)| p)
             .filter(|p| self.control_miss(p, &controls).is_some_and(|m| m <= gate))
             .unwrap_or(from_controls);
         tracing::warn!(
             "frame {k}: its tie points put it where its {} control points' rays pass {miss:.2} m from them \
-             (repeated façade structure matched a storey or bay off?); resected from the control points and the \
-             {} of {} tie points that agree with them",
+             (repeated façade structure matched a storey or bay off?); placed by the control points and the {} of \
+             {} tie points that agree with them",
             controls.len(),
             agreeing.len(),
             ties.xyz.len(),
@@ -273,8 +293,14 @@ mod tests {
     }
 
     #[test]
-    fn a_frame_tied_a_storey_off_with_three_control_points_is_left_unoriented() {
-        let (mut block, _) = second_strip(3, f64::INFINITY);
+    fn with_two_or_three_control_points_the_rotation_of_the_ties_is_held_and_with_one_the_frame_is_left_out() {
+        for controls in [2, 3] {
+            let (mut block, truth) = second_strip(controls, f64::INFINITY);
+            assert!(block.resect_frame(2), "{controls} control points");
+            let pose = block.poses[&2];
+            assert!((pose.center - truth.center).norm() < 1e-3, "{controls}: at {:?}", pose.center);
+        }
+        let (mut block, _) = second_strip(1, f64::INFINITY);
         assert!(!block.resect_frame(2));
         assert!(!block.poses.contains_key(&2));
     }
