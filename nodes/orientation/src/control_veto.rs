@@ -16,7 +16,8 @@ use lineflow_photogrammetry::{Camera, Pose, Vec3};
 
 use crate::Block;
 
-/// Track ids of split-off observations start here, above any id the matcher gives.
+/// Track ids of split-off observations start here, far above the ids the `matcher` stage gives (it counts from 1);
+/// a tie-point source of its own numbering must stay below it.
 const SPLIT_TRACKS_FROM: u64 = 1 << 62;
 
 /// Control points needed to place a frame whose ties they veto: two, with the ties' rotation held, give its centre
