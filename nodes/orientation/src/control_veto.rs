@@ -131,6 +131,7 @@ impl Block {
             agreeing.len(),
             ties.xyz.len(),
         );
+        self.vetoed.insert(k);
         Some(joint)
     }
 
@@ -291,6 +292,7 @@ mod tests {
         assert!(split
             .iter()
             .all(|t| block.tracks[t].obs.len() == 1 && block.tracks[t].point.is_none()));
+        assert_eq!(block.vetoed.iter().copied().collect::<Vec<_>>(), [2]);
     }
 
     #[test]
@@ -314,6 +316,7 @@ mod tests {
         assert!((block.poses[&2].center - truth.center).norm() < 1e-6);
         assert_eq!(block.tracks.len(), before);
         assert!(block.split.is_empty());
+        assert!(block.vetoed.is_empty());
     }
 
     #[test]

@@ -210,6 +210,8 @@ pub struct Block {
     /// Tracks whose observations in some frame disagreed with that frame's control points, and the track those
     /// observations were moved to (`control_veto`).
     split: BTreeMap<u64, u64>,
+    /// Frames whose ties their control points vetoed, placed by those control points instead.
+    pub vetoed: BTreeSet<u64>,
 }
 
 /// What is known about one oriented frame besides its pose.
@@ -246,6 +248,7 @@ impl Block {
             states: BTreeMap::new(),
             finished: false,
             split: BTreeMap::new(),
+            vetoed: BTreeSet::new(),
         }
     }
 
@@ -761,6 +764,14 @@ impl Block {
                 continue;
             }
             self.intersect_new();
+        }
+        if !self.vetoed.is_empty() {
+            tracing::warn!(
+                "{} frames were placed by their control points, their tie points vetoed (repeated façade structure \
+                 matched a storey or bay off?): {:?}",
+                self.vetoed.len(),
+                self.vetoed
+            );
         }
         match self.method {
             Method::Bundle => {
