@@ -14,7 +14,9 @@ use lineflow_photogrammetry::intersect::intersect_rays;
 use lineflow_photogrammetry::median;
 use lineflow_photogrammetry::{Camera, Pose, Vec3};
 
-use crate::Block;
+use std::collections::BTreeMap;
+
+use crate::{Block, Track};
 
 /// Track ids of split-off observations start here, far above the ids the `matcher` stage gives (it counts from 1);
 /// a tie-point source of its own numbering must stay below it.
@@ -27,9 +29,14 @@ const MIN_CONTROLS: usize = 2;
 /// Control points (and agreeing ties) from which a frame is resected in all six elements.
 const MIN_POINTS_TO_RESECT: usize = 4;
 
+/// How far (metres) the ray from `center` along the unit `direction` passes from `x`.
+fn miss(center: &Vec3, direction: &Vec3, x: &Vec3) -> f64 {
+    (x - center).cross(direction).norm()
+}
+
 /// How far (metres) the viewing ray of a measured pixel passes from the object point.
-pub(crate) fn ray_miss(camera: &Camera, pose: &Pose, ideal: [f64; 2], x: &Vec3) -> f64 {
-    (x - pose.center).cross(&pose.ray_of_ideal(camera, ideal)).norm()
+fn ray_miss(camera: &Camera, pose: &Pose, ideal: [f64; 2], x: &Vec3) -> f64 {
+    miss(&pose.center, &pose.ray_of_ideal(camera, ideal), x)
 }
 
 /// Tie points for a resection: intersected object points, the new frame's ideal coordinates of them, their tracks.
@@ -37,6 +44,25 @@ pub(crate) struct Resection {
     pub xyz: Vec<Vec3>,
     pub ideal: Vec<[f64; 2]>,
     pub tracks: Vec<u64>,
+}
+
+impl Resection {
+    /// The intersected tracks frame `k` observes.
+    pub(crate) fn of_frame(tracks: &BTreeMap<u64, Track>, k: u64) -> Self {
+        let mut ties = Resection {
+            xyz: Vec::new(),
+            ideal: Vec::new(),
+            tracks: Vec::new(),
+        };
+        for (&id, t) in tracks {
+            if let (Some(x), Some(o)) = (t.point, t.obs.iter().find(|o| o.0 == k)) {
+                ties.xyz.push(x);
+                ties.ideal.push(o.1);
+                ties.tracks.push(id);
+            }
+        }
+        ties
+    }
 }
 
 impl Block {
@@ -158,16 +184,12 @@ impl Block {
         }
     }
 
-    /// Whether every oriented ray of track `t` passes within the control gate of its intersection `x`, once the
+    /// Whether every one of a track's `rays` passes within the control gate of their intersection `x`, once the
     /// block is in the control frame. A track first seen in one frame of each strip, matched a storey off, is
     /// intersected where its two skew rays pass closest; its point is left out (a frame resected later splits the
     /// observation off), as the adjustments cannot tell which of two rays is wrong.
-    pub(crate) fn rays_meet(&self, t: &crate::Track, x: &Vec3) -> bool {
-        !self.georeferenced
-            || t.obs
-                .iter()
-                .filter_map(|(f, o)| self.poses.get(f).map(|p| ray_miss(&self.camera, p, *o, x)))
-                .all(|m| m <= self.control_gate_m())
+    pub(crate) fn rays_meet(&self, rays: &[(Vec3, Vec3)], x: &Vec3) -> bool {
+        !self.georeferenced || rays.iter().all(|(c, d)| miss(c, d, x) <= self.control_gate_m())
     }
 
     /// Moves frame `k`'s observations of `tracks` into tracks of their own (one per original track, shared by

@@ -211,7 +211,7 @@ pub struct Block {
     /// observations were moved to (`control_veto`).
     split: BTreeMap<u64, u64>,
     /// Frames whose ties their control points vetoed, placed by those control points instead.
-    pub vetoed: BTreeSet<u64>,
+    vetoed: BTreeSet<u64>,
 }
 
 /// What is known about one oriented frame besides its pose.
@@ -458,18 +458,7 @@ impl Block {
     }
 
     fn resect_frame(&mut self, k: u64) -> bool {
-        let mut ties = control_veto::Resection {
-            xyz: Vec::new(),
-            ideal: Vec::new(),
-            tracks: Vec::new(),
-        };
-        for (&id, t) in &self.tracks {
-            if let (Some(x), Some(o)) = (t.point, t.obs.iter().find(|o| o.0 == k)) {
-                ties.xyz.push(x);
-                ties.ideal.push(o.1);
-                ties.tracks.push(id);
-            }
-        }
+        let ties = control_veto::Resection::of_frame(&self.tracks, k);
         let (xyz, obs) = (&ties.xyz, &ties.ideal);
         if xyz.len() < self.params.min_resect_points {
             tracing::warn!("frame {k}: only {} intersected tie points, not oriented yet", xyz.len());
@@ -518,14 +507,22 @@ impl Block {
         }
     }
 
-    fn triangulate(&self, t: &Track) -> Option<Vec3> {
-        let rays: Vec<(Vec3, Vec3)> = t
-            .obs
+    /// The track's rays (centre, unit direction) from its oriented frames.
+    fn rays(&self, t: &Track) -> Vec<(Vec3, Vec3)> {
+        t.obs
             .iter()
             .filter_map(|(f, ideal)| self.poses.get(f).map(|p| (p.center, p.ray_of_ideal(&self.camera, *ideal))))
-            .collect();
-        let (x, angle) = intersect_rays(&rays)?;
+            .collect()
+    }
+
+    /// The rays' intersection, where they meet at `min_angle_deg` or more, in front of every camera.
+    fn intersect(&self, rays: &[(Vec3, Vec3)]) -> Option<Vec3> {
+        let (x, angle) = intersect_rays(rays)?;
         (angle.to_degrees() >= self.params.min_angle_deg && rays.iter().all(|(c, d)| (x - c).dot(d) > 0.0)).then_some(x)
+    }
+
+    fn triangulate(&self, t: &Track) -> Option<Vec3> {
+        self.intersect(&self.rays(t))
     }
 
     fn intersect_new(&mut self) {
@@ -533,7 +530,10 @@ impl Block {
             .tracks
             .iter()
             .filter(|(_, t)| t.point.is_none())
-            .filter_map(|(&id, t)| self.triangulate(t).filter(|x| self.rays_meet(t, x)).map(|x| (id, x)))
+            .filter_map(|(&id, t)| {
+                let rays = self.rays(t);
+                self.intersect(&rays).filter(|x| self.rays_meet(&rays, x)).map(|x| (id, x))
+            })
             .collect();
         for (id, x) in updates {
             if let Some(t) = self.tracks.get_mut(&id) {

@@ -87,9 +87,11 @@ fn measured_inset(wall: &Wall, panes: &[([f64; 4], f64)], vertices: &[Vertex], e
 /// The values of the densest run of `values` no wider than `width` (the first of the fullest).
 fn densest(mut values: Vec<f64>, width: f64) -> Option<Vec<f64>> {
     values.sort_by(f64::total_cmp);
-    let end = |i: usize| values[i..].iter().take_while(|&&v| v - values[i] <= width).count();
-    let best = (0..values.len()).max_by(|&a, &b| end(a).cmp(&end(b)).then(b.cmp(&a)))?;
-    Some(values[best..best + end(best)].to_vec())
+    let runs: Vec<usize> = (0..values.len())
+        .map(|i| values[i..].iter().take_while(|&&v| v - values[i] <= width).count())
+        .collect();
+    let best = (0..runs.len()).max_by(|&a, &b| runs[a].cmp(&runs[b]).then(b.cmp(&a)))?;
+    Some(values[best..best + runs[best]].to_vec())
 }
 
 /// Gives every pane of the model's windows on `walls` its glass ring behind it and the four reveals from its
