@@ -220,6 +220,9 @@ pub struct ModelParams {
     pub align_min_lines: usize,
     /// What becomes of the lines that reach no corner ([`LooseLines`]; those at an opening stay by default).
     pub loose_lines: LooseLines,
+    /// Leave out the observed edges parallel to a wall that float in an opening's reveal, between the wall's face
+    /// and the frame behind it, where no surface is ([`openings`], "Empty reveals").
+    pub empty_reveals: bool,
     /// Keep the lines lying inside a wall's surface (mortar, tile and panel joints) out of the model's edges, as
     /// `surface_lines` ([`surface_lines`]).
     pub surface_lines: bool,
@@ -299,6 +302,7 @@ impl Default for ModelParams {
             align_k: 2.0,
             align_min_lines: 3,
             loose_lines: LooseLines::Openings,
+            empty_reveals: true,
             surface_lines: true,
             surface_band_m: 0.03,
             surface_margin_m: 0.1,
@@ -504,6 +508,8 @@ pub struct Diagnostics {
     pub lines_used: usize,
     /// Edges of loose lines left out of the model ([`LooseLines`]).
     pub loose_dropped: usize,
+    /// Observed edges left out where they floated in an opening's empty reveal ([`ModelParams::empty_reveals`]).
+    pub in_empty_reveals: usize,
     /// Lines the line stage (or the model, for unclassed lines) classed texture.
     pub texture_lines: usize,
     pub junction_candidates: usize,
@@ -578,11 +584,12 @@ impl Model {
     pub fn summary(&self) -> String {
         let d = &self.diagnostics;
         format!(
-            "{} of {} lines used ({} classed texture, {} edges of loose lines left out), {} objects ({} left unadjusted, {} corners kept where their lines met), {} vertices, {} edges ({} lines inside a wall's surface set aside), {} faces ({} walls, {} window/door, {} roof), ends resolved by stage 1/2/3: {}/{}/{}, free {}, median sigma0 {}, {} edges refined by image lines, {} occluded boundaries completed, {} objects inside another in plan, lines turned plumb/level/level on a plan direction/sloped on one: {}/{}/{}/{} ({} plan directions), line coordinates aligned along/across the wall/in height: {}/{}/{} ({}/{}/{} shared values)",
+            "{} of {} lines used ({} classed texture, {} edges of loose lines and {} floating in empty reveals left out), {} objects ({} left unadjusted, {} corners kept where their lines met), {} vertices, {} edges ({} lines inside a wall's surface set aside), {} faces ({} walls, {} window/door, {} roof), ends resolved by stage 1/2/3: {}/{}/{}, free {}, median sigma0 {}, {} edges refined by image lines, {} occluded boundaries completed, {} objects inside another in plan, lines turned plumb/level/level on a plan direction/sloped on one: {}/{}/{}/{} ({} plan directions), line coordinates aligned along/across the wall/in height: {}/{}/{} ({}/{}/{} shared values)",
             d.lines_used,
             d.lines_in,
             d.texture_lines,
             d.loose_dropped,
+            d.in_empty_reveals,
             d.objects,
             d.objects_unadjusted,
             d.corners_unadjusted,
@@ -859,6 +866,7 @@ pub fn build_with_images(lines: &[ModelLine], params: &ModelParams, cameras: &Ca
             images: i.lines,
         });
     let (mut faces, walls) = faces::find_with_walls(&mut vertices, &mut edges, params, cameras, &surface, evidence.as_ref());
+    let mut leaving: std::collections::HashSet<[usize; 2]> = std::collections::HashSet::new();
     if params.loose_lines != LooseLines::Keep {
         let mut loose = vec![false; lines.len()];
         for (l, corners_on) in on_line.iter().enumerate() {
@@ -870,16 +878,30 @@ pub fn build_with_images(lines: &[ModelLine], params: &ModelParams, cameras: &Ca
                 .as_ref()
                 .is_some_and(|b| b.holds(&((vertices[e.a].point + vertices[e.b].point) / 2.0)))
         };
-        let leaving: std::collections::HashSet<[usize; 2]> = edges
+        leaving.extend(
+            edges
+                .iter()
+                .filter(|e| loose.get(e.line).copied().unwrap_or(false) && !at_opening(e))
+                .map(|e| sorted_pair(e.a, e.b)),
+        );
+    }
+    let floating: std::collections::HashSet<[usize; 2]> = if params.empty_reveals {
+        let floating = openings::in_empty_reveals(&walls, &vertices, &edges, &faces, params, LOOSE_REACH_M);
+        edges
             .iter()
-            .filter(|e| loose.get(e.line).copied().unwrap_or(false) && !at_opening(e))
-            .map(|e| sorted_pair(e.a, e.b))
-            .collect();
-        let before = edges.len();
-        drop_loose_edges(&mut vertices, &mut edges, &mut faces, corners.len(), |e| {
-            leaving.contains(&sorted_pair(e.a, e.b))
+            .zip(floating)
+            .filter(|(_, f)| *f)
+            .map(|(e, _)| sorted_pair(e.a, e.b))
+            .collect()
+    } else {
+        Default::default()
+    };
+    if !leaving.is_empty() || !floating.is_empty() {
+        let dropped = drop_loose_edges(&mut vertices, &mut edges, &mut faces, corners.len(), |pair| {
+            leaving.contains(pair) || floating.contains(pair)
         });
-        diagnostics.loose_dropped = before - edges.len();
+        diagnostics.in_empty_reveals = dropped.iter().filter(|p| floating.contains(*p)).count();
+        diagnostics.loose_dropped = dropped.len() - diagnostics.in_empty_reveals;
     }
     let surface_lines = if params.surface_lines {
         let rule = surface_lines::SurfaceRule {
@@ -919,22 +941,30 @@ fn openings_boxes<'a>(vertices: &[Vertex], faces: &[Face], walls: &'a [openings:
 /// the foot, a frame's width around.
 const LOOSE_REACH_M: f64 = 0.15;
 
-/// Removes the edges of loose lines that no face uses, and the vertices left without an edge or a face. The first
-/// `n_corners` vertices (the corners, which the objects index) keep their indices; the others are renumbered in
-/// order.
+/// Removes the edges (by their ends) that `leaves` picks and no face uses, and the vertices left without an edge or
+/// a face; returns the ends of the edges removed, as they were numbered before. The first `n_corners` vertices
+/// (the corners, which the objects index) keep their indices; the others are renumbered in order.
 fn drop_loose_edges(
     vertices: &mut Vec<Vertex>,
     edges: &mut Vec<Edge>,
     faces: &mut [Face],
     n_corners: usize,
-    is_loose: impl Fn(&Edge) -> bool,
-) {
+    leaves: impl Fn(&[usize; 2]) -> bool,
+) -> Vec<[usize; 2]> {
     let on_face: std::collections::HashSet<[usize; 2]> = faces
         .iter()
         .flat_map(|f| std::iter::once(&f.ring).chain(&f.holes))
         .flat_map(|ring| (0..ring.len()).map(move |i| sorted_pair(ring[i], ring[(i + 1) % ring.len()])))
         .collect();
-    edges.retain(|e| !is_loose(e) || on_face.contains(&sorted_pair(e.a, e.b)));
+    let mut dropped = Vec::new();
+    edges.retain(|e| {
+        let pair = sorted_pair(e.a, e.b);
+        let stays = !leaves(&pair) || on_face.contains(&pair);
+        if !stays {
+            dropped.push(pair);
+        }
+        stays
+    });
     let mut used = vec![false; vertices.len()];
     used[..n_corners.min(vertices.len())].fill(true);
     for e in edges.iter() {
@@ -967,6 +997,7 @@ fn drop_loose_edges(
             *idx = new_index[*idx];
         }
     }
+    dropped
 }
 
 fn sorted_pair(a: usize, b: usize) -> [usize; 2] {

@@ -81,6 +81,7 @@ pub(crate) enum Inferred {
     },
 }
 
+mod empty_reveals;
 mod evidence;
 #[cfg(test)]
 mod flush_tests;
@@ -95,6 +96,7 @@ mod settle;
 mod sides;
 mod sills;
 mod wall;
+pub(crate) use empty_reveals::in_empty_reveals;
 pub(crate) use evidence::Evidence;
 pub(crate) use frames::add_frames;
 pub(crate) use glass::add_glass;
