@@ -220,9 +220,10 @@ pub struct ModelParams {
     pub align_min_lines: usize,
     /// What becomes of the lines that reach no corner ([`LooseLines`]; those at an opening stay by default).
     pub loose_lines: LooseLines,
-    /// Leave out the observed edges parallel to a wall that float in an opening's reveal, between the wall's face
-    /// and the frame behind it, where no surface is ([`openings`], "Empty reveals").
-    pub empty_reveals: bool,
+    /// Leave out the observed edges parallel to a wall that float at an opening where no surface is: in its reveal
+    /// in front of the frame, or in front of the wall (up to `sill_proud_max_m`) where it has no sill ([`openings`],
+    /// "Floating edges").
+    pub floating_edges: bool,
     /// Keep the lines lying inside a wall's surface (mortar, tile and panel joints) out of the model's edges, as
     /// `surface_lines` ([`surface_lines`]).
     pub surface_lines: bool,
@@ -302,7 +303,7 @@ impl Default for ModelParams {
             align_k: 2.0,
             align_min_lines: 3,
             loose_lines: LooseLines::Openings,
-            empty_reveals: true,
+            floating_edges: true,
             surface_lines: true,
             surface_band_m: 0.03,
             surface_margin_m: 0.1,
@@ -508,8 +509,8 @@ pub struct Diagnostics {
     pub lines_used: usize,
     /// Edges of loose lines left out of the model ([`LooseLines`]).
     pub loose_dropped: usize,
-    /// Observed edges left out where they floated in an opening's empty reveal ([`ModelParams::empty_reveals`]).
-    pub in_empty_reveals: usize,
+    /// Observed edges left out where they floated at an opening ([`ModelParams::floating_edges`]).
+    pub floating_dropped: usize,
     /// Lines the line stage (or the model, for unclassed lines) classed texture.
     pub texture_lines: usize,
     pub junction_candidates: usize,
@@ -584,12 +585,12 @@ impl Model {
     pub fn summary(&self) -> String {
         let d = &self.diagnostics;
         format!(
-            "{} of {} lines used ({} classed texture, {} edges of loose lines and {} floating in empty reveals left out), {} objects ({} left unadjusted, {} corners kept where their lines met), {} vertices, {} edges ({} lines inside a wall's surface set aside), {} faces ({} walls, {} window/door, {} roof), ends resolved by stage 1/2/3: {}/{}/{}, free {}, median sigma0 {}, {} edges refined by image lines, {} occluded boundaries completed, {} objects inside another in plan, lines turned plumb/level/level on a plan direction/sloped on one: {}/{}/{}/{} ({} plan directions), line coordinates aligned along/across the wall/in height: {}/{}/{} ({}/{}/{} shared values)",
+            "{} of {} lines used ({} classed texture, {} edges of loose lines and {} floating at openings left out), {} objects ({} left unadjusted, {} corners kept where their lines met), {} vertices, {} edges ({} lines inside a wall's surface set aside), {} faces ({} walls, {} window/door, {} roof), ends resolved by stage 1/2/3: {}/{}/{}, free {}, median sigma0 {}, {} edges refined by image lines, {} occluded boundaries completed, {} objects inside another in plan, lines turned plumb/level/level on a plan direction/sloped on one: {}/{}/{}/{} ({} plan directions), line coordinates aligned along/across the wall/in height: {}/{}/{} ({}/{}/{} shared values)",
             d.lines_used,
             d.lines_in,
             d.texture_lines,
             d.loose_dropped,
-            d.in_empty_reveals,
+            d.floating_dropped,
             d.objects,
             d.objects_unadjusted,
             d.corners_unadjusted,
@@ -885,8 +886,8 @@ pub fn build_with_images(lines: &[ModelLine], params: &ModelParams, cameras: &Ca
                 .map(|e| sorted_pair(e.a, e.b)),
         );
     }
-    let floating: std::collections::HashSet<[usize; 2]> = if params.empty_reveals {
-        let floating = openings::in_empty_reveals(&walls, &vertices, &edges, &faces, params, LOOSE_REACH_M);
+    let floating: std::collections::HashSet<[usize; 2]> = if params.floating_edges {
+        let floating = openings::floating_at_openings(&walls, &vertices, &edges, &faces, params, LOOSE_REACH_M);
         edges
             .iter()
             .zip(floating)
@@ -900,8 +901,8 @@ pub fn build_with_images(lines: &[ModelLine], params: &ModelParams, cameras: &Ca
         let dropped = drop_loose_edges(&mut vertices, &mut edges, &mut faces, corners.len(), |pair| {
             leaving.contains(pair) || floating.contains(pair)
         });
-        diagnostics.in_empty_reveals = dropped.iter().filter(|p| floating.contains(*p)).count();
-        diagnostics.loose_dropped = dropped.len() - diagnostics.in_empty_reveals;
+        diagnostics.floating_dropped = dropped.iter().filter(|p| floating.contains(*p)).count();
+        diagnostics.loose_dropped = dropped.len() - diagnostics.floating_dropped;
     }
     let surface_lines = if params.surface_lines {
         let rule = surface_lines::SurfaceRule {

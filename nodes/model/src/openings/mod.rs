@@ -81,8 +81,8 @@ pub(crate) enum Inferred {
     },
 }
 
-mod empty_reveals;
 mod evidence;
+mod floating;
 #[cfg(test)]
 mod flush_tests;
 mod frames;
@@ -96,8 +96,8 @@ mod settle;
 mod sides;
 mod sills;
 mod wall;
-pub(crate) use empty_reveals::in_empty_reveals;
 pub(crate) use evidence::Evidence;
+pub(crate) use floating::floating_at_openings;
 pub(crate) use frames::add_frames;
 pub(crate) use glass::add_glass;
 pub(crate) use panes::add_panes;
