@@ -84,8 +84,16 @@ fn measured_inset(wall: &Wall, panes: &[([f64; 4], f64)], vertices: &[Vertex], e
         .and_then(median)
 }
 
+/// Whether an observed edge lies on the ring (the lines closed it, at least in part).
+fn ring_observed(ring: &[usize], observed: &std::collections::HashSet<[usize; 2]>) -> bool {
+    (0..ring.len()).any(|i| {
+        let (a, b) = (ring[i], ring[(i + 1) % ring.len()]);
+        observed.contains(&[a.min(b), a.max(b)])
+    })
+}
+
 /// The values of the densest run of `values` no wider than `width` (the first of the fullest).
-fn densest(mut values: Vec<f64>, width: f64) -> Option<Vec<f64>> {
+pub(super) fn densest(mut values: Vec<f64>, width: f64) -> Option<Vec<f64>> {
     values.sort_by(f64::total_cmp);
     let runs: Vec<usize> = (0..values.len())
         .map(|i| values[i..].iter().take_while(|&&v| v - values[i] <= width).count())
@@ -119,6 +127,11 @@ fn glaze<'w>(
     let outlines = Outline::of_faces(faces, vertices);
     let mut taken = vec![false; faces.len()];
     let mut glass = Vec::new();
+    let observed: std::collections::HashSet<[usize; 2]> = edges
+        .iter()
+        .filter(|e| e.observed())
+        .map(|e| [e.a.min(e.b), e.a.max(e.b)])
+        .collect();
     for wall in walls {
         let panes: Vec<usize> = panes_of(wall, &outlines, faces, sizes, cos_par)
             .into_iter()
@@ -141,7 +154,16 @@ fn glaze<'w>(
                 (Outline::of(&points, wall.out).bounds_in(wall), depth)
             })
             .collect();
-        let measured = measured_inset(wall, &bounds, vertices, edges, SIDE_TOLERANCE_M, sizes.frame_m.1);
+        // Measured at the panes the lines closed where they show it: an added pane's sides are its layout's, and
+        // the lines there are as often the frame's rail and the glass seen as one, between the two, as the glass.
+        let seen: Vec<([f64; 4], f64)> = panes
+            .iter()
+            .zip(&bounds)
+            .filter(|(&k, _)| ring_observed(&faces[k].ring, &observed))
+            .map(|(_, b)| *b)
+            .collect();
+        let measured = measured_inset(wall, &seen, vertices, edges, SIDE_TOLERANCE_M, sizes.frame_m.1)
+            .or_else(|| measured_inset(wall, &bounds, vertices, edges, SIDE_TOLERANCE_M, sizes.frame_m.1));
         let inset = measured.unwrap_or(params.glass_inset_m);
         for (k, (b, depth)) in panes.iter().zip(&bounds) {
             taken[*k] = true;
@@ -245,6 +267,49 @@ mod tests {
         );
         assert_eq!(edges.len(), n_edges + 8, "the glass's ring and its four reveals");
         assert!(edges[n_edges..].iter().all(|e| e.origin == EdgeOrigin::Inferred));
+    }
+
+    #[test]
+    fn the_glass_is_measured_at_the_panes_the_lines_closed() {
+        // Two panes 12 cm behind the wall y = 0. The lines closed the left one, and along its sides 8 lines show
+        // the glass 4.5 cm behind it. The right one was added by its window's layout, and along its sides 10 lines
+        // lie 2 cm behind it: its rail and its glass seen as one. Both panes get their glass 4.5 cm behind.
+        let out = Vec3::new(0.0, -1.0, 0.0);
+        let (mut vertices, mut edges, mut faces) = (Vec::new(), Vec::new(), Vec::new());
+        let mut face = |[x0, x1, z0, z1]: [f64; 4], y: f64, vertices: &mut Vec<Vertex>, edges: &mut Vec<Edge>| {
+            let corners = [[x0, y, z0], [x1, y, z0], [x1, y, z1], [x0, y, z1]].map(vertex).to_vec();
+            add_face(corners, out, SurfaceKind::Window, vertices, edges, &mut faces);
+        };
+        face([1.0, 2.0, 1.0, 2.0], 0.0, &mut vertices, &mut edges);
+        let before = edges.len();
+        face([1.05, 1.47, 1.05, 1.95], 0.12, &mut vertices, &mut edges);
+        for e in &mut edges[before..] {
+            e.origin = EdgeOrigin::Observed;
+        }
+        face([1.53, 1.95, 1.05, 1.95], 0.12, &mut vertices, &mut edges);
+        let mut line = |x: f64, y: f64, k: usize| {
+            let z = 1.2 + 0.05 * k as f64;
+            vertices.extend([vertex([x, y, z]), vertex([x, y, z + 0.3])]);
+            edges.push(edge(vertices.len() - 2, vertices.len() - 1));
+        };
+        for k in 0..8 {
+            line(if k % 2 == 0 { 1.05 } else { 1.47 }, 0.165, k);
+        }
+        for k in 0..10 {
+            line(if k % 2 == 0 { 1.53 } else { 1.95 }, 0.14, k);
+        }
+        let n_faces = faces.len();
+        glaze(
+            std::iter::once(&wall()),
+            &ModelParams::default(),
+            &mut vertices,
+            &mut edges,
+            &mut faces,
+        );
+        assert_eq!(faces.len(), n_faces + 2, "both panes get glass");
+        for f in &faces[n_faces..] {
+            assert!(f.ring.iter().all(|&v| (vertices[v].point.y - 0.165).abs() < 1e-9));
+        }
     }
 
     #[test]

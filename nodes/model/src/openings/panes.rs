@@ -2,6 +2,7 @@
 //! show the panes' sides in the frame's plane, but a rail's line often runs on across a mullion, and the faces of
 //! few panes close. The windows of a wall are of a few kinds, each with one layout of panes: the layout the lines
 //! show clearly at some windows of a size is given to every window of that size on the wall ([`add_panes`]).
+use super::glass::densest;
 use super::*;
 use lineflow_photogrammetry::median;
 
@@ -14,17 +15,20 @@ const MIN_PANE_M: f64 = 0.15;
 /// Windows within this of each other in width and height are of one size, metres.
 const SIZE_TOLERANCE_M: f64 = 0.04;
 
-/// The panes' sides across one direction of a window, as offsets from its first side: pairs (a pane's two sides)
-/// with at most `bar_m` (a mullion or transom) between one pair and the next, and at least [`MIN_PANE_M`] within a
-/// pair. None where the positions do not pair up so.
-fn pair_up(positions: &[f64], bar_m: f64) -> Option<Vec<(f64, f64)>> {
+/// The panes' sides across one direction `[lo, hi]` of a window: pairs (a pane's two sides) with at most `bar_m` (a
+/// mullion or transom) between one pair and the next, at least [`MIN_PANE_M`] within a pair, and the panes filling
+/// the window: the first side and the last at most `bar_m` (the frame's width) inside its outline. None where the
+/// positions do not pair up so; where some sides were not seen, the rest often pair up into too few panes (one rail
+/// and the far side of a mullion make one wide pane), and the frame's width tells.
+fn pair_up(positions: &[f64], [lo, hi]: [f64; 2], bar_m: f64) -> Option<Vec<(f64, f64)>> {
     if positions.len() < 2 || positions.len() % 2 == 1 {
         return None;
     }
     let pairs: Vec<(f64, f64)> = positions.chunks(2).map(|c| (c[0], c[1])).collect();
     let wide = pairs.iter().all(|p| p.1 - p.0 >= MIN_PANE_M);
     let bars = pairs.windows(2).all(|w| w[1].0 - w[0].1 <= bar_m);
-    (wide && bars).then_some(pairs)
+    let fills = positions[0] - lo <= bar_m && hi - positions[positions.len() - 1] <= bar_m;
+    (wide && bars && fills).then_some(pairs)
 }
 
 /// The positions of the panes' sides inside `[lo, hi]` from the sides in the frame's plane (`at`, cover of the
@@ -45,9 +49,11 @@ type Layout = (Vec<(f64, f64)>, Vec<(f64, f64)>);
 
 /// The layouts of a wall's windows (`windows`: bounds and the frame's depth), from the standing and lying sides
 /// behind the wall at each frame's depth: a window's own where its lines pair up, else the one most windows of its
-/// size show (their median offsets), else none.
+/// size show (their median offsets), else the one the sides of its size's windows show together ([`pooled`]), else
+/// none.
 fn layouts(windows: &[([f64; 4], f64)], standing: &[Side], lying: &[Side], bar_m: f64) -> Vec<Option<Layout>> {
-    let own: Vec<Option<Layout>> = windows
+    // Each window's panes' sides across and up, as offsets from its outline's first corner.
+    let sides: Vec<(Vec<f64>, Vec<f64>)> = windows
         .iter()
         .map(|&([x0, x1, z0, z1], depth)| {
             let at = |sides: &[Side], lo: f64, hi: f64| -> Vec<(f64, f64)> {
@@ -57,32 +63,62 @@ fn layouts(windows: &[([f64; 4], f64)], standing: &[Side], lying: &[Side], bar_m
                     .map(|s| (s.at, s.cover(lo, hi)))
                     .collect()
             };
-            let across = pair_up(&positions(&at(standing, z0, z1), x0, x1), bar_m)?;
-            let up = pair_up(&positions(&at(lying, x0, x1), z0, z1), bar_m)?;
-            let offset = |pairs: Vec<(f64, f64)>, from: f64| pairs.into_iter().map(|(a, b)| (a - from, b - from)).collect();
-            Some((offset(across, x0), offset(up, z0)))
+            let offsets = |positions: Vec<f64>, from: f64| positions.into_iter().map(|p| p - from).collect();
+            (
+                offsets(positions(&at(standing, z0, z1), x0, x1), x0),
+                offsets(positions(&at(lying, x0, x1), z0, z1), z0),
+            )
         })
         .collect();
     let size = |b: &[f64; 4]| (b[1] - b[0], b[3] - b[2]);
+    let own: Vec<Option<Layout>> = windows
+        .iter()
+        .zip(&sides)
+        .map(|((bounds, _), (across, up))| {
+            let (w, h) = size(bounds);
+            Some((pair_up(across, [0.0, w], bar_m)?, pair_up(up, [0.0, h], bar_m)?))
+        })
+        .collect();
     windows
         .iter()
         .zip(&own)
         .map(|((bounds, _), mine)| {
             mine.clone().or_else(|| {
                 let (w, h) = size(bounds);
-                let alike: Vec<&Layout> = windows
-                    .iter()
-                    .zip(&own)
-                    .filter(|((b, _), _)| {
-                        let (bw, bh) = size(b);
+                let alike: Vec<usize> = (0..windows.len())
+                    .filter(|&k| {
+                        let (bw, bh) = size(&windows[k].0);
                         (bw - w).abs() <= SIZE_TOLERANCE_M && (bh - h).abs() <= SIZE_TOLERANCE_M
                     })
-                    .filter_map(|(_, l)| l.as_ref())
                     .collect();
-                common(&alike)
+                let layouts: Vec<&Layout> = alike.iter().filter_map(|&k| own[k].as_ref()).collect();
+                common(&layouts).or_else(|| {
+                    let across: Vec<&[f64]> = alike.iter().map(|&k| sides[k].0.as_slice()).collect();
+                    let up: Vec<&[f64]> = alike.iter().map(|&k| sides[k].1.as_slice()).collect();
+                    Some((
+                        pair_up(&pooled(&across)?, [0.0, w], bar_m)?,
+                        pair_up(&pooled(&up)?, [0.0, h], bar_m)?,
+                    ))
+                })
             })
         })
         .collect()
+}
+
+/// The panes' sides (offsets) that the windows of one size show together, where no window shows them all: the
+/// densest runs, one after another, of the windows' offsets within twice [`SIDE_TOLERANCE_M`] (the outlines' own
+/// noise adds to the sides'), each at its median, while at least a quarter of the windows (and two) show it. The
+/// windows of a wall share their layout, and a side hidden at one (behind its reveal, in a shadow) is seen at others.
+fn pooled(windows: &[&[f64]]) -> Option<Vec<f64>> {
+    let mut left: Vec<f64> = windows.iter().flat_map(|w| w.iter().copied()).collect();
+    let needed = (windows.len() / 4).max(2);
+    let mut sides = Vec::new();
+    while let Some(run) = densest(left.clone(), 2.0 * SIDE_TOLERANCE_M).filter(|run| run.len() >= needed) {
+        left.retain(|v| !run.contains(v));
+        sides.push(median(run)?);
+    }
+    sides.sort_by(f64::total_cmp);
+    (!sides.is_empty()).then_some(sides)
 }
 
 /// The layout most of `layouts` share (the same numbers of panes across and up), with each offset their median;
@@ -303,11 +339,40 @@ mod tests {
     }
 
     #[test]
+    fn the_sides_no_window_shows_whole_are_pooled_from_its_size() {
+        // Eight windows, each showing some of the sides 0.06, 0.67, 0.73 and 1.34 (a few millimetres off), one a
+        // stray line at 0.4 as well: the four sides come back, the stray one does not.
+        let seen: [&[f64]; 8] = [
+            &[0.06, 0.67],
+            &[0.061, 0.731, 1.342],
+            &[0.668, 0.73],
+            &[0.059, 1.338],
+            &[0.4, 0.671, 1.341],
+            &[0.062, 0.729],
+            &[0.058, 0.672, 1.339],
+            &[0.733],
+        ];
+        let sides = pooled(&seen).unwrap();
+        let want = [0.06, 0.67, 0.73, 1.34];
+        assert_eq!(sides.len(), 4, "{sides:?}");
+        assert!(sides.iter().zip(want).all(|(s, w)| (s - w).abs() < 0.003), "{sides:?}");
+        assert_eq!(pooled(&[&[0.4], &[1.0]]), None, "each seen once");
+    }
+
+    #[test]
     fn positions_that_do_not_pair_into_panes_give_no_layout() {
         // Three rails alone: odd; two sides 10 cm apart: no pane; a bar wider than a frame's: two windows.
-        assert!(pair_up(&[0.05, 0.6, 0.95], 0.15).is_none());
-        assert!(pair_up(&[0.05, 0.15], 0.15).is_none());
-        assert!(pair_up(&[0.05, 0.4, 0.7, 0.95], 0.15).is_none());
-        assert_eq!(pair_up(&[0.05, 0.47, 0.53, 0.95], 0.15), Some(vec![(0.05, 0.47), (0.53, 0.95)]));
+        let window = [0.0, 1.0];
+        assert!(pair_up(&[0.05, 0.6, 0.95], window, 0.15).is_none());
+        assert!(pair_up(&[0.05, 0.15], window, 0.15).is_none());
+        assert!(pair_up(&[0.05, 0.4, 0.7, 0.95], window, 0.15).is_none());
+        assert_eq!(
+            pair_up(&[0.05, 0.47, 0.53, 0.95], window, 0.15),
+            Some(vec![(0.05, 0.47), (0.53, 0.95)])
+        );
+        // A pane's first side and the far side of the mullion, the rest unseen: one wide pane, leaving half the
+        // window without glazing; the upper pane's rails alone, the lower pane missing.
+        assert!(pair_up(&[0.05, 0.53], window, 0.15).is_none());
+        assert!(pair_up(&[0.53, 0.95], window, 0.15).is_none());
     }
 }
