@@ -142,34 +142,24 @@ pub(crate) fn floating_at_openings(
 
 #[cfg(test)]
 mod tests {
+    use super::super::tests::{edge, vertex};
     use super::*;
     use crate::surface::Plane;
-
-    fn vertex(x: f64, y: f64, z: f64) -> Vertex {
-        Vertex {
-            point: Vec3::new(x, y, z),
-            sigma: None,
-        }
-    }
 
     /// A rectangle at depth `y` (the wall is y = 0, seen from y < 0), x 1–2, z 1–2, as a face of `kind`.
     fn rectangle(y: f64, kind: SurfaceKind, vertices: &mut Vec<Vertex>) -> Face {
         let first = vertices.len();
-        vertices.extend([vertex(1.0, y, 1.0), vertex(2.0, y, 1.0), vertex(2.0, y, 2.0), vertex(1.0, y, 2.0)]);
+        vertices.extend([
+            vertex([1.0, y, 1.0]),
+            vertex([2.0, y, 1.0]),
+            vertex([2.0, y, 2.0]),
+            vertex([1.0, y, 2.0]),
+        ]);
         Face {
             ring: (first..first + 4).collect(),
             holes: Vec::new(),
             normal: -Vec3::y(),
             kind,
-        }
-    }
-
-    fn observed(a: usize, b: usize) -> Edge {
-        Edge {
-            a,
-            b,
-            line: 0,
-            origin: EdgeOrigin::Observed,
         }
     }
 
@@ -193,8 +183,8 @@ mod tests {
         ];
         let mut edges = Vec::new();
         for &y in depths {
-            vertices.extend([vertex(1.1, y, 1.95), vertex(1.9, y, 1.95)]);
-            edges.push(observed(vertices.len() - 2, vertices.len() - 1));
+            vertices.extend([vertex([1.1, y, 1.95]), vertex([1.9, y, 1.95])]);
+            edges.push(edge(vertices.len() - 2, vertices.len() - 1));
         }
         (vertices, edges, faces)
     }
@@ -211,11 +201,11 @@ mod tests {
     #[test]
     fn a_ring_at_one_depth_is_a_stepped_reveal_and_stays() {
         let (mut vertices, mut edges, faces) = window(0.3, &[0.12]);
-        vertices.extend([vertex(1.1, 0.12, 1.05), vertex(1.9, 0.12, 1.05)]);
-        edges.push(observed(vertices.len() - 2, vertices.len() - 1));
+        vertices.extend([vertex([1.1, 0.12, 1.05]), vertex([1.9, 0.12, 1.05])]);
+        edges.push(edge(vertices.len() - 2, vertices.len() - 1));
         for x in [1.05, 1.95] {
-            vertices.extend([vertex(x, 0.12, 1.1), vertex(x, 0.12, 1.9)]);
-            edges.push(observed(vertices.len() - 2, vertices.len() - 1));
+            vertices.extend([vertex([x, 0.12, 1.1]), vertex([x, 0.12, 1.9])]);
+            edges.push(edge(vertices.len() - 2, vertices.len() - 1));
         }
         let floating = floating_at_openings(&[wall()], &vertices, &edges, &faces, &ModelParams::default(), 0.15);
         assert_eq!(floating, vec![false; 4]);
@@ -238,10 +228,10 @@ mod tests {
         let (mut vertices, mut edges, mut faces) = window(0.3, &[-0.05, -0.1, -1.0]);
         let first = vertices.len();
         vertices.extend([
-            vertex(0.9, -0.05, 0.9),
-            vertex(2.1, -0.05, 0.9),
-            vertex(2.1, -0.05, 0.95),
-            vertex(0.9, -0.05, 0.95),
+            vertex([0.9, -0.05, 0.9]),
+            vertex([2.1, -0.05, 0.9]),
+            vertex([2.1, -0.05, 0.95]),
+            vertex([0.9, -0.05, 0.95]),
         ]);
         faces.push(Face {
             ring: (first..first + 4).collect(),
@@ -255,8 +245,8 @@ mod tests {
         // show where no sill was built, and stays.
         faces.pop();
         edges.truncate(1);
-        vertices.extend([vertex(1.1, -0.05, 0.95), vertex(1.9, -0.05, 0.95)]);
-        edges.push(observed(vertices.len() - 2, vertices.len() - 1));
+        vertices.extend([vertex([1.1, -0.05, 0.95]), vertex([1.9, -0.05, 0.95])]);
+        edges.push(edge(vertices.len() - 2, vertices.len() - 1));
         let floating = floating_at_openings(&[wall()], &vertices, &edges, &faces, &ModelParams::default(), 0.15);
         assert_eq!(floating, vec![true, false]);
     }
@@ -264,12 +254,12 @@ mod tests {
     #[test]
     fn an_edge_along_the_reveal_is_its_side_and_inferred_edges_are_not_judged() {
         let (mut vertices, mut edges, faces) = window(0.3, &[]);
-        vertices.extend([vertex(1.0, 0.0, 2.0), vertex(1.0, 0.3, 2.0)]);
-        edges.push(observed(vertices.len() - 2, vertices.len() - 1));
-        vertices.extend([vertex(1.1, 0.12, 1.95), vertex(1.9, 0.12, 1.95)]);
+        vertices.extend([vertex([1.0, 0.0, 2.0]), vertex([1.0, 0.3, 2.0])]);
+        edges.push(edge(vertices.len() - 2, vertices.len() - 1));
+        vertices.extend([vertex([1.1, 0.12, 1.95]), vertex([1.9, 0.12, 1.95])]);
         edges.push(Edge {
             origin: EdgeOrigin::Inferred,
-            ..observed(vertices.len() - 2, vertices.len() - 1)
+            ..edge(vertices.len() - 2, vertices.len() - 1)
         });
         let floating = floating_at_openings(&[wall()], &vertices, &edges, &faces, &ModelParams::default(), 0.15);
         assert_eq!(floating, vec![false, false]);

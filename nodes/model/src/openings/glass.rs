@@ -86,10 +86,7 @@ fn measured_inset(wall: &Wall, panes: &[([f64; 4], f64)], vertices: &[Vertex], e
 
 /// Whether an observed edge lies on the ring (the lines closed it, at least in part).
 fn ring_observed(ring: &[usize], observed: &std::collections::HashSet<[usize; 2]>) -> bool {
-    (0..ring.len()).any(|i| {
-        let (a, b) = (ring[i], ring[(i + 1) % ring.len()]);
-        observed.contains(&[a.min(b), a.max(b)])
-    })
+    (0..ring.len()).any(|i| observed.contains(&crate::sorted_pair(ring[i], ring[(i + 1) % ring.len()])))
 }
 
 /// The values of the densest run of `values` no wider than `width` (the first of the fullest).
@@ -130,7 +127,7 @@ fn glaze<'w>(
     let observed: std::collections::HashSet<[usize; 2]> = edges
         .iter()
         .filter(|e| e.observed())
-        .map(|e| [e.a.min(e.b), e.a.max(e.b)])
+        .map(|e| crate::sorted_pair(e.a, e.b))
         .collect();
     for wall in walls {
         let panes: Vec<usize> = panes_of(wall, &outlines, faces, sizes, cos_par)
